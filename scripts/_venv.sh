@@ -1,0 +1,23 @@
+# Sourced by the scripts: creates .venv at the repository root if missing (or if requirements.txt
+# or a package changed since it was set up), installs the pinned dependencies and the project's
+# packages, and activates it. On a ROS 2 machine use colcon instead (see README.md).
+set -euo pipefail
+REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${UH_VENV:-$REPO_ROOT/.venv}"
+PYTHON="${PYTHON:-python3}"
+stamp_src() {
+  cat "$REPO_ROOT/requirements.txt" "$REPO_ROOT"/uh_*/setup.py "$REPO_ROOT"/uh_msgs/msg/*.msg | sha256sum | cut -d' ' -f1
+}
+if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$VENV/.uh_stamp" 2>/dev/null)" != "$(stamp_src)" ]; then
+  echo "[setup] preparing virtualenv $VENV (first run takes a minute)" >&2
+  [ -x "$VENV/bin/python" ] || "$PYTHON" -m venv "$VENV"
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REPO_ROOT/requirements.txt"
+  # uh_msgs installs data files (the .msg definitions), so it is a regular install;
+  # the Python packages are editable so a change in the tree takes effect without reinstalling.
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps "$REPO_ROOT/uh_msgs"
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
+    -e "$REPO_ROOT/uh_runtime" -e "$REPO_ROOT/uh_topology" -e "$REPO_ROOT/uh_sim_node" -e "$REPO_ROOT/uh_controller_node"
+  stamp_src > "$VENV/.uh_stamp"
+fi
+# shellcheck disable=SC1091
+source "$VENV/bin/activate"

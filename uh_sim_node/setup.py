@@ -1,0 +1,28 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'uh_sim_node'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
+    ],
+    package_data={package_name: ['config/*.yaml']},
+    install_requires=['numpy', 'PyYAML', 'uh_topology', 'uh_runtime'],
+    zip_safe=True,
+    maintainer='UH formation maintainers',
+    maintainer_email='maintainers@uh-formation.invalid',
+    description='Unmanned-helicopter dynamics with actuator faults, the per-UH simulator node, the virtual-leader node and the lockstep clock.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+
+        ],
+    },
+)
