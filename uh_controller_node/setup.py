@@ -22,7 +22,8 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-
+            'controller_node = uh_controller_node.controller_node:main',
+            'uh-simulate = uh_controller_node.simulate_cli:main',
         ],
     },
 )

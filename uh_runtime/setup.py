@@ -23,6 +23,8 @@ setup(
     entry_points={
         'console_scripts': [
             'uh = uh_runtime.cli:main',
+            'recorder_node = uh_runtime.recorder:main',
+            'replay_node = uh_runtime.replay:main',
         ],
     },
 )

@@ -1,0 +1,55 @@
+"""Shared fixtures: a private DDS domain per test, processes that are always cleaned up."""
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from uh_runtime.network import loopback_environment
+
+ROOT = Path(__file__).resolve().parents[1]
+_next_domain = [0]
+
+
+@pytest.fixture
+def domain_id(monkeypatch):
+    """A DDS domain id no other test of this session (or a parallel session) uses, with loopback config.
+
+    Ids are spread over 1..230 from the process id so two pytest sessions on one machine rarely
+    collide; ROS_DOMAIN_ID and CYCLONEDDS_URI are set for this process and its children.
+    """
+    _next_domain[0] += 1
+    dom = 1 + (os.getpid() * 7 + _next_domain[0]) % 230
+    for key, value in loopback_environment(dom).items():
+        if os.environ.get(key) != value:
+            monkeypatch.setenv(key, value)
+    return dom
+
+
+@pytest.fixture
+def processes():
+    """Start child processes with ``processes.start(cmd, **popen_kwargs)``; all are killed at teardown."""
+    started = []
+
+    class _Starter:
+        def start(self, cmd, **kwargs):
+            kwargs.setdefault('start_new_session', True)
+            proc = subprocess.Popen(cmd, **kwargs)
+            started.append(proc)
+            return proc
+
+    yield _Starter()
+    for proc in started:
+        if proc.poll() is None:
+            try:
+                os.killpg(proc.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+    for proc in started:
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
