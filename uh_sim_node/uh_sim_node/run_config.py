@@ -1,0 +1,61 @@
+"""Parameters every node of a run declares, validated in one place.
+
+``scenario`` (file or ``paper``), ``clock_mode`` (``lockstep`` | ``realtime``), ``duration``
+(s, 0 = the scenario's) and, for per-UH nodes, ``uh_id``. A bad value raises
+:class:`RunConfigError` naming the parameter and what is allowed; the node entry point turns it into
+a one-line error and a non-zero exit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import uh_runtime as rt
+from uh_topology.scenario import load_scenario
+
+__all__ = ['RunConfig', 'RunConfigError', 'declare_run_parameters', 'CLOCK_MODES']
+
+CLOCK_MODES = ('lockstep', 'realtime')
+
+
+class RunConfigError(ValueError):
+    """A run parameter has a value the node cannot use."""
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    scenario: object        # uh_topology.scenario.Scenario
+    clock_mode: str
+    dt: float               # control period, s
+    last_step: int          # index K of the last step: states 0..K, commands 0..K
+    uh_id: int | None
+
+
+def _describe(text: str, **kwargs):
+    return rt.ParameterDescriptor(description=text, **kwargs)
+
+
+def declare_run_parameters(node, per_uh: bool = True) -> RunConfig:
+    """Declare and read the run parameters of ``node``; load and validate the scenario."""
+    node.declare_parameter('scenario', 'paper', _describe(
+        'scenario YAML file, or "paper" for the bundled paper scenario', read_only=True))
+    node.declare_parameter('clock_mode', 'lockstep', _describe(
+        'lockstep (deterministic, as fast as possible) or realtime (wall-clock ticks)', read_only=True))
+    node.declare_parameter('duration', 0.0, _describe(
+        'run length in s; 0 takes the scenario duration', read_only=True,
+        floating_point_range=[rt.FloatingPointRange(from_value=0.0, to_value=1e6, step=0.0)]))
+    uh_id = None
+    if per_uh:
+        node.declare_parameter('uh_id', 1, _describe(
+            'index of this helicopter in the scenario (leaders first, then followers)', read_only=True,
+            integer_range=[rt.IntegerRange(from_value=1, to_value=10000, step=1)]))
+        uh_id = int(node.get_parameter('uh_id').value)
+    mode = str(node.get_parameter('clock_mode').value)
+    if mode not in CLOCK_MODES:
+        raise RunConfigError(f"parameter 'clock_mode' is {mode!r}; allowed: {', '.join(CLOCK_MODES)}")
+    scenario = load_scenario(str(node.get_parameter('scenario').value))
+    if per_uh and uh_id not in scenario.ids:
+        raise RunConfigError(f"parameter 'uh_id' is {uh_id}, but scenario {scenario.name!r} has UHs "
+                             f"{', '.join(map(str, scenario.ids))}")
+    duration = float(node.get_parameter('duration').value) or float(scenario.duration)
+    last_step = int(round(duration / scenario.dt))
+    return RunConfig(scenario, mode, float(scenario.dt), last_step, uh_id)

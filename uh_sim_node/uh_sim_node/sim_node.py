@@ -1,0 +1,126 @@
+"""Simulator node of one helicopter: ``sim`` in namespace ``/uhN``.
+
+Integrates the helicopter model (:mod:`uh_sim_node.helicopter`) from the commands it receives,
+applies the scenario's fault schedule and faults injected at run time on ``fault``, and publishes
+``state`` and ``fault_truth`` (topic registry: :mod:`uh_topology.topics`).
+
+Clock modes (DESIGN.md section 1):
+
+- ``lockstep``: state 0 is published on ``/clock`` 0; every command k is integrated at once to
+  state k+1 (the step's only input), and the fault truth of step k (state k, command k) is
+  published with it. Nothing depends on arrival times, so the run equals the in-process reference
+  simulation bit for bit.
+- ``realtime``: on each ``/clock`` tick k the plant is integrated up to t_k with the latest command
+  (zero-order hold, latest-value semantics) and state k is published.
+
+Until its first command arrives the plant holds the hover trim.
+"""
+from __future__ import annotations
+
+import uh_runtime as rt
+from uh_runtime import messages as m
+from uh_sim_node.faults import ActuatorFault, FaultError
+from uh_sim_node.helicopter import hover_trim, plant_from_scenario
+from uh_sim_node.wire import (WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg)
+from uh_topology import topics
+from uh_sim_node.run_config import declare_run_parameters
+
+__all__ = ['SimNode', 'main']
+
+
+class SimNode(rt.Node):
+    """Simulator of UH ``uh_id`` (parameter); see the module docstring for the behaviour."""
+
+    def __init__(self, **kwargs):
+        super().__init__('sim', **kwargs)
+        run = declare_run_parameters(self)
+        self.uh_id, self.scenario, self.mode = run.uh_id, run.scenario, run.clock_mode
+        self.dt, self.last_step = run.dt, run.last_step
+        self.plant = plant_from_scenario(self.scenario, self.uh_id)
+        self.command = hover_trim(self.plant.params, yaw=float(self.plant.x[8]))
+        self.step = 0                 # index of the state the plant holds
+        self.published_step = -1      # last state index published
+        qos = topics.qos_profile(topics.STEP_QOS)
+        self.state_pub = self.create_publisher(m.UHState, topics.STATE.name, qos)
+        self.truth_pub = self.create_publisher(m.FaultTruth, topics.FAULT_TRUTH.name, qos)
+        self.create_subscription(m.ActuatorCommand, topics.COMMAND.name, self.on_command, qos)
+        self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
+        self.create_subscription(m.ActuatorFault, topics.FAULT.name, self.on_fault,
+                                 topics.qos_profile(topics.FAULT.qos))
+        self.get_logger().info(
+            f'uh{self.uh_id}: {self.mode} mode, dt {self.dt} s, {self.last_step} steps, '
+            f'{len(self.plant.faults)} scheduled fault(s)')
+
+    # -- inputs -----------------------------------------------------------------------------------
+    def on_clock(self, msg) -> None:
+        k = clock_step(msg, self.dt)
+        if self.mode == 'lockstep':
+            if k == 0 and self.published_step < 0:
+                self._publish_state()
+            return
+        # realtime: integrate with the latest command up to the tick (several steps if ticks were missed)
+        while self.step < min(k, self.last_step):
+            self._integrate_one_step()
+        if self.step > self.published_step:
+            self._publish_state()
+
+    def on_command(self, msg) -> None:
+        try:
+            u = msg_to_command(msg, expected_id=self.uh_id)
+        except WireError as exc:
+            self.get_logger().error(f'rejected command: {exc}; keeping the last valid command')
+            return
+        self.command = u
+        if self.mode != 'lockstep':
+            return
+        k = int(msg.step)
+        if k != self.step:
+            self.get_logger().warn(f'ignored command for step {k}: the plant is at step {self.step}')
+            return
+        if k < self.last_step:
+            self._integrate_one_step()
+            self._publish_state()
+        else:  # the last step: its fault truth completes the record, the plant stops here
+            self._publish_truth(self.step)
+
+    def on_fault(self, msg) -> None:
+        """Run-time fault injection (uh_msgs/ActuatorFault); invalid ones are rejected and logged."""
+        if int(msg.uh_id) != self.uh_id:
+            self.get_logger().error(f'rejected fault injection for uh{msg.uh_id} on /uh{self.uh_id}/fault')
+            return
+        try:
+            fault = ActuatorFault(channel=int(msg.channel), rho=float(msg.rho),
+                                  bias_constant=float(msg.bias_constant), bias_amplitude=float(msg.bias_amplitude),
+                                  bias_frequency=float(msg.bias_frequency), onset_time=float(msg.onset_time))
+        except FaultError as exc:
+            self.get_logger().error(f'rejected fault injection: {exc}')
+            return
+        self.plant.faults.add(fault)
+        note = ' (stuck actuator: outside what the controller can compensate)' if fault.is_stuck else ''
+        self.get_logger().warn(f'fault injected on uh{self.uh_id}: {fault}{note}')
+
+    # -- outputs ----------------------------------------------------------------------------------
+    def _integrate_one_step(self) -> None:
+        self._publish_truth(self.step)
+        t = self.step * self.dt
+        self.plant.step(self.command, t, self.dt)
+        self.step += 1
+
+    def _publish_truth(self, k: int) -> None:
+        t = k * self.dt
+        f_p, f_w = self.plant.lumped_faults(self.command, t)
+        u_actual = self.plant.actual_inputs(self.command, t)
+        self.truth_pub.publish(fault_truth_to_msg(self.uh_id, k, t, f_p, f_w, u_actual,
+                                                  self.plant.fault_active(t), self.plant.stuck(t)))
+
+    def _publish_state(self) -> None:
+        self.state_pub.publish(state_to_msg(self.uh_id, self.step, self.step * self.dt, self.plant.x))
+        self.published_step = self.step
+
+
+def main(args=None):
+    rt.run_node(SimNode, args)
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,40 @@
+"""Virtual-leader node (``virtual_leader``): publishes the reference of DESIGN.md 2.7 on
+``/reference``, one message per ``/clock`` step, computed analytically at t_k = k dt."""
+from __future__ import annotations
+
+import uh_runtime as rt
+from uh_runtime import messages as m
+from uh_sim_node.reference import reference_from_scenario
+from uh_sim_node.run_config import declare_run_parameters
+from uh_sim_node.wire import clock_step, reference_to_msg
+from uh_topology import topics
+
+__all__ = ['VirtualLeaderNode', 'main']
+
+
+class VirtualLeaderNode(rt.Node):
+    def __init__(self, **kwargs):
+        super().__init__('virtual_leader', **kwargs)
+        run = declare_run_parameters(self, per_uh=False)
+        self.dt, self.last_step = run.dt, run.last_step
+        self.reference = reference_from_scenario(run.scenario)
+        self.published_step = -1
+        qos = topics.qos_profile(topics.STEP_QOS)
+        self.pub = self.create_publisher(m.Reference, topics.REFERENCE.name, qos)
+        self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
+
+    def on_clock(self, msg) -> None:
+        k = min(clock_step(msg, self.dt), self.last_step)
+        # publish every step up to k (a realtime clock may skip ticks; lockstep never does)
+        while self.published_step < k:
+            self.published_step += 1
+            t = self.published_step * self.dt
+            self.pub.publish(reference_to_msg(self.published_step, t, self.reference.at(t)))
+
+
+def main(args=None):
+    rt.run_node(VirtualLeaderNode, args)
+
+
+if __name__ == '__main__':
+    main()

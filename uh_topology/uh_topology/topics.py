@@ -1,0 +1,113 @@
+"""The one registry of topic names, message types and QoS of the UH stack.
+
+Per-UH topics are relative names resolved in the UH's namespace ``/uhN`` (so ``-r __ns:=/uh3``
+and remaps work); team-wide topics are absolute. Nodes, the recorder, the run script, the
+documentation table (docs/topics.md) and the subscription audit all read this module.
+
+QoS (ROS 2 profiles):
+
+- per-step data (state, command, status, fault truth, reference, clock): reliable, keep-last
+  ``STEP_DEPTH``, transient-local. Transient-local makes the start of a lockstep run immune to
+  discovery order (a reader matched late still receives the first steps), and the depth bounds how
+  far the recorder may lag behind before the lockstep clock waits for it (``RECORDER_LAG_STEPS``).
+- fault injection: reliable, keep-last 10, volatile (an injection is an event, not state).
+- markers: reliable keep-last 10, volatile.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = [
+    'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
+    'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK', 'MARKERS',
+    'RECORDER_PROGRESS', 'PER_UH', 'TEAM', 'uh_namespace', 'uh_topic', 'team_topics', 'qos_profile',
+]
+
+#: History depth of per-step topics: how many steps a slow reader may fall behind without loss.
+STEP_DEPTH = 100
+#: How many steps the recorder may lag behind the lockstep clock (must stay below STEP_DEPTH).
+RECORDER_LAG_STEPS = 40
+
+
+@dataclass(frozen=True)
+class QosSpec:
+    """A ROS 2 QoS profile as plain data (policy names as in rosbag2's metadata)."""
+
+    reliability: str = 'reliable'      # reliable | best_effort
+    durability: str = 'volatile'       # volatile | transient_local
+    history: str = 'keep_last'         # keep_last | keep_all
+    depth: int = 10
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    """A topic: name (relative = in the UH's namespace), ROS type, QoS, whether it carries one
+    message per lockstep step, and who publishes/subscribes (for documentation and audits)."""
+
+    name: str
+    type: str
+    qos: QosSpec
+    per_step: bool
+    publisher: str
+    subscribers: str
+    description: str
+
+
+STEP_QOS = QosSpec('reliable', 'transient_local', 'keep_last', STEP_DEPTH)
+EVENT_QOS = QosSpec('reliable', 'volatile', 'keep_last', 10)
+
+STATE = TopicSpec('state', 'uh_msgs/msg/UHState', STEP_QOS, True, 'sim (own UH)',
+                  'controller of the same UH and of every UH that hears it; recorder',
+                  'helicopter state at step k')
+COMMAND = TopicSpec('command', 'uh_msgs/msg/ActuatorCommand', STEP_QOS, True, 'controller',
+                    'sim of the same UH; lockstep clock; recorder', 'actuator command for step k')
+STATUS = TopicSpec('status', 'uh_msgs/msg/ControllerStatus', STEP_QOS, True, 'controller', 'recorder',
+                   'controller internals: errors, estimates, saturation, cost rate')
+FAULT_TRUTH = TopicSpec('fault_truth', 'uh_msgs/msg/FaultTruth', STEP_QOS, True, 'sim', 'recorder',
+                        'true lumped faults (never read by a controller)')
+FAULT = TopicSpec('fault', 'uh_msgs/msg/ActuatorFault', EVENT_QOS, False, 'inject_fault (user)',
+                  'sim of the same UH; recorder', 'actuator-fault injection at run time')
+REFERENCE = TopicSpec('/reference', 'uh_msgs/msg/Reference', STEP_QOS, True, 'virtual_leader',
+                      'controllers of leaders with a_i0 > 0; recorder', 'virtual-leader reference at step k')
+CLOCK = TopicSpec('/clock', 'rosgraph_msgs/msg/Clock', STEP_QOS, True, 'clock',
+                  'every node (use_sim_time); recorder', 'simulation time, one message per step')
+MARKERS = TopicSpec('/markers', 'visualization_msgs/msg/MarkerArray', EVENT_QOS, False, 'sim nodes',
+                    'RViz2 / Foxglove; recorder', 'visualisation markers')
+RECORDER_PROGRESS = TopicSpec('/recorder/progress', 'builtin_interfaces/msg/Time', EVENT_QOS, False,
+                              'recorder', 'lockstep clock',
+                              'sim time up to which every per-step topic has been written to the bag')
+
+PER_UH = (STATE, COMMAND, STATUS, FAULT_TRUTH, FAULT)
+TEAM = (REFERENCE, CLOCK)
+
+
+def uh_namespace(uh_id: int) -> str:
+    """Namespace of UH ``uh_id``: ``/uh<id>``."""
+    return f'/uh{int(uh_id)}'
+
+
+def uh_topic(uh_id: int, spec: TopicSpec) -> str:
+    """Fully qualified name of a per-UH topic, e.g. ``uh_topic(2, STATE) == '/uh2/state'``."""
+    if spec.name.startswith('/'):
+        return spec.name
+    return f'{uh_namespace(uh_id)}/{spec.name}'
+
+
+def team_topics(uh_ids) -> list[tuple[str, TopicSpec]]:
+    """Every recorded topic of a team with UHs ``uh_ids``: ``[(full name, spec), ...]``."""
+    topics = [(spec.name, spec) for spec in TEAM]
+    for uh_id in sorted(uh_ids):
+        topics += [(uh_topic(uh_id, spec), spec) for spec in PER_UH]
+    return topics
+
+
+def qos_profile(spec: QosSpec):
+    """Build the node runtime's ``QoSProfile`` (rclpy's on a ROS 2 machine) from ``spec``."""
+    import uh_runtime as rt
+
+    return rt.QoSProfile(
+        reliability=getattr(rt.ReliabilityPolicy, spec.reliability.upper()),
+        durability=getattr(rt.DurabilityPolicy, spec.durability.upper()),
+        history=getattr(rt.HistoryPolicy, spec.history.upper()),
+        depth=spec.depth,
+    )
