@@ -1,0 +1,261 @@
+"""Gains of the composite-learning inverse-optimal fault-tolerant controller (DESIGN.md 2.4-2.6).
+
+The gains of one scenario live in one YAML file (``uh_topology/config/paper_gains.yaml`` for the
+paper scenario), either as a plain mapping or keyed ``/**: ros__parameters:`` like a ROS 2
+parameter file::
+
+    /**:
+      ros__parameters:
+        beta: 2.0
+        tilt_limit_deg: 30.0
+        min_vertical_accel: 2.0
+        outer: {k: ..., r: ..., tau_command: ..., kappa: ..., ...}
+        inner: {k: ..., r: ..., tau_command: ..., tau_rate: ..., kappa: ..., ...}
+
+The comparison cases of DESIGN.md 2.6 are the same gains with exactly these changes:
+
+* ``proposed``: as written;
+* ``case1`` (non-optimal law): ``beta = 1`` (violates Lemma 2's ``beta >= 2``);
+* ``case2`` (no serial-parallel estimation model): ``gamma = gamma_F = 0`` and ``kappa = 0`` in
+  both loops, so the learning laws are driven by the tracking errors alone.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+__all__ = ['CASES', 'GainsError', 'RBFSpec', 'LoopGains', 'ControllerGains']
+
+#: The comparison cases of DESIGN.md 2.6, in report order.
+CASES = ('proposed', 'case1', 'case2')
+
+
+class GainsError(ValueError):
+    """A gains mapping with an unknown, missing or invalid entry, or an unknown case."""
+
+
+@dataclass(frozen=True)
+class RBFSpec:
+    """Gaussian RBF layer of one loop: ``nodes`` centres evenly spaced on ``[low, high]``.
+
+    Attributes
+    ----------
+    nodes : int
+        Number of centres per axis (mu), >= 1.
+    low, high : float
+        First and last centre (m/s outer, rad/s inner), ``low < high`` unless ``nodes == 1``.
+    width : float
+        Width b of ``S_i(x) = exp(-(x - c_i)^2 / b^2)`` (same unit as the centres), > 0.
+    """
+
+    nodes: int
+    low: float
+    high: float
+    width: float
+
+
+@dataclass(frozen=True)
+class LoopGains:
+    """Gains of one loop (outer: position/velocity, DESIGN.md 2.4; inner: attitude/rate, 2.5).
+
+    Attributes
+    ----------
+    k : float
+        k1 (outer) or k3 (inner), 1/s: gain of the first backstepping error in the virtual control.
+    r : float
+        Inverse-optimal input weight r_p / r_w, s; feedback gain of z2 / z4 is ``beta / (2 r)`` 1/s.
+    tau_command : float
+        Time constant of the command filter of alpha_v (outer) or of Theta_d (inner), s.
+    tau_rate : float or None
+        Inner loop only: time constant of the filter of alpha_w, s (``None`` for the outer loop).
+    kappa : float
+        Gain of the serial-parallel estimation model (SPEM), 1/s.
+    learning_rate : float
+        Gamma of the network weights' update law, 1/s.
+    gamma : float
+        Weight of the prediction error in the weights' update law (-).
+    gamma_F : float
+        Weight of the prediction error in the fault observer (-).
+    sigma : float
+        Leakage (sigma-modification) of the network weights (-).
+    lambda_ : float
+        Gain lambda of the fault estimation observer, 1/s (YAML key ``lambda``).
+    sigma_F : float
+        Leakage of the fault estimate (-).
+    fault_bound : float
+        Projection radius of each component of Fhat: m/s^2 (outer), rad/s^2 (inner).
+    weight_bound : float
+        Projection radius of each column (axis) of W, Euclidean norm (m/s^2 or rad/s^2).
+    rbf : RBFSpec
+        Centres and width of the Gaussian basis.
+    """
+
+    k: float
+    r: float
+    tau_command: float
+    tau_rate: float | None
+    kappa: float
+    learning_rate: float
+    gamma: float
+    gamma_F: float
+    sigma: float
+    lambda_: float
+    sigma_F: float
+    fault_bound: float
+    weight_bound: float
+    rbf: RBFSpec
+
+
+@dataclass(frozen=True)
+class ControllerGains:
+    """All gains of one UH controller for one comparison case (DESIGN.md 2.4-2.6).
+
+    Attributes
+    ----------
+    case : str
+        One of :data:`CASES`.
+    beta : float
+        Inverse-optimal factor (-); Lemma 2 requires ``beta >= 2`` (``case1`` sets 1).
+    tilt_limit : float
+        Largest tilt of the thrust vector from vertical, rad (Assumption 3).
+    min_vertical_accel : float
+        Smallest vertical specific thrust demanded, m/s^2 (keeps the thrust pointing up).
+    outer, inner : LoopGains
+        Gains of the position and attitude loops.
+    """
+
+    case: str
+    beta: float
+    tilt_limit: float
+    min_vertical_accel: float
+    outer: LoopGains
+    inner: LoopGains
+
+    @classmethod
+    def from_mapping(cls, mapping, case: str = 'proposed', source: str = 'gains') -> 'ControllerGains':
+        """Build the gains of ``case`` from a gains mapping (see module docstring).
+
+        Parameters
+        ----------
+        mapping : dict
+            Plain mapping or ``{'/**': {'ros__parameters': {...}}}``.
+        case : str
+            ``'proposed'``, ``'case1'`` or ``'case2'`` (DESIGN.md 2.6).
+        source : str
+            Where the mapping came from, used in error messages.
+
+        Raises
+        ------
+        GainsError
+            Unknown case; mapping not a dict; unknown or missing key; value not a finite number
+            of the allowed range.
+        """
+        if case not in CASES:
+            raise GainsError(f'unknown controller case {case!r}; allowed: {", ".join(CASES)}')
+        data = _unwrap(mapping, source)
+        _check_keys(data, _TOP_KEYS, source)
+        beta = _number(data, 'beta', source, minimum=0.0, strict=True)
+        tilt_deg = _number(data, 'tilt_limit_deg', source, minimum=0.0, strict=True)
+        if tilt_deg >= 90.0:
+            raise GainsError(f'{source}: tilt_limit_deg must be < 90, got {tilt_deg!r}')
+        gains = cls(
+            case='proposed',
+            beta=beta,
+            tilt_limit=math.radians(tilt_deg),
+            min_vertical_accel=_number(data, 'min_vertical_accel', source, minimum=0.0, strict=True),
+            outer=_loop(data, 'outer', source),
+            inner=_loop(data, 'inner', source),
+        )
+        return gains.for_case(case)
+
+    def for_case(self, case: str) -> 'ControllerGains':
+        """These gains with the changes of comparison case ``case`` (DESIGN.md 2.6) applied.
+
+        ``case1``: ``beta = 1``. ``case2``: ``gamma = gamma_F = kappa = 0`` in both loops.
+        Nothing else differs. Applied to the proposed gains only (a case is not stacked on another).
+        """
+        if case not in CASES:
+            raise GainsError(f'unknown controller case {case!r}; allowed: {", ".join(CASES)}')
+        if self.case != 'proposed':
+            raise GainsError(f'case {case!r} must be derived from the proposed gains, not from {self.case!r}')
+        if case == 'proposed':
+            return self
+        if case == 'case1':
+            return dataclasses.replace(self, case=case, beta=1.0)
+        no_spem = dict(gamma=0.0, gamma_F=0.0, kappa=0.0)
+        return dataclasses.replace(self, case=case,
+                                   outer=dataclasses.replace(self.outer, **no_spem),
+                                   inner=dataclasses.replace(self.inner, **no_spem))
+
+
+_TOP_KEYS = ('beta', 'tilt_limit_deg', 'min_vertical_accel', 'outer', 'inner')
+_LOOP_KEYS = ('k', 'r', 'tau_command', 'kappa', 'learning_rate', 'gamma', 'gamma_F',
+              'sigma', 'lambda', 'sigma_F', 'fault_bound', 'weight_bound', 'rbf_nodes', 'rbf_low',
+              'rbf_high', 'rbf_width')
+# key -> strictly positive (True) or non-negative (False)
+_LOOP_POSITIVE = {'k': True, 'r': True, 'tau_command': True, 'tau_rate': True, 'kappa': False,
+                  'learning_rate': False, 'gamma': False, 'gamma_F': False, 'sigma': False,
+                  'lambda': False, 'sigma_F': False, 'fault_bound': True, 'weight_bound': True,
+                  'rbf_width': True}
+
+
+def _unwrap(mapping, source):
+    if not isinstance(mapping, dict):
+        raise GainsError(f'{source}: gains must be a mapping, got {type(mapping).__name__}')
+    if '/**' in mapping:
+        if set(mapping) != {'/**'}:
+            raise GainsError(f'{source}: a "/**" keyed gains file may hold only the "/**" key')
+        inner = mapping['/**']
+        if not isinstance(inner, dict) or set(inner) != {'ros__parameters'} \
+                or not isinstance(inner['ros__parameters'], dict):
+            raise GainsError(f'{source}: "/**" must hold exactly one mapping "ros__parameters"')
+        return inner['ros__parameters']
+    return mapping
+
+
+def _check_keys(data, allowed, where):
+    unknown = sorted(str(k) for k in data if k not in allowed)
+    if unknown:
+        raise GainsError(f'{where}: unknown key(s) {unknown}; allowed: {", ".join(allowed)}')
+    missing = [k for k in allowed if k not in data]
+    if missing:
+        raise GainsError(f'{where}: missing key(s) {missing}')
+
+
+def _number(data, key, where, minimum=None, strict=False):
+    value = data[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise GainsError(f'{where}: {key} must be a number, got {value!r}')
+    value = float(value)
+    if not math.isfinite(value):
+        raise GainsError(f'{where}: {key} must be finite, got {value!r}')
+    if minimum is not None and (value < minimum or (strict and value == minimum)):
+        relation = '>' if strict else '>='
+        raise GainsError(f'{where}: {key} must be {relation} {minimum:g}, got {value!r}')
+    return value
+
+
+def _loop(data, name, source):
+    where = f'{source}: {name}'
+    loop = data[name]
+    if not isinstance(loop, dict):
+        raise GainsError(f'{where} must be a mapping of loop gains, got {type(loop).__name__}')
+    keys = _LOOP_KEYS + (('tau_rate',) if name == 'inner' else ())
+    _check_keys(loop, keys, where)
+    values = {key: _number(loop, key, where, minimum=0.0, strict=strict)
+              for key, strict in _LOOP_POSITIVE.items() if key in keys}
+    nodes = loop['rbf_nodes']
+    if isinstance(nodes, bool) or not isinstance(nodes, int) or nodes < 1:
+        raise GainsError(f'{where}: rbf_nodes must be an integer >= 1, got {nodes!r}')
+    low = _number(loop, 'rbf_low', where)
+    high = _number(loop, 'rbf_high', where)
+    if nodes > 1 and not low < high:
+        raise GainsError(f'{where}: rbf_low must be < rbf_high, got {low!r} and {high!r}')
+    return LoopGains(
+        k=values['k'], r=values['r'], tau_command=values['tau_command'], tau_rate=values.get('tau_rate'),
+        kappa=values['kappa'], learning_rate=values['learning_rate'], gamma=values['gamma'],
+        gamma_F=values['gamma_F'], sigma=values['sigma'], lambda_=values['lambda'],
+        sigma_F=values['sigma_F'], fault_bound=values['fault_bound'],
+        weight_bound=values['weight_bound'],
+        rbf=RBFSpec(nodes=nodes, low=low, high=high, width=values['rbf_width']))
