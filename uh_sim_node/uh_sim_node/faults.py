@@ -1,0 +1,210 @@
+"""Actuator fault model of the unmanned helicopter (paper eq. 6, DESIGN.md 2.1).
+
+Each of the four input channels ``(theta_col, theta_tr, delta_lat, delta_lon)`` (indices 0..3,
+the order of :data:`uh_sim_node.helicopter.INPUT_NAMES` and of the ``CHANNEL_*`` constants of
+``uh_msgs/ActuatorFault``) may carry one fault::
+
+    u_actual(t) = rho * u(t) + b(t),   b(t) = bias_constant + bias_amplitude * sin(bias_frequency * t)
+
+from ``onset_time`` on; before the onset ``rho = 1`` and ``b = 0``. The sinusoid uses the absolute
+simulation time ``t`` (not ``t - onset_time``), as the paper writes ``b(t)``. Cases:
+
+* no fault: ``rho = 1, b = 0``;
+* loss of effectiveness only: ``0 < rho < 1, b = 0``;
+* bias only: ``rho = 1, b != 0``;
+* both: ``0 < rho < 1, b != 0``;
+* stuck: ``rho = 0`` -- the actuator sits at ``b(t)`` whatever is commanded. It is simulated, but it
+  is outside what the controller compensates, so :meth:`FaultSchedule.stuck` reports it.
+
+This module is pure Python (no ROS); the physical input limits are applied by the plant
+(:class:`uh_sim_node.helicopter.HelicopterPlant`), not here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Iterable
+
+import numpy as np
+
+__all__ = ['FaultError', 'ActuatorFault', 'FaultSchedule', 'NUM_CHANNELS', 'CHANNEL_NAMES']
+
+#: Number of actuator channels.
+NUM_CHANNELS = 4
+#: Channel names in index order (same order as ``INPUT_NAMES`` of the helicopter model).
+CHANNEL_NAMES = ('theta_col', 'theta_tr', 'delta_lat', 'delta_lon')
+
+
+class FaultError(ValueError):
+    """An actuator fault with an invalid channel or parameter."""
+
+
+def _finite(name: str, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise FaultError(f'fault parameter {name!r} must be a real number, got {value!r} '
+                         f'of type {type(value).__name__}')
+    value = float(value)
+    if not math.isfinite(value):
+        raise FaultError(f'fault parameter {name!r} must be finite, got {value!r}')
+    return value
+
+
+@dataclass(frozen=True)
+class ActuatorFault:
+    """One actuator fault on one channel (paper eq. 6).
+
+    Parameters
+    ----------
+    channel : int
+        Input channel 0..3: 0 = main-rotor collective ``theta_col``, 1 = tail-rotor collective
+        ``theta_tr``, 2 = lateral cyclic ``delta_lat``, 3 = longitudinal cyclic ``delta_lon``.
+    rho : float
+        Effectiveness factor in [0, 1]; 1 = fully effective, 0 = stuck.
+    bias_constant, bias_amplitude : float
+        Constant part and sinusoid amplitude of the bias ``b(t)``, rad.
+    bias_frequency : float
+        Angular frequency of the bias sinusoid, rad/s.
+    onset_time : float
+        Simulation time from which the fault acts, s (>= 0).
+
+    Raises
+    ------
+    FaultError
+        If the channel is not an int in 0..3, ``rho`` is outside [0, 1], ``onset_time`` is
+        negative or any number is not finite.
+    """
+
+    channel: int
+    rho: float
+    bias_constant: float = 0.0
+    bias_amplitude: float = 0.0
+    bias_frequency: float = 0.0
+    onset_time: float = 0.0
+
+    def __post_init__(self):
+        ch = self.channel
+        if isinstance(ch, bool) or not isinstance(ch, (int, np.integer)) or not 0 <= ch < NUM_CHANNELS:
+            raise FaultError(f'fault channel must be an int in 0..3 '
+                             f'(0 theta_col, 1 theta_tr, 2 delta_lat, 3 delta_lon), got {ch!r}')
+        object.__setattr__(self, 'channel', int(ch))
+        for name in ('rho', 'bias_constant', 'bias_amplitude', 'bias_frequency', 'onset_time'):
+            object.__setattr__(self, name, _finite(name, getattr(self, name)))
+        if not 0.0 <= self.rho <= 1.0:
+            raise FaultError(f'fault rho (effectiveness) must be in [0, 1], got {self.rho!r} '
+                             f'on channel {self.channel} ({CHANNEL_NAMES[self.channel]})')
+        if self.onset_time < 0.0:
+            raise FaultError(f'fault onset_time must be >= 0 s, got {self.onset_time!r} '
+                             f'on channel {self.channel} ({CHANNEL_NAMES[self.channel]})')
+
+    @classmethod
+    def from_spec(cls, spec) -> 'ActuatorFault':
+        """Build from any object with the six fault attributes (e.g. ``uh_topology`` ``FaultSpec``)."""
+        return cls(spec.channel, spec.rho, spec.bias_constant, spec.bias_amplitude,
+                   spec.bias_frequency, spec.onset_time)
+
+    @property
+    def is_nominal(self) -> bool:
+        """True when the fault changes nothing (``rho = 1`` and zero bias): it removes a fault."""
+        return self.rho == 1.0 and self.bias_constant == 0.0 and self.bias_amplitude == 0.0
+
+    @property
+    def is_stuck(self) -> bool:
+        """True for ``rho = 0`` (the actuator ignores its command)."""
+        return self.rho == 0.0
+
+    def bias(self, t: float) -> float:
+        """Bias ``b(t)`` in rad at absolute time ``t`` s, ignoring the onset."""
+        if self.bias_amplitude == 0.0:
+            return self.bias_constant
+        return self.bias_constant + self.bias_amplitude * math.sin(self.bias_frequency * t)
+
+    def apply(self, u: float, t: float) -> float:
+        """Actual input of this channel, rad, for command ``u`` rad at time ``t`` s."""
+        if t < self.onset_time:
+            return u
+        return self.rho * u + self.bias(t)
+
+
+class FaultSchedule:
+    """The faults of one helicopter: at most one :class:`ActuatorFault` per channel.
+
+    Parameters
+    ----------
+    faults : iterable of ActuatorFault, optional
+        Initial faults; a later fault of the same channel replaces an earlier one.
+    """
+
+    __slots__ = ('_faults', '_list')
+
+    def __init__(self, faults: Iterable[ActuatorFault] = ()):
+        self._faults: list = [None] * NUM_CHANNELS
+        self._list: tuple = ()
+        for fault in faults:
+            self.add(fault)
+
+    @classmethod
+    def from_specs(cls, specs) -> 'FaultSchedule':
+        """Schedule from plain fault specs with the six :class:`ActuatorFault` attributes."""
+        return cls(ActuatorFault.from_spec(s) for s in specs)
+
+    def add(self, fault: ActuatorFault) -> None:
+        """Set the fault of ``fault.channel``, replacing any earlier fault of that channel.
+
+        A nominal fault (``rho = 1``, no bias) clears the channel.
+        """
+        if not isinstance(fault, ActuatorFault):
+            raise FaultError(f'FaultSchedule.add expects an ActuatorFault, got {type(fault).__name__}')
+        self._faults[fault.channel] = None if fault.is_nominal else fault
+        self._list = tuple(f for f in self._faults if f is not None)
+
+    def clear(self, channel: int | None = None) -> None:
+        """Remove the fault of ``channel`` (all faults when ``None``)."""
+        if channel is None:
+            self._faults = [None] * NUM_CHANNELS
+        else:
+            self._faults[channel] = None
+        self._list = tuple(f for f in self._faults if f is not None)
+
+    def fault(self, channel: int) -> ActuatorFault | None:
+        """The fault of ``channel`` or ``None``."""
+        return self._faults[channel]
+
+    @property
+    def faults(self) -> tuple:
+        """The non-nominal faults, in channel order."""
+        return self._list
+
+    def __len__(self) -> int:
+        return len(self._list)
+
+    def __repr__(self) -> str:
+        return f'FaultSchedule({list(self._list)!r})'
+
+    def apply(self, u, t: float) -> np.ndarray:
+        """Actual inputs ``u_actual`` (4,) rad for commanded inputs ``u`` (4,) rad at time ``t`` s."""
+        out = np.array(u, dtype=float)
+        for f in self._list:
+            out[f.channel] = f.apply(out[f.channel], t)
+        return out
+
+    def apply4(self, u0: float, u1: float, u2: float, u3: float, t: float) -> tuple:
+        """Scalar fast path of :meth:`apply`: returns a tuple of 4 floats."""
+        if not self._list:
+            return u0, u1, u2, u3
+        u = [u0, u1, u2, u3]
+        for f in self._list:
+            if t >= f.onset_time:
+                u[f.channel] = f.rho * u[f.channel] + f.bias(t)
+        return u[0], u[1], u[2], u[3]
+
+    def active(self, t: float) -> bool:
+        """True when any channel is past its onset time at ``t`` s."""
+        return any(t >= f.onset_time for f in self._list)
+
+    def stuck(self, t: float) -> bool:
+        """True when any active channel has ``rho = 0`` (outside what the controller compensates)."""
+        return any(t >= f.onset_time and f.rho == 0.0 for f in self._list)
+
+    def active_channels(self, t: float) -> tuple:
+        """Indices of the channels whose fault acts at ``t`` s."""
+        return tuple(f.channel for f in self._list if t >= f.onset_time)

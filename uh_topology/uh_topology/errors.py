@@ -1,0 +1,162 @@
+"""Exception types of scenario loading and topology validation (DESIGN.md 2.3, 2.7).
+
+Every error is a :class:`ScenarioError` (a ``ValueError``) and carries where it happened:
+
+* ``source`` -- the scenario file (or ``None`` for in-memory data),
+* ``line`` -- the 1-based line in that file when known,
+* ``path`` -- the key path inside the scenario, e.g. ``edges[3].weight``.
+
+The message reads ``<source>:<line>: <path>: <what was wrong>; <what is allowed>``.
+"""
+from __future__ import annotations
+
+__all__ = [
+    'ScenarioError', 'ScenarioNotFoundError', 'ScenarioSyntaxError', 'SchemaError',
+    'UnknownKeyError', 'MissingFieldError', 'WrongTypeError', 'NonFiniteError',
+    'InvalidValueError', 'DuplicateKeyError', 'TopologyError', 'DuplicateIdError',
+    'IdNumberingError', 'UnknownIdError', 'SelfLoopError', 'NegativeWeightError',
+    'DuplicateEdgeError', 'LeaderHearsFollowerError', 'FollowerLinkedToReferenceError',
+    'MissingOffsetError', 'FollowerOffsetError', 'UnreachableLeaderError',
+    'UnreachableFollowerError', 'LaplacianConditionError', 'DuplicateFaultError',
+    'GainsError',
+]
+
+
+class ScenarioError(ValueError):
+    """Base class: a scenario that cannot be used.
+
+    Parameters
+    ----------
+    message : str
+        What was wrong and what is allowed.
+    path : str, optional
+        Key path inside the scenario (``edges[3].weight``).
+    source : str, optional
+        File the scenario came from.
+    line : int, optional
+        1-based line in ``source``.
+    """
+
+    def __init__(self, message: str, *, path: str | None = None, source: str | None = None,
+                 line: int | None = None):
+        self.message = message
+        self.path = path
+        self.source = source
+        self.line = line
+        where = ''
+        if source is not None:
+            where = f'{source}:{line}: ' if line is not None else f'{source}: '
+        elif line is not None:
+            where = f'line {line}: '
+        if path:
+            where += f'{path}: '
+        super().__init__(where + message)
+
+
+class ScenarioNotFoundError(ScenarioError):
+    """The scenario file (or a file it names) does not exist."""
+
+
+class ScenarioSyntaxError(ScenarioError):
+    """The file is not valid YAML (the line of the problem is in ``line``)."""
+
+
+class SchemaError(ScenarioError):
+    """Base of the structural errors: keys, types, values."""
+
+
+class UnknownKeyError(SchemaError):
+    """A key the scenario format does not know (typo?)."""
+
+
+class MissingFieldError(SchemaError):
+    """A required key is missing."""
+
+
+class WrongTypeError(SchemaError):
+    """A value has the wrong type (e.g. a string where a number is required)."""
+
+
+class NonFiniteError(SchemaError):
+    """A number is NaN or infinite."""
+
+
+class InvalidValueError(SchemaError):
+    """A value of the right type outside its allowed range or set."""
+
+
+class DuplicateKeyError(SchemaError):
+    """A mapping repeats a key (YAML would silently keep the last one)."""
+
+
+class GainsError(ScenarioError):
+    """The gains file named by the scenario cannot be read or is not a mapping."""
+
+
+class TopologyError(ScenarioError):
+    """Base of the errors of the communication graph and the team roles."""
+
+
+class DuplicateIdError(TopologyError):
+    """Two UHs share an id."""
+
+
+class IdNumberingError(TopologyError):
+    """Ids are not 1..N+M with the leaders first (0 is reserved for the virtual leader)."""
+
+
+class UnknownIdError(TopologyError):
+    """An edge, link or fault names an id that is not a UH of the scenario."""
+
+
+class SelfLoopError(TopologyError):
+    """An edge from a UH to itself."""
+
+
+class NegativeWeightError(TopologyError):
+    """An edge or virtual-leader link with a negative weight."""
+
+
+class DuplicateEdgeError(TopologyError):
+    """The same directed edge (or virtual-leader link) is listed twice."""
+
+
+class LeaderHearsFollowerError(TopologyError):
+    """A leader listens to a follower (leaders only hear leaders and the virtual leader)."""
+
+
+class FollowerLinkedToReferenceError(TopologyError):
+    """A follower hears the virtual leader (only leaders may)."""
+
+
+class MissingOffsetError(TopologyError):
+    """A leader has no formation offset h_i."""
+
+
+class FollowerOffsetError(TopologyError):
+    """A follower was given a formation offset (followers' targets come from the leaders)."""
+
+
+class UnreachableLeaderError(TopologyError):
+    """Assumption 1 fails: no directed path from the virtual leader to these leaders."""
+
+    def __init__(self, message: str, *, ids=(), **kwargs):
+        self.ids = tuple(ids)
+        super().__init__(message, **kwargs)
+
+
+class UnreachableFollowerError(TopologyError):
+    """Assumption 1 fails: no directed path from any leader to these followers."""
+
+    def __init__(self, message: str, *, ids=(), **kwargs):
+        self.ids = tuple(ids)
+        super().__init__(message, **kwargs)
+
+
+class LaplacianConditionError(TopologyError):
+    """Lemma 1 fails: L1 has an eigenvalue with non-positive real part, or -L1^-1 L2 is not a
+    matrix of convex weights with the reachability pattern of the graph."""
+
+
+class DuplicateFaultError(SchemaError):
+    """Two faults on the same channel of the same UH."""

@@ -1,0 +1,772 @@
+"""Scenario loading and validation: team, communication graph, faults, reference (DESIGN.md 2.3, 2.7).
+
+A scenario is one YAML file (see ``uh_topology/config/paper.yaml`` for a commented example)::
+
+    name: paper                 # str
+    description: ...            # optional str
+    dt: 0.01                    # control period, s (> 0)
+    substeps: 5                 # RK4 substeps per control period (int >= 1), default 5
+    duration: 60.0              # s, a multiple of dt
+    settle_time: 20.0           # s, metrics are taken after it; default 20
+    model_mismatch: 0.9         # controller's nominal D_v, c_Q = factor x true; default 0.9
+    helicopter: helicopter      # helicopter parameter file: bundled name or path (relative to this file)
+    gains: paper_gains.yaml     # gains: file (relative to this file) or an inline mapping
+    uhs:                        # ids 1..N+M, leaders first
+      - {id: 1, role: leader, offset: [3, 0, 0], initial_state: {position: [2, -1, 8]}}
+      - {id: 4, role: follower, initial_state: {position: [1, 1, 6], velocity: [0, 0, 0],
+                                                euler: [0, 0, 0], omega: [0, 0, 0]}}
+    edges:                      # UH `uh` hears UH `hears` with weight a_ij (default 1)
+      - {uh: 2, hears: 1, weight: 1.0}
+    reference_links:           # leaders hearing the virtual leader (id 0), weight a_i0 (default 1)
+      - {uh: 1, weight: 1.0}
+    reference: {radius: 10, angular_rate: 0.1, center: [0, 10, 10], climb_rate: 0.1,
+                yaw_rate: 0.1, initial_yaw: 0}
+    disturbance: {amplitude: [..], frequency: [..], phase: [..], phase_per_id: 0.0}   # optional
+    faults:                     # optional; channel: 0..3 or collective|tail_rotor|lateral|longitudinal
+      - {uh: 2, channel: collective, rho: 0.8, bias_constant: 0, bias_amplitude: 0.01,
+         bias_frequency: 0.5, onset_time: 10}
+
+Validation raises the specific :mod:`uh_topology.errors` types with the file, line and key path.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from . import errors as E
+from .graph import (check_assumption1, check_lemma1, containment_pattern, laplacian,
+                    laplacian_blocks, leader_tracking_matrix)
+
+__all__ = [
+    'Scenario', 'FaultSpec', 'ReferenceSpec', 'DisturbanceSpec', 'load_scenario', 'parse_scenario',
+    'scenario_from_mapping', 'bundled_scenarios', 'CHANNEL_ALIASES',
+]
+
+_CONFIG_DIR = Path(__file__).resolve().parent / 'config'
+
+#: Accepted names of the actuator channels (index order of the input vector).
+CHANNEL_ALIASES = {
+    'collective': 0, 'theta_col': 0,
+    'tail_rotor': 1, 'theta_tr': 1,
+    'lateral': 2, 'delta_lat': 2,
+    'longitudinal': 3, 'delta_lon': 3,
+}
+
+
+# ------------------------------------------------------------------------------------------------
+# Plain validated data
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """One actuator fault (paper eq. 6) as plain data; see ``uh_sim_node.faults.ActuatorFault``.
+
+    ``channel`` 0..3 (theta_col, theta_tr, delta_lat, delta_lon); ``rho`` in [0, 1]; bias
+    ``b(t) = bias_constant + bias_amplitude sin(bias_frequency t)`` rad (frequency rad/s);
+    ``onset_time`` s.
+    """
+
+    channel: int
+    rho: float
+    bias_constant: float = 0.0
+    bias_amplitude: float = 0.0
+    bias_frequency: float = 0.0
+    onset_time: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceSpec:
+    """Virtual-leader trajectory parameters (``uh_sim_node.reference.VirtualLeaderReference``).
+
+    ``p0(t) = center + [radius sin(w t), -radius cos(w t), climb_rate t]``, ``w = angular_rate``
+    rad/s; ``psi0(t) = initial_yaw + yaw_rate t``. Units m, rad/s, m, m/s, rad/s, rad.
+    """
+
+    radius: float
+    angular_rate: float
+    center: np.ndarray
+    climb_rate: float
+    yaw_rate: float
+    initial_yaw: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class DisturbanceSpec:
+    """Force disturbance ``d_p(t)`` on every UH, inertial frame, per axis a:
+    ``amplitude_a sin(frequency_a t + phase_a + i phase_per_id)`` N for UH ``i``.
+
+    ``amplitude`` (3,) N, ``frequency`` (3,) rad/s, ``phase`` (3,) rad, ``phase_per_id`` rad.
+    """
+
+    amplitude: np.ndarray = field(default_factory=lambda: _ro(np.zeros(3)))
+    frequency: np.ndarray = field(default_factory=lambda: _ro(np.zeros(3)))
+    phase: np.ndarray = field(default_factory=lambda: _ro(np.zeros(3)))
+    phase_per_id: float = 0.0
+
+    @property
+    def is_zero(self) -> bool:
+        return not np.any(self.amplitude != 0.0)
+
+
+def _ro(arr) -> np.ndarray:
+    arr = np.array(arr, dtype=float)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A validated scenario (DESIGN.md 2.3, 2.7). Build it with :func:`load_scenario`.
+
+    Attributes
+    ----------
+    name, description : str
+    source : str or None
+        File it was loaded from.
+    dt : float
+        Control period, s.
+    duration : float
+        s (``num_steps * dt``).
+    substeps : int
+        RK4 substeps per control period.
+    settle_time : float
+        s; metrics are taken after it.
+    model_mismatch : float
+        Factor applied to the controller's nominal ``D_v`` and ``c_Q``.
+    helicopter : str
+        Bundled helicopter parameter name (e.g. ``'helicopter'``) or absolute path of the file.
+    leaders, followers, ids : tuple of int
+        ``leaders = (1..N)``, ``followers = (N+1..N+M)``, ``ids = leaders + followers``.
+    adjacency : ndarray (n+1, n+1)
+        ``a_ij``: row i = what UH i hears, column 0 = virtual leader (read-only).
+    offsets : mapping {leader id: ndarray (3,)}
+        Formation offsets ``h_i``, m, inertial frame.
+    initial_states : mapping {id: ndarray (12,)}
+    faults : mapping {id: tuple of FaultSpec}
+        Every UH id is a key (empty tuple when fault-free).
+    reference : ReferenceSpec
+    disturbance : DisturbanceSpec
+    laplacian_blocks : (ndarray (M, M), ndarray (M, N))
+        ``(L1, L2)``.
+    containment_weights : ndarray (M, N)
+        ``-L1^-1 L2``; rows follow ``followers``, columns ``leaders``.
+    gains : dict
+        Raw gains mapping (a fresh copy per access); read lazily from the file named by ``gains:``.
+    """
+
+    name: str
+    description: str
+    source: str | None
+    dt: float
+    duration: float
+    substeps: int
+    settle_time: float
+    model_mismatch: float
+    helicopter: str
+    leaders: tuple
+    followers: tuple
+    adjacency: np.ndarray
+    offsets: Mapping[int, np.ndarray]
+    initial_states: Mapping[int, np.ndarray]
+    faults: Mapping[int, tuple]
+    reference: ReferenceSpec
+    disturbance: DisturbanceSpec
+    laplacian_blocks: tuple
+    containment_weights: np.ndarray
+    gains_source: Any = None  # inline mapping, or Path of the gains file
+
+    # -- roles and graph ----------------------------------------------------------------------
+    @property
+    def ids(self) -> tuple:
+        """All UH ids, leaders first: ``(1, ..., N+M)``."""
+        return self.leaders + self.followers
+
+    @property
+    def num_uhs(self) -> int:
+        return len(self.leaders) + len(self.followers)
+
+    @property
+    def num_steps(self) -> int:
+        """Number of control steps ``K = duration / dt``."""
+        return int(round(self.duration / self.dt))
+
+    def _check_id(self, i) -> int:
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 1 <= i <= self.num_uhs:
+            raise E.UnknownIdError(f'no UH with id {i!r}; ids are 1..{self.num_uhs}', source=self.source)
+        return int(i)
+
+    def is_leader(self, i: int) -> bool:
+        return self._check_id(i) in self.leaders
+
+    def role(self, i: int) -> str:
+        """``'leader'`` or ``'follower'``."""
+        return 'leader' if self.is_leader(i) else 'follower'
+
+    def neighbours(self, i: int) -> tuple:
+        """UH ids ``j >= 1`` that UH ``i`` hears (``a_ij > 0``), ascending."""
+        i = self._check_id(i)
+        return tuple(int(j) for j in np.nonzero(self.adjacency[i, 1:] > 0.0)[0] + 1)
+
+    def weight(self, i: int, j: int) -> float:
+        """``a_ij`` (``j = 0``: the virtual-leader link)."""
+        i = self._check_id(i)
+        if j != 0:
+            j = self._check_id(j)
+        return float(self.adjacency[i, j])
+
+    def leader_link(self, i: int) -> float:
+        """``a_i0``: weight with which UH ``i`` hears the virtual leader (0 if it does not)."""
+        return float(self.adjacency[self._check_id(i), 0])
+
+    def degree(self, i: int) -> float:
+        """``d_i = sum_j a_ij + a_i0`` (DESIGN.md 2.3)."""
+        return float(self.adjacency[self._check_id(i)].sum())
+
+    @property
+    def laplacian(self) -> np.ndarray:
+        """``L = D - A`` (n, n) over the UHs (no virtual-leader column)."""
+        return laplacian(self.adjacency)
+
+    @property
+    def leader_tracking_matrix(self) -> np.ndarray:
+        """``L[L, L] + diag(a_i0)`` (N, N)."""
+        return leader_tracking_matrix(self.adjacency, self.leaders)
+
+    def containment_weight_rows(self) -> dict:
+        """``{follower id: {leader id: weight}}`` of ``-L1^-1 L2``."""
+        return {k: {j: float(self.containment_weights[r, c]) for c, j in enumerate(self.leaders)}
+                for r, k in enumerate(self.followers)}
+
+    # -- gains ----------------------------------------------------------------------------------
+    @property
+    def gains(self) -> dict:
+        """Raw gains mapping (copy), from the inline mapping or the file named by ``gains:``."""
+        if 'gains_cache' not in self.__dict__:
+            self.__dict__['gains_cache'] = _load_gains(self.gains_source, self.source)
+        return copy.deepcopy(self.__dict__['gains_cache'])
+
+    @property
+    def gains_path(self) -> Path | None:
+        """Path of the gains file, ``None`` for inline gains."""
+        return self.gains_source if isinstance(self.gains_source, Path) else None
+
+    def __repr__(self) -> str:
+        return (f'Scenario(name={self.name!r}, leaders={self.leaders}, followers={self.followers}, '
+                f'dt={self.dt}, duration={self.duration}, source={self.source!r})')
+
+
+def _load_gains(src, scenario_source) -> dict:
+    if src is None:
+        return {}
+    if isinstance(src, Mapping):
+        return dict(src)
+    path = Path(src)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise E.GainsError(f'cannot read the gains file {str(path)!r} ({exc.strerror}); `gains:` must '
+                           f'name an existing YAML file relative to the scenario file or be a mapping',
+                           source=scenario_source, path='gains') from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        raise E.ScenarioSyntaxError(f'YAML syntax error: {getattr(exc, "problem", None) or exc}',
+                                    source=str(path), line=mark.line + 1 if mark else None) from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise E.GainsError(f'the gains file must hold a mapping, got {type(data).__name__}',
+                           source=str(path))
+    return data
+
+
+# ------------------------------------------------------------------------------------------------
+# YAML with duplicate-key detection and line numbers
+
+
+class _Loader(yaml.SafeLoader):
+    """Safe loader that rejects repeated keys in a mapping."""
+
+    def construct_mapping(self, node, deep=False):
+        self.flatten_mapping(node)
+        seen = {}
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            try:
+                hash(key)
+            except TypeError:
+                raise E.WrongTypeError(f'mapping keys must be scalars, got {type(key).__name__}',
+                                       source=getattr(self, '_source', None),
+                                       line=key_node.start_mark.line + 1) from None
+            if key in seen:
+                raise E.DuplicateKeyError(
+                    f'key {key!r} repeated (first at line {seen[key]}); each key may appear once',
+                    source=getattr(self, '_source', None), line=key_node.start_mark.line + 1)
+            seen[key] = key_node.start_mark.line + 1
+        return super().construct_mapping(node, deep=deep)
+
+
+def _line_map(node, path=(), out=None) -> dict:
+    """{key path tuple: 1-based line} for every mapping key and sequence item of a node tree."""
+    if out is None:
+        out = {(): node.start_mark.line + 1}
+    if isinstance(node, yaml.MappingNode):
+        for k, v in node.value:
+            p = path + (str(k.value),)
+            out.setdefault(p, k.start_mark.line + 1)
+            _line_map(v, p, out)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, v in enumerate(node.value):
+            p = path + (i,)
+            out.setdefault(p, v.start_mark.line + 1)
+            _line_map(v, p, out)
+    return out
+
+
+def _parse_yaml(text: str, source: str | None):
+    loader = _Loader(text)
+    loader._source = source
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None, {}
+        data = loader.construct_document(node)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        problem = exc.problem or exc.context or 'invalid YAML'
+        raise E.ScenarioSyntaxError(f'YAML syntax error: {problem}', source=source,
+                                    line=mark.line + 1 if mark else None) from None
+    except yaml.YAMLError as exc:
+        raise E.ScenarioSyntaxError(f'YAML syntax error: {exc}', source=source) from None
+    finally:
+        loader.dispose()
+    return data, _line_map(node)
+
+
+# ------------------------------------------------------------------------------------------------
+# Validation helpers
+
+
+def _fmt(path) -> str:
+    out = ''
+    for p in path:
+        out += f'[{p}]' if isinstance(p, int) else (f'.{p}' if out else str(p))
+    return out
+
+
+class _Ctx:
+    """Reports errors with file, line and key path."""
+
+    def __init__(self, source: str | None, lines: dict):
+        self.source = source
+        self.lines = lines
+
+    def line(self, path):
+        path = tuple(p if isinstance(p, int) else str(p) for p in path)
+        while path:
+            if path in self.lines:
+                return self.lines[path]
+            path = path[:-1]
+        return self.lines.get(())
+
+    def error(self, cls, path, message, **kwargs):
+        return cls(message, path=_fmt(path) or None, source=self.source, line=self.line(path), **kwargs)
+
+    # typed accessors ----------------------------------------------------------------------------
+    def mapping(self, value, path, required=(), optional=(), what='a mapping'):
+        if not isinstance(value, dict):
+            raise self.error(E.WrongTypeError, path, f'expected {what}, got {_tname(value)}')
+        allowed = list(required) + list(optional)
+        for key in value:
+            if key not in allowed:
+                raise self.error(E.UnknownKeyError, path + (key,),
+                                 f'unknown key {key!r}; allowed keys here: {", ".join(allowed)}')
+        for key in required:
+            if key not in value:
+                raise self.error(E.MissingFieldError, path,
+                                 f'missing required key {key!r} (required: {", ".join(required)})')
+        return value
+
+    def number(self, value, path, *, lo=None, hi=None, lo_open=False, hi_open=False, unit=''):
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error(E.WrongTypeError, path, f'expected a number{_unit(unit)}, got {_tname(value)} {value!r}')
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.error(E.NonFiniteError, path, f'expected a finite number{_unit(unit)}, got {value!r}')
+        bad = ((lo is not None and (value <= lo if lo_open else value < lo))
+               or (hi is not None and (value >= hi if hi_open else value > hi)))
+        if bad:
+            raise self.error(E.InvalidValueError, path,
+                             f'value {value!r} out of range; allowed: {_range(lo, hi, lo_open, hi_open)}{_unit(unit)}')
+        return value
+
+    def integer(self, value, path, *, lo=None, what='an integer'):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(E.WrongTypeError, path, f'expected {what}, got {_tname(value)} {value!r}')
+        if lo is not None and value < lo:
+            raise self.error(E.InvalidValueError, path, f'value {value} out of range; allowed: >= {lo}')
+        return value
+
+    def string(self, value, path, choices=None):
+        if not isinstance(value, str):
+            raise self.error(E.WrongTypeError, path, f'expected a string, got {_tname(value)} {value!r}')
+        if choices is not None and value not in choices:
+            raise self.error(E.InvalidValueError, path,
+                             f'{value!r} is not allowed; allowed: {", ".join(choices)}')
+        return value
+
+    def vector(self, value, path, size=3, unit=''):
+        if not isinstance(value, list) or len(value) != size:
+            raise self.error(E.WrongTypeError, path,
+                             f'expected a list of {size} numbers{_unit(unit)}, got {_tname(value)} {value!r}')
+        return _ro([self.number(v, path + (i,), unit=unit) for i, v in enumerate(value)])
+
+    def uh_id(self, value, path, known, what='UH id'):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(E.WrongTypeError, path, f'expected an integer {what}, got {_tname(value)} {value!r}')
+        if value not in known:
+            hint = ('; id 0 is the virtual leader: link leaders to it under reference_links'
+                    if value == 0 else '')
+            raise self.error(E.UnknownIdError, path,
+                             f'{what} {value} is not a UH of this scenario; known ids: '
+                             f'{sorted(known)}{hint}')
+        return value
+
+
+def _tname(value) -> str:
+    return 'null' if value is None else type(value).__name__
+
+
+def _unit(unit) -> str:
+    return f' ({unit})' if unit else ''
+
+
+def _range(lo, hi, lo_open, hi_open) -> str:
+    if lo is not None and hi is not None:
+        return f'{"(" if lo_open else "["}{lo}, {hi}{")" if hi_open else "]"}'
+    if lo is not None:
+        return f'{">" if lo_open else ">="} {lo}'
+    return f'{"<" if hi_open else "<="} {hi}'
+
+
+# ------------------------------------------------------------------------------------------------
+# Building a Scenario
+
+_TOP_REQUIRED = ('name', 'dt', 'duration', 'uhs', 'edges', 'reference_links', 'reference')
+_TOP_OPTIONAL = ('description', 'substeps', 'settle_time', 'model_mismatch', 'helicopter', 'gains',
+                 'disturbance', 'faults')
+_UH_REQUIRED = ('id', 'role', 'initial_state')
+_UH_OPTIONAL = ('offset',)
+_STATE_REQUIRED = ('position',)
+_STATE_OPTIONAL = ('velocity', 'euler', 'omega')
+_REF_REQUIRED = ('radius', 'angular_rate', 'center', 'climb_rate', 'yaw_rate')
+_REF_OPTIONAL = ('initial_yaw',)
+_DIST_OPTIONAL = ('amplitude', 'frequency', 'phase', 'phase_per_id')
+_FAULT_REQUIRED = ('uh', 'channel', 'rho')
+_FAULT_OPTIONAL = ('bias_constant', 'bias_amplitude', 'bias_frequency', 'onset_time')
+
+DEFAULT_SUBSTEPS = 5
+DEFAULT_SETTLE_TIME = 20.0
+DEFAULT_MODEL_MISMATCH = 0.9
+DEFAULT_HELICOPTER = 'helicopter'
+
+
+def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
+                          lines: dict | None = None) -> Scenario:
+    """Validate a scenario mapping (as read from YAML) and build the :class:`Scenario`.
+
+    Parameters
+    ----------
+    data : dict
+    source : str, optional
+        Name used in error messages.
+    base_dir : path, optional
+        Directory for relative ``gains`` / ``helicopter`` paths (default: current directory).
+    lines : dict, optional
+        Key path -> line map (from the YAML parser) for error messages.
+    """
+    ctx = _Ctx(source, lines or {})
+    base = Path(base_dir) if base_dir is not None else Path.cwd()
+    top = ctx.mapping(data, (), _TOP_REQUIRED, _TOP_OPTIONAL, what='a scenario mapping')
+
+    name = ctx.string(top['name'], ('name',))
+    description = ctx.string(top.get('description', ''), ('description',))
+    dt = ctx.number(top['dt'], ('dt',), lo=0.0, lo_open=True, unit='s')
+    substeps = ctx.integer(top.get('substeps', DEFAULT_SUBSTEPS), ('substeps',), lo=1)
+    duration = ctx.number(top['duration'], ('duration',), lo=dt, unit='s')
+    steps = round(duration / dt)
+    if abs(steps * dt - duration) > 1e-9 * max(1.0, duration):
+        raise ctx.error(E.InvalidValueError, ('duration',),
+                        f'duration {duration} s is not a whole number of control periods dt = {dt} s; '
+                        f'allowed: a multiple of dt')
+    settle = ctx.number(top.get('settle_time', DEFAULT_SETTLE_TIME), ('settle_time',), lo=0.0,
+                        hi=duration, hi_open=True, unit='s')
+    mismatch = ctx.number(top.get('model_mismatch', DEFAULT_MODEL_MISMATCH), ('model_mismatch',),
+                          lo=0.0, lo_open=True)
+    helicopter = ctx.string(top.get('helicopter', DEFAULT_HELICOPTER), ('helicopter',))
+    if not helicopter:
+        raise ctx.error(E.InvalidValueError, ('helicopter',), 'empty helicopter name; allowed: a bundled '
+                        'name (e.g. helicopter) or a path to a YAML file')
+    hp = Path(helicopter)
+    if hp.suffix or hp.parent != Path('.'):
+        helicopter = str((base / hp).resolve()) if not hp.is_absolute() else str(hp)
+
+    gains_raw = top.get('gains')
+    if gains_raw is None:
+        gains_source = None
+    elif isinstance(gains_raw, dict):
+        gains_source = MappingProxyType(copy.deepcopy(gains_raw))
+    elif isinstance(gains_raw, str) and gains_raw:
+        gains_source = Path(gains_raw) if Path(gains_raw).is_absolute() else (base / gains_raw).resolve()
+    else:
+        raise ctx.error(E.WrongTypeError, ('gains',),
+                        f'expected a file name (relative to the scenario) or a mapping, got {_tname(gains_raw)}')
+
+    # -- UHs ------------------------------------------------------------------------------------
+    uhs = top['uhs']
+    if not isinstance(uhs, list) or not uhs:
+        raise ctx.error(E.WrongTypeError, ('uhs',), f'expected a non-empty list of UHs, got {_tname(uhs)}')
+    roles, offsets, states, where = {}, {}, {}, {}
+    for idx, entry in enumerate(uhs):
+        path = ('uhs', idx)
+        ctx.mapping(entry, path, _UH_REQUIRED, _UH_OPTIONAL, what='a UH mapping')
+        uid = ctx.integer(entry['id'], path + ('id',), what='an integer UH id')
+        if uid in roles:
+            raise ctx.error(E.DuplicateIdError, path + ('id',),
+                            f'UH id {uid} is already used by uhs[{where[uid]}]; ids must be unique')
+        if uid < 1:
+            raise ctx.error(E.IdNumberingError, path + ('id',),
+                            f'UH id {uid} is not allowed; 0 is the virtual leader, UH ids are 1..N+M')
+        where[uid] = idx
+        roles[uid] = ctx.string(entry['role'], path + ('role',), choices=('leader', 'follower'))
+        st = ctx.mapping(entry['initial_state'], path + ('initial_state',), _STATE_REQUIRED, _STATE_OPTIONAL,
+                         what='an initial_state mapping')
+        sp = path + ('initial_state',)
+        pos = ctx.vector(st['position'], sp + ('position',), unit='m')
+        vel = ctx.vector(st.get('velocity', [0.0] * 3), sp + ('velocity',), unit='m/s')
+        eul = ctx.vector(st.get('euler', [0.0] * 3), sp + ('euler',), unit='rad')
+        omg = ctx.vector(st.get('omega', [0.0] * 3), sp + ('omega',), unit='rad/s')
+        for axis, lim in ((0, math.pi / 2), (1, math.pi / 2)):
+            if abs(eul[axis]) >= lim:
+                raise ctx.error(E.InvalidValueError, sp + ('euler', axis),
+                                f'{("roll", "pitch")[axis]} {eul[axis]} rad; allowed: |angle| < pi/2')
+        states[uid] = _ro(np.concatenate([pos, vel, eul, omg]))
+        if 'offset' in entry:
+            if roles[uid] == 'follower':
+                raise ctx.error(E.FollowerOffsetError, path + ('offset',),
+                                f'follower {uid} has a formation offset; only leaders have offsets '
+                                f'(followers are placed by the containment weights)')
+            offsets[uid] = ctx.vector(entry['offset'], path + ('offset',), unit='m')
+
+    n = len(roles)
+    leaders = tuple(sorted(i for i, r in roles.items() if r == 'leader'))
+    followers = tuple(sorted(i for i, r in roles.items() if r == 'follower'))
+    if not leaders:
+        raise ctx.error(E.IdNumberingError, ('uhs',), 'no leader; at least one UH must have role: leader')
+    if set(roles) != set(range(1, n + 1)) or leaders != tuple(range(1, len(leaders) + 1)):
+        raise ctx.error(E.IdNumberingError, ('uhs',),
+                        f'ids must be 1..{n} with the leaders first; got leaders {list(leaders)} and '
+                        f'followers {list(followers)}')
+    for j in leaders:
+        if j not in offsets:
+            raise ctx.error(E.MissingOffsetError, ('uhs', where[j]),
+                            f'leader {j} has no formation offset; add offset: [x, y, z] (m)')
+
+    # -- graph ----------------------------------------------------------------------------------
+    adjacency = np.zeros((n + 1, n + 1))
+    known = set(roles)
+    edges = top['edges']
+    if edges is None:
+        edges = []
+    if not isinstance(edges, list):
+        raise ctx.error(E.WrongTypeError, ('edges',), f'expected a list of edges, got {_tname(edges)}')
+    edge_at = {}
+    for idx, edge in enumerate(edges):
+        path = ('edges', idx)
+        ctx.mapping(edge, path, ('uh', 'hears'), ('weight',), what='an edge mapping {uh, hears, weight}')
+        i = ctx.uh_id(edge['uh'], path + ('uh',), known)
+        j = ctx.uh_id(edge['hears'], path + ('hears',), known)
+        if i == j:
+            raise ctx.error(E.SelfLoopError, path, f'UH {i} hears itself (self-loop); an edge must join '
+                            f'two different UHs')
+        w = ctx.number(edge.get('weight', 1.0), path + ('weight',))
+        if w < 0.0:
+            raise ctx.error(E.NegativeWeightError, path + ('weight',),
+                            f'negative weight {w} on edge {i}<-{j}; allowed: a weight >= 0')
+        if (i, j) in edge_at:
+            raise ctx.error(E.DuplicateEdgeError, path,
+                            f'edge {i}<-{j} is already listed as edges[{edge_at[(i, j)]}]; list each '
+                            f'directed edge once')
+        if roles[i] == 'leader' and roles[j] == 'follower' and w > 0.0:
+            raise ctx.error(E.LeaderHearsFollowerError, path,
+                            f'leader {i} hears follower {j}; leaders may only hear leaders and the '
+                            f'virtual leader')
+        edge_at[(i, j)] = idx
+        adjacency[i, j] = w
+
+    links = top['reference_links']
+    if links is None:
+        links = []
+    if not isinstance(links, list):
+        raise ctx.error(E.WrongTypeError, ('reference_links',),
+                        f'expected a list of links {{uh, weight}}, got {_tname(links)}')
+    link_at = {}
+    for idx, link in enumerate(links):
+        path = ('reference_links', idx)
+        ctx.mapping(link, path, ('uh',), ('weight',), what='a link mapping {uh, weight}')
+        i = ctx.uh_id(link['uh'], path + ('uh',), known)
+        w = ctx.number(link.get('weight', 1.0), path + ('weight',))
+        if w < 0.0:
+            raise ctx.error(E.NegativeWeightError, path + ('weight',),
+                            f'negative weight {w} on the virtual-leader link {i}<-0; allowed: a weight >= 0')
+        if i in link_at:
+            raise ctx.error(E.DuplicateEdgeError, path,
+                            f'virtual-leader link {i}<-0 is already listed as reference_links'
+                            f'[{link_at[i]}]; list each link once')
+        if roles[i] == 'follower' and w > 0.0:
+            raise ctx.error(E.FollowerLinkedToReferenceError, path + ('uh',),
+                            f'follower {i} hears the virtual leader; only leaders may (followers '
+                            f'are contained by the leaders)')
+        link_at[i] = idx
+        adjacency[i, 0] = w
+
+    check_assumption1(adjacency, leaders, followers, source=source, path='edges')
+    l1, l2 = laplacian_blocks(adjacency, leaders, followers)
+    weights = check_lemma1(l1, l2, containment_pattern(adjacency, leaders, followers),
+                           source=source, path='edges')
+
+    # -- reference, disturbance, faults -----------------------------------------------------
+    ref = ctx.mapping(top['reference'], ('reference',), _REF_REQUIRED, _REF_OPTIONAL,
+                      what='a reference mapping')
+    rp = ('reference',)
+    reference = ReferenceSpec(
+        radius=ctx.number(ref['radius'], rp + ('radius',), lo=0.0, unit='m'),
+        angular_rate=ctx.number(ref['angular_rate'], rp + ('angular_rate',), unit='rad/s'),
+        center=ctx.vector(ref['center'], rp + ('center',), unit='m'),
+        climb_rate=ctx.number(ref['climb_rate'], rp + ('climb_rate',), unit='m/s'),
+        yaw_rate=ctx.number(ref['yaw_rate'], rp + ('yaw_rate',), unit='rad/s'),
+        initial_yaw=ctx.number(ref.get('initial_yaw', 0.0), rp + ('initial_yaw',), unit='rad'),
+    )
+
+    dist = top.get('disturbance') or {}
+    ctx.mapping(dist, ('disturbance',), (), _DIST_OPTIONAL, what='a disturbance mapping')
+    dp = ('disturbance',)
+    disturbance = DisturbanceSpec(
+        amplitude=ctx.vector(dist.get('amplitude', [0.0] * 3), dp + ('amplitude',), unit='N'),
+        frequency=ctx.vector(dist.get('frequency', [0.0] * 3), dp + ('frequency',), unit='rad/s'),
+        phase=ctx.vector(dist.get('phase', [0.0] * 3), dp + ('phase',), unit='rad'),
+        phase_per_id=ctx.number(dist.get('phase_per_id', 0.0), dp + ('phase_per_id',), unit='rad'),
+    )
+    if np.any(disturbance.amplitude < 0.0):
+        raise ctx.error(E.InvalidValueError, dp + ('amplitude',),
+                        f'negative amplitude {disturbance.amplitude.tolist()}; allowed: >= 0 N '
+                        f'(use the phase for the sign)')
+
+    faults_raw = top.get('faults') or []
+    if not isinstance(faults_raw, list):
+        raise ctx.error(E.WrongTypeError, ('faults',), f'expected a list of faults, got {_tname(faults_raw)}')
+    faults = {i: [] for i in range(1, n + 1)}
+    fault_at = {}
+    for idx, fd in enumerate(faults_raw):
+        path = ('faults', idx)
+        ctx.mapping(fd, path, _FAULT_REQUIRED, _FAULT_OPTIONAL, what='a fault mapping')
+        i = ctx.uh_id(fd['uh'], path + ('uh',), known)
+        ch = _channel(ctx, fd['channel'], path + ('channel',))
+        if (i, ch) in fault_at:
+            raise ctx.error(E.DuplicateFaultError, path + ('channel',),
+                            f'UH {i} channel {ch} already has a fault (faults[{fault_at[(i, ch)]}]); '
+                            f'one fault per channel')
+        fault_at[(i, ch)] = idx
+        faults[i].append(FaultSpec(
+            channel=ch,
+            rho=ctx.number(fd['rho'], path + ('rho',), lo=0.0, hi=1.0),
+            bias_constant=ctx.number(fd.get('bias_constant', 0.0), path + ('bias_constant',), unit='rad'),
+            bias_amplitude=ctx.number(fd.get('bias_amplitude', 0.0), path + ('bias_amplitude',), unit='rad'),
+            bias_frequency=ctx.number(fd.get('bias_frequency', 0.0), path + ('bias_frequency',), unit='rad/s'),
+            onset_time=ctx.number(fd.get('onset_time', 0.0), path + ('onset_time',), lo=0.0, unit='s'),
+        ))
+
+    adjacency.setflags(write=False)
+    l1 = _ro(l1)
+    l2 = _ro(l2)
+    return Scenario(
+        name=name, description=description, source=source, dt=dt, duration=duration,
+        substeps=substeps, settle_time=settle, model_mismatch=mismatch, helicopter=helicopter,
+        leaders=leaders, followers=followers, adjacency=adjacency,
+        offsets=MappingProxyType(dict(sorted(offsets.items()))),
+        initial_states=MappingProxyType(dict(sorted(states.items()))),
+        faults=MappingProxyType({i: tuple(sorted(f, key=lambda s: s.channel)) for i, f in faults.items()}),
+        reference=reference, disturbance=disturbance,
+        laplacian_blocks=(l1, l2), containment_weights=_ro(weights), gains_source=gains_source,
+    )
+
+
+def _channel(ctx, value, path) -> int:
+    if isinstance(value, str):
+        if value not in CHANNEL_ALIASES:
+            raise ctx.error(E.InvalidValueError, path,
+                            f'unknown channel {value!r}; allowed: 0..3 or {", ".join(CHANNEL_ALIASES)}')
+        return CHANNEL_ALIASES[value]
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ctx.error(E.WrongTypeError, path, f'expected a channel index 0..3 or name, got {_tname(value)}')
+    if not 0 <= value <= 3:
+        raise ctx.error(E.InvalidValueError, path,
+                        f'channel {value} out of range; allowed: 0..3 or {", ".join(CHANNEL_ALIASES)}')
+    return value
+
+
+def parse_scenario(text: str, *, source: str | None = None, base_dir=None) -> Scenario:
+    """Parse and validate scenario YAML text (``base_dir`` resolves relative file names)."""
+    data, lines = _parse_yaml(text, source)
+    if data is None:
+        raise E.MissingFieldError('the scenario is empty; required keys: ' + ', '.join(_TOP_REQUIRED),
+                                  source=source)
+    return scenario_from_mapping(data, source=source, base_dir=base_dir, lines=lines)
+
+
+def bundled_scenarios() -> tuple:
+    """Names of the scenarios bundled in ``uh_topology/config`` (e.g. ``('paper',)``)."""
+    return tuple(sorted(p.stem for p in _CONFIG_DIR.glob('*.yaml') if not p.stem.endswith('_gains')))
+
+
+def load_scenario(path_or_name) -> Scenario:
+    """Load and validate a scenario.
+
+    Parameters
+    ----------
+    path_or_name : str or Path
+        A YAML file, or the name of a bundled scenario (``'paper'`` ->
+        ``uh_topology/config/paper.yaml``).
+
+    Raises
+    ------
+    ScenarioNotFoundError
+        Neither an existing file nor a bundled name.
+    ScenarioError
+        Any of the specific subclasses of :mod:`uh_topology.errors`.
+    """
+    if isinstance(path_or_name, Scenario):
+        return path_or_name
+    text = str(path_or_name)
+    path = Path(text)
+    if not path.is_file():
+        bundled = _CONFIG_DIR / f'{text}.yaml'
+        if path.suffix == '' and path.parent == Path('.') and bundled.is_file():
+            path = bundled
+        else:
+            raise E.ScenarioNotFoundError(
+                f'no scenario file {text!r}; give a path to a YAML file or a bundled name '
+                f'({", ".join(bundled_scenarios()) or "none"})')
+    try:
+        content = path.read_text()
+    except OSError as exc:
+        raise E.ScenarioNotFoundError(f'cannot read {str(path)!r}: {exc.strerror}') from None
+    return parse_scenario(content, source=str(path), base_dir=path.resolve().parent)
