@@ -16,7 +16,7 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$VENV/.uh_stamp" 2>/dev/null)" != "$
   # the Python packages are editable so a change in the tree takes effect without reinstalling.
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps "$REPO_ROOT/uh_msgs"
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
-    -e "$REPO_ROOT/uh_runtime" -e "$REPO_ROOT/uh_topology" -e "$REPO_ROOT/uh_sim_node" -e "$REPO_ROOT/uh_controller_node"
+    -e "$REPO_ROOT/uh_runtime" -e "$REPO_ROOT/uh_topology" -e "$REPO_ROOT/uh_sim_node" -e "$REPO_ROOT/uh_controller_node" -e "$REPO_ROOT/uh_bringup"
   stamp_src > "$VENV/.uh_stamp"
 fi
 # shellcheck disable=SC1091

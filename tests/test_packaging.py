@@ -7,7 +7,7 @@ import pytest
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 ROOT = Path(__file__).resolve().parents[1]
-PYTHON_PACKAGES = ['uh_runtime', 'uh_topology', 'uh_sim_node', 'uh_controller_node']
+PYTHON_PACKAGES = ['uh_runtime', 'uh_topology', 'uh_sim_node', 'uh_controller_node', 'uh_bringup']
 ALL_PACKAGES = ['uh_msgs', *PYTHON_PACKAGES]
 
 

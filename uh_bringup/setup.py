@@ -1,0 +1,28 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'uh_bringup'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
+    ],
+    install_requires=['numpy', 'PyYAML', 'rosbags', 'uh_runtime', 'uh_topology', 'uh_sim_node', 'uh_controller_node'],
+    zip_safe=True,
+    maintainer='UH formation maintainers',
+    maintainer_email='maintainers@uh-formation.invalid',
+    description='Bring-up of a UH formation-containment run: supervisor, launch file, fault injection.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            'uh-run-formation = uh_bringup.run_formation:main',
+            'uh-inject-fault = uh_bringup.inject_fault:main',
+        ],
+    },
+)

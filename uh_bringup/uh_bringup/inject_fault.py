@@ -1,0 +1,84 @@
+"""``uh-inject-fault`` (behind ``scripts/inject_fault.sh``): inject an actuator fault at run time.
+
+Publishes one ``uh_msgs/ActuatorFault`` on ``/uh<N>/fault`` (paper eq. 6:
+u_actual = rho u + bias + amplitude sin(frequency t), from ``--onset`` on) once the UH's simulator
+is listening, and exits. Values are checked here and again by the simulator, which rejects
+invalid injections with a logged reason and keeps running.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+
+__all__ = ['main', 'CHANNELS']
+
+CHANNELS = {'collective': 0, 'tail_rotor': 1, 'lateral': 2, 'longitudinal': 3}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog='inject_fault.sh', description=__doc__.split('\n\n')[0])
+    p.add_argument('--uh', type=int, required=True, help='helicopter index N (topic /uhN/fault)')
+    p.add_argument('--channel', required=True, choices=sorted(CHANNELS), help='actuator channel')
+    p.add_argument('--rho', type=float, default=1.0, help='loss-of-effectiveness factor in [0, 1] (0 = stuck)')
+    p.add_argument('--bias', type=float, default=0.0, help='constant bias, rad')
+    p.add_argument('--amplitude', type=float, default=0.0, help='sinusoidal bias amplitude, rad')
+    p.add_argument('--frequency', type=float, default=0.0, help='sinusoidal bias frequency, rad/s')
+    p.add_argument('--onset', type=float, default=0.0, help='simulation time from which the fault acts, s')
+    p.add_argument('--domain-id', type=int, default=None, help='DDS domain id of the running team')
+    p.add_argument('--timeout', type=float, default=10.0, help='s to wait for the simulator to be discovered')
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    for name in ('rho', 'bias', 'amplitude', 'frequency', 'onset'):
+        if not math.isfinite(getattr(args, name)):
+            parser.exit(2, f'{parser.prog}: error: --{name} must be a finite number\n')
+    if not 0.0 <= args.rho <= 1.0:
+        parser.exit(2, f'{parser.prog}: error: --rho {args.rho}: allowed 0 .. 1 (1 = healthy, 0 = stuck)\n')
+    if args.uh < 1:
+        parser.exit(2, f'{parser.prog}: error: --uh {args.uh}: helicopter indices start at 1\n')
+    if args.domain_id is not None:
+        os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
+    os.environ.setdefault('CYCLONEDDS_URI', __import__('uh_runtime.network', fromlist=['x']).loopback_config())
+
+    import uh_runtime as rt
+    from uh_runtime import messages as m
+    from uh_topology import topics
+
+    rt.init(args=[sys.argv[0]])
+    node = rt.Node('inject_fault')
+    try:
+        topic = topics.uh_topic(args.uh, topics.FAULT)
+        pub = node.create_publisher(m.ActuatorFault, topic, topics.qos_profile(topics.FAULT.qos))
+        deadline = time.monotonic() + args.timeout
+        while node.count_subscribers(topic) == 0:
+            if time.monotonic() > deadline:
+                print(f'{parser.prog}: error: nobody subscribes to {topic} in DDS domain '
+                      f'{os.environ.get("ROS_DOMAIN_ID", "0")} (is the team running, with that --domain-id?)',
+                      file=sys.stderr)
+                return 1
+            rt.spin_once(node, timeout_sec=0.05)
+        msg = m.ActuatorFault()
+        msg.uh_id, msg.channel, msg.rho = args.uh, CHANNELS[args.channel], args.rho
+        msg.bias_constant, msg.bias_amplitude = args.bias, args.amplitude
+        msg.bias_frequency, msg.onset_time = args.frequency, args.onset
+        pub.publish(msg)
+        # give reliable delivery a moment to complete before the participant goes away
+        end = time.monotonic() + 0.5
+        while time.monotonic() < end:
+            rt.spin_once(node, timeout_sec=0.05)
+        print(f'injected on {topic}: {args.channel} rho {args.rho}, bias {args.bias} + {args.amplitude} '
+              f'sin({args.frequency} t), from t = {args.onset} s', file=sys.stderr)
+        return 0
+    finally:
+        node.destroy_node()
+        rt.try_shutdown()
+
+
+if __name__ == '__main__':
+    sys.exit(main())

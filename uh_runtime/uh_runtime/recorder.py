@@ -1,0 +1,137 @@
+"""Recorder node (``recorder``): records topics to a rosbag2 MCAP bag (:mod:`uh_runtime.bag`).
+
+Like ``ros2 bag record -a -s mcap``: it discovers every topic in the DDS domain (or the ones given
+in ``topics``), subscribes with QoS compatible with what the publishers offer (transient-local
+when they all offer it, so nothing published before the subscription matched is missed) and
+stores the CDR payloads exactly as they arrive (raw subscriptions, no decode/re-encode).
+
+Log times are simulation times: the message's own stamp when its first field is a
+``std_msgs/Header`` or a ``builtin_interfaces/Time`` (every uh_msgs type, ``/clock``), otherwise
+the latest ``/clock``. With ``progress_topics`` set, it publishes on ``/recorder/progress`` the sim
+time up to which every one of those topics has been written; the lockstep clock waits on it, so a
+lockstep run loses nothing however slow the disk.
+
+SIGINT/SIGTERM finalise the bag (summary and ``metadata.yaml``); a SIGKILL leaves an MCAP file
+readable up to its last complete chunk (:data:`uh_runtime.bag.CHUNK_SIZE`).
+"""
+from __future__ import annotations
+
+import struct
+
+import uh_runtime as rt
+from uh_runtime import messages as m
+from uh_runtime.bag import BagError, BagWriter, qos_profile_yaml
+
+__all__ = ['RecorderNode', 'main', 'stamp_of']
+
+_STAMPED_FIRST = {'rosgraph_msgs/msg/Clock', 'builtin_interfaces/msg/Time'}
+_TIME = struct.Struct('<iI')
+_POLICY_NAMES = {'reliability': {1: 'reliable', 2: 'best_effort'},
+                 'durability': {1: 'transient_local', 2: 'volatile'},
+                 'history': {1: 'keep_last', 2: 'keep_all'}}
+
+
+def _stamped_first(type_name: str) -> bool:
+    """True when the CDR payload of ``type_name`` starts with a Time (own stamp, or a Header's)."""
+    if type_name in _STAMPED_FIRST:
+        return True
+    from uh_runtime.bag import _typestore
+    store, _ = _typestore()
+    fields = store.fielddefs.get(type_name, ((), ()))[1]
+    return bool(fields) and fields[0][1][0].name == 'NAME' and fields[0][1][1] == 'std_msgs/msg/Header'
+
+
+def stamp_of(data: bytes) -> int:
+    """Nanoseconds of the Time at the start of a little-endian CDR payload (after the 4-byte header)."""
+    sec, nanosec = _TIME.unpack_from(data, 4)
+    return sec * 1_000_000_000 + nanosec
+
+
+def _policy(profile, name: str) -> str:
+    value = getattr(profile, name)
+    value = getattr(value, 'value', value)
+    return _POLICY_NAMES[name].get(int(value), 'reliable' if name == 'reliability' else 'volatile')
+
+
+class RecorderNode(rt.Node):
+    def __init__(self, **kwargs):
+        super().__init__('recorder', **kwargs)
+        self.declare_parameter('output', '', rt.ParameterDescriptor(
+            description='bag directory to create (must not exist, or be empty)', read_only=True))
+        self.declare_parameter('topics', [''], rt.ParameterDescriptor(
+            description='topics to record; empty records every topic discovered', read_only=True))
+        self.declare_parameter('progress_topics', [''], rt.ParameterDescriptor(
+            description='per-step topics whose recorded sim time is published on /recorder/progress',
+            read_only=True))
+        output = str(self.get_parameter('output').value)
+        if not output:
+            raise BagError("parameter 'output' is empty: give the bag directory to create")
+        self.wanted = {t for t in self.get_parameter('topics').value if t}
+        self.progress_topics = {t for t in self.get_parameter('progress_topics').value if t}
+        self.bag = BagWriter(output)
+        self.latest_stamp: dict[str, int] = {}
+        self.clock_ns = 0
+        self.progress_ns = -1
+        self.subscriptions_by_topic = {}
+        self.progress_pub = self.create_publisher(m.Time, '/recorder/progress', 10)
+        self.create_timer(0.05, self.discover)
+        self.discover()
+
+    def discover(self) -> None:
+        """Subscribe to every wanted topic that has appeared since the last look."""
+        for name, types in self.get_topic_names_and_types():
+            if name in self.subscriptions_by_topic or name == '/recorder/progress':
+                continue
+            if self.wanted and name not in self.wanted:
+                continue
+            if name.startswith('/_') or name in ('/ros_discovery_info', '/parameter_events', '/rosout'):
+                continue
+            infos = self.get_publishers_info_by_topic(name)
+            if not infos:
+                continue
+            offered = infos[0].qos_profile
+            reliability = 'reliable' if all(_policy(i.qos_profile, 'reliability') == 'reliable' for i in infos) \
+                else 'best_effort'
+            durability = 'transient_local' if all(
+                _policy(i.qos_profile, 'durability') == 'transient_local' for i in infos) else 'volatile'
+            type_name = types[0]
+            self.bag.add_topic(name, type_name, qos_profile_yaml(
+                _policy(offered, 'reliability'), _policy(offered, 'durability'),
+                _policy(offered, 'history'), int(getattr(offered, 'depth', 10) or 10)))
+            qos = rt.QoSProfile(depth=10000, history=rt.HistoryPolicy.KEEP_LAST,
+                                reliability=getattr(rt.ReliabilityPolicy, reliability.upper()),
+                                durability=getattr(rt.DurabilityPolicy, durability.upper()))
+            stamped = _stamped_first(type_name)
+            self.subscriptions_by_topic[name] = self.create_subscription(
+                m.get_message(type_name), name,
+                lambda data, name=name, stamped=stamped: self.on_message(name, data, stamped), qos, raw=True)
+            self.get_logger().info(f'recording {name} [{type_name}]')
+
+    def on_message(self, topic: str, data: bytes, stamped: bool) -> None:
+        log_ns = stamp_of(data) if stamped else self.clock_ns
+        if topic == '/clock':
+            self.clock_ns = log_ns
+        self.bag.write(topic, data, log_ns)
+        if topic in self.progress_topics:
+            self.latest_stamp[topic] = log_ns
+            if len(self.latest_stamp) == len(self.progress_topics):
+                progress = min(self.latest_stamp.values())
+                if progress > self.progress_ns:
+                    self.progress_ns = progress
+                    msg = m.Time()
+                    msg.sec, msg.nanosec = progress // 1_000_000_000, progress % 1_000_000_000
+                    self.progress_pub.publish(msg)
+
+    def destroy_node(self):
+        self.bag.close()
+        counts = ', '.join(f'{t.name}: {t.message_count}' for t in self.bag.topics.values())
+        self.get_logger().info(f'bag closed: {self.bag.directory} ({counts})')
+        return super().destroy_node()
+
+
+def main(args=None):
+    rt.run_node(RecorderNode, args)
+
+
+if __name__ == '__main__':
+    main()
