@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_sim_node.reference import reference_from_scenario
+from uh_sim_node.reference import VirtualLeaderReference
 from uh_sim_node.run_config import declare_run_parameters
 from uh_sim_node.wire import clock_step, reference_to_msg
 from uh_topology import topics
@@ -17,7 +17,7 @@ class VirtualLeaderNode(rt.Node):
         super().__init__('virtual_leader', **kwargs)
         run = declare_run_parameters(self, per_uh=False)
         self.dt, self.last_step = run.dt, run.last_step
-        self.reference = reference_from_scenario(run.scenario)
+        self.reference = VirtualLeaderReference(run.scenario.reference)
         self.published_step = -1
         qos = topics.qos_profile(topics.STEP_QOS)
         self.pub = self.create_publisher(m.Reference, topics.REFERENCE.name, qos)

@@ -128,11 +128,11 @@ def reference_to_msg(k: int, t: float, ref):
 
 def msg_to_reference(msg):
     """Core reference sample of a ``Reference`` message; raises :class:`WireError` if unusable."""
-    from uh_sim_node.reference import ReferenceSample
+    from uh_sim_node.reference import Reference
 
     p, v, a = _array(msg.position), _array(msg.velocity), _array(msg.acceleration)
     _check_finite(np.concatenate([p, v, a, [msg.yaw, msg.yaw_rate]]), f'reference at step {msg.step}')
-    return ReferenceSample(position=p, velocity=v, acceleration=a, yaw=float(msg.yaw), yaw_rate=float(msg.yaw_rate))
+    return Reference(position=p, velocity=v, acceleration=a, yaw=float(msg.yaw), yaw_rate=float(msg.yaw_rate))
 
 
 def fault_truth_to_msg(uh_id: int, k: int, t: float, f_p, f_w, u_actual, active: bool, stuck: bool):

@@ -11,7 +11,6 @@ QoS (ROS 2 profiles):
   discovery order (a reader matched late still receives the first steps), and the depth bounds how
   far the recorder may lag behind before the lockstep clock waits for it (``RECORDER_LAG_STEPS``).
 - fault injection: reliable, keep-last 10, volatile (an injection is an event, not state).
-- markers: reliable keep-last 10, volatile.
 """
 from __future__ import annotations
 
@@ -19,7 +18,7 @@ from dataclasses import dataclass
 
 __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
-    'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK', 'MARKERS',
+    'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK',
     'RECORDER_PROGRESS', 'PER_UH', 'TEAM', 'uh_namespace', 'uh_topic', 'team_topics', 'qos_profile',
 ]
 
@@ -70,9 +69,7 @@ FAULT = TopicSpec('fault', 'uh_msgs/msg/ActuatorFault', EVENT_QOS, False, 'injec
 REFERENCE = TopicSpec('/reference', 'uh_msgs/msg/Reference', STEP_QOS, True, 'virtual_leader',
                       'controllers of leaders with a_i0 > 0; recorder', 'virtual-leader reference at step k')
 CLOCK = TopicSpec('/clock', 'rosgraph_msgs/msg/Clock', STEP_QOS, True, 'clock',
-                  'every node (use_sim_time); recorder', 'simulation time, one message per step')
-MARKERS = TopicSpec('/markers', 'visualization_msgs/msg/MarkerArray', EVENT_QOS, False, 'sim nodes',
-                    'RViz2 / Foxglove; recorder', 'visualisation markers')
+                  'sims, virtual leader; recorder', 'simulation time, one message per step')
 RECORDER_PROGRESS = TopicSpec('/recorder/progress', 'builtin_interfaces/msg/Time', EVENT_QOS, False,
                               'recorder', 'lockstep clock',
                               'sim time up to which every per-step topic has been written to the bag')
