@@ -1,0 +1,333 @@
+"""Message classes for both backends, built from the ``.msg`` files (DESIGN.md section 1).
+
+On the rclpy backend, :func:`get_message` returns the rosidl-generated classes
+(``uh_msgs.msg.UHState`` ...). On the Cyclone DDS backend it returns
+:class:`cyclonedds.idl.IdlStruct` classes generated here from the same definitions:
+
+* ``uh_msgs`` types are parsed from the ``.msg`` files with rosbags' ``get_types_from_msg``; the
+  files are looked up in ``$UH_MSGS_DIR``, then ``<prefix>/share/uh_msgs/msg`` for every prefix of
+  ``AMENT_PREFIX_PATH``, then ``<sys.prefix>/share/uh_msgs/msg`` (where pip installs them), and
+  last the source tree's ``uh_msgs/msg``;
+* standard types (``std_msgs/msg/Header``, ``rosgraph_msgs/msg/Clock``,
+  ``visualization_msgs/msg/MarkerArray``, ``rmw_dds_common/msg/ParticipantEntitiesInfo`` ...) come
+  from rosbags' ROS 2 Jazzy type store.
+
+Every field gets its exact ROS width (``int32`` -> ``types.int32``, ``float64[4]`` ->
+``types.array[types.float64, 4]``, ``string[]`` -> ``types.sequence[str]``), so
+``IdlStruct.serialize()`` writes XCDR1 little-endian bytes identical to ROS 2 CDR. Fields have
+ROS-like defaults (zeros, empty strings and lists, nested messages built by default factories) and
+constants are class attributes, so ``msg = UHState(); msg.position.x = 1.0`` works as with rclpy.
+
+Each DDS class carries ``__ros_typename__`` (``'uh_msgs/msg/UHState'``), ``__ros_typehash__``
+(``'RIHS01_<hex>'`` as rosbags' ``Typestore.hash_rihs01`` computes it, the same as ROS) and its DDS
+type name ``uh_msgs::msg::dds_::UHState_``.
+"""
+import dataclasses
+import importlib
+import os
+import re
+import sys
+import threading
+from collections import OrderedDict
+from pathlib import Path
+
+from .backend import select_backend
+
+__all__ = [
+    'MessageError', 'get_message', 'dds_message', 'type_hash', 'ros_type_name', 'dds_type_name',
+    'ros_type_from_dds', 'typestore', 'msg_search_path', 'message_to_ordereddict',
+    'message_to_yaml', 'message_fields', 'BACKEND',
+]
+
+#: Backend whose classes :func:`get_message` and the module attributes return.
+BACKEND = select_backend()
+
+#: Short names available as module attributes (``uh_runtime.messages.UHState``).
+KNOWN_TYPES = {
+    'UHState': 'uh_msgs/msg/UHState',
+    'ActuatorCommand': 'uh_msgs/msg/ActuatorCommand',
+    'Reference': 'uh_msgs/msg/Reference',
+    'ActuatorFault': 'uh_msgs/msg/ActuatorFault',
+    'FaultTruth': 'uh_msgs/msg/FaultTruth',
+    'ControllerStatus': 'uh_msgs/msg/ControllerStatus',
+    'Clock': 'rosgraph_msgs/msg/Clock',
+    'Header': 'std_msgs/msg/Header',
+    'String': 'std_msgs/msg/String',
+    'ColorRGBA': 'std_msgs/msg/ColorRGBA',
+    'Time': 'builtin_interfaces/msg/Time',
+    'Duration': 'builtin_interfaces/msg/Duration',
+    'Vector3': 'geometry_msgs/msg/Vector3',
+    'Point': 'geometry_msgs/msg/Point',
+    'Quaternion': 'geometry_msgs/msg/Quaternion',
+    'Pose': 'geometry_msgs/msg/Pose',
+    'MarkerArray': 'visualization_msgs/msg/MarkerArray',
+    'Marker': 'visualization_msgs/msg/Marker',
+    'ParticipantEntitiesInfo': 'rmw_dds_common/msg/ParticipantEntitiesInfo',
+    'NodeEntitiesInfo': 'rmw_dds_common/msg/NodeEntitiesInfo',
+    'Gid': 'rmw_dds_common/msg/Gid',
+}
+
+_UH_PACKAGE = 'uh_msgs'
+_NAME_RE = re.compile(r'^([A-Za-z][A-Za-z0-9_]*)/(?:msg/)?([A-Za-z][A-Za-z0-9_]*)$')
+
+
+class MessageError(LookupError):
+    """A message type name is malformed or unknown, or the ``.msg`` files cannot be found."""
+
+
+def _normalise(name: str) -> str:
+    """``'uh_msgs/UHState'`` or ``'uh_msgs/msg/UHState'`` -> ``'uh_msgs/msg/UHState'``."""
+    match = _NAME_RE.match(str(name).strip())
+    if not match:
+        raise MessageError(
+            f'{name!r} is not a message type name; expected "<package>/msg/<Type>", '
+            'e.g. "uh_msgs/msg/UHState"')
+    return f'{match.group(1)}/msg/{match.group(2)}'
+
+
+def msg_search_path() -> list[Path]:
+    """Directories searched, in order, for the ``uh_msgs`` ``.msg`` files (see module docstring)."""
+    paths = []
+    override = os.environ.get('UH_MSGS_DIR')
+    if override:
+        paths.append(Path(override))
+    for prefix in filter(None, os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)):
+        paths.append(Path(prefix) / 'share' / _UH_PACKAGE / 'msg')
+    paths.append(Path(sys.prefix) / 'share' / _UH_PACKAGE / 'msg')
+    paths.append(Path(__file__).resolve().parents[2] / _UH_PACKAGE / 'msg')
+    return paths
+
+
+def _uh_msgs_dir() -> Path:
+    override = os.environ.get('UH_MSGS_DIR')
+    if override and not any(Path(override).glob('*.msg')):
+        raise MessageError(f'UH_MSGS_DIR={override!r} holds no .msg files')
+    for path in msg_search_path():
+        if any(path.glob('*.msg')):
+            return path
+    raise MessageError(
+        'cannot find the uh_msgs .msg files; looked in: '
+        + ', '.join(str(p) for p in msg_search_path())
+        + ' (install uh_msgs, source a ROS 2 workspace, or set UH_MSGS_DIR)')
+
+
+_lock = threading.RLock()
+_store = None
+_classes: dict = {}
+
+
+def typestore():
+    """rosbags type store: ROS 2 Jazzy standard types plus every ``uh_msgs`` type.
+
+    Built once per process; it is the reference for type hashes and CDR bytes.
+    """
+    global _store
+    with _lock:
+        if _store is None:
+            from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+            store = get_typestore(Stores.ROS2_JAZZY)
+            directory = _uh_msgs_dir()
+            types = {}
+            for path in sorted(directory.glob('*.msg')):
+                types.update(get_types_from_msg(path.read_text(), f'{_UH_PACKAGE}/msg/{path.stem}'))
+            store.register(types)
+            _store = store
+        return _store
+
+
+def ros_type_name(msg_or_class) -> str:
+    """``'pkg/msg/Type'`` of a message class or instance of either backend."""
+    cls = msg_or_class if isinstance(msg_or_class, type) else type(msg_or_class)
+    name = getattr(cls, '__ros_typename__', None)
+    if name:
+        return name
+    module = getattr(cls, '__module__', '')
+    if '.msg' in module:  # rosidl class, e.g. uh_msgs.msg._uh_state.UHState
+        return f"{module.split('.')[0]}/msg/{cls.__name__}"
+    raise MessageError(f'{cls!r} is not a ROS message class')
+
+
+def dds_type_name(name_or_class) -> str:
+    """DDS type name ROS uses for a message type: ``'uh_msgs::msg::dds_::UHState_'``."""
+    name = name_or_class if isinstance(name_or_class, str) else ros_type_name(name_or_class)
+    pkg, _, typ = _normalise(name).split('/')
+    return f'{pkg}::msg::dds_::{typ}_'
+
+
+def ros_type_from_dds(dds_name: str) -> str:
+    """Inverse of :func:`dds_type_name`; names that do not follow the convention are returned as is."""
+    match = re.match(r'^(\w+)::(\w+)::dds_::(\w+)_$', dds_name)
+    if not match:
+        return dds_name
+    return f'{match.group(1)}/{match.group(2)}/{match.group(3)}'
+
+
+def type_hash(name_or_class) -> str:
+    """``'RIHS01_<64 hex>'`` type hash of a message type (what ROS 2 Jazzy puts in USER_DATA)."""
+    if not isinstance(name_or_class, str):
+        cached = getattr(name_or_class, '__ros_typehash__', None)
+        if cached:
+            return cached
+        name_or_class = ros_type_name(name_or_class)
+    name = _normalise(name_or_class)
+    store = typestore()
+    if name not in store.fielddefs:
+        raise MessageError(f'unknown message type {name!r}')
+    return store.hash_rihs01(name)
+
+
+# ----------------------------------------------------------------------------------------------
+# IdlStruct generation
+# ----------------------------------------------------------------------------------------------
+def _base_type(types, base: str, bound: int):
+    """cyclonedds annotation and default value of a ROS primitive type."""
+    table = {
+        'bool': (bool, False),
+        'byte': (types.byte, 0),
+        'char': (types.uint8, 0),
+        'int8': (types.int8, 0), 'uint8': (types.uint8, 0),
+        'int16': (types.int16, 0), 'uint16': (types.uint16, 0),
+        'int32': (types.int32, 0), 'uint32': (types.uint32, 0),
+        'int64': (types.int64, 0), 'uint64': (types.uint64, 0),
+        'float32': (types.float32, 0.0), 'float64': (types.float64, 0.0),
+    }
+    if base == 'string':
+        return (types.bounded_str[bound] if bound else str), ''
+    if base in table:
+        return table[base]
+    raise MessageError(f'ROS primitive type {base!r} is not supported on the DDS backend')
+
+
+def _field_type(types, spec):
+    """(annotation, default factory) of one rosbags field spec ``(Nodetype, details)``."""
+    from rosbags.typesys.base import Nodetype
+    kind, details = spec
+    if kind == Nodetype.BASE:
+        annotation, default = _base_type(types, details[0], details[1])
+        return annotation, (lambda d=default: d)
+    if kind == Nodetype.NAME:
+        cls = dds_message(details)
+        return cls, cls
+    if kind == Nodetype.ARRAY:
+        sub, length = details
+        sub_ann, sub_factory = _field_type(types, sub)
+        return types.array[sub_ann, length], (lambda f=sub_factory, n=length: [f() for _ in range(n)])
+    if kind == Nodetype.SEQUENCE:
+        sub, bound = details
+        sub_ann, _ = _field_type(types, sub)
+        ann = types.sequence[sub_ann, bound] if bound else types.sequence[sub_ann]
+        return ann, list
+    raise MessageError(f'unsupported field specification {spec!r}')
+
+
+def dds_message(name: str):
+    """The Cyclone DDS (``IdlStruct``) class of message type ``name``, whatever the backend.
+
+    Raises
+    ------
+    MessageError
+        ``name`` is malformed or not a known type.
+    """
+    name = _normalise(name)
+    with _lock:
+        cls = _classes.get(name)
+        if cls is not None:
+            return cls
+        from cyclonedds.idl import IdlStruct, types
+        from cyclonedds.idl._main import IdlMeta
+        store = typestore()
+        if name not in store.fielddefs:
+            raise MessageError(
+                f'unknown message type {name!r}: not a uh_msgs type (.msg files in '
+                f'{_uh_msgs_dir()}) nor a ROS 2 Jazzy standard type')
+        consts, fields = store.fielddefs[name]
+        pkg, _, typ = name.split('/')
+        bases = (IdlStruct,)
+        namespace = IdlMeta.__prepare__(typ, bases, typename=dds_type_name(name))
+        for fname, spec in fields:
+            annotation, factory = _field_type(types, spec)
+            namespace['__annotations__'][fname] = annotation
+            namespace[fname] = dataclasses.field(default_factory=factory)
+        for cname, _ctype, value in consts:
+            namespace[cname] = value
+        namespace['__ros_typename__'] = name
+        namespace['__ros_typehash__'] = store.hash_rihs01(name)
+        namespace['__module__'] = f'{pkg}.msg'
+        namespace['__qualname__'] = typ
+        cls = dataclasses.dataclass(IdlMeta(typ, bases, namespace))
+        _classes[name] = cls
+        return cls
+
+
+def get_message(name: str):
+    """The message class of ``name`` (``'uh_msgs/msg/UHState'``) for the active backend."""
+    name = _normalise(name)
+    if BACKEND == 'rclpy':
+        pkg, _, typ = name.split('/')
+        try:
+            return getattr(importlib.import_module(f'{pkg}.msg'), typ)
+        except (ImportError, AttributeError) as exc:
+            raise MessageError(f'cannot import {name} from the ROS 2 installation: {exc}') from exc
+    return dds_message(name)
+
+
+def __getattr__(attr):
+    if attr in KNOWN_TYPES:
+        cls = get_message(KNOWN_TYPES[attr])
+        globals()[attr] = cls
+        return cls
+    raise AttributeError(f'module {__name__!r} has no attribute {attr!r}')
+
+
+# ----------------------------------------------------------------------------------------------
+# Introspection and YAML (as ``ros2 topic echo`` prints)
+# ----------------------------------------------------------------------------------------------
+def message_fields(msg) -> list[str]:
+    """Field names of a message instance or class of either backend, in definition order."""
+    cls = msg if isinstance(msg, type) else type(msg)
+    if hasattr(cls, 'get_fields_and_field_types'):  # rosidl
+        return list(cls.get_fields_and_field_types())
+    return [f.name for f in dataclasses.fields(cls)]
+
+
+def _is_message(value) -> bool:
+    return hasattr(type(value), '__ros_typename__') or hasattr(type(value), 'get_fields_and_field_types')
+
+
+def message_to_ordereddict(msg, truncate_length=None):
+    """Nested ``OrderedDict`` of a message (like ``rosidl_runtime_py.message_to_ordereddict``)."""
+    out = OrderedDict()
+    for name in message_fields(msg):
+        out[name] = _convert(getattr(msg, name), truncate_length)
+    return out
+
+
+def _convert(value, truncate_length):
+    if _is_message(value):
+        return message_to_ordereddict(value, truncate_length)
+    if isinstance(value, (bytes, bytearray)):
+        value = list(value)
+    if isinstance(value, (list, tuple)) or type(value).__name__ in ('ndarray', 'array'):
+        items = [_convert(v, truncate_length) for v in list(value)]
+        if truncate_length is not None and len(items) > truncate_length:
+            items = items[:truncate_length] + ['...']
+        return items
+    if type(value).__module__ == 'numpy':
+        return value.item()
+    if isinstance(value, str) and truncate_length is not None and len(value) > truncate_length:
+        return value[:truncate_length] + '...'
+    return value
+
+
+def message_to_yaml(msg, truncate_length=128, flow_style=False) -> str:
+    """YAML text of a message as ``ros2 topic echo`` prints it (without the ``---`` separator)."""
+    import yaml
+
+    class _Dumper(yaml.SafeDumper):
+        pass
+
+    _Dumper.add_representer(
+        OrderedDict, lambda dumper, data: dumper.represent_mapping('tag:yaml.org,2002:map', data.items()))
+    data = message_to_ordereddict(msg, truncate_length) if _is_message(msg) else _convert(msg, truncate_length)
+    return yaml.dump(data, Dumper=_Dumper, allow_unicode=True, width=sys.maxsize,
+                     default_flow_style=flow_style, sort_keys=False)

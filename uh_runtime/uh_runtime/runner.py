@@ -1,0 +1,111 @@
+"""Entry-point helpers shared by both backends: the Jazzy ``main()`` shape and parameter checks."""
+import fnmatch
+import os
+import sys
+
+__all__ = ['check_parameter_overrides', 'run_node', 'declared_parameter_names', 'override_names']
+
+# Parameters every rclpy node declares by itself (not the application's).
+_BUILTIN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+
+
+def declared_parameter_names(node) -> list:
+    """Names of the parameters ``node`` has declared (either backend)."""
+    params = getattr(node, '_parameters', None)
+    if params is None:
+        params = node.get_parameters_by_prefix('')
+    return sorted(params)
+
+
+def override_names(node) -> list:
+    """Names of every parameter override that applies to ``node`` (``-p``, ``--params-file``,
+    ``parameter_overrides``). Both rclpy's Node and the DDS Node keep them in
+    ``_parameter_overrides``."""
+    return sorted(getattr(node, '_parameter_overrides', {}) or {})
+
+
+def check_parameter_overrides(node, ignore=()):
+    """Raise if an override names a parameter ``node`` never declared.
+
+    Call it at the end of a node's constructor, or let :func:`run_node` call it. ``ignore`` holds
+    names or ``fnmatch`` patterns of overrides that may stay undeclared (e.g. keys of a ``/**:``
+    file that other nodes read).
+
+    Raises
+    ------
+    UnknownParameterOverrideError
+        Lists the unknown names and every declared parameter.
+    """
+    from .parameters import UnknownParameterOverrideError
+    declared = set(declared_parameter_names(node))
+    unknown = [name for name in override_names(node)
+               if name not in declared and not any(fnmatch.fnmatchcase(name, pat) for pat in ignore)]
+    if unknown:
+        shown = sorted(declared - set(_BUILTIN_PARAMETERS)) or sorted(declared)
+        raise UnknownParameterOverrideError(node.get_name(), unknown, shown)
+
+
+def _clear_errors():
+    """Exception types that are the user's mistake and get a one-line message, no traceback."""
+    from . import arguments, parameters
+    errors = [parameters.ParameterException, arguments.RosArgsError, arguments.InvalidNameError]
+    try:
+        import rclpy.exceptions as rex
+        errors += [rex.ParameterException, rex.InvalidParameterTypeException,
+                   rex.InvalidParameterValueException, rex.ParameterNotDeclaredException,
+                   rex.ParameterUninitializedException, rex.InvalidTopicNameException,
+                   rex.InvalidNodeNameException, rex.InvalidNamespaceException]
+    except (ImportError, AttributeError):
+        pass
+    return tuple(errors)
+
+
+def _prog(args) -> str:
+    argv0 = (args or sys.argv or ['node'])[0]
+    return os.path.basename(str(argv0)) or 'node'
+
+
+def run_node(node_factory, args=None, *, user_errors=(), ignore_overrides=(), executor=None) -> int:
+    """Run node(s) with the Jazzy ``main()`` shape; return the process exit status.
+
+    ``init(args)``; build the node(s) with ``node_factory()`` (one node or a list of nodes, then
+    spun together by one executor); check the parameter overrides; spin; on ``KeyboardInterrupt``
+    (SIGINT) or ``ExternalShutdownException`` (SIGTERM, ``try_shutdown``) leave quietly;
+    ``finally`` destroy the nodes and ``try_shutdown()``, so a recorder's ``destroy_node`` always
+    runs. Bad parameters, bad ``--ros-args`` and the exception types in ``user_errors`` print
+    ``<prog>: error: <message>`` on stderr and return 1 (no traceback).
+
+    Use as ``def main(args=None): sys.exit(run_node(MyNode, args))``.
+    """
+    import uh_runtime as rt
+    clear = _clear_errors() + tuple(user_errors)
+    prog = _prog(args)
+    try:
+        rt.init(args=args)
+    except Exception as exc:  # bad --ros-args: rclpy raises RCLError subclasses, we RosArgsError
+        print(f'{prog}: error: {exc}', file=sys.stderr)
+        return 1
+    nodes = []
+    status = 0
+    try:
+        made = node_factory()
+        nodes = list(made) if isinstance(made, (list, tuple)) else [made]
+        for node in nodes:
+            check_parameter_overrides(node, ignore=ignore_overrides)
+        if executor is None and len(nodes) == 1:
+            rt.spin(nodes[0])
+        else:
+            executor = executor or rt.SingleThreadedExecutor()
+            for node in nodes:
+                executor.add_node(node)
+            executor.spin()
+    except (KeyboardInterrupt, rt.ExternalShutdownException):
+        pass
+    except clear as exc:
+        print(f'{prog}: error: {exc}', file=sys.stderr)
+        status = 1
+    finally:
+        for node in nodes:
+            node.destroy_node()
+        rt.try_shutdown()
+    return status
