@@ -16,6 +16,13 @@ simulation time ``t`` (not ``t - onset_time``), as the paper writes ``b(t)``. Ca
 * stuck: ``rho = 0`` -- the actuator sits at ``b(t)`` whatever is commanded. It is simulated, but it
   is outside what the controller compensates, so :meth:`FaultSchedule.stuck` reports it.
 
+Onset: a fault acts at times ``t >= onset_time - ONSET_TOLERANCE`` (1 ns), so an onset given on the
+step grid (``10.0`` s) switches on exactly at the step whose time ``k * dt`` rounds to just below it.
+The integrator decides the activity once per substep, at the substep's start time (``switch_time``),
+and evaluates the bias at the RK4 stage times: the fault then switches on at the first substep
+boundary at or after the onset (exact for onsets on the grid, at most one substep late otherwise)
+and the input is smooth inside every substep, which keeps RK4 fourth order.
+
 This module is pure Python (no ROS); the physical input limits are applied by the plant
 (:class:`uh_sim_node.helicopter.HelicopterPlant`), not here.
 """
@@ -27,12 +34,14 @@ from typing import Iterable
 
 import numpy as np
 
-__all__ = ['FaultError', 'ActuatorFault', 'FaultSchedule', 'NUM_CHANNELS', 'CHANNEL_NAMES']
+__all__ = ['FaultError', 'ActuatorFault', 'FaultSchedule', 'NUM_CHANNELS', 'CHANNEL_NAMES', 'ONSET_TOLERANCE']
 
 #: Number of actuator channels.
 NUM_CHANNELS = 4
 #: Channel names in index order (same order as ``INPUT_NAMES`` of the helicopter model).
 CHANNEL_NAMES = ('theta_col', 'theta_tr', 'delta_lat', 'delta_lon')
+#: A time this close before the onset counts as past it, s (absorbs the rounding of ``k * dt``).
+ONSET_TOLERANCE = 1e-9
 
 
 class FaultError(ValueError):
@@ -118,9 +127,16 @@ class ActuatorFault:
             return self.bias_constant
         return self.bias_constant + self.bias_amplitude * math.sin(self.bias_frequency * t)
 
-    def apply(self, u: float, t: float) -> float:
-        """Actual input of this channel, rad, for command ``u`` rad at time ``t`` s."""
-        if t < self.onset_time:
+    def started(self, t: float) -> bool:
+        """True when the fault acts at time ``t`` s (``t >= onset_time - ONSET_TOLERANCE``)."""
+        return t >= self.onset_time - ONSET_TOLERANCE
+
+    def apply(self, u: float, t: float, switch_time: float | None = None) -> float:
+        """Actual input of this channel, rad, for command ``u`` rad at time ``t`` s.
+
+        Whether the fault acts is decided at ``switch_time`` (default ``t``); the bias uses ``t``.
+        """
+        if not self.started(t if switch_time is None else switch_time):
             return u
         return self.rho * u + self.bias(t)
 
@@ -180,31 +196,24 @@ class FaultSchedule:
     def __repr__(self) -> str:
         return f'FaultSchedule({list(self._list)!r})'
 
-    def apply(self, u, t: float) -> np.ndarray:
-        """Actual inputs ``u_actual`` (4,) rad for commanded inputs ``u`` (4,) rad at time ``t`` s."""
+    def apply(self, u, t: float, switch_time: float | None = None) -> np.ndarray:
+        """Actual inputs ``u_actual`` (4,) rad for commanded inputs ``u`` (4,) rad at time ``t`` s.
+
+        Physical limits are not applied here. ``switch_time`` as in :meth:`ActuatorFault.apply`.
+        """
         out = np.array(u, dtype=float)
         for f in self._list:
-            out[f.channel] = f.apply(out[f.channel], t)
+            out[f.channel] = f.apply(out[f.channel], t, switch_time)
         return out
-
-    def apply4(self, u0: float, u1: float, u2: float, u3: float, t: float) -> tuple:
-        """Scalar fast path of :meth:`apply`: returns a tuple of 4 floats."""
-        if not self._list:
-            return u0, u1, u2, u3
-        u = [u0, u1, u2, u3]
-        for f in self._list:
-            if t >= f.onset_time:
-                u[f.channel] = f.rho * u[f.channel] + f.bias(t)
-        return u[0], u[1], u[2], u[3]
 
     def active(self, t: float) -> bool:
         """True when any channel is past its onset time at ``t`` s."""
-        return any(t >= f.onset_time for f in self._list)
+        return any(f.started(t) for f in self._list)
 
     def stuck(self, t: float) -> bool:
         """True when any active channel has ``rho = 0`` (outside what the controller compensates)."""
-        return any(t >= f.onset_time and f.rho == 0.0 for f in self._list)
+        return any(f.rho == 0.0 and f.started(t) for f in self._list)
 
     def active_channels(self, t: float) -> tuple:
         """Indices of the channels whose fault acts at ``t`` s."""
-        return tuple(f.channel for f in self._list if t >= f.onset_time)
+        return tuple(f.channel for f in self._list if f.started(t))

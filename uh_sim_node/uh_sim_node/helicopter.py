@@ -36,7 +36,9 @@ with ``u_actual`` and with ``u_cmd``::
 Rate limits of the actuators are not modelled (the command is a zero-order hold per control period).
 
 Integration is classical RK4 with ``substeps`` equal substeps per control period; the faulted inputs
-and the disturbance are evaluated at the RK4 stage times (RK4 of the non-autonomous system).
+and the disturbance are evaluated at the RK4 stage times (RK4 of the non-autonomous system). A fault
+switches on at a substep boundary (its activity is decided at the substep's start time), so the
+input is smooth inside every substep and the scheme keeps its fourth order.
 The core works on Python floats (no per-stage numpy allocation) because the team simulation calls
 it several hundred thousand times per scenario.
 """
@@ -51,7 +53,7 @@ from typing import Callable
 import numpy as np
 import yaml
 
-from .faults import FaultSchedule
+from .faults import ONSET_TOLERANCE, FaultSchedule
 
 __all__ = [
     'INPUT_NAMES', 'STATE_SIZE', 'INPUT_SIZE', 'HelicopterParamsError', 'HelicopterParams',
@@ -555,15 +557,16 @@ class HelicopterPlant:
         return (min(max(u0, lo[0]), hi[0]), min(max(u1, lo[1]), hi[1]),
                 min(max(u2, lo[2]), hi[2]), min(max(u3, lo[3]), hi[3]))
 
-    def _actual(self, uc, t):
-        """Faulted and re-limited inputs (tuple/list of 4 floats) for limited command ``uc``."""
+    def _actual(self, uc, t, t_switch):
+        """Faulted and re-limited inputs (4 floats) for limited command ``uc`` at time ``t``; the
+        faults' activity is decided at ``t_switch`` (the substep start, see :mod:`.faults`)."""
         faults = self.faults.faults
         if not faults:
             return uc
         u = list(uc)
         lo, hi = self._lo, self._hi
         for f in faults:
-            if t >= f.onset_time:
+            if t_switch >= f.onset_time - ONSET_TOLERANCE:
                 ch = f.channel
                 # eq. 6, then the physical travel limits of that actuator again
                 u[ch] = min(max(f.rho * u[ch] + f.bias(t), lo[ch]), hi[ch])
@@ -583,7 +586,7 @@ class HelicopterPlant:
     def actual_inputs(self, u_cmd, t: float) -> np.ndarray:
         """Inputs (4,) rad acting at time ``t`` s: limits, faults (eq. 6), limits again."""
         uc = self._clip(*(float(v) for v in u_cmd))
-        return np.array(self._actual(uc, float(t)))
+        return np.array(self._actual(uc, float(t), float(t)))
 
     def fault_active(self, t: float) -> bool:
         """True when any fault channel is past its onset at ``t`` s."""
@@ -599,13 +602,13 @@ class HelicopterPlant:
         ``u_cmd`` is the controller's command (4,) rad; it is limited first (DESIGN.md 2.2).
         """
         uc = self._clip(*(float(v) for v in u_cmd))
-        ua = self._actual(uc, float(t))
+        ua = self._actual(uc, float(t), float(t))
         return lumped_faults(self.params, self._x, uc, ua)
 
     def derivative(self, u_cmd, t: float) -> np.ndarray:
         """State derivative (12,) at the current state for command ``u_cmd`` at time ``t``."""
         uc = self._clip(*(float(v) for v in u_cmd))
-        ua = self._actual(uc, float(t))
+        ua = self._actual(uc, float(t), float(t))
         d = self._disturb(float(t))
         x = self._x
         return np.array(x[3:6] + self._rates(*x[3:], ua[0], ua[1], ua[2], ua[3], d[0], d[1], d[2]))
@@ -625,25 +628,30 @@ class HelicopterPlant:
         faulty = bool(self.faults.faults)
         dist = self.disturbance is not None
         zero = (0.0, 0.0, 0.0)
-        # Stage times: substep s spans [t + s h, t + (s + 1) h]; the end value of one substep is
-        # reused as the start value of the next (same float time, so the same result).
-        u_start, d_start = uc, zero
-        if faulty:
-            u_start = self._actual(uc, t)
-        if dist:
-            d_start = self._disturb(t)
+        # Substep s spans [t + s h, t + (s + 1) h]. The faults' activity is decided at its start
+        # (a fault switches on at a substep boundary, see uh_sim_node.faults); the bias and the
+        # disturbance are evaluated at the stage times. The end value of a substep is reused as the
+        # start value of the next when the activity has not changed (same float time).
         u_mid, u_end, d_mid, d_end = uc, uc, zero, zero
+        u_start = self._actual(uc, t, t) if faulty else uc
+        d_start = self._disturb(t) if dist else zero
+        # does any fault switch on inside this control period? if not, activity is constant
+        switching = faulty and any(t < f.onset_time - ONSET_TOLERANCE <= t + float(dt)
+                                   for f in self.faults.faults)
         for s in range(n):
+            t_start = t + s * h
             t_mid = t + (s + 0.5) * h
             t_end = t + (s + 1) * h
             if faulty:
-                u_mid = self._actual(uc, t_mid)
-                u_end = self._actual(uc, t_end)
+                if s > 0:
+                    u_start = self._actual(uc, t_start, t_start) if switching else u_end
+                u_mid = self._actual(uc, t_mid, t_start)
+                u_end = self._actual(uc, t_end, t_start)
             if dist:
                 d_mid = self._disturb(t_mid)
                 d_end = self._disturb(t_end)
             x = _rk4_substep(f, x, h, u_start, u_mid, u_end, d_start, d_mid, d_end)
-            u_start, d_start = u_end, d_end
+            d_start = d_end
         self._x = x
         return np.array(x)
 

@@ -1,0 +1,331 @@
+"""Helicopter model of DESIGN.md 2.1: parameters, kinematics, trim, free fall, RK4 integration."""
+import math
+
+import numpy as np
+import pytest
+
+from uh_sim_node.faults import ActuatorFault, FaultSchedule
+from uh_sim_node.helicopter import (INPUT_NAMES, HelicopterParams, HelicopterParamsError, HelicopterPlant,
+                                    SinusoidalDisturbance, clip_inputs, default_params_path,
+                                    euler_rate_matrix, hover_trim, load_helicopter_params,
+                                    rotation_matrix, rotor_moments, state_derivative, thrust)
+
+P = load_helicopter_params()
+RNG_SEED = 20250603
+
+
+def _state(p=(0.0, 0.0, 0.0), v=(0.0, 0.0, 0.0), euler=(0.0, 0.0, 0.0), omega=(0.0, 0.0, 0.0)):
+    return np.concatenate([p, v, euler, omega]).astype(float)
+
+
+def _rx(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _ry(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _rz(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def _skew(w):
+    return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+
+
+# ------------------------------------------------------------------------------------------------
+# Parameters
+
+
+def test_bundled_parameters_are_those_of_design_2_1():
+    assert default_params_path().name == 'helicopter.yaml'
+    assert P.mass == 8.2 and P.gravity == 9.81
+    np.testing.assert_array_equal(P.inertia, [0.18, 0.34, 0.28])
+    assert (P.c_M1, P.c_M2, P.K_beta, P.h_M) == (700.0, 10.0, 54.0, 0.235)
+    assert (P.B_lat, P.A_lon, P.tau_f, P.K_tr, P.D_r, P.c_Q, P.D_v) == (1.0, 1.0, 0.1, 30.0, 0.5, 0.02, 0.5)
+    np.testing.assert_array_equal(P.input_lower, [-0.1, -0.5, -0.3, -0.3])
+    np.testing.assert_array_equal(P.input_upper, [0.3, 0.5, 0.3, 0.3])
+    assert INPUT_NAMES == ('theta_col', 'theta_tr', 'delta_lat', 'delta_lon')
+    assert load_helicopter_params('helicopter').as_dict() == P.as_dict()  # bundled name
+
+
+def test_parameters_are_read_only():
+    with pytest.raises(ValueError):
+        P.inertia[0] = 1.0
+    with pytest.raises(AttributeError):
+        P.mass = 1.0
+
+
+def test_scaled_and_nominal_change_only_the_named_fields():
+    nom = P.nominal(0.9)
+    assert nom.D_v == pytest.approx(0.45, rel=1e-15) and nom.c_Q == pytest.approx(0.018, rel=1e-15)
+    for name, value in P.as_dict().items():
+        if name not in ('D_v', 'c_Q'):
+            assert nom.as_dict()[name] == value
+    assert P.D_v == 0.5  # original untouched
+    np.testing.assert_allclose(P.scaled(inertia=2.0).inertia, 2.0 * P.inertia)
+    with pytest.raises(HelicopterParamsError, match="unknown helicopter parameter 'D_x'"):
+        P.scaled(D_x=0.9)
+
+
+def _write_params(tmp_path, **changes):
+    data = P.as_dict()
+    for key, value in changes.items():
+        if value is None:
+            del data[key]
+        else:
+            data[key] = value
+    import yaml
+    path = tmp_path / 'heli.yaml'
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+@pytest.mark.parametrize('changes, message', [
+    ({'mass': None}, r"missing key\(s\) \['mass'\]"),
+    ({'masss': 8.0}, r"unknown key\(s\) \['masss'\]"),
+    ({'mass': 'heavy'}, r"'mass' must be a real number, got 'heavy'"),
+    ({'mass': float('nan')}, r"'mass' must be finite"),
+    ({'mass': -1.0}, r"'mass' must be > 0"),
+    ({'D_v': -0.1}, r"'D_v' must be >= 0"),
+    ({'inertia': [0.1, 0.2]}, r"'inertia' must have 3 elements"),
+    ({'inertia': [0.1, 0.0, 0.2]}, r'"inertia" must be > 0 on every axis'),
+    ({'input_lower': [0.3, -0.5, -0.3, -0.3]}, r"input_lower < input_upper; violated for \['theta_col'\]"),
+    ({'input_upper': 'wide'}, r"'input_upper' must be a list of numbers"),
+])
+def test_invalid_parameter_files_raise_clear_errors(tmp_path, changes, message):
+    path = _write_params(tmp_path, **changes)
+    with pytest.raises(HelicopterParamsError, match=message):
+        load_helicopter_params(path)
+
+
+def test_parameter_file_errors_name_file_and_line(tmp_path):
+    missing = tmp_path / 'none.yaml'
+    with pytest.raises(HelicopterParamsError, match='cannot read helicopter parameters .*none.yaml'):
+        load_helicopter_params(missing)
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('mass: 8.2\ninertia: [0.1, 0.2\ngravity: 9.81\n')
+    with pytest.raises(HelicopterParamsError, match=r'YAML syntax error in .*bad.yaml.* at line \d'):
+        load_helicopter_params(bad)
+
+
+# ------------------------------------------------------------------------------------------------
+# Kinematics
+
+
+def test_rotation_matrix_is_zyx_and_orthonormal():
+    rng = np.random.default_rng(RNG_SEED)
+    for _ in range(20):
+        e = rng.uniform([-1.2, -1.2, -math.pi], [1.2, 1.2, math.pi])
+        R = rotation_matrix(e)
+        np.testing.assert_allclose(R, _rz(e[2]) @ _ry(e[1]) @ _rx(e[0]), atol=1e-15)
+        # orthonormal to rounding of a product of three rotations (a few ulps)
+        np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-14)
+        assert np.linalg.det(R) == pytest.approx(1.0, abs=1e-14)
+
+
+def test_euler_rate_matrix_matches_numeric_derivative_of_R():
+    """R' = R [omega]x for body rates; Theta' = H omega must reproduce it."""
+    rng = np.random.default_rng(RNG_SEED + 1)
+    delta = 1e-6
+    for _ in range(20):
+        e = rng.uniform([-1.0, -1.0, -math.pi], [1.0, 1.0, math.pi])
+        w = rng.uniform(-2.0, 2.0, 3)
+        edot = euler_rate_matrix(e) @ w
+        numeric = (rotation_matrix(e + delta * edot) - rotation_matrix(e - delta * edot)) / (2 * delta)
+        # central difference: truncation ~ delta^2 |R'''| ~ 1e-11, rounding ~ eps / delta ~ 1e-10
+        np.testing.assert_allclose(numeric, rotation_matrix(e) @ _skew(w), atol=1e-8)
+
+
+def test_euler_rate_matrix_closed_form_inverse():
+    e = np.array([0.3, -0.4, 1.1])
+    phi, th = e[0], e[1]
+    h_inv = np.array([[1, 0, -math.sin(th)],
+                      [0, math.cos(phi), math.sin(phi) * math.cos(th)],
+                      [0, -math.sin(phi), math.cos(phi) * math.cos(th)]])
+    np.testing.assert_allclose(euler_rate_matrix(e) @ h_inv, np.eye(3), atol=1e-14)
+
+
+def test_state_derivative_kinematic_rows():
+    x = _state(p=(1, 2, 3), v=(0.5, -1.0, 2.0), euler=(0.2, -0.3, 0.9), omega=(0.4, -0.7, 0.25))
+    xdot = state_derivative(P, x, hover_trim(P))
+    np.testing.assert_array_equal(xdot[0:3], x[3:6])                       # p' = v
+    np.testing.assert_allclose(xdot[6:9], euler_rate_matrix(x[6:9]) @ x[9:12], atol=1e-15)
+
+
+def test_state_derivative_matches_vector_form_of_design_2_1():
+    """Independent matrix implementation of m v' and J omega' at a generic state and input."""
+    rng = np.random.default_rng(RNG_SEED + 2)
+    for _ in range(10):
+        x = _state(p=rng.normal(size=3), v=rng.normal(size=3), euler=rng.uniform(-0.8, 0.8, 3),
+                   omega=rng.normal(size=3))
+        u = rng.uniform(P.input_lower, P.input_upper)
+        d = rng.normal(size=3)
+        T = P.c_M1 * u[0] + P.c_M2
+        vdot = (-P.mass * P.gravity * np.array([0, 0, 1.0]) + T * rotation_matrix(x[6:9]) @ [0, 0, 1.0]
+                - P.D_v * x[3:6] + d) / P.mass
+        J = np.diag(P.inertia)
+        w = x[9:12]
+        b1s = P.B_lat * u[2] - P.tau_f * w[0]
+        a1s = P.A_lon * u[3] - P.tau_f * w[1]
+        gamma = np.array([(P.K_beta + T * P.h_M) * b1s, (P.K_beta + T * P.h_M) * a1s,
+                          P.K_tr * u[1] - P.D_r * w[2] - P.c_Q * T])
+        wdot = np.linalg.solve(J, -np.cross(w, J @ w) + gamma)
+        xdot = state_derivative(P, x, u, d)
+        np.testing.assert_allclose(xdot[3:6], vdot, atol=1e-12)
+        np.testing.assert_allclose(xdot[9:12], wdot, atol=1e-12)
+        np.testing.assert_allclose(rotor_moments(P, w, u), gamma, atol=1e-12)
+        assert thrust(P, u[0]) == pytest.approx(T, abs=1e-12)
+
+
+# ------------------------------------------------------------------------------------------------
+# Trim, free fall, limits
+
+
+@pytest.mark.parametrize('yaw', [0.0, 0.7, -2.5])
+def test_hover_trim_is_an_equilibrium(yaw):
+    u = hover_trim(P, yaw=yaw)
+    np.testing.assert_array_equal(clip_inputs(P, u), u)  # inside the limits
+    assert thrust(P, u[0]) == pytest.approx(P.mass * P.gravity, rel=1e-14)
+    x0 = _state(p=(1.0, -2.0, 10.0), euler=(0.0, 0.0, yaw))
+    # exact equilibrium up to the rounding of (m g - c_M2) / c_M1 (relative 1e-16 of 80 N)
+    np.testing.assert_allclose(state_derivative(P, x0, u), np.zeros(12), atol=1e-13)
+    plant = HelicopterPlant(P, None, x0, substeps=5)
+    for k in range(1000):  # 10 s at dt = 0.01
+        plant.step(u, k * 0.01, 0.01)
+    # a residual acceleration of 1e-14 m/s^2 moves the helicopter 5e-13 m in 10 s; 1e-9 m leaves
+    # four orders of margin and still catches any real imbalance (1e-6 m/s^2 would move 5e-5 m)
+    np.testing.assert_allclose(plant.x, x0, atol=1e-9)
+
+
+def test_free_fall_with_zero_thrust():
+    """theta_col = -c_M2/c_M1 gives T_M = 0: v' = -g e3 - (D_v/m) v + d_p/m, no rotor moments."""
+    u0 = -P.c_M2 / P.c_M1
+    assert thrust(P, u0) == pytest.approx(0.0, abs=1e-13)
+    v = np.array([1.0, -2.0, 3.0])
+    d = np.array([0.2, -0.1, 0.3])
+    x = _state(p=(0, 0, 50), v=v, euler=(0.3, -0.2, 1.0))  # attitude irrelevant without thrust
+    xdot = state_derivative(P, x, [u0, 0.0, 0.0, 0.0], d)
+    np.testing.assert_allclose(xdot[3:6], -P.gravity * np.array([0, 0, 1.0]) - P.D_v / P.mass * v + d / P.mass,
+                               atol=1e-14)
+    np.testing.assert_allclose(xdot[9:12], 0.0, atol=1e-15)  # K_beta b_1s = 0 at zero rates and cyclics
+
+
+def test_free_fall_trajectory_matches_closed_form():
+    """Zero thrust (inside the limits here) and linear drag: v(t) = v_inf + (v0 - v_inf) e^{-kt}."""
+    u = np.array([-P.c_M2 / P.c_M1, 0.0, 0.0, 0.0])
+    k = P.D_v / P.mass
+    v0 = np.array([2.0, -1.0, 3.0])
+    p0 = np.array([0.0, 0.0, 100.0])
+    plant = HelicopterPlant(P, None, _state(p=p0, v=v0), substeps=5)
+    t_end, dt = 3.0, 0.01
+    for i in range(300):
+        plant.step(u, i * dt, dt)
+    v_inf = np.array([0.0, 0.0, -P.gravity / k])
+    e = math.exp(-k * t_end)
+    v_exact = v_inf + (v0 - v_inf) * e
+    p_exact = p0 + v_inf * t_end + (v0 - v_inf) * (1 - e) / k
+    # RK4 global error ~ (k h)^4 |v| t with k h = 1.2e-4: far below 1e-9
+    np.testing.assert_allclose(plant.x[3:6], v_exact, atol=1e-9)
+    np.testing.assert_allclose(plant.x[0:3], p_exact, atol=1e-9)
+    np.testing.assert_allclose(plant.x[6:12], 0.0, atol=1e-15)
+
+
+def test_commands_are_limited_before_they_act():
+    lo, hi = P.input_lower, P.input_upper
+    u = np.array([0.5, -0.9, 0.31, -1.0])
+    np.testing.assert_array_equal(clip_inputs(P, u), [hi[0], lo[1], hi[2], lo[3]])
+    x0 = _state(p=(0, 0, 10), omega=(0.1, 0.0, -0.1))
+    a = HelicopterPlant(P, None, x0)
+    b = HelicopterPlant(P, None, x0)
+    a.step(u, 0.0, 0.01)
+    b.step(clip_inputs(P, u), 0.0, 0.01)
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.actual_inputs(u, 0.0), clip_inputs(P, u))
+
+
+# ------------------------------------------------------------------------------------------------
+# Integration
+
+
+def _textbook_rk4(params, x, u_cmd, t, dt, substeps, faults, dist):
+    """Plain numpy RK4 with state_derivative; faults and disturbance at the stage times."""
+    lo, hi = params.input_lower, params.input_upper
+    uc = np.clip(u_cmd, lo, hi)
+
+    def f(tt, xx, ts):
+        ua = np.clip(faults.apply(uc, tt, switch_time=ts), lo, hi)
+        return state_derivative(params, xx, ua, dist(tt))
+
+    h = dt / substeps
+    for s in range(substeps):
+        ts = t + s * h
+        k1 = f(ts, x, ts)
+        k2 = f(t + (s + 0.5) * h, x + h / 2 * k1, ts)
+        k3 = f(t + (s + 0.5) * h, x + h / 2 * k2, ts)
+        k4 = f(t + (s + 1) * h, x + h * k3, ts)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
+
+
+def _maneuver():
+    faults = FaultSchedule([ActuatorFault(0, 0.8, 0.0, 0.01, 0.5, 0.05),
+                            ActuatorFault(2, 0.85, 0.002, 0.003, 7.0, 0.0)])
+    dist = SinusoidalDisturbance([0.3, 0.3, 0.2], [0.5, 4.0, 3.0], [0.0, 1.0, 2.0])
+    x0 = _state(p=(1, 2, 10), v=(1.0, -0.5, 0.3), euler=(0.1, -0.05, 0.4), omega=(0.3, -0.2, 0.5))
+    u = hover_trim(P) + np.array([0.01, 0.02, 0.002, -0.003])
+    return faults, dist, x0, u
+
+
+def test_step_equals_textbook_rk4_with_faults_and_disturbance():
+    faults, dist, x0, u = _maneuver()
+    plant = HelicopterPlant(P, faults, x0, substeps=5, disturbance=dist)
+    x = x0.copy()
+    for k in range(20):  # across the onset at 0.05 s
+        t = k * 0.01
+        x = _textbook_rk4(P, x, u, t, 0.01, 5, faults, dist)
+        plant.step(u, t, 0.01)
+        # same arithmetic in a different order: agreement to rounding of O(10) numbers
+        np.testing.assert_allclose(plant.x, x, rtol=0, atol=1e-12)
+
+
+def test_rk4_converges_with_order_four():
+    """Halving the substep divides the error by ~16, also with time-varying faults/disturbance
+    (they are evaluated at the stage times; a zero-order hold per substep would give order 1)."""
+    faults, dist, x0, u = _maneuver()
+    t_end = 0.5
+
+    def run(n):
+        plant = HelicopterPlant(P, faults, x0, substeps=n, disturbance=dist)
+        return plant.step(u, 0.0, t_end)
+
+    # the fault onset at 0.05 s is a jump of u_actual; it sits on a substep boundary for every n
+    # below (n multiple of 10) and switches there, so the inputs are smooth within each substep
+    # roll-rate damping (K_beta + T h_M) tau_f / J_x ~ 40 1/s: substeps h <= 12.5 ms keep h lambda
+    # <= 0.5, inside the asymptotic range; the reference has errors ~1e-4 of the coarsest
+    ref = run(2560)
+    errs = [np.max(np.abs(run(n) - ref)) for n in (40, 80, 160)]
+    orders = [math.log2(errs[i] / errs[i + 1]) for i in range(2)]
+    for order in orders:
+        assert 3.6 < order < 4.4, (errs, orders)
+
+
+def test_step_rejects_bad_construction():
+    with pytest.raises(ValueError, match='substeps must be an int >= 1'):
+        HelicopterPlant(P, None, None, substeps=0)
+    with pytest.raises(ValueError, match='12 finite numbers'):
+        HelicopterPlant(P, None, np.zeros(11))
+    with pytest.raises(ValueError, match='12 finite numbers'):
+        HelicopterPlant(P, None, np.full(12, np.nan))
+
+
+def test_state_property_is_a_copy():
+    plant = HelicopterPlant(P, None, _state(p=(0, 0, 5)))
+    x = plant.x
+    x[2] = 99.0
+    assert plant.x[2] == 5.0
+    assert isinstance(plant, HelicopterPlant) and isinstance(P, HelicopterParams)
