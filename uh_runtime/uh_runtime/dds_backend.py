@@ -361,9 +361,16 @@ def _install_signal_wakeup():
     threading.Thread(target=pump, name='uh-signal-wakeup', daemon=True).start()
 
 
+def wake_on_signals(target):
+    """Call ``target.wake()`` whenever a signal arrives (main thread only; weakly referenced)."""
+    _wakeup_contexts.add(target)
+    _install_signal_wakeup()
+
+
 def _on_sigterm(signum, frame):
     for ctx in list(_wakeup_contexts):
-        ctx.try_shutdown()
+        if isinstance(ctx, Context):
+            ctx.try_shutdown()
 
 
 class Context:

@@ -1,0 +1,337 @@
+"""``uh``: inspect a running UH stack over DDS discovery, without ROS (output shaped like ``ros2``).
+
+::
+
+    uh topic list [-t]             ROS topics (and types) of the domain
+    uh topic echo TOPIC [--once]   print messages as YAML, separated by ---
+    uh topic hz TOPIC              receive rate
+    uh topic info TOPIC [-v]       type, publishers, subscriptions (-v: nodes, GIDs, QoS)
+    uh node list                   nodes, from ros_discovery_info
+
+Every command takes ``--domain-id`` (default ``ROS_DOMAIN_ID`` or 0). Discovery uses the Cyclone
+configuration in ``CYCLONEDDS_URI`` like every other participant.
+"""
+import argparse
+import math
+import os
+import sys
+import time
+
+__all__ = ['main', 'build_parser']
+
+
+class CliError(Exception):
+    """A user-facing failure: printed as ``uh: error: ...`` with exit status 1."""
+
+
+def _domain_default():
+    value = os.environ.get('ROS_DOMAIN_ID', '').strip()
+    return int(value) if value else 0
+
+
+def _common(parser, spin_time=True):
+    parser.add_argument('--domain-id', type=int, default=None,
+                        help='DDS domain id (default: ROS_DOMAIN_ID, else 0)')
+    if spin_time:
+        parser.add_argument('--spin-time', type=float, default=2.0,
+                            help='longest time to wait for discovery, s (default: 2.0)')
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog='uh', description='Inspect ROS 2 topics and nodes of a DDS domain over Cyclone DDS '
+        '(works without ROS; output like the ros2 CLI).')
+    commands = parser.add_subparsers(dest='command', metavar='{topic,node}')
+    commands.required = True
+
+    topic = commands.add_parser('topic', help='topics: list, echo, hz, info')
+    verbs = topic.add_subparsers(dest='verb', metavar='{list,echo,hz,info}')
+    verbs.required = True
+
+    p = verbs.add_parser('list', help='list the ROS topics of the domain')
+    p.add_argument('-t', '--show-types', action='store_true', help='also show each topic\'s type')
+    _common(p)
+
+    p = verbs.add_parser('echo', help='print the messages of a topic as YAML')
+    p.add_argument('topic_name', help='ROS topic name, e.g. /uh1/state')
+    p.add_argument('message_type', nargs='?', help='type (default: from the publishers), '
+                   'e.g. uh_msgs/msg/UHState')
+    p.add_argument('--once', action='store_true', help='print the first message and exit')
+    p.add_argument('--field', help='print only this field, e.g. position.x')
+    p.add_argument('--timeout', type=float, default=None,
+                   help='give up (exit 1) if nothing arrives within this many seconds')
+    p.add_argument('--truncate-length', type=int, default=128,
+                   help='longest array or string printed in full (default 128)')
+    p.add_argument('--qos-depth', type=int, default=10, help='history depth of the reader')
+    _common(p, spin_time=False)
+
+    p = verbs.add_parser('hz', help='print the receive rate of a topic')
+    p.add_argument('topic_name')
+    p.add_argument('--window', '-w', type=int, default=10000, help='window size in messages')
+    p.add_argument('--timeout', type=float, default=None,
+                   help='exit after this many seconds (status 1 if nothing arrived)')
+    _common(p, spin_time=False)
+
+    p = verbs.add_parser('info', help='type and endpoints of a topic')
+    p.add_argument('topic_name')
+    p.add_argument('-v', '--verbose', action='store_true',
+                   help='show node, GID, type hash and QoS of every endpoint')
+    _common(p)
+
+    node = commands.add_parser('node', help='nodes: list')
+    nverbs = node.add_subparsers(dest='verb', metavar='{list}')
+    nverbs.required = True
+    p = nverbs.add_parser('list', help='list the nodes of the domain')
+    p.add_argument('-c', '--count-nodes', action='store_true', help='only print the number of nodes')
+    _common(p)
+    return parser
+
+
+def _graph(args):
+    from .graph import Graph
+    domain = _domain_default() if args.domain_id is None else args.domain_id
+    if not 0 <= domain <= 232:
+        raise CliError(f'--domain-id {domain} is outside 0..232')
+    return Graph(domain_id=domain)
+
+
+def _check_topic(name):
+    if not name.startswith('/'):
+        name = '/' + name
+    return name
+
+
+# ----------------------------------------------------------------------------------------------
+def cmd_topic_list(args):
+    graph = _graph(args)
+    graph.settle(args.spin_time)
+    for name, types in graph.topic_names_and_types():
+        if args.show_types:
+            print(f"{name} [{', '.join(types)}]")
+        else:
+            print(name)
+    return 0
+
+
+def cmd_node_list(args):
+    graph = _graph(args)
+    graph.settle(args.spin_time)
+    nodes = graph.node_names_and_namespaces()
+    if args.count_nodes:
+        print(len(nodes))
+        return 0
+    for name, namespace in nodes:
+        print(f"{namespace.rstrip('/')}/{name}")
+    return 0
+
+
+def _qos_text(profile, dds_qos):
+    from cyclonedds.qos import Policy
+
+    def dur(ns):
+        return 'Infinite' if ns is None or ns >= 0x7FFFFFFFFFFFFFFF else f'{ns} nanoseconds'
+    lifespan = deadline = lease = None
+    liveliness = 'AUTOMATIC'
+    for policy in dds_qos:
+        if isinstance(policy, Policy.Lifespan):
+            lifespan = policy.lifespan
+        elif isinstance(policy, Policy.Deadline):
+            deadline = policy.deadline
+        elif isinstance(policy, Policy.Liveliness.ManualByTopic):
+            liveliness, lease = 'MANUAL_BY_TOPIC', policy.lease_duration
+        elif isinstance(policy, Policy.Liveliness.Automatic):
+            lease = policy.lease_duration
+    history = (f'KEEP_LAST ({profile.depth})' if profile.history.name == 'KEEP_LAST'
+               else 'KEEP_ALL')
+    return [
+        'QoS profile:',
+        f'  Reliability: {profile.reliability.name}',
+        f'  History (Depth): {history}',
+        f'  Durability: {profile.durability.name}',
+        f'  Lifespan: {dur(lifespan)}',
+        f'  Deadline: {dur(deadline)}',
+        f'  Liveliness: {liveliness}',
+        f'  Liveliness lease duration: {dur(lease)}',
+    ]
+
+
+def cmd_topic_info(args):
+    from .graph import format_gid
+    topic = _check_topic(args.topic_name)
+    graph = _graph(args)
+    graph.settle(args.spin_time)
+    types = dict(graph.topic_names_and_types()).get(topic)
+    if not types:
+        raise CliError(f"Unknown topic '{topic}'")
+    pubs = graph.endpoints(topic, writers=True)
+    subs = graph.endpoints(topic, writers=False)
+    lines = [f"Type: {'; '.join(types)}"]
+    for title, endpoints in (('Publisher count', pubs), ('Subscription count', subs)):
+        if args.verbose:
+            lines.append('')
+        lines.append(f'{title}: {len(endpoints)}')
+        if args.verbose:
+            for ep in endpoints:
+                lines += ['', f'Node name: {ep.node_name}', f'Node namespace: {ep.node_namespace}',
+                          f'Topic type: {ep.topic_type}', f'Topic type hash: {ep.topic_type_hash}',
+                          f'Endpoint type: {ep.endpoint_type}', f'GID: {format_gid(ep.gid)}']
+                lines += _qos_text(ep.qos_profile, ep.dds_qos)
+    print('\n'.join(lines))
+    return 0
+
+
+def _wait_for_type(graph, topic, timeout):
+    """Type of ``topic`` from its publishers (else subscribers), waiting like ``ros2 topic echo``."""
+    def found(g):
+        return bool(g.endpoints(topic, writers=True))
+
+    if not graph.wait_until(found, timeout_sec=min(0.5, timeout) if timeout is not None else 0.5):
+        print(f'WARNING: topic [{topic}] does not appear to be published yet; waiting for it '
+              '(--timeout to give up)', file=sys.stderr, flush=True)
+        remaining = None if timeout is None else max(0.0, timeout - 0.5)
+        if not graph.wait_until(found, timeout_sec=remaining):
+            raise CliError(f'no publisher of {topic} appeared within {timeout} s')
+    pubs = graph.endpoints(topic, writers=True)
+    types = sorted({ep.topic_type for ep in pubs})
+    if len(types) > 1:
+        raise CliError(f'{topic} is published with several types ({", ".join(types)}); '
+                       'pass the type as second argument')
+    return types[0], pubs
+
+
+def _reader(graph, topic, cls, pubs, depth, raw=False):
+    """A reader whose QoS suits every publisher (reliable/transient-local only if all are)."""
+    from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    from . import messages
+    from .qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
+    reliable = pubs and all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in pubs)
+    latched = pubs and all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in pubs)
+    profile = QoSProfile(
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+    dds_topic = Topic(graph.participant, 'rt' + topic, cls)
+    reader = DataReader(graph.participant, dds_topic,
+                        qos=to_dds_qos(profile, f'typehash={messages.type_hash(cls)};'.encode()))
+    condition = ReadCondition(reader, SampleState.NotRead | ViewState.Any | InstanceState.Any)
+    graph._waitset.attach(condition)
+    return reader, condition
+
+
+def _field(msg, path):
+    value = msg
+    for part in path.split('.'):
+        if not hasattr(value, part):
+            raise CliError(f"'{path}' is not a field of {type(msg).__name__} "
+                           f"(no '{part}' in {type(value).__name__})")
+        value = getattr(value, part)
+    return value
+
+
+def cmd_topic_echo(args):
+    from . import messages
+    topic = _check_topic(args.topic_name)
+    graph = _graph(args)
+    start = time.monotonic()
+    if args.message_type:
+        type_name = args.message_type
+        graph.update()
+        pubs = graph.endpoints(topic, writers=True)
+    else:
+        type_name, pubs = _wait_for_type(graph, topic, args.timeout)
+    try:
+        cls = messages.dds_message(type_name)
+    except messages.MessageError as exc:
+        raise CliError(str(exc)) from None
+    if args.field:
+        _field(cls(), args.field)  # fail early on a wrong field
+    reader, condition = _reader(graph, topic, cls, pubs, args.qos_depth)
+    while True:
+        for msg in reader.take(N=256):
+            if not msg.sample_info.valid_data:
+                continue
+            value = _field(msg, args.field) if args.field else msg
+            sys.stdout.write(messages.message_to_yaml(value, truncate_length=args.truncate_length))
+            sys.stdout.write('---\n')
+            sys.stdout.flush()
+            if args.once:
+                return 0
+        now = time.monotonic()
+        if args.timeout is not None and now - start >= args.timeout:
+            raise CliError(f'no message on {topic} within {args.timeout} s')
+        remaining = None if args.timeout is None else args.timeout - (now - start)
+        graph._waitset.wait(0x7FFFFFFFFFFFFFFF if remaining is None else int(remaining * 1e9))
+        graph._guard.take()
+
+
+def cmd_topic_hz(args):
+    from . import messages
+    topic = _check_topic(args.topic_name)
+    graph = _graph(args)
+    start = time.monotonic()
+    type_name, pubs = _wait_for_type(graph, topic, args.timeout)
+    cls = messages.dds_message(type_name)
+    reader, condition = _reader(graph, topic, cls, pubs, depth=1000)
+    from cyclonedds._clayer import ddspy_take
+    from cyclonedds.core import InstanceState, SampleState, ViewState
+    mask = SampleState.Any | ViewState.Any | InstanceState.Any
+    stamps = []
+    last_print = time.monotonic()
+    last_count = 0
+    received = 0
+    while True:
+        ret = ddspy_take(reader._ref, mask, 1000)  # raw: no deserialisation needed to count
+        now = time.monotonic()
+        for _, info in ret:
+            if info.valid_data:
+                stamps.append(now)
+                received += 1
+        del stamps[:-args.window - 1]
+        if now - last_print >= 1.0:
+            last_print = now
+            if len(stamps) >= 2 and received != last_count:
+                gaps = [b - a for a, b in zip(stamps, stamps[1:])]
+                mean = sum(gaps) / len(gaps)
+                std = math.sqrt(sum((g - mean) ** 2 for g in gaps) / len(gaps))
+                print(f'average rate: {1.0 / mean:.3f}\n\tmin: {min(gaps):.3f}s max: '
+                      f'{max(gaps):.3f}s std dev: {std:.5f}s window: {len(gaps) + 1}', flush=True)
+            else:
+                print('no new messages', flush=True)
+            last_count = received
+        if args.timeout is not None and now - start >= args.timeout:
+            return 0 if received else 1
+        deadline = last_print + 1.0
+        if args.timeout is not None:
+            deadline = min(deadline, start + args.timeout)
+        graph._waitset.wait(max(0, int((deadline - time.monotonic()) * 1e9)))
+        graph._guard.take()
+
+
+COMMANDS = {
+    ('topic', 'list'): cmd_topic_list,
+    ('topic', 'echo'): cmd_topic_echo,
+    ('topic', 'hz'): cmd_topic_hz,
+    ('topic', 'info'): cmd_topic_info,
+    ('node', 'list'): cmd_node_list,
+}
+
+
+def main(argv=None) -> int:
+    """Console script ``uh``; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        return COMMANDS[(args.command, args.verb)](args)
+    except KeyboardInterrupt:
+        return 130
+    except CliError as exc:
+        print(f'uh: error: {exc}', file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,250 @@
+"""The ROS graph seen through DDS discovery, as rmw_dds_common's graph cache builds it.
+
+Sources: the DDS builtin topics (``DCPSParticipant``, ``DCPSPublication``,
+``DCPSSubscription``: every endpoint's GUID, topic, type, QoS and USER_DATA) and
+``ros_discovery_info`` (which node owns which reader/writer GID). ROS topics are the DDS topics
+starting with ``rt/``; an endpoint whose GID no ``ros_discovery_info`` lists belongs to node
+``_CREATED_BY_BARE_DDS_APP_``, as in ROS 2. Used by the ``uh`` CLI, the DDS backend's graph
+queries (``count_subscribers`` ...) and the tests.
+"""
+import time
+import uuid
+from dataclasses import dataclass
+
+from . import messages as _messages
+from .qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, from_dds_qos, to_dds_qos
+
+__all__ = ['Graph', 'EndpointInfo', 'BARE_DDS_NODE', 'format_gid', 'user_data_value']
+
+BARE_DDS_NODE = '_CREATED_BY_BARE_DDS_APP_'
+_DDS_INFINITY = 0x7FFFFFFFFFFFFFFF
+
+
+def format_gid(gid: bytes) -> str:
+    """GID as ``ros2 topic info -v`` prints it: dot-separated hex bytes."""
+    return '.'.join(f'{b:02x}' for b in gid)
+
+
+def user_data_value(qos, key: str) -> str | None:
+    """Value of ``key`` in a ``key=value;`` USER_DATA QoS (e.g. ``typehash``), or None."""
+    from cyclonedds.qos import Policy
+    data = b''
+    for policy in qos or ():
+        if isinstance(policy, Policy.Userdata):
+            data = policy.data
+    for part in data.decode('utf-8', 'replace').split(';'):
+        if part.startswith(key + '='):
+            return part[len(key) + 1:]
+    return None
+
+
+@dataclass
+class EndpointInfo:
+    """One reader or writer of a ROS topic (like ``rclpy.topic_endpoint_info.TopicEndpointInfo``)."""
+
+    node_name: str
+    node_namespace: str
+    topic_name: str
+    topic_type: str
+    topic_type_hash: str
+    endpoint_type: str  # 'PUBLISHER' or 'SUBSCRIPTION'
+    gid: bytes
+    qos_profile: QoSProfile
+    dds_qos: object
+    participant_gid: bytes
+
+
+class Graph:
+    """Discovery state of one DDS domain, refreshed by :meth:`update` / :meth:`wait`.
+
+    Parameters
+    ----------
+    participant : cyclonedds.domain.DomainParticipant, optional
+        Participant to read discovery through (its own endpoints are included). Without it a
+        participant is created on ``domain_id`` and its own entities are left out.
+    domain_id : int, optional
+        Domain of the created participant (default: ``ROS_DOMAIN_ID`` or 0).
+    """
+
+    def __init__(self, participant=None, domain_id=None):
+        import os
+
+        from cyclonedds.builtin import (
+            BuiltinDataReader, BuiltinTopicDcpsParticipant, BuiltinTopicDcpsPublication,
+            BuiltinTopicDcpsSubscription,
+        )
+        from cyclonedds.core import (
+            GuardCondition, InstanceState, ReadCondition, SampleState, ViewState, WaitSet,
+        )
+        from cyclonedds.domain import DomainParticipant
+        from cyclonedds.qos import Policy, Qos
+        from cyclonedds.sub import DataReader
+        from cyclonedds.topic import Topic
+        self._own = participant is None
+        if participant is None:
+            if domain_id is None:
+                domain_id = int(os.environ.get('ROS_DOMAIN_ID', '0') or 0)
+            participant = DomainParticipant(int(domain_id), qos=Qos(Policy.Userdata(b'enclave=/;')))
+        self.participant = participant
+        self.own_key = participant.get_guid()
+        self._participants_reader = BuiltinDataReader(participant, BuiltinTopicDcpsParticipant)
+        self._pub_reader = BuiltinDataReader(participant, BuiltinTopicDcpsPublication)
+        self._sub_reader = BuiltinDataReader(participant, BuiltinTopicDcpsSubscription)
+        info_cls = _messages.dds_message('rmw_dds_common/msg/ParticipantEntitiesInfo')
+        # like rmw_cyclonedds' own reader of this topic: keep-all, since the topic is keyless
+        profile = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        user_data = f'typehash={_messages.type_hash(info_cls)};'.encode()
+        self._info_reader = DataReader(
+            participant, Topic(participant, 'ros_discovery_info', info_cls),
+            qos=to_dds_qos(profile, user_data))
+        mask = SampleState.NotRead | ViewState.Any | InstanceState.Any
+        self._waitset = WaitSet(participant)
+        self._conditions = []
+        for reader in (self._participants_reader, self._pub_reader, self._sub_reader,
+                       self._info_reader):
+            cond = ReadCondition(reader, mask)
+            self._conditions.append(cond)
+            self._waitset.attach(cond)
+        self._guard = GuardCondition(participant)
+        self._waitset.attach(self._guard)
+        self.participants = {}   # participant key (uuid) -> qos
+        self.writers = {}        # endpoint key (uuid) -> DcpsEndpoint
+        self.readers = {}
+        self.infos = {}          # participant gid (bytes) -> ParticipantEntitiesInfo
+        self.version = 0
+        from .dds_backend import wake_on_signals
+        wake_on_signals(self)
+
+    def close(self):
+        if self._own:
+            self.participant.__del__()
+
+    # -- refresh ---------------------------------------------------------------------------
+    @staticmethod
+    def _alive(sample) -> bool:
+        from cyclonedds.core import InstanceState
+        return sample.sample_info.valid_data and sample.sample_info.instance_state == InstanceState.Alive
+
+    def update(self) -> bool:
+        """Take everything discovery has delivered; True if anything changed."""
+        changed = False
+        for sample in self._participants_reader.take(N=1000):
+            changed = True
+            if self._alive(sample):
+                self.participants[sample.key] = sample.qos
+            else:
+                self.participants.pop(sample.key, None)
+                self.infos.pop(sample.key.bytes, None)
+        for reader, table in ((self._pub_reader, self.writers), (self._sub_reader, self.readers)):
+            for sample in reader.take(N=1000):
+                changed = True
+                if self._alive(sample):
+                    table[sample.key] = sample
+                else:
+                    table.pop(sample.key, None)
+        for msg in self._info_reader.take(N=1000):
+            if getattr(msg.sample_info, 'valid_data', True) and hasattr(msg, 'gid'):
+                changed = True
+                self.infos[bytes(msg.gid.data)] = msg
+        if changed:
+            self.version += 1
+        return changed
+
+    def wait_until(self, until, timeout_sec=None) -> bool:
+        """Refresh until ``until(self)`` is true (True) or ``timeout_sec`` has passed (False).
+
+        Blocks in a wait set on the discovery readers; ``timeout_sec=None`` waits for ever.
+        """
+        end = None if timeout_sec is None else time.monotonic() + timeout_sec
+        while True:
+            self.update()
+            if until(self):
+                return True
+            now = time.monotonic()
+            if end is not None and now >= end:
+                return False
+            self._waitset.wait(_DDS_INFINITY if end is None else max(0, int((end - now) * 1e9)))
+            self._guard.take()
+
+    def settle(self, spin_time: float, quiet: float = 0.3):
+        """Collect discovery for at most ``spin_time`` s, returning early once other participants
+        are known and nothing has changed for ``quiet`` s (what ``ros2 ... --spin-time`` waits for).
+        """
+        end = time.monotonic() + spin_time
+        last_change = time.monotonic()
+        while True:
+            if self.update():
+                last_change = time.monotonic()
+            now = time.monotonic()
+            if now >= end or (self._live_participant_gids() and now - last_change >= quiet):
+                return
+            deadline = end if not self._live_participant_gids() else min(end, last_change + quiet)
+            self._waitset.wait(max(0, int((deadline - now) * 1e9)))
+            self._guard.take()
+
+    def wake(self):
+        """Make a blocked :meth:`wait_until` return (used on signals)."""
+        self._guard.set(True)
+
+    # -- queries ---------------------------------------------------------------------------
+    def _live_participant_gids(self):
+        gids = {key.bytes for key in self.participants}
+        gids.discard(self.own_key.bytes) if self._own else None
+        return gids
+
+    def _node_of(self, gid: bytes, writer: bool):
+        for pgid, info in self.infos.items():
+            for node in info.node_entities_info_seq:
+                seq = node.writer_gid_seq if writer else node.reader_gid_seq
+                if any(bytes(g.data) == gid for g in seq):
+                    return node.node_name, node.node_namespace
+        return BARE_DDS_NODE, '/'
+
+    def node_names_and_namespaces(self):
+        """Sorted (name, namespace) of every node of the live participants (other than ours)."""
+        live = self._live_participant_gids()
+        nodes = set()
+        for pgid, info in self.infos.items():
+            if pgid in live:
+                for node in info.node_entities_info_seq:
+                    nodes.add((node.node_name, node.node_namespace))
+        return sorted(nodes, key=lambda n: (n[1], n[0]))
+
+    def _ros_endpoints(self, writers: bool):
+        table = self.writers if writers else self.readers
+        for key, sample in table.items():
+            if self._own and sample.participant_key == self.own_key:
+                continue
+            if sample.topic_name.startswith('rt/'):
+                yield key, sample
+
+    def topic_names_and_types(self):
+        """Sorted [(ros topic name, [ros type names])] of every ROS topic with a reader or writer."""
+        topics = {}
+        for writers in (True, False):
+            for _, sample in self._ros_endpoints(writers):
+                topics.setdefault(sample.topic_name[2:], set()).add(
+                    _messages.ros_type_from_dds(sample.type_name))
+        return [(name, sorted(types)) for name, types in sorted(topics.items())]
+
+    def endpoints(self, topic: str, writers: bool):
+        """Readers or writers of ROS topic ``topic`` as :class:`EndpointInfo`."""
+        result = []
+        for key, sample in self._ros_endpoints(writers):
+            if sample.topic_name != 'rt' + topic:
+                continue
+            name, namespace = self._node_of(key.bytes, writers)
+            result.append(EndpointInfo(
+                node_name=name, node_namespace=namespace, topic_name=topic,
+                topic_type=_messages.ros_type_from_dds(sample.type_name),
+                topic_type_hash=user_data_value(sample.qos, 'typehash') or '',
+                endpoint_type='PUBLISHER' if writers else 'SUBSCRIPTION', gid=key.bytes,
+                qos_profile=from_dds_qos(sample.qos), dds_qos=sample.qos,
+                participant_gid=sample.participant_key.bytes))
+        return sorted(result, key=lambda e: (e.node_namespace, e.node_name, e.gid))
+
+
+def guid_bytes(value) -> bytes:
+    """16 GUID bytes of a ``uuid.UUID`` or bytes-like."""
+    return value.bytes if isinstance(value, uuid.UUID) else bytes(value)
