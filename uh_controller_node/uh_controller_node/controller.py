@@ -1,0 +1,291 @@
+"""The controller of one UH: consensus errors from neighbours' data, outer and inner loops (DESIGN.md 2.3-2.5).
+
+One :class:`UHController` per helicopter, built from the scenario only (its neighbours, weights,
+virtual-leader link and formation offsets come from the communication graph). Each control step
+it takes its own state, the states of its graph neighbours, and the virtual leader's reference if
+it hears the virtual leader, and returns the four physical inputs and a status record.
+
+Consensus errors (DESIGN.md 2.3), with ``h_j`` the formation offsets (leaders) or zero (followers)::
+
+    leader i:    z1 = sum_{j in N_i} a_ij [(p_i - h_i) - (p_j - h_j)] + a_i0 [(p_i - h_i) - p_0]
+    follower k:  z1 = sum_{j in N_k} a_kj (p_k - p_j)
+    d = sum_j a_ij + a_i0 ,   feed-forward velocity f = sum_j a_ij v_j + a_i0 v_0
+
+Yaw: a UH that hears the virtual leader tracks ``psi_0``; every other UH tracks the a-weighted
+mean of its neighbours' yaw, computed as ``psi_i + sum_j a_ij wrap(psi_j - psi_i) / sum_j a_ij`` so
+the mean is taken the short way around the circle.
+
+Per step the order is fixed: consensus error -> outer law (u_p) -> thrust and attitude extraction
+(tilt and collective limits) -> inner law (u_m, cyclic and pedal limits) -> explicit-Euler update
+of every internal state from t_k to t_{k+1}. Neighbours are visited in ascending id order and the
+controller uses no randomness, so two runs with the same inputs give bit-identical outputs.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .command_filter import wrap_angle
+from .gains import ControllerGains, GainsError
+from .inner_loop import InnerLoop
+from .nominal_model import NominalModel
+from .outer_loop import OuterLoop, thrust_and_attitude
+
+__all__ = ['ControllerError', 'ControllerStatusData', 'UHController']
+
+
+class ControllerError(ValueError):
+    """Bad controller construction or step input (unknown UH, missing neighbour data, bad shapes)."""
+
+
+@dataclass
+class ControllerStatusData:
+    """Internal signals of one UH controller for one step (fields of ``uh_msgs/ControllerStatus``).
+
+    Outer-loop vectors are in the inertial frame; inner-loop vectors in the body frame (Euler-rate
+    frame for ``z3``). All arrays are (3,) float64 and owned by this record.
+
+    Attributes
+    ----------
+    uh_id, step : int
+        Helicopter id and step index k.
+    stamp : float
+        t_k = k dt, s.
+    z1 : ndarray
+        Consensus position error e, m.
+    z2 : ndarray
+        Velocity error v - alpha_f, m/s.
+    z3 : ndarray
+        Attitude error Theta - Theta_df (yaw wrapped), rad.
+    z4 : ndarray
+        Body-rate error omega - alpha_wf, rad/s.
+    fault_estimate_position : ndarray
+        Fhat_p used this step, m/s^2.
+    fault_estimate_attitude : ndarray
+        Fhat_w used this step, rad/s^2.
+    prediction_error_position : ndarray
+        z_n = v - vhat, m/s.
+    prediction_error_attitude : ndarray
+        z_n = omega - omegahat, rad/s.
+    u_p : ndarray
+        Designed acceleration (before the tilt and collective limits), m/s^2.
+    euler_desired : ndarray
+        Attitude command (phi_d, theta_d, psi_d) before the command filter, rad.
+    thrust_command : float
+        T_c before the collective limit, N.
+    weight_norm_position, weight_norm_attitude : float
+        Frobenius norms of W_p and W_w.
+    saturated_tilt, saturated_collective, saturated_cyclic : bool
+        Tilt (or minimum vertical thrust), collective, and cyclic/tail-rotor limits active.
+    cost_rate : float
+        ``|z1|^2 + |u_p|^2``, the integrand of the CPI (DESIGN.md 2.8).
+    stale_neighbours : tuple of str
+        Filled by the node when a neighbour's data is older than its timeout; empty here.
+    """
+
+    uh_id: int
+    step: int
+    stamp: float
+    z1: np.ndarray
+    z2: np.ndarray
+    z3: np.ndarray
+    z4: np.ndarray
+    fault_estimate_position: np.ndarray
+    fault_estimate_attitude: np.ndarray
+    prediction_error_position: np.ndarray
+    prediction_error_attitude: np.ndarray
+    u_p: np.ndarray
+    euler_desired: np.ndarray
+    thrust_command: float
+    weight_norm_position: float
+    weight_norm_attitude: float
+    saturated_tilt: bool
+    saturated_collective: bool
+    saturated_cyclic: bool
+    cost_rate: float
+    stale_neighbours: tuple = field(default_factory=tuple)
+
+    @property
+    def saturated(self) -> bool:
+        """True when any input limit was active."""
+        return self.saturated_tilt or self.saturated_collective or self.saturated_cyclic
+
+
+def _state(x, what: str) -> np.ndarray:
+    arr = np.asarray(x, dtype=float)
+    if arr.shape != (12,):
+        raise ControllerError(f'{what} must be a state vector of shape (12,), got shape {arr.shape}')
+    if not np.isfinite(arr).all():
+        raise ControllerError(f'{what} contains NaN or infinity: {arr.tolist()}')
+    return arr
+
+
+class UHController:
+    """Composite-learning inverse-optimal fault-tolerant controller of one UH (DESIGN.md 2.3-2.6).
+
+    Parameters
+    ----------
+    uh_id : int
+        Id of the controlled UH (1..N+M).
+    scenario : uh_topology.scenario.Scenario
+        Supplies ``ids``, ``leaders``, ``neighbours(i)``, ``weight(i, j)``, ``leader_link(i)``,
+        ``offsets``, ``gains`` (raw mapping), ``model_mismatch`` and ``helicopter``.
+    case : str
+        ``'proposed'``, ``'case1'`` or ``'case2'`` (DESIGN.md 2.6).
+    helicopter_params : HelicopterParams, optional
+        Airframe parameters; default: loaded from ``scenario.helicopter``. The controller's nominal
+        model scales their ``D_v`` and ``c_Q`` by ``scenario.model_mismatch``.
+
+    Raises
+    ------
+    ControllerError
+        Unknown UH id, a UH without neighbours nor virtual-leader link, a leader that hears a
+        follower, or a missing formation offset.
+    GainsError
+        Invalid gains mapping or unknown case.
+    """
+
+    def __init__(self, uh_id: int, scenario, case: str = 'proposed', *, helicopter_params=None):
+        ids = tuple(int(i) for i in scenario.ids)
+        if isinstance(uh_id, bool) or not isinstance(uh_id, (int, np.integer)) or int(uh_id) not in ids:
+            raise ControllerError(f'unknown UH id {uh_id!r}; the scenario has UHs {list(ids)}')
+        self.uh_id = i = int(uh_id)
+        leaders = tuple(int(j) for j in scenario.leaders)
+        self.is_leader = i in leaders
+        self.neighbours = tuple(sorted(int(j) for j in scenario.neighbours(i)))
+        self.neighbour_weights = tuple(float(scenario.weight(i, j)) for j in self.neighbours)
+        self.leader_link = float(scenario.leader_link(i))
+        self.degree = sum(self.neighbour_weights) + self.leader_link
+        if not self.degree > 0.0:
+            raise ControllerError(f'UH {i} hears neither a neighbour nor the virtual leader; '
+                                  'every UH needs at least one incoming edge')
+        zero = np.zeros(3)
+        if self.is_leader:
+            offsets = scenario.offsets
+            needed = (i,) + self.neighbours
+            for j in needed:
+                if j not in leaders:
+                    raise ControllerError(f'leader UH {i} hears follower UH {j}; leaders may hear only '
+                                          'leaders and the virtual leader (DESIGN.md 2.3)')
+                if j not in offsets:
+                    raise ControllerError(f'no formation offset for leader UH {j} (needed by UH {i})')
+            self.offset = np.array(offsets[i], dtype=float).reshape(3)
+            self._neighbour_offsets = tuple(np.array(offsets[j], dtype=float).reshape(3)
+                                            for j in self.neighbours)
+        else:
+            self.offset = zero
+            self._neighbour_offsets = tuple(zero for _ in self.neighbours)
+        self._neighbour_set = frozenset(self.neighbours)
+        self.case = case
+        self.gains = ControllerGains.from_mapping(scenario.gains, case, source=f'gains of scenario '
+                                                  f'{getattr(scenario, "name", "?")!r}')
+        if helicopter_params is None:
+            from uh_sim_node.helicopter import load_helicopter_params
+            helicopter_params = load_helicopter_params(scenario.helicopter)
+        self.model = NominalModel.from_params(helicopter_params, float(scenario.model_mismatch))
+        self.outer = OuterLoop(self.gains, self.model)
+        self.inner = InnerLoop(self.gains, self.model)
+
+    # ------------------------------------------------------------------------------------------
+    def _check_inputs(self, neighbour_states, reference, dt):
+        keys = set(neighbour_states)
+        if keys != self._neighbour_set:
+            missing = sorted(self._neighbour_set - keys)
+            extra = sorted(keys - self._neighbour_set, key=str)
+            parts = []
+            if missing:
+                parts.append(f'missing state of neighbour(s) {missing}')
+            if extra:
+                parts.append(f'unexpected state of UH(s) {extra} that UH {self.uh_id} does not hear')
+            raise ControllerError(f'UH {self.uh_id} controller: {"; ".join(parts)}; '
+                                  f'expected exactly the neighbours {list(self.neighbours)}')
+        if self.leader_link > 0.0 and reference is None:
+            raise ControllerError(f'UH {self.uh_id} hears the virtual leader (a_{self.uh_id}0 = '
+                                  f'{self.leader_link:g}): a reference is required')
+        if self.leader_link == 0.0 and reference is not None:
+            raise ControllerError(f'UH {self.uh_id} does not hear the virtual leader: reference must be None')
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
+            raise ControllerError(f'control period dt must be a finite number > 0 s, got {dt!r}')
+
+    def step(self, k: int, own_state, neighbour_states: dict, reference, dt: float):
+        """One control step at ``t_k = k dt`` (DESIGN.md 2.3-2.5).
+
+        Parameters
+        ----------
+        k : int
+            Step index (>= 0).
+        own_state : array_like (12,)
+            ``[p m, v m/s, Theta rad, omega rad/s]`` of this UH at t_k.
+        neighbour_states : dict[int, array_like (12,)]
+            States at t_k of exactly the UHs this one hears.
+        reference : Reference or None
+            Virtual leader at t_k (``position`` (3,), ``velocity`` (3,), ``yaw``), given iff this UH
+            hears the virtual leader.
+        dt : float
+            Control period, s: the internal states are advanced to t_{k+1}.
+
+        Returns
+        -------
+        u : ndarray (4,)
+            ``(theta_col, theta_tr, delta_lat, delta_lon)`` rad, within the input limits.
+        status : ControllerStatusData
+
+        Raises
+        ------
+        ControllerError
+            Missing or extra neighbour state, reference given/missing against the graph, a state
+            that is not 12 finite numbers, or a bad ``dt``.
+        """
+        self._check_inputs(neighbour_states, reference, dt)
+        x = _state(own_state, f'UH {self.uh_id} own state')
+        p, v, euler, omega = x[0:3], x[3:6], x[6:9], x[9:12]
+        rel = p - self.offset
+        z1 = np.zeros(3)
+        ff = np.zeros(3)
+        psi = float(euler[2])
+        yaw_sum = 0.0
+        for j, a, h in zip(self.neighbours, self.neighbour_weights, self._neighbour_offsets):
+            xj = _state(neighbour_states[j], f'state of neighbour UH {j}')
+            z1 += a * (rel - (xj[0:3] - h))
+            ff += a * xj[3:6]
+            yaw_sum += a * wrap_angle(float(xj[8]) - psi)
+        if self.leader_link > 0.0:
+            a0 = self.leader_link
+            z1 += a0 * (rel - np.asarray(reference.position, dtype=float))
+            ff += a0 * np.asarray(reference.velocity, dtype=float)
+            psi_d = float(reference.yaw)
+        else:
+            psi_d = psi + yaw_sum / self.degree
+
+        outer, inner, model = self.outer, self.inner, self.model
+        fhat_p = outer.fault_estimate.copy()
+        fhat_w = inner.fault_estimate.copy()
+        u_p, z2, zn_p = outer.command(z1, self.degree, ff, v)
+        att = thrust_and_attitude(u_p, psi_d, model, self.gains.tilt_limit, self.gains.min_vertical_accel)
+        euler_d = np.array([att.phi, att.theta, psi_d])
+        u_m, z3, z4, zn_w, sat_cyclic = inner.command(euler, omega, euler_d, att.thrust_achieved)
+
+        # acceleration the limited thrust gives at the measured attitude: (T/m) R(Theta) e3 - g e3
+        cf, sf = math.cos(euler[0]), math.sin(euler[0])
+        ct, st = math.cos(euler[1]), math.sin(euler[1])
+        cp, sp = math.cos(psi), math.sin(psi)
+        tm = att.thrust_achieved / model.mass
+        accel = np.array([tm * (cp * st * cf + sp * sf), tm * (sp * st * cf - cp * sf),
+                          tm * ct * cf - model.gravity])
+        outer.advance(accel, dt)
+        inner.advance(dt)
+
+        u = np.array([att.theta_col, u_m[2], u_m[0], u_m[1]])
+        status = ControllerStatusData(
+            uh_id=self.uh_id, step=int(k), stamp=int(k) * dt, z1=z1, z2=z2, z3=z3, z4=z4,
+            fault_estimate_position=fhat_p, fault_estimate_attitude=fhat_w,
+            prediction_error_position=zn_p, prediction_error_attitude=zn_w,
+            u_p=u_p, euler_desired=euler_d, thrust_command=att.thrust,
+            weight_norm_position=float(np.sqrt(np.einsum('ij,ij->', outer.weights, outer.weights))),
+            weight_norm_attitude=float(np.sqrt(np.einsum('ij,ij->', inner.weights, inner.weights))),
+            saturated_tilt=att.saturated_tilt, saturated_collective=att.saturated_collective,
+            saturated_cyclic=sat_cyclic,
+            cost_rate=float(z1 @ z1 + u_p @ u_p))
+        return u, status

@@ -1,0 +1,326 @@
+"""Performance metrics of a formation-containment run: one definition for every consumer (DESIGN.md 2.8).
+
+The in-process reference simulation, the distributed run (arrays read back from the MCAP bag),
+the tests and the benchmarks all call :func:`compute_metrics`. Keys of the result (the content of
+``metrics.json``):
+
+``case``
+    Controller case (``proposed``, ``case1``, ``case2``).
+``sim_time_s``, ``wall_time_s``
+    Simulated time span and, if given, the wall-clock time it took, s.
+``settle_time_s``
+    Samples with ``t >= settle_time`` enter the after-settle metrics (default 20 s).
+``formation_rms_m``
+    RMS over leaders and samples after settle of ``|p_i - h_i - p_0|``, m.
+``containment_rms_m``
+    RMS over followers and samples after settle of ``|p_k - sum_j w_kj p_j|``, ``w = -L1^-1 L2``, m.
+``hull_distance_max_m``
+    Largest distance after settle from a follower to the convex hull of the leaders' current
+    positions (0 inside), m. Three leaders span a planar triangle, so an altitude error counts.
+``mse_formation``, ``mse_containment``
+    Mean over all samples (from t = 0) and UHs of the squared formation / containment errors, m^2.
+``cpi``
+    ``integral_0^T sum_UH (|z1|^2 + |u_p|^2) dt`` with the consensus error z1 (m) and the designed
+    acceleration u_p (m/s^2) of each control step, held over the step (rectangle rule).
+``fault_nrmse``
+    ``{"uh<i>": {"F_p": ..., "F_w": ...}}`` for every faulted UH: RMS of ``|Fhat - F|`` over RMS of
+    ``|F|`` on the samples with ``t >= onset + 5 s`` (onset = the UH's earliest fault). ``F_p`` only
+    when the collective (channel 0) is faulted; ``F_w`` whenever any channel is.
+``saturation_fraction``
+    Fraction of (step, UH) samples with any input limit active (tilt, collective, cyclic/pedal).
+
+Undefined values (no followers, an empty window, a zero true fault) are ``None`` (JSON ``null``).
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ['MetricsError', 'FaultedUH', 'FAULT_WINDOW_DELAY', 'METRIC_KEYS', 'formation_errors',
+           'containment_errors', 'point_segment_distance', 'point_triangle_distance',
+           'hull_distance', 'faulted_uhs', 'compute_metrics']
+
+#: Delay after a UH's fault onset before its fault estimate is scored, s (DESIGN.md 2.8).
+FAULT_WINDOW_DELAY = 5.0
+
+#: Keys of :func:`compute_metrics`' result, in order.
+METRIC_KEYS = ('case', 'sim_time_s', 'wall_time_s', 'settle_time_s', 'formation_rms_m',
+               'containment_rms_m', 'hull_distance_max_m', 'mse_formation', 'mse_containment', 'cpi',
+               'fault_nrmse', 'saturation_fraction')
+
+
+class MetricsError(ValueError):
+    """Arrays of inconsistent shape or missing data handed to the metrics."""
+
+
+@dataclass(frozen=True)
+class FaultedUH:
+    """Which lumped faults of one UH are scored (DESIGN.md 2.8).
+
+    Attributes
+    ----------
+    onset : float
+        Earliest fault onset of the UH, s.
+    collective : bool
+        The collective (channel 0) is faulted, so ``F_p`` is scored too.
+    """
+
+    onset: float
+    collective: bool
+
+
+# ----------------------------------------------------------------------------------------------
+# geometry
+
+def _dot(a, b):
+    return np.einsum('...i,...i->...', a, b)
+
+
+def point_segment_distance(p, a, b) -> np.ndarray:
+    """Distance from points ``p`` to segments ``[a, b]``; all (..., 3) broadcastable, m.
+
+    A degenerate segment (``a == b``) is the point ``a``.
+    """
+    p, a, b = (np.asarray(x, dtype=float) for x in (p, a, b))
+    ab = b - a
+    denom = _dot(ab, ab)
+    t = np.clip(_dot(p - a, ab) / np.where(denom > 0.0, denom, 1.0), 0.0, 1.0)
+    t = np.where(denom > 0.0, t, 0.0)
+    closest = a + t[..., None] * ab
+    return np.linalg.norm(p - closest, axis=-1)
+
+
+def point_triangle_distance(p, a, b, c) -> np.ndarray:
+    """Exact distance from points ``p`` to the filled triangles ``(a, b, c)``; (..., 3) broadcastable.
+
+    If the orthogonal projection of ``p`` on the triangle's plane lies inside the triangle, the
+    distance is ``|n . (p - a)| / |n|``; otherwise the closest point is on an edge and the distance
+    is the smallest point-segment distance. Degenerate (collinear) triangles reduce to their edges.
+    """
+    p, a, b, c = np.broadcast_arrays(*(np.asarray(x, dtype=float) for x in (p, a, b, c)))
+    ab, ac, ap = b - a, c - a, p - a
+    n = np.cross(ab, ac)
+    nn = _dot(n, n)
+    scale = np.maximum(_dot(ab, ab), _dot(ac, ac))
+    flat = nn <= 1e-24 * np.maximum(scale * scale, 1e-300)   # collinear or coincident vertices
+    safe = np.where(flat, 1.0, nn)
+    # barycentric coordinates of the projection (Lagrange: d00 d11 - d01^2 = |n|^2)
+    d00, d01, d11 = _dot(ab, ab), _dot(ab, ac), _dot(ac, ac)
+    d20, d21 = _dot(ap, ab), _dot(ap, ac)
+    v = (d11 * d20 - d01 * d21) / safe
+    w = (d00 * d21 - d01 * d20) / safe
+    inside = (~flat) & (v >= 0.0) & (w >= 0.0) & (v + w <= 1.0)
+    plane = np.abs(_dot(n, ap)) / np.sqrt(safe)
+    edges = np.minimum(np.minimum(point_segment_distance(p, a, b), point_segment_distance(p, b, c)),
+                       point_segment_distance(p, c, a))
+    return np.where(inside, plane, edges)
+
+
+def _tetra_distance(p, v0, v1, v2, v3):
+    # 0 inside a non-degenerate tetrahedron, else the nearest face (exact; a flat tetrahedron is
+    # the union of its four faces)
+    faces = np.minimum(np.minimum(point_triangle_distance(p, v0, v1, v2), point_triangle_distance(p, v0, v1, v3)),
+                       np.minimum(point_triangle_distance(p, v0, v2, v3), point_triangle_distance(p, v1, v2, v3)))
+    e1, e2, e3 = v1 - v0, v2 - v0, v3 - v0
+    vol = _dot(np.cross(e1, e2), e3)
+    q = p - v0
+    safe = np.where(vol != 0.0, vol, 1.0)
+    l1 = _dot(np.cross(q, e2), e3) / safe
+    l2 = _dot(np.cross(e1, q), e3) / safe
+    l3 = _dot(np.cross(e1, e2), q) / safe
+    inside = (vol != 0.0) & (l1 >= 0) & (l2 >= 0) & (l3 >= 0) & (l1 + l2 + l3 <= 1.0)
+    return np.where(inside, 0.0, faces)
+
+
+def hull_distance(points, vertices) -> np.ndarray:
+    """Distance from ``points`` (..., 3) to the convex hull of ``vertices`` (..., N, 3), m (0 inside).
+
+    Exact for any N >= 1: a point, a segment, a triangle (N = 3, the paper's three leaders), or for
+    N >= 4 the smallest distance to any tetrahedron of four vertices (Caratheodory: the hull is the
+    union of those tetrahedra).
+    """
+    points = np.asarray(points, dtype=float)
+    vertices = np.asarray(vertices, dtype=float)
+    n = vertices.shape[-2]
+    vs = [vertices[..., i, :] for i in range(n)]
+    if n == 1:
+        return np.linalg.norm(points - vs[0], axis=-1)
+    if n == 2:
+        return point_segment_distance(points, vs[0], vs[1])
+    if n == 3:
+        return point_triangle_distance(points, vs[0], vs[1], vs[2])
+    best = None
+    for i, j, k, m in itertools.combinations(range(n), 4):
+        d = _tetra_distance(points, vs[i], vs[j], vs[k], vs[m])
+        best = d if best is None else np.minimum(best, d)
+    return best
+
+
+# ----------------------------------------------------------------------------------------------
+# errors
+
+def formation_errors(positions, reference_positions, offsets) -> np.ndarray:
+    """``|p_i - h_i - p_0|`` (K, N) of the leaders, m.
+
+    ``positions`` (K, N, 3) of the leaders in order, ``reference_positions`` (K, 3), ``offsets``
+    (N, 3) in the same leader order.
+    """
+    dev = np.asarray(positions) - np.asarray(offsets)[None, :, :] - np.asarray(reference_positions)[:, None, :]
+    return np.linalg.norm(dev, axis=-1)
+
+
+def containment_errors(follower_positions, leader_positions, weights) -> np.ndarray:
+    """``|p_k - sum_j w_kj p_j|`` (K, M), m; ``weights`` (M, N) = ``-L1^-1 L2``."""
+    target = np.einsum('mn,knc->kmc', np.asarray(weights), np.asarray(leader_positions))
+    return np.linalg.norm(np.asarray(follower_positions) - target, axis=-1)
+
+
+def faulted_uhs(scenario) -> dict:
+    """``{uh id: FaultedUH}`` of the UHs with at least one scheduled fault in ``scenario.faults``.
+
+    Accepts fault specs as objects or mappings with ``channel`` and ``onset_time``.
+    """
+    out = {}
+    for uh, specs in sorted(scenario.faults.items()):
+        specs = tuple(specs)
+        if not specs:
+            continue
+        get = (lambda s, k: s[k]) if isinstance(specs[0], dict) else getattr
+        onset = min(float(get(s, 'onset_time')) for s in specs)
+        collective = any(int(get(s, 'channel')) == 0 for s in specs)
+        out[int(uh)] = FaultedUH(onset=onset, collective=collective)
+    return out
+
+
+def _none_if_nan(x):
+    x = float(x)
+    return None if not math.isfinite(x) else x
+
+
+def _nrmse(est, true):
+    if est.shape[0] == 0:
+        return None
+    rms_true = math.sqrt(float(np.mean(_dot(true, true))))
+    if rms_true == 0.0:
+        return None
+    err = est - true
+    return _none_if_nan(math.sqrt(float(np.mean(_dot(err, err)))) / rms_true)
+
+
+def _shape(name, arr, shape):
+    arr = np.asarray(arr, dtype=float)
+    if arr.shape != shape:
+        raise MetricsError(f'{name} must have shape {shape}, got {arr.shape}')
+    return arr
+
+
+def compute_metrics(*, case: str, time, positions, reference_positions, leaders, followers, offsets,
+                    containment_weights, z1, u_p, saturated, fault_true_p=None, fault_true_w=None,
+                    fault_est_p=None, fault_est_w=None, faulted=None, settle_time: float = 20.0,
+                    wall_time: float | None = None) -> dict:
+    """Metrics of DESIGN.md 2.8 from the arrays of one run (see the module docstring for the keys).
+
+    Parameters
+    ----------
+    case : str
+        Controller case label.
+    time : array_like (K+1,)
+        Sample times t_k = k dt of the positions, s.
+    positions : array_like (K+1, n, 3)
+        Positions of the UHs at ``time``, m, UH order ``leaders + followers``.
+    reference_positions : array_like (K+1, 3)
+        Virtual leader p_0 at ``time``, m.
+    leaders, followers : sequence of int
+        UH ids; together they give the UH order of the arrays.
+    offsets : mapping {leader id: (3,)}
+        Formation offsets h_i, m.
+    containment_weights : array_like (M, N)
+        ``-L1^-1 L2`` (rows ``followers``, columns ``leaders``).
+    z1, u_p : array_like (K, n, 3)
+        Consensus error (m) and designed acceleration (m/s^2) of each control step t_0..t_{K-1}.
+    saturated : array_like (K, n) of bool
+        Any input limit active at the step.
+    fault_true_p, fault_true_w, fault_est_p, fault_est_w : array_like (K, n, 3), optional
+        True lumped faults and their estimates per step (m/s^2, rad/s^2); needed if ``faulted``.
+    faulted : mapping {uh id: FaultedUH}, optional
+        Which UHs and vectors to score (:func:`faulted_uhs`).
+    settle_time : float
+        s.
+    wall_time : float, optional
+        Wall-clock duration of the run, s.
+
+    Returns
+    -------
+    dict
+        Keys :data:`METRIC_KEYS`.
+
+    Raises
+    ------
+    MetricsError
+        Inconsistent array shapes, or fault data missing for a faulted UH.
+    """
+    leaders = tuple(int(i) for i in leaders)
+    followers = tuple(int(i) for i in followers)
+    ids = leaders + followers
+    n, n_lead, n_fol = len(ids), len(leaders), len(followers)
+    time = np.asarray(time, dtype=float).reshape(-1)
+    samples = time.shape[0]
+    if samples < 2:
+        raise MetricsError(f'time must hold at least 2 samples, got {samples}')
+    steps = samples - 1
+    dt = float(time[1] - time[0])
+    positions = _shape('positions', positions, (samples, n, 3))
+    p0 = _shape('reference_positions', reference_positions, (samples, 3))
+    missing = [i for i in leaders if i not in offsets]
+    if missing:
+        raise MetricsError(f'no formation offset for leader(s) {missing}')
+    h = np.array([np.asarray(offsets[i], dtype=float).reshape(3) for i in leaders])
+    z1 = _shape('z1', z1, (steps, n, 3))
+    u_p = _shape('u_p', u_p, (steps, n, 3))
+    saturated = np.asarray(saturated, dtype=bool)
+    if saturated.shape != (steps, n):
+        raise MetricsError(f'saturated must have shape {(steps, n)}, got {saturated.shape}')
+
+    after = time >= settle_time - 1e-9 * max(dt, 1.0)
+    lead_pos, fol_pos = positions[:, :n_lead], positions[:, n_lead:]
+    form = formation_errors(lead_pos, p0, h)
+    result = dict.fromkeys(METRIC_KEYS)
+    result['case'] = str(case)
+    result['sim_time_s'] = float(time[-1] - time[0])
+    result['wall_time_s'] = None if wall_time is None else float(wall_time)
+    result['settle_time_s'] = float(settle_time)
+    result['formation_rms_m'] = _none_if_nan(np.sqrt(np.mean(form[after] ** 2))) if after.any() else None
+    result['mse_formation'] = float(np.mean(form ** 2))
+    if n_fol:
+        w = _shape('containment_weights', containment_weights, (n_fol, n_lead))
+        cont = containment_errors(fol_pos, lead_pos, w)
+        result['mse_containment'] = float(np.mean(cont ** 2))
+        if after.any():
+            result['containment_rms_m'] = _none_if_nan(np.sqrt(np.mean(cont[after] ** 2)))
+            hull = hull_distance(fol_pos[after], lead_pos[after][:, None, :, :])
+            result['hull_distance_max_m'] = _none_if_nan(np.max(hull))
+    result['cpi'] = float(dt * (np.sum(z1 * z1) + np.sum(u_p * u_p)))
+
+    nrmse = {}
+    step_time = time[:steps]
+    for uh, info in sorted((faulted or {}).items()):
+        if uh not in ids:
+            raise MetricsError(f'faulted UH {uh} is not one of the UHs {list(ids)}')
+        if any(a is None for a in (fault_true_w, fault_est_w)) or \
+                (info.collective and any(a is None for a in (fault_true_p, fault_est_p))):
+            raise MetricsError(f'UH {uh} is faulted but the true or estimated lumped faults are missing')
+        col = ids.index(uh)
+        window = step_time >= info.onset + FAULT_WINDOW_DELAY - 1e-9 * max(dt, 1.0)
+        entry = {}
+        if info.collective:
+            entry['F_p'] = _nrmse(_shape('fault_est_p', fault_est_p, (steps, n, 3))[window, col],
+                                  _shape('fault_true_p', fault_true_p, (steps, n, 3))[window, col])
+        entry['F_w'] = _nrmse(_shape('fault_est_w', fault_est_w, (steps, n, 3))[window, col],
+                              _shape('fault_true_w', fault_true_w, (steps, n, 3))[window, col])
+        nrmse[f'uh{uh}'] = entry
+    result['fault_nrmse'] = nrmse
+    result['saturation_fraction'] = float(np.mean(saturated)) if saturated.size else 0.0
+    return result
