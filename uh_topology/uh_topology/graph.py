@@ -22,7 +22,8 @@ from .errors import LaplacianConditionError, UnreachableFollowerError, Unreachab
 
 __all__ = [
     'laplacian', 'laplacian_blocks', 'leader_tracking_matrix', 'containment_weights',
-    'reachable_from', 'containment_pattern', 'check_assumption1', 'check_lemma1',
+    'reachable_from', 'containment_pattern', 'unreachable_leaders', 'unreachable_followers',
+    'check_assumption1', 'check_lemma1',
     'ROW_SUM_TOL', 'POSITIVE_TOL',
 ]
 
@@ -111,6 +112,28 @@ def containment_pattern(adjacency, leaders, followers) -> np.ndarray:
     return out
 
 
+def unreachable_leaders(adjacency, leaders) -> list:
+    """Leaders with no directed path from the virtual leader (0) through leaders, ascending."""
+    reach = reachable_from(adjacency, [0], allowed=set(leaders))
+    return sorted(int(j) for j in leaders if j not in reach)
+
+
+def unreachable_followers(adjacency, leaders, followers) -> list:
+    """Followers with no directed path from any leader, ascending."""
+    reach = reachable_from(adjacency, list(leaders))
+    return sorted(int(k) for k in followers if k not in reach)
+
+
+def unreachable_leader_message(ids) -> str:
+    return (f'no directed path from the virtual leader (id 0) to leader(s) {list(ids)}; every leader '
+            f'must hear the virtual leader directly (reference_links) or through other leaders (edges)')
+
+
+def unreachable_follower_message(ids) -> str:
+    return (f'no directed path from any leader to follower(s) {list(ids)}; every follower must hear a '
+            f'leader directly or through other followers (edges)')
+
+
 def check_assumption1(adjacency, leaders, followers, *, source=None, path=None) -> None:
     """Assumption 1: a path from the virtual leader to every leader (through leaders), and from
     the leaders to every follower.
@@ -118,23 +141,15 @@ def check_assumption1(adjacency, leaders, followers, *, source=None, path=None) 
     Raises
     ------
     UnreachableLeaderError, UnreachableFollowerError
-        Naming every leader / follower without such a path.
+        Naming every leader / follower without such a path (``ids`` attribute).
     """
-    lset = set(leaders)
-    reach_l = reachable_from(adjacency, [0], allowed=lset)
-    lost = sorted(j for j in leaders if j not in reach_l)
+    lost = unreachable_leaders(adjacency, leaders)
     if lost:
-        raise UnreachableLeaderError(
-            f'no directed path from the virtual leader (id 0) to leader(s) {lost}; every leader '
-            f'must hear the virtual leader directly (reference_links) or through other leaders (edges)',
-            ids=lost, source=source, path=path)
-    reach_f = reachable_from(adjacency, list(leaders))
-    lost = sorted(k for k in followers if k not in reach_f)
+        raise UnreachableLeaderError(unreachable_leader_message(lost), ids=lost, source=source, path=path)
+    lost = unreachable_followers(adjacency, leaders, followers)
     if lost:
-        raise UnreachableFollowerError(
-            f'no directed path from any leader to follower(s) {lost}; every follower must hear a '
-            f'leader directly or through other followers (edges)',
-            ids=lost, source=source, path=path)
+        raise UnreachableFollowerError(unreachable_follower_message(lost), ids=lost, source=source,
+                                       path=path)
 
 
 def check_lemma1(l1, l2, pattern=None, *, source=None, path=None) -> np.ndarray:

@@ -41,8 +41,9 @@ import numpy as np
 import yaml
 
 from . import errors as E
-from .graph import (check_assumption1, check_lemma1, containment_pattern, laplacian,
-                    laplacian_blocks, leader_tracking_matrix)
+from .graph import (check_lemma1, containment_pattern, laplacian, laplacian_blocks,
+                    leader_tracking_matrix, unreachable_follower_message, unreachable_followers,
+                    unreachable_leader_message, unreachable_leaders)
 
 __all__ = [
     'Scenario', 'FaultSpec', 'ReferenceSpec', 'DisturbanceSpec', 'load_scenario', 'parse_scenario',
@@ -638,10 +639,20 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         link_at[i] = idx
         adjacency[i, 0] = w
 
-    check_assumption1(adjacency, leaders, followers, source=source, path='edges')
+    # Assumption 1; the error points at the first UH without a path
+    lost = unreachable_leaders(adjacency, leaders)
+    if lost:
+        raise ctx.error(E.UnreachableLeaderError, ('uhs', where[lost[0]]), unreachable_leader_message(lost),
+                        ids=lost)
+    lost = unreachable_followers(adjacency, leaders, followers)
+    if lost:
+        raise ctx.error(E.UnreachableFollowerError, ('uhs', where[lost[0]]),
+                        unreachable_follower_message(lost), ids=lost)
     l1, l2 = laplacian_blocks(adjacency, leaders, followers)
-    weights = check_lemma1(l1, l2, containment_pattern(adjacency, leaders, followers),
-                           source=source, path='edges')
+    try:  # Lemma 1 (implied by Assumption 1; checked numerically as a guard)
+        weights = check_lemma1(l1, l2, containment_pattern(adjacency, leaders, followers))
+    except E.LaplacianConditionError as exc:
+        raise ctx.error(E.LaplacianConditionError, ('edges',), exc.message) from None
 
     # -- reference, disturbance, faults -----------------------------------------------------
     ref = ctx.mapping(top['reference'], ('reference',), _REF_REQUIRED, _REF_OPTIONAL,
