@@ -328,6 +328,7 @@ def get_logger(name):
 _wakeup_lock = threading.Lock()
 _wakeup_contexts = weakref.WeakSet()
 _wakeup_installed = [False]
+_wakeup_sockets = []
 
 
 def _install_signal_wakeup():
@@ -346,6 +347,7 @@ def _install_signal_wakeup():
     except ValueError:
         return
     _wakeup_installed[0] = True
+    _wakeup_sockets.extend((rsock, wsock))  # keep both open for the life of the process
 
     def pump():
         while True:

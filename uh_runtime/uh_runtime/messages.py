@@ -329,5 +329,8 @@ def message_to_yaml(msg, truncate_length=128, flow_style=False) -> str:
     _Dumper.add_representer(
         OrderedDict, lambda dumper, data: dumper.represent_mapping('tag:yaml.org,2002:map', data.items()))
     data = message_to_ordereddict(msg, truncate_length) if _is_message(msg) else _convert(msg, truncate_length)
-    return yaml.dump(data, Dumper=_Dumper, allow_unicode=True, width=sys.maxsize,
+    text = yaml.dump(data, Dumper=_Dumper, allow_unicode=True, width=sys.maxsize,
                      default_flow_style=flow_style, sort_keys=False)
+    if text.endswith('\n...\n'):  # a lone scalar: no YAML document end marker, as ros2 prints
+        text = text[:-4]
+    return text
