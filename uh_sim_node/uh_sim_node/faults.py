@@ -138,7 +138,10 @@ class ActuatorFault:
         """
         if not self.started(t if switch_time is None else switch_time):
             return u
-        return self.rho * u + self.bias(t)
+        # one evaluation order everywhere (the plant's fast path uses it too): (rho u + c) + A sin
+        if self.bias_amplitude == 0.0:
+            return self.rho * u + self.bias_constant
+        return (self.rho * u + self.bias_constant) + self.bias_amplitude * math.sin(self.bias_frequency * t)
 
 
 class FaultSchedule:

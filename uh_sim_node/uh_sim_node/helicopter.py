@@ -534,6 +534,7 @@ class HelicopterPlant:
         self.substeps = int(substeps)
         self.disturbance = disturbance
         self._rates = _make_rates(params)
+        self._inertia = tuple(float(v) for v in params.inertia)
         self._lo = tuple(float(v) for v in params.input_lower)
         self._hi = tuple(float(v) for v in params.input_upper)
         self.reset(np.zeros(STATE_SIZE) if x0 is None else x0)
@@ -569,8 +570,15 @@ class HelicopterPlant:
             if t_switch >= f.onset_time - ONSET_TOLERANCE:
                 ch = f.channel
                 # eq. 6, then the physical travel limits of that actuator again
-                u[ch] = min(max(f.rho * u[ch] + f.bias(t), lo[ch]), hi[ch])
+                u[ch] = min(max(f.apply(u[ch], t), lo[ch]), hi[ch])
         return u
+
+    def _disturbance_function(self):
+        """``t -> (3 floats)``: the sinusoidal disturbance's own evaluation, else a float wrapper."""
+        d = self.disturbance
+        if isinstance(d, SinusoidalDisturbance):
+            return d
+        return self._disturb
 
     def _disturb(self, t):
         d = self.disturbance
@@ -603,7 +611,27 @@ class HelicopterPlant:
         """
         uc = self._clip(*(float(v) for v in u_cmd))
         ua = self._actual(uc, float(t), float(t))
-        return lumped_faults(self.params, self._x, uc, ua)
+        if ua is uc:  # no fault: exactly zero
+            return np.zeros(3), np.zeros(3)
+        # scalar form of lumped_faults() (same formulas; this runs once per step per UH)
+        prm = self.params
+        phi, th, psi, p, q, r = self._x[6:12]
+        cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(th), math.sin(th)
+        cp, sp = math.cos(psi), math.sin(psi)
+        t_act = prm.c_M1 * ua[0] + prm.c_M2
+        t_cmd = prm.c_M1 * uc[0] + prm.c_M2
+        g = (t_act - t_cmd) / prm.mass
+        f_p = np.array([g * (cp * st * cf + sp * sf), g * (sp * st * cf - cp * sf), g * ct * cf])
+        k_act = prm.K_beta + t_act * prm.h_M
+        k_cmd = prm.K_beta + t_cmd * prm.h_M
+        jx, jy, jz = self._inertia
+        f_w = np.array([
+            (k_act * (prm.B_lat * ua[2] - prm.tau_f * p) - k_cmd * (prm.B_lat * uc[2] - prm.tau_f * p)) / jx,
+            (k_act * (prm.A_lon * ua[3] - prm.tau_f * q) - k_cmd * (prm.A_lon * uc[3] - prm.tau_f * q)) / jy,
+            ((prm.K_tr * ua[1] - prm.D_r * r - prm.c_Q * t_act)
+             - (prm.K_tr * uc[1] - prm.D_r * r - prm.c_Q * t_cmd)) / jz,
+        ])
+        return f_p, f_w
 
     def derivative(self, u_cmd, t: float) -> np.ndarray:
         """State derivative (12,) at the current state for command ``u_cmd`` at time ``t``."""
@@ -634,22 +662,41 @@ class HelicopterPlant:
         # start value of the next when the activity has not changed (same float time).
         u_mid, u_end, d_mid, d_end = uc, uc, zero, zero
         u_start = self._actual(uc, t, t) if faulty else uc
-        d_start = self._disturb(t) if dist else zero
-        # does any fault switch on inside this control period? if not, activity is constant
+        disturb = self._disturbance_function()
+        d_start = disturb(t) if dist else zero
+        # Does a fault switch on inside this control period? If not, the set of acting faults is
+        # constant, the constant-bias channels are evaluated once and only the sinusoidal biases
+        # are re-evaluated at the stage times (same arithmetic as _actual, faster).
         switching = faulty and any(t < f.onset_time - ONSET_TOLERANCE <= t + float(dt)
                                    for f in self.faults.faults)
+        sinusoids = ()
+        if faulty and not switching:
+            lo, hi = self._lo, self._hi
+            sinusoids = tuple((f.channel, f.rho * uc[f.channel] + f.bias_constant, f.bias_amplitude,
+                               f.bias_frequency, lo[f.channel], hi[f.channel])
+                              for f in self.faults.faults
+                              if f.bias_amplitude != 0.0 and f.started(t))
+            u_mid = u_end = u_start
+        sin = math.sin
         for s in range(n):
             t_start = t + s * h
             t_mid = t + (s + 0.5) * h
             t_end = t + (s + 1) * h
-            if faulty:
+            if switching:
                 if s > 0:
-                    u_start = self._actual(uc, t_start, t_start) if switching else u_end
+                    u_start = self._actual(uc, t_start, t_start)
                 u_mid = self._actual(uc, t_mid, t_start)
                 u_end = self._actual(uc, t_end, t_start)
+            elif sinusoids:
+                u_start = u_end if s > 0 else u_start
+                u_mid = list(u_start)
+                u_end = list(u_start)
+                for ch, base, amp, freq, lo_c, hi_c in sinusoids:
+                    u_mid[ch] = min(max(base + amp * sin(freq * t_mid), lo_c), hi_c)
+                    u_end[ch] = min(max(base + amp * sin(freq * t_end), lo_c), hi_c)
             if dist:
-                d_mid = self._disturb(t_mid)
-                d_end = self._disturb(t_end)
+                d_mid = disturb(t_mid)
+                d_end = disturb(t_end)
             x = _rk4_substep(f, x, h, u_start, u_mid, u_end, d_start, d_mid, d_end)
             d_start = d_end
         self._x = x
