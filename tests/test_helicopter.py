@@ -329,3 +329,44 @@ def test_state_property_is_a_copy():
     x[2] = 99.0
     assert plant.x[2] == 5.0
     assert isinstance(plant, HelicopterPlant) and isinstance(P, HelicopterParams)
+
+
+# ------------------------------------------------------------------------------------------------
+# Disturbance and construction from a scenario
+
+
+def test_any_disturbance_callable_is_accepted():
+    """The plant takes any t -> (3,) callable; a numpy-returning lambda equals the built-in sinusoid."""
+    amp, freq, phase = [0.3, 0.2, 0.1], [0.5, 0.4, 0.3], [0.0, 1.0, 2.0]
+    sinus = SinusoidalDisturbance(amp, freq, phase)
+    x0 = _state(p=(0, 0, 10))
+    a = HelicopterPlant(P, None, x0, disturbance=sinus)
+    b = HelicopterPlant(P, None, x0,
+                        disturbance=lambda t: np.array(amp) * np.sin(np.array(freq) * t + np.array(phase)))
+    u = hover_trim(P)
+    for k in range(100):
+        a.step(u, k * 0.01, 0.01)
+        b.step(u, k * 0.01, 0.01)
+    # numpy's and math's sin may differ in the last ulp: 1e-14 N -> far below 1e-12 m
+    np.testing.assert_allclose(a.x, b.x, atol=1e-12)
+    # and the disturbance moves the helicopter: d/m t^2 / 2 ~ 0.3 / 8.2 / 2 ~ 0.02 m in 1 s
+    assert np.linalg.norm(a.x[0:3] - x0[0:3]) > 1e-3
+    np.testing.assert_allclose(sinus(2.0), [0.3 * math.sin(1.0), 0.2 * math.sin(1.8), 0.1 * math.sin(2.6)],
+                               atol=1e-16)
+
+
+def test_plant_from_the_paper_scenario():
+    from uh_sim_node.helicopter import disturbance_from_spec, plant_from_scenario
+    from uh_topology.scenario import load_scenario
+
+    s = load_scenario('paper')
+    for i in s.ids:
+        plant = plant_from_scenario(s, i, P)
+        np.testing.assert_array_equal(plant.x, s.initial_states[i])
+        assert plant.substeps == s.substeps
+        assert [f.channel for f in plant.faults.faults] == [f.channel for f in s.faults[i]]
+        assert not plant.fault_active(9.99) and plant.fault_active(10.0) == bool(s.faults[i])
+        d = plant.disturbance
+        expected_phase = np.asarray(s.disturbance.phase) + i * s.disturbance.phase_per_id
+        np.testing.assert_allclose(d.phase, expected_phase, atol=1e-15)
+    assert disturbance_from_spec(None, 1) is None
