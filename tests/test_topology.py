@@ -534,3 +534,28 @@ def test_base_mapping_is_valid():
     s = _build(copy.deepcopy(_base()))
     np.testing.assert_array_equal(s.adjacency, PAPER.adjacency)
     np.testing.assert_array_equal(s.containment_weights, PAPER.containment_weights)
+
+
+def test_single_leader_without_followers():
+    s = parse_scenario('''
+name: solo
+dt: 0.01
+duration: 1.0
+settle_time: 0.5
+uhs:
+  - {id: 1, role: leader, offset: [0, 0, 0], initial_state: {position: [0, 0, 1]}}
+edges: []
+reference_links: [{uh: 1}]
+reference: {radius: 0, angular_rate: 0, center: [0, 0, 1], climb_rate: 0, yaw_rate: 0}
+''', source='solo.yaml')
+    assert s.leaders == (1,) and s.followers == () and s.neighbours(1) == ()
+    assert s.containment_weights.shape == (0, 1) and s.degree(1) == 1.0 and s.gains == {}
+
+
+def test_zero_weight_edge_is_no_link():
+    data = _base()
+    data['edges'].append({'uh': 2, 'hears': 3, 'weight': 0.0})
+    data['edges'].append({'uh': 3, 'hears': 4, 'weight': 0.0})   # leader <- follower with weight 0
+    s = _build(data)
+    assert s.neighbours(2) == (1,) and s.neighbours(3) == (2,)
+    np.testing.assert_array_equal(s.adjacency, PAPER.adjacency)
