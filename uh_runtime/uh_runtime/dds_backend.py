@@ -941,15 +941,31 @@ class Node:
     def _graph(self):
         from .graph import Graph
         if getattr(self, '_graph_cache', None) is None:
-            self._graph_cache = Graph(participant=self._context.participant)
+            self._graph_cache = Graph(
+                participant=self._context.participant,
+                info_topic=self._context.topic(
+                    DISCOVERY_TOPIC,
+                    _messages.dds_message('rmw_dds_common/msg/ParticipantEntitiesInfo')))
         self._graph_cache.update()
         return self._graph_cache
 
     def count_publishers(self, topic_name) -> int:
-        return len(self._graph().endpoints(self.resolve_topic_name(topic_name), writers=True))
+        """Writers of the topic in the domain (this process's included), from DDS discovery."""
+        return self._graph().count(self.resolve_topic_name(topic_name), writers=True)
 
     def count_subscribers(self, topic_name) -> int:
-        return len(self._graph().endpoints(self.resolve_topic_name(topic_name), writers=False))
+        """Readers of the topic in the domain (this process's included), from DDS discovery."""
+        return self._graph().count(self.resolve_topic_name(topic_name), writers=False)
+
+    def get_publishers_info_by_topic(self, topic_name, no_mangle=False):
+        """``rclpy``'s list of endpoint infos (node_name, node_namespace, topic_type,
+        endpoint_type, endpoint_gid, qos_profile) of the topic's writers."""
+        name = topic_name if no_mangle else self.resolve_topic_name(topic_name)
+        return self._graph().endpoints(name, writers=True)
+
+    def get_subscriptions_info_by_topic(self, topic_name, no_mangle=False):
+        name = topic_name if no_mangle else self.resolve_topic_name(topic_name)
+        return self._graph().endpoints(name, writers=False)
 
     def get_topic_names_and_types(self, no_demangle=False):
         return self._graph().topic_names_and_types()

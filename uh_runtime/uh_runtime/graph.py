@@ -53,6 +53,11 @@ class EndpointInfo:
     dds_qos: object
     participant_gid: bytes
 
+    @property
+    def endpoint_gid(self) -> bytes:
+        """rclpy's name of :attr:`gid`."""
+        return self.gid
+
 
 class Graph:
     """Discovery state of one DDS domain, refreshed by :meth:`update` / :meth:`wait`.
@@ -66,7 +71,7 @@ class Graph:
         Domain of the created participant (default: ``ROS_DOMAIN_ID`` or 0).
     """
 
-    def __init__(self, participant=None, domain_id=None):
+    def __init__(self, participant=None, domain_id=None, info_topic=None):
         import os
 
         from cyclonedds.builtin import (
@@ -96,7 +101,7 @@ class Graph:
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         user_data = f'typehash={_messages.type_hash(info_cls)};'.encode()
         self._info_reader = DataReader(
-            participant, Topic(participant, 'ros_discovery_info', info_cls),
+            participant, info_topic or Topic(participant, 'ros_discovery_info', info_cls),
             qos=to_dds_qos(profile, user_data))
         mask = SampleState.NotRead | ViewState.Any | InstanceState.Any
         self._waitset = WaitSet(participant)
@@ -227,6 +232,11 @@ class Graph:
                 topics.setdefault(sample.topic_name[2:], set()).add(
                     _messages.ros_type_from_dds(sample.type_name))
         return [(name, sorted(types)) for name, types in sorted(topics.items())]
+
+    def count(self, topic: str, writers: bool) -> int:
+        """Number of writers (or readers) of ROS topic ``topic``."""
+        dds_name = 'rt' + topic
+        return sum(1 for _, sample in self._ros_endpoints(writers) if sample.topic_name == dds_name)
 
     def endpoints(self, topic: str, writers: bool):
         """Readers or writers of ROS topic ``topic`` as :class:`EndpointInfo`."""

@@ -65,17 +65,26 @@ def _prog(args) -> str:
     return os.path.basename(str(argv0)) or 'node'
 
 
-def run_node(node_factory, args=None, *, user_errors=(), ignore_overrides=(), executor=None) -> int:
-    """Run node(s) with the Jazzy ``main()`` shape; return the process exit status.
+def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors=(),
+             ignore_overrides=(), executor=None) -> int:
+    """Run node(s) with the Jazzy ``main()`` shape and end the process's work cleanly.
 
-    ``init(args)``; build the node(s) with ``node_factory()`` (one node or a list of nodes, then
-    spun together by one executor); check the parameter overrides; spin; on ``KeyboardInterrupt``
-    (SIGINT) or ``ExternalShutdownException`` (SIGTERM, ``try_shutdown``) leave quietly;
-    ``finally`` destroy the nodes and ``try_shutdown()``, so a recorder's ``destroy_node`` always
-    runs. Bad parameters, bad ``--ros-args`` and the exception types in ``user_errors`` print
-    ``<prog>: error: <message>`` on stderr and return 1 (no traceback).
+    ``init(args)``; build the node(s) with ``node_factory()`` (one node, or a list of nodes then
+    spun together by one executor); check the parameter overrides
+    (:func:`check_parameter_overrides`); spin until shutdown, or until ``until(node)`` is true
+    (checked after every wake-up; ``node`` is the first node); on ``KeyboardInterrupt`` (SIGINT)
+    or ``ExternalShutdownException`` (SIGTERM, ``try_shutdown``) leave quietly; ``finally``
+    destroy the nodes and ``try_shutdown()``, so a recorder's ``destroy_node`` always runs.
 
-    Use as ``def main(args=None): sys.exit(run_node(MyNode, args))``.
+    A user's mistake prints ``<prog>: error: <message>`` on stderr (no traceback) and exits with
+    status 1: bad ``--ros-args``, a parameter error (unknown override, wrong type, out of range,
+    on either backend), an exception listed in ``user_errors``, and, while the nodes are being
+    built, any ``ValueError``, ``LookupError`` or ``OSError`` (bad configuration, missing file).
+    Errors raised later in callbacks keep their traceback.
+
+    Returns 0 when the run ended normally and ``exit_code(node)`` (if given) is 0; any other
+    status ends the process with ``SystemExit(status)``. Use as
+    ``def main(args=None): rt.run_node(MyNode, args)``.
     """
     import uh_runtime as rt
     clear = _clear_errors() + tuple(user_errors)
@@ -84,23 +93,33 @@ def run_node(node_factory, args=None, *, user_errors=(), ignore_overrides=(), ex
         rt.init(args=args)
     except Exception as exc:  # bad --ros-args: rclpy raises RCLError subclasses, we RosArgsError
         print(f'{prog}: error: {exc}', file=sys.stderr)
-        return 1
+        raise SystemExit(1) from None
     nodes = []
     status = 0
     try:
-        made = node_factory()
-        nodes = list(made) if isinstance(made, (list, tuple)) else [made]
-        for node in nodes:
-            check_parameter_overrides(node, ignore=ignore_overrides)
-        if executor is None and len(nodes) == 1:
-            rt.spin(nodes[0])
-        else:
-            executor = executor or rt.SingleThreadedExecutor()
+        try:
+            made = node_factory()
+            nodes = list(made) if isinstance(made, (list, tuple)) else [made]
             for node in nodes:
-                executor.add_node(node)
-            executor.spin()
+                check_parameter_overrides(node, ignore=ignore_overrides)
+        except clear + (ValueError, LookupError, OSError) as exc:
+            print(f'{prog}: error: {exc}', file=sys.stderr)
+            status = 1
+        else:
+            executor = executor or (rt.SingleThreadedExecutor() if len(nodes) > 1 or until
+                                    else None)
+            if executor is None:
+                rt.spin(nodes[0])
+            else:
+                for node in nodes:
+                    executor.add_node(node)
+                while rt.ok() and not (until is not None and until(nodes[0])):
+                    executor.spin_once()
+            if exit_code is not None:
+                status = int(exit_code(nodes[0]))
     except (KeyboardInterrupt, rt.ExternalShutdownException):
-        pass
+        if exit_code is not None and nodes:
+            status = int(exit_code(nodes[0]))
     except clear as exc:
         print(f'{prog}: error: {exc}', file=sys.stderr)
         status = 1
@@ -108,4 +127,6 @@ def run_node(node_factory, args=None, *, user_errors=(), ignore_overrides=(), ex
         for node in nodes:
             node.destroy_node()
         rt.try_shutdown()
-    return status
+    if status:
+        raise SystemExit(status)
+    return 0
