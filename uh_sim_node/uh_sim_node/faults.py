@@ -169,7 +169,7 @@ class FaultSchedule:
     def add(self, fault: ActuatorFault) -> None:
         """Set the fault of ``fault.channel``, replacing any earlier fault of that channel.
 
-        A nominal fault (``rho = 1``, no bias) clears the channel.
+        A nominal fault (``rho = 1``, no bias) clears the channel at once (its onset is ignored).
         """
         if not isinstance(fault, ActuatorFault):
             raise FaultError(f'FaultSchedule.add expects an ActuatorFault, got {type(fault).__name__}')
