@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 __all__ = ['FilterError', 'wrap_angle', 'FirstOrderFilter']
 
 _TWO_PI = 2.0 * math.pi
@@ -36,6 +34,9 @@ def wrap_angle(angle: float) -> float:
 class FirstOrderFilter:
     """Vector first-order filter ``tau y' = u - y`` with exact zero-order-hold stepping.
 
+    Works on plain Python floats (the vectors are short and the controller steps them tens of
+    thousands of times per scenario; numpy's per-call overhead would dominate).
+
     Parameters
     ----------
     tau : float
@@ -47,38 +48,39 @@ class FirstOrderFilter:
 
     Attributes
     ----------
-    value : ndarray (size,)
-        Filter output ``y`` (do not keep references across :meth:`advance`; it is updated in place).
+    value : list of float (size,)
+        Filter output ``y``, updated in place by :meth:`advance`.
     initialised : bool
         False until :meth:`reset` is called.
     """
 
     def __init__(self, tau: float, size: int = 3, angle_axes: tuple = ()):
-        if not (isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0.0):
+        if isinstance(tau, bool) or not (isinstance(tau, (int, float)) and math.isfinite(tau) and tau > 0.0):
             raise FilterError(f'filter time constant must be a finite number > 0 s, got {tau!r}')
         self.tau = float(tau)
-        self.value = np.zeros(size)
+        self.size = int(size)
+        self.value = [0.0] * self.size
         self.angle_axes = tuple(int(a) for a in angle_axes)
         self.initialised = False
         self._dt = None
         self._gain = 0.0
-        self._diff = np.zeros(size)
 
     def reset(self, value) -> None:
         """Set the output to ``value`` (size,), e.g. the first input, so the filter starts at rest."""
-        self.value[:] = value
+        self.value = [float(v) for v in value]
         self.initialised = True
 
-    def difference(self, u) -> np.ndarray:
-        """``u - y`` (angle axes wrapped); a buffer valid until the next call."""
-        d = np.subtract(u, self.value, out=self._diff)
+    def difference(self, u) -> list:
+        """``u - y`` (angle axes wrapped), list of floats."""
+        d = [float(a) - b for a, b in zip(u, self.value)]
         for a in self.angle_axes:
             d[a] = wrap_angle(d[a])
         return d
 
-    def derivative(self, u) -> np.ndarray:
-        """``y' = (u - y) / tau`` for input ``u`` (new array)."""
-        return self.difference(u) / self.tau
+    def derivative(self, u) -> list:
+        """``y' = (u - y) / tau`` for input ``u``, list of floats."""
+        inv = 1.0 / self.tau
+        return [inv * d for d in self.difference(u)]
 
     def advance(self, u, dt: float) -> None:
         """Move the output over one step ``dt`` s with ``u`` held: ``y += (1 - e^(-dt/tau)) (u - y)``."""
@@ -89,4 +91,5 @@ class FirstOrderFilter:
                 raise FilterError(f'filter step must be > 0 s, got {dt!r}')
             self._dt = dt
             self._gain = -math.expm1(-dt / self.tau)
-        self.value += self._gain * self.difference(u)
+        g = self._gain
+        self.value = [y + g * d for y, d in zip(self.value, self.difference(u))]

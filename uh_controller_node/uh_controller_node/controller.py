@@ -113,13 +113,29 @@ class ControllerStatusData:
         return self.saturated_tilt or self.saturated_collective or self.saturated_cyclic
 
 
-def _state(x, what: str) -> np.ndarray:
-    arr = np.asarray(x, dtype=float)
-    if arr.shape != (12,):
-        raise ControllerError(f'{what} must be a state vector of shape (12,), got shape {arr.shape}')
-    if not np.isfinite(arr).all():
-        raise ControllerError(f'{what} contains NaN or infinity: {arr.tolist()}')
-    return arr
+def _state(x, what: str) -> list:
+    """``x`` as a list of 12 finite floats, or a ControllerError naming ``what``."""
+    if isinstance(x, np.ndarray):
+        if x.shape != (12,):
+            raise ControllerError(f'{what} must be a state vector of shape (12,), got shape {x.shape}')
+        values = x.tolist()
+    else:
+        try:
+            values = [float(v) for v in x]
+        except (TypeError, ValueError):
+            raise ControllerError(f'{what} must be a state vector of 12 numbers, got {x!r}') from None
+        if len(values) != 12:
+            raise ControllerError(f'{what} must be a state vector of shape (12,), got shape ({len(values)},)')
+    if not all(map(math.isfinite, values)):
+        raise ControllerError(f'{what} contains NaN or infinity: {values}')
+    return values
+
+
+def _vector3(value, what: str) -> tuple:
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.shape != (3,) or not np.isfinite(arr).all():
+        raise ControllerError(f'{what} must be 3 finite numbers, got {value!r}')
+    return tuple(arr.tolist())
 
 
 class UHController:
@@ -161,7 +177,7 @@ class UHController:
         if not self.degree > 0.0:
             raise ControllerError(f'UH {i} hears neither a neighbour nor the virtual leader; '
                                   'every UH needs at least one incoming edge')
-        zero = np.zeros(3)
+        zero = (0.0, 0.0, 0.0)
         if self.is_leader:
             offsets = scenario.offsets
             needed = (i,) + self.neighbours
@@ -171,8 +187,8 @@ class UHController:
                                           'leaders and the virtual leader (DESIGN.md 2.3)')
                 if j not in offsets:
                     raise ControllerError(f'no formation offset for leader UH {j} (needed by UH {i})')
-            self.offset = np.array(offsets[i], dtype=float).reshape(3)
-            self._neighbour_offsets = tuple(np.array(offsets[j], dtype=float).reshape(3)
+            self.offset = _vector3(offsets[i], f'formation offset of leader UH {i}')
+            self._neighbour_offsets = tuple(_vector3(offsets[j], f'formation offset of leader UH {j}')
                                             for j in self.neighbours)
         else:
             self.offset = zero
@@ -240,31 +256,35 @@ class UHController:
         """
         self._check_inputs(neighbour_states, reference, dt)
         x = _state(own_state, f'UH {self.uh_id} own state')
-        p, v, euler, omega = x[0:3], x[3:6], x[6:9], x[9:12]
-        rel = p - self.offset
-        z1 = np.zeros(3)
-        ff = np.zeros(3)
-        psi = float(euler[2])
+        v, euler, omega = x[3:6], x[6:9], x[9:12]
+        h = self.offset
+        rel = [x[0] - h[0], x[1] - h[1], x[2] - h[2]]
+        z1 = [0.0, 0.0, 0.0]
+        ff = [0.0, 0.0, 0.0]
+        psi = euler[2]
         yaw_sum = 0.0
-        for j, a, h in zip(self.neighbours, self.neighbour_weights, self._neighbour_offsets):
+        for j, a, hj in zip(self.neighbours, self.neighbour_weights, self._neighbour_offsets):
             xj = _state(neighbour_states[j], f'state of neighbour UH {j}')
-            z1 += a * (rel - (xj[0:3] - h))
-            ff += a * xj[3:6]
-            yaw_sum += a * wrap_angle(float(xj[8]) - psi)
+            for c in range(3):
+                z1[c] += a * (rel[c] - (xj[c] - hj[c]))
+                ff[c] += a * xj[3 + c]
+            yaw_sum += a * wrap_angle(xj[8] - psi)
         if self.leader_link > 0.0:
             a0 = self.leader_link
-            z1 += a0 * (rel - np.asarray(reference.position, dtype=float))
-            ff += a0 * np.asarray(reference.velocity, dtype=float)
+            p0, v0 = reference.position, reference.velocity
+            for c in range(3):
+                z1[c] += a0 * (rel[c] - float(p0[c]))
+                ff[c] += a0 * float(v0[c])
             psi_d = float(reference.yaw)
         else:
             psi_d = psi + yaw_sum / self.degree
 
         outer, inner, model = self.outer, self.inner, self.model
-        fhat_p = outer.fault_estimate.copy()
-        fhat_w = inner.fault_estimate.copy()
+        fhat_p = outer.fault_estimate
+        fhat_w = inner.fault_estimate
         u_p, z2, zn_p = outer.command(z1, self.degree, ff, v)
         att = thrust_and_attitude(u_p, psi_d, model, self.gains.tilt_limit, self.gains.min_vertical_accel)
-        euler_d = np.array([att.phi, att.theta, psi_d])
+        euler_d = (att.phi, att.theta, psi_d)
         u_m, z3, z4, zn_w, sat_cyclic = inner.command(euler, omega, euler_d, att.thrust_achieved)
 
         # acceleration the limited thrust gives at the measured attitude: (T/m) R(Theta) e3 - g e3
@@ -272,20 +292,21 @@ class UHController:
         ct, st = math.cos(euler[1]), math.sin(euler[1])
         cp, sp = math.cos(psi), math.sin(psi)
         tm = att.thrust_achieved / model.mass
-        accel = np.array([tm * (cp * st * cf + sp * sf), tm * (sp * st * cf - cp * sf),
-                          tm * ct * cf - model.gravity])
+        accel = (tm * (cp * st * cf + sp * sf), tm * (sp * st * cf - cp * sf), tm * ct * cf - model.gravity)
         outer.advance(accel, dt)
         inner.advance(dt)
 
         u = np.array([att.theta_col, u_m[2], u_m[0], u_m[1]])
+        wp, ww = outer.weights, inner.weights
         status = ControllerStatusData(
-            uh_id=self.uh_id, step=int(k), stamp=int(k) * dt, z1=z1, z2=z2, z3=z3, z4=z4,
-            fault_estimate_position=fhat_p, fault_estimate_attitude=fhat_w,
-            prediction_error_position=zn_p, prediction_error_attitude=zn_w,
-            u_p=u_p, euler_desired=euler_d, thrust_command=att.thrust,
-            weight_norm_position=float(np.sqrt(np.einsum('ij,ij->', outer.weights, outer.weights))),
-            weight_norm_attitude=float(np.sqrt(np.einsum('ij,ij->', inner.weights, inner.weights))),
+            uh_id=self.uh_id, step=int(k), stamp=int(k) * dt, z1=np.array(z1), z2=np.array(z2),
+            z3=np.array(z3), z4=np.array(z4), fault_estimate_position=np.array(fhat_p),
+            fault_estimate_attitude=np.array(fhat_w), prediction_error_position=np.array(zn_p),
+            prediction_error_attitude=np.array(zn_w), u_p=np.array(u_p), euler_desired=np.array(euler_d),
+            thrust_command=att.thrust,
+            weight_norm_position=math.sqrt(float(np.vdot(wp, wp))),
+            weight_norm_attitude=math.sqrt(float(np.vdot(ww, ww))),
             saturated_tilt=att.saturated_tilt, saturated_collective=att.saturated_collective,
             saturated_cyclic=sat_cyclic,
-            cost_rate=float(z1 @ z1 + u_p @ u_p))
+            cost_rate=math.fsum(c * c for c in z1) + math.fsum(c * c for c in u_p))
         return u, status

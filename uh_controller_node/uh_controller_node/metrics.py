@@ -40,8 +40,9 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ['MetricsError', 'FaultedUH', 'FAULT_WINDOW_DELAY', 'METRIC_KEYS', 'formation_errors',
-           'containment_errors', 'point_segment_distance', 'point_triangle_distance',
-           'hull_distance', 'faulted_uhs', 'compute_metrics']
+           'containment_errors', 'consensus_errors', 'point_segment_distance',
+           'point_triangle_distance', 'hull_distance', 'faulted_uhs', 'compute_metrics',
+           'metrics_from_arrays']
 
 #: Delay after a UH's fault onset before its fault estimate is scored, s (DESIGN.md 2.8).
 FAULT_WINDOW_DELAY = 5.0
@@ -178,6 +179,31 @@ def containment_errors(follower_positions, leader_positions, weights) -> np.ndar
     return np.linalg.norm(np.asarray(follower_positions) - target, axis=-1)
 
 
+def consensus_errors(positions, reference_positions, scenario) -> np.ndarray:
+    """Consensus errors z1 (K, n, 3) of DESIGN.md 2.3 from positions (K, n, 3) in ``scenario.ids`` order.
+
+    ``z1_i = sum_j a_ij [(p_i - h_i) - (p_j - h_j)] + a_i0 [(p_i - h_i) - p_0]`` with the formation
+    offsets ``h`` for a leader's errors and ``h = 0`` for a follower's: the same quantity the
+    controllers compute from their neighbours' data, recomputed here from the recorded positions so
+    that the CPI has one definition whatever produced the arrays.
+    """
+    positions = np.asarray(positions, dtype=float)
+    p0 = np.asarray(reference_positions, dtype=float)
+    ids = tuple(scenario.ids)
+    leaders = set(scenario.leaders)
+    col = {i: c for c, i in enumerate(ids)}
+    out = np.zeros(positions.shape)
+    for i in ids:
+        h = (lambda j: np.asarray(scenario.offsets[j], dtype=float)) if i in leaders else (lambda j: 0.0)
+        rel = positions[:, col[i]] - h(i)
+        for j in scenario.neighbours(i):
+            out[:, col[i]] += scenario.weight(i, j) * (rel - (positions[:, col[j]] - h(j)))
+        a0 = scenario.leader_link(i)
+        if a0 > 0.0:
+            out[:, col[i]] += a0 * (rel - p0)
+    return out
+
+
 def faulted_uhs(scenario) -> dict:
     """``{uh id: FaultedUH}`` of the UHs with at least one scheduled fault in ``scenario.faults``.
 
@@ -293,16 +319,16 @@ def compute_metrics(*, case: str, time, positions, reference_positions, leaders,
     result['wall_time_s'] = None if wall_time is None else float(wall_time)
     result['settle_time_s'] = float(settle_time)
     result['formation_rms_m'] = _none_if_nan(np.sqrt(np.mean(form[after] ** 2))) if after.any() else None
-    result['mse_formation'] = float(np.mean(form ** 2))
+    result['mse_formation'] = _none_if_nan(np.mean(form ** 2))
     if n_fol:
         w = _shape('containment_weights', containment_weights, (n_fol, n_lead))
         cont = containment_errors(fol_pos, lead_pos, w)
-        result['mse_containment'] = float(np.mean(cont ** 2))
+        result['mse_containment'] = _none_if_nan(np.mean(cont ** 2))
         if after.any():
             result['containment_rms_m'] = _none_if_nan(np.sqrt(np.mean(cont[after] ** 2)))
             hull = hull_distance(fol_pos[after], lead_pos[after][:, None, :, :])
             result['hull_distance_max_m'] = _none_if_nan(np.max(hull))
-    result['cpi'] = float(dt * (np.sum(z1 * z1) + np.sum(u_p * u_p)))
+    result['cpi'] = _none_if_nan(dt * (np.sum(z1 * z1) + np.sum(u_p * u_p)))
 
     nrmse = {}
     step_time = time[:steps]
@@ -324,3 +350,52 @@ def compute_metrics(*, case: str, time, positions, reference_positions, leaders,
     result['fault_nrmse'] = nrmse
     result['saturation_fraction'] = float(np.mean(saturated)) if saturated.size else 0.0
     return result
+
+
+def metrics_from_arrays(arrays, scenario, case: str, wall_time_s: float | None = None) -> dict:
+    """:func:`compute_metrics` on the arrays of a team run (reference simulation or recorded bag).
+
+    Parameters
+    ----------
+    arrays : mapping
+        ``time`` (K+1,), ``states`` (K+1, n, 12), ``reference`` (K+1, >=3) with p_0 in the first 3
+        columns, and per step ``u_p`` (K or K+1, n, 3), ``saturated`` (K or K+1, n),
+        ``fault_true_p``, ``fault_true_w``, ``fault_est_p``, ``fault_est_w`` (K or K+1, n, 3); UH
+        axis in ``scenario.ids`` order (the layout of ``TeamRun.arrays()`` and of
+        ``uh_bringup.bag_metrics.read_team_bag``). Per-step rows beyond K - 1 (a command at t_K that
+        is never applied) are ignored.
+    scenario : uh_topology.scenario.Scenario
+        Graph, offsets, containment weights, faults and settle time.
+    case : str
+    wall_time_s : float, optional
+
+    Returns
+    -------
+    dict
+        As :func:`compute_metrics`; z1 for the CPI comes from :func:`consensus_errors`.
+    """
+    missing = [k for k in ('time', 'states', 'reference', 'u_p', 'saturated') if k not in arrays]
+    if missing:
+        raise MetricsError(f'run arrays lack {missing}')
+    time = np.asarray(arrays['time'], dtype=float)
+    steps = time.shape[0] - 1
+    positions = np.asarray(arrays['states'], dtype=float)[..., 0:3]
+    p0 = np.asarray(arrays['reference'], dtype=float)[:, 0:3]
+    z1 = consensus_errors(positions, p0, scenario)[:steps]
+
+    def per_step(key):
+        if key not in arrays:
+            return None
+        arr = np.asarray(arrays[key])
+        if arr.shape[0] not in (steps, steps + 1):
+            raise MetricsError(f'{key} must have {steps} or {steps + 1} rows (one per step), got {arr.shape[0]}')
+        return arr[:steps]
+
+    return compute_metrics(
+        case=case, time=time, positions=positions, reference_positions=p0,
+        leaders=scenario.leaders, followers=scenario.followers, offsets=scenario.offsets,
+        containment_weights=scenario.containment_weights, z1=z1, u_p=per_step('u_p'),
+        saturated=per_step('saturated'), fault_true_p=per_step('fault_true_p'),
+        fault_true_w=per_step('fault_true_w'), fault_est_p=per_step('fault_est_p'),
+        fault_est_w=per_step('fault_est_w'), faulted=faulted_uhs(scenario),
+        settle_time=float(scenario.settle_time), wall_time=wall_time_s)

@@ -21,8 +21,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 __all__ = ['NominalModel']
 
 
@@ -86,19 +84,18 @@ class NominalModel:
         """Main-rotor thrust ``c_M1 theta_col + c_M2``, N."""
         return self.c_M1 * theta_col + self.c_M2
 
-    def control_effectiveness(self, thrust: float) -> np.ndarray:
-        """Diagonal of ``G(T)`` (3,), rad/s^2 per rad, for (delta_lat, delta_lon, theta_tr)."""
+    def control_effectiveness(self, thrust: float) -> tuple:
+        """Diagonal of ``G(T)``, 3 floats, rad/s^2 per rad, for (delta_lat, delta_lon, theta_tr)."""
         k = self.K_beta + thrust * self.h_M
         jx, jy, jz = self.inertia
-        return np.array([k * self.B_lat / jx, k * self.A_lon / jy, self.K_tr / jz])
+        return (k * self.B_lat / jx, k * self.A_lon / jy, self.K_tr / jz)
 
-    def inner_drift(self, omega, thrust: float) -> np.ndarray:
-        """``f_w,nom(omega, T)`` (3,) rad/s^2: gyroscopic term, flapping damping, yaw damping, torque reaction."""
+    def inner_drift(self, omega, thrust: float) -> tuple:
+        """``f_w,nom(omega, T)``, 3 floats, rad/s^2: gyroscopic term, flapping damping, yaw damping,
+        torque reaction."""
         p, q, r = float(omega[0]), float(omega[1]), float(omega[2])
         jx, jy, jz = self.inertia
         k = self.K_beta + thrust * self.h_M
-        return np.array([
-            ((jy - jz) * q * r - k * self.tau_f * p) / jx,
-            ((jz - jx) * r * p - k * self.tau_f * q) / jy,
-            ((jx - jy) * p * q - self.D_r * r - self.c_Q * thrust) / jz,
-        ])
+        return (((jy - jz) * q * r - k * self.tau_f * p) / jx,
+                ((jz - jx) * r * p - k * self.tau_f * q) / jy,
+                ((jx - jy) * p * q - self.D_r * r - self.c_Q * thrust) / jz)

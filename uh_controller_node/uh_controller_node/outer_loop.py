@@ -119,15 +119,16 @@ def thrust_and_attitude(u_p, psi_d: float, model: NominalModel, tilt_limit: floa
 class OuterLoop:
     """Position loop state and law of one UH (DESIGN.md 2.4).
 
-    Call :meth:`command` then :meth:`advance` once per control step.
+    Call :meth:`command` then :meth:`advance` once per control step. The 3-vector algebra runs on
+    Python floats (cheaper than numpy calls for vectors this short); the network uses numpy.
 
     Attributes
     ----------
     weights : ndarray (mu, 3)
         W_p.
-    fault_estimate : ndarray (3,)
+    fault_estimate : list of 3 float
         Fhat_p, m/s^2, inertial.
-    velocity_estimate : ndarray (3,)
+    velocity_estimate : list of 3 float
         vhat of the SPEM, m/s.
     """
 
@@ -140,8 +141,8 @@ class OuterLoop:
         self.filter = FirstOrderFilter(lg.tau_command)
         self.rbf = GaussianRBF(lg.rbf.nodes, lg.rbf.low, lg.rbf.high, lg.rbf.width)
         self.weights = np.zeros((self.rbf.nodes, 3))
-        self.fault_estimate = np.zeros(3)
-        self.velocity_estimate = np.zeros(3)
+        self.fault_estimate = [0.0, 0.0, 0.0]
+        self.velocity_estimate = [0.0, 0.0, 0.0]
         self._drag = model.D_v / model.mass
         self._started = False
         # values of the current step kept for advance()
@@ -153,47 +154,55 @@ class OuterLoop:
 
         Parameters
         ----------
-        z1 : ndarray (3,)
+        z1 : sequence of 3 float
             Consensus error e, m.
         degree : float
             d = sum_j a_j + a_0 (> 0).
-        feedforward : ndarray (3,)
+        feedforward : sequence of 3 float
             ``sum_j a_j v_j + a_0 v_0``, m/s.
-        v : ndarray (3,)
+        v : sequence of 3 float
             Own velocity, m/s, inertial.
 
         Returns
         -------
-        u_p, z2, z_n : ndarray (3,)
-            Designed acceleration m/s^2, velocity error m/s, prediction error m/s (new arrays).
+        u_p, z2, z_n : list of 3 float
+            Designed acceleration m/s^2, velocity error m/s, prediction error m/s.
         """
-        alpha = (feedforward - self.k1 * z1) / degree
+        k1, inv_d = self.k1, 1.0 / degree
+        alpha = [(f - k1 * e) * inv_d for f, e in zip(feedforward, z1)]
+        v = [float(x) for x in v]
         if not self._started:
             self.filter.reset(alpha)
-            self.velocity_estimate[:] = v
+            self.velocity_estimate = list(v)
             self._started = True
         alpha_dot = self.filter.derivative(alpha)
-        z2 = v - self.filter.value
-        zn = v - self.velocity_estimate
-        act = self.rbf.activations(v)
-        net = self.rbf.output(self.weights, act)
-        fnom = -self._drag * v
-        u_p = alpha_dot - fnom - degree * z1 - net - self.fault_estimate - self.k2 * z2
-        self._alpha, self._z2, self._zn, self._net, self._fnom, self._act = alpha, z2, zn, net, fnom, act
+        z2 = [a - b for a, b in zip(v, self.filter.value)]
+        zn = [a - b for a, b in zip(v, self.velocity_estimate)]
+        net = self.rbf.evaluate(self.weights, v)
+        self._act = self.rbf.activations_buffer
+        drag, k2 = self._drag, self.k2
+        fnom = [-drag * x for x in v]
+        u_p = [ad - fn - degree * e - nt - fh - k2 * z
+               for ad, fn, e, nt, fh, z in zip(alpha_dot, fnom, z1, net, self.fault_estimate, z2)]
+        self._alpha, self._z2, self._zn, self._net, self._fnom = alpha, z2, zn, net, fnom
         return u_p, z2, zn
 
     def advance(self, accel_achieved, dt: float) -> None:
         """Integrate the SPEM, the weights, the fault estimate and the filter over ``dt`` s.
 
-        ``accel_achieved`` (3,) m/s^2 is the acceleration the limited thrust produces at the
-        measured attitude, ``(T_ach / m) R(Theta) e3 - g e3``.
+        ``accel_achieved`` (3 floats, m/s^2) is the acceleration the limited thrust produces at
+        the measured attitude, ``(T_ach / m) R(Theta) e3 - g e3``.
         """
         lg = self.gains
-        fhat = self.fault_estimate
-        zn = self._zn
-        self.velocity_estimate += dt * (self._fnom + self._net + accel_achieved + fhat + lg.kappa * zn)
-        composite_weight_update(self.weights, self._act, self._z2, zn, lg.learning_rate, lg.gamma,
+        fhat, zn, z2 = self.fault_estimate, self._zn, self._z2
+        kappa = lg.kappa
+        self.velocity_estimate = [
+            vh + dt * (fn + nt + a + fh + kappa * e)
+            for vh, fn, nt, a, fh, e in zip(self.velocity_estimate, self._fnom, self._net,
+                                            accel_achieved, fhat, zn)]
+        composite_weight_update(self.weights, self._act, z2, zn, lg.learning_rate, lg.gamma,
                                 lg.sigma, dt, lg.weight_bound)
-        fhat += (dt * lg.lambda_) * (self._z2 + lg.gamma_F * zn - lg.sigma_F * fhat)
-        np.clip(fhat, -lg.fault_bound, lg.fault_bound, out=fhat)
+        gain, gf, sf, bound = dt * lg.lambda_, lg.gamma_F, lg.sigma_F, lg.fault_bound
+        self.fault_estimate = [min(max(fh + gain * (z + gf * e - sf * fh), -bound), bound)
+                               for fh, z, e in zip(fhat, z2, zn)]
         self.filter.advance(self._alpha, dt)

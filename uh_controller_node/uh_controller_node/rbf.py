@@ -59,6 +59,11 @@ class GaussianRBF:
         self._buf = np.empty((self.centres.size, 3))
 
     @property
+    def activations_buffer(self) -> np.ndarray:
+        """The buffer the last :meth:`activations` call wrote (mu, 3)."""
+        return self._buf
+
+    @property
     def nodes(self) -> int:
         """Number of centres mu."""
         return self.centres.size
@@ -77,6 +82,10 @@ class GaussianRBF:
         """Network output ``W^T S`` per axis, (3,): ``sum_i W[i, a] S[i, a]``."""
         return np.einsum('ij,ij->j', weights, activations)
 
+    def evaluate(self, weights: np.ndarray, x) -> list:
+        """``W^T S(x)`` for input ``x`` (3,) as a list of 3 floats (activations left in the buffer)."""
+        return np.einsum('ij,ij->j', weights, self.activations(x)).tolist()
+
 
 def project_columns(weights: np.ndarray, bound: float) -> bool:
     """Scale in place every column of ``weights`` (mu, 3) whose norm exceeds ``bound``.
@@ -84,11 +93,12 @@ def project_columns(weights: np.ndarray, bound: float) -> bool:
     The discrete counterpart of the projection operator: the result is the Euclidean projection
     of each column onto the ball of radius ``bound``. Returns True if any column was scaled.
     """
-    norms = np.sqrt(np.einsum('ij,ij->j', weights, weights))
-    if np.all(norms <= bound):
+    norms2 = np.einsum('ij,ij->j', weights, weights)
+    # a column scaled onto the sphere may round to a hair above it: that counts as inside
+    if norms2.max() <= bound * bound * (1.0 + 1e-12):
         return False
-    scale = np.minimum(1.0, bound / np.maximum(norms, 1e-300))
-    weights *= scale
+    norms = np.sqrt(norms2)
+    weights *= np.minimum(1.0, bound / np.maximum(norms, 1e-300))
     return True
 
 
@@ -106,7 +116,7 @@ def composite_weight_update(weights: np.ndarray, activations: np.ndarray, tracki
         W, updated in place.
     activations : ndarray (mu, 3)
         S(X) at the current step.
-    tracking_error, prediction_error : array_like (3,)
+    tracking_error, prediction_error : sequence of 3 float
         z (z2 or z4) and z_n (SPEM prediction error) at the current step.
     learning_rate, gamma, sigma : float
         Gamma 1/s, gamma (-), sigma (-).
@@ -115,9 +125,10 @@ def composite_weight_update(weights: np.ndarray, activations: np.ndarray, tracki
     bound : float
         Projection radius of each column.
     """
-    drive = np.asarray(tracking_error) + gamma * np.asarray(prediction_error)
     step = dt * learning_rate
-    # W <- (1 - dt Gamma sigma) W + dt Gamma S diag(drive)
-    weights *= 1.0 - step * sigma
-    weights += (step * drive) * activations
+    drive = [step * (float(z) + gamma * float(e)) for z, e in zip(tracking_error, prediction_error)]
+    # W <- (1 - dt Gamma sigma) W + dt Gamma S diag(z + gamma z_n)
+    if sigma != 0.0:
+        weights *= 1.0 - step * sigma
+    weights += activations * drive
     project_columns(weights, bound)

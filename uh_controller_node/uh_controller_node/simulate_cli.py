@@ -1,0 +1,139 @@
+"""``uh-simulate``: the in-process reference simulation of a team (DESIGN.md 2.7, 2.8).
+
+Runs every UH's plant and controller in one process (the same controller objects the distributed
+nodes use) and writes ``DIR/metrics.json`` (DESIGN.md 2.8) and ``DIR/timeseries.npz`` (time,
+states, commands, reference, true and estimated lumped faults, designed accelerations, consensus
+errors, saturation flags and formation/containment errors per UH; see
+:class:`uh_controller_node.team_simulation.TeamRun`).
+
+Exit status: 0 success, 1 the simulation diverged, 2 bad input (scenario, gains, arguments, output
+directory), 130 interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from .gains import CASES
+
+__all__ = ['main', 'build_parser']
+
+PROG = 'uh-simulate'
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog=PROG,
+        description='Run a UH team scenario in one process with the per-UH composite-learning '
+                    'inverse-optimal fault-tolerant controllers and write DIR/metrics.json and '
+                    'DIR/timeseries.npz.',
+        epilog='Example: uh-simulate --scenario paper --case proposed --out runs/proposed')
+    p.add_argument('--scenario', required=True, metavar='FILE|NAME',
+                   help="scenario YAML file, or the name of a bundled scenario ('paper')")
+    p.add_argument('--case', default='proposed', choices=CASES,
+                   help='controller case of DESIGN.md 2.6 (default: proposed)')
+    p.add_argument('--out', required=True, type=Path, metavar='DIR',
+                   help='output directory (created; must be empty unless --force)')
+    p.add_argument('--duration', type=float, metavar='S',
+                   help='simulated time in seconds (default: the scenario duration)')
+    p.add_argument('--force', action='store_true',
+                   help='write into a non-empty output directory, replacing metrics.json and timeseries.npz')
+    return p
+
+
+class _Progress:
+    """A one-line progress bar on stderr (only used when stderr is a terminal)."""
+
+    def __init__(self, stream, label: str, width: int = 40):
+        self.stream, self.label, self.width = stream, label, width
+        self._last = -1
+
+    def __call__(self, k: int, total: int) -> None:
+        pct = int(100 * k / total) if total else 100
+        if pct == self._last:
+            return
+        self._last = pct
+        filled = self.width * pct // 100
+        self.stream.write(f'\r{self.label} [{"#" * filled}{"." * (self.width - filled)}] {pct:3d}%')
+        if k >= total:
+            self.stream.write('\n')
+        self.stream.flush()
+
+
+def _fail(message: str, status: int = 2) -> int:
+    print(f'{PROG}: error: {message}', file=sys.stderr)
+    return status
+
+
+def _check_out_dir(out: Path, force: bool):
+    if out.exists() and not out.is_dir():
+        return f'--out {str(out)!r} exists and is not a directory'
+    if out.is_dir() and any(out.iterdir()) and not force:
+        return f'--out {str(out)!r} is not empty; choose a new directory or pass --force to overwrite'
+    return None
+
+
+def main(argv=None) -> int:
+    """Entry point of ``uh-simulate``; returns the exit status (see module docstring)."""
+    args = build_parser().parse_args(argv)
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0.0):
+        return _fail(f'--duration must be a finite number of seconds > 0, got {args.duration!r}')
+    problem = _check_out_dir(args.out, args.force)
+    if problem:
+        return _fail(problem)
+
+    from uh_topology.errors import ScenarioError
+    from uh_topology.scenario import load_scenario
+
+    from .metrics import metrics_from_arrays
+    from .team_simulation import SimulationError, run_team_simulation
+
+    try:
+        scenario = load_scenario(args.scenario)
+    except ScenarioError as exc:
+        return _fail(f'invalid scenario: {exc}')
+    progress = _Progress(sys.stderr, f'{scenario.name}/{args.case}') if sys.stderr.isatty() else None
+    try:
+        run = run_team_simulation(scenario, args.case, duration=args.duration, progress=progress)
+    except SimulationError as exc:
+        diverged = 'non-finite' in str(exc)
+        return _fail(str(exc), status=1 if diverged else 2)
+    except KeyboardInterrupt:
+        if progress is not None:
+            sys.stderr.write('\n')
+        return _fail('interrupted', status=130)
+    except ValueError as exc:        # scenario content the plant or controller rejects (own types)
+        return _fail(f'{type(exc).__name__}: {exc}')
+
+    metrics = metrics_from_arrays(run.arrays(), scenario, args.case, wall_time_s=run.wall_time)
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / 'metrics.json').write_text(json.dumps(metrics, indent=2) + '\n')
+        np.savez(args.out / 'timeseries.npz', **run.arrays())
+    except OSError as exc:
+        return _fail(f'cannot write to {str(args.out)!r}: {exc.strerror or exc}')
+
+    if run.stuck_uhs:
+        print(f'{PROG}: warning: stuck actuator (rho = 0) on UH(s) {list(run.stuck_uhs)}: outside what '
+              'the controller can compensate', file=sys.stderr)
+    if not run.all_finite():
+        return _fail('the run produced NaN or infinite values', status=1)
+    print(f'{scenario.name} / {args.case}: {metrics["sim_time_s"]:g} s simulated in {run.wall_time:.2f} s')
+    for key in ('formation_rms_m', 'containment_rms_m', 'hull_distance_max_m', 'mse_formation',
+                'mse_containment', 'cpi', 'saturation_fraction'):
+        value = metrics[key]
+        print(f'  {key:22s} {"n/a" if value is None else format(value, ".4g")}')
+    for uh, entry in metrics['fault_nrmse'].items():
+        parts = ', '.join(f'{k} {"n/a" if v is None else format(v, ".3f")}' for k, v in entry.items())
+        print(f'  fault_nrmse {uh:10s} {parts}')
+    print(f'wrote {args.out / "metrics.json"} and {args.out / "timeseries.npz"}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,213 @@
+"""In-process reference simulation of a whole team (DESIGN.md 1 "pure core", 2.7; contract time stepping).
+
+Every UH gets a :class:`~uh_sim_node.helicopter.HelicopterPlant` and a
+:class:`~uh_controller_node.controller.UHController` — the very objects the distributed nodes use.
+Step ``k`` (``t_k = k * dt``):
+
+1. every controller consumes the states ``x_j(t_k)`` of itself and of its neighbours (ascending id)
+   and, if it hears the virtual leader, the reference at ``t_k``, and returns ``u_k``;
+2. the true lumped faults at ``(x(t_k), u_k, t_k)`` are recorded;
+3. every plant holds ``u_k`` over ``[t_k, t_k + dt)`` and integrates (RK4, ``substeps``) to ``x(t_{k+1})``.
+
+After the last step the controllers run once more at ``t_K`` so the per-step arrays have a row for
+every state sample (that last command is not applied). The arrays follow the layout of
+``uh_bringup.bag_metrics.read_team_bag`` so the reference run and a recorded distributed run are
+compared and scored by the same code (:func:`uh_controller_node.metrics.metrics_from_arrays`).
+"""
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .controller import UHController
+from .gains import CASES, GainsError
+
+__all__ = ['SimulationError', 'TeamRun', 'run_team_simulation']
+
+
+class SimulationError(ValueError):
+    """Bad simulation request (unknown case, bad duration) or a run that produced non-finite values."""
+
+
+@dataclass
+class TeamRun:
+    """Time series of one team run. UH axis ordered as ``ids`` (leaders first); ``K`` control steps.
+
+    Attributes
+    ----------
+    scenario_name, case : str
+    ids : tuple of int
+    dt : float
+        Control period, s.
+    time : ndarray (K+1,)
+        t_k = k dt, s.
+    states : ndarray (K+1, n, 12)
+        ``[p, v, Theta, omega]`` per UH, SI units.
+    commands : ndarray (K+1, n, 4)
+        ``(theta_col, theta_tr, delta_lat, delta_lon)`` rad; row ``K`` is computed but not applied.
+    reference : ndarray (K+1, 5)
+        Virtual leader ``(x0, y0, z0, psi0, psi0')`` m, rad, rad/s.
+    fault_true_p, fault_true_w : ndarray (K+1, n, 3)
+        True lumped faults (m/s^2 inertial, rad/s^2 body) for the command of the row.
+    fault_est_p, fault_est_w : ndarray (K+1, n, 3)
+        The controllers' estimates used at that step.
+    u_p : ndarray (K+1, n, 3)
+        Designed accelerations, m/s^2.
+    z1 : ndarray (K+1, n, 3)
+        Consensus errors, m.
+    saturated : ndarray (K+1, n) bool
+        Any input limit active.
+    errors : ndarray (K+1, n)
+        Formation error ``|p_i - h_i - p_0|`` (leaders) or containment error
+        ``|p_k - sum_j w_kj p_j|`` (followers), m.
+    wall_time : float
+        Wall-clock time of the stepping loop, s.
+    stuck_uhs : tuple of int
+        UHs with a stuck actuator (rho = 0) during the run: outside what the controller compensates.
+    """
+
+    scenario_name: str
+    case: str
+    ids: tuple
+    dt: float
+    time: np.ndarray
+    states: np.ndarray
+    commands: np.ndarray
+    reference: np.ndarray
+    fault_true_p: np.ndarray
+    fault_true_w: np.ndarray
+    fault_est_p: np.ndarray
+    fault_est_w: np.ndarray
+    u_p: np.ndarray
+    z1: np.ndarray
+    saturated: np.ndarray
+    errors: np.ndarray
+    wall_time: float
+    stuck_uhs: tuple = field(default_factory=tuple)
+
+    ARRAY_KEYS = ('time', 'states', 'commands', 'reference', 'fault_true_p', 'fault_true_w',
+                  'fault_est_p', 'fault_est_w', 'u_p', 'z1', 'saturated', 'errors')
+
+    def arrays(self) -> dict:
+        """The time series as a dict (``timeseries.npz`` content, plus ``ids``)."""
+        out = {k: getattr(self, k) for k in self.ARRAY_KEYS}
+        out['ids'] = np.array(self.ids)
+        return out
+
+    def all_finite(self) -> bool:
+        """True when no array holds NaN or infinity."""
+        return all(np.isfinite(getattr(self, k)).all() for k in self.ARRAY_KEYS if k != 'saturated')
+
+
+def _errors(states, reference, scenario):
+    leaders, followers = tuple(scenario.leaders), tuple(scenario.followers)
+    n_lead = len(leaders)
+    pos = states[:, :, 0:3]
+    out = np.empty(states.shape[:2])
+    h = np.array([scenario.offsets[i] for i in leaders])
+    out[:, :n_lead] = np.linalg.norm(pos[:, :n_lead] - h[None] - reference[:, None, 0:3], axis=-1)
+    if followers:
+        target = np.einsum('mn,knc->kmc', np.asarray(scenario.containment_weights), pos[:, :n_lead])
+        out[:, n_lead:] = np.linalg.norm(pos[:, n_lead:] - target, axis=-1)
+    return out
+
+
+def run_team_simulation(scenario, case: str = 'proposed', duration: float | None = None,
+                        progress: Callable[[int, int], None] | None = None) -> TeamRun:
+    """Run the whole team in one process with the per-UH controllers (see module docstring).
+
+    Parameters
+    ----------
+    scenario : uh_topology.scenario.Scenario
+    case : str
+        ``'proposed'``, ``'case1'`` or ``'case2'`` (DESIGN.md 2.6).
+    duration : float, optional
+        Simulated time, s (default ``scenario.duration``); rounded to whole control periods.
+    progress : callable, optional
+        ``progress(k, K)`` called now and then (about every 1 % of the steps and at the end).
+
+    Returns
+    -------
+    TeamRun
+
+    Raises
+    ------
+    SimulationError
+        Unknown case, a duration that is not a positive finite number of at least one step, or a
+        state that became non-finite (the step and UH are named).
+    """
+    from uh_sim_node.helicopter import load_helicopter_params, plant_from_scenario
+    from uh_sim_node.reference import VirtualLeaderReference
+
+    if case not in CASES:
+        raise SimulationError(f'unknown controller case {case!r}; allowed: {", ".join(CASES)}')
+    dt = float(scenario.dt)
+    if duration is None:
+        duration = float(scenario.duration)
+    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not math.isfinite(duration) \
+            or duration <= 0.0:
+        raise SimulationError(f'duration must be a finite number of seconds > 0, got {duration!r}')
+    K = int(round(duration / dt))
+    if K < 1:
+        raise SimulationError(f'duration {duration!r} s is shorter than one control period ({dt} s)')
+
+    ids = tuple(scenario.ids)
+    n = len(ids)
+    params = load_helicopter_params(scenario.helicopter)
+    plants = [plant_from_scenario(scenario, i, params) for i in ids]
+    try:
+        controllers = [UHController(i, scenario, case, helicopter_params=params) for i in ids]
+    except GainsError as exc:
+        raise SimulationError(str(exc)) from None
+    col = {i: c for c, i in enumerate(ids)}
+    hears = [tuple(col[j] for j in ctl.neighbours) for ctl in controllers]
+    linked = [ctl.leader_link > 0.0 for ctl in controllers]
+    reference = VirtualLeaderReference(scenario.reference)
+
+    states = np.empty((K + 1, n, 12))
+    commands = np.empty((K + 1, n, 4))
+    ref = np.empty((K + 1, 5))
+    f_true_p, f_true_w = np.empty((K + 1, n, 3)), np.empty((K + 1, n, 3))
+    f_est_p, f_est_w = np.empty((K + 1, n, 3)), np.empty((K + 1, n, 3))
+    u_p, z1 = np.empty((K + 1, n, 3)), np.empty((K + 1, n, 3))
+    saturated = np.zeros((K + 1, n), dtype=bool)
+    stuck = set()
+    every = max(1, K // 100)
+
+    start = _time.perf_counter()
+    for k in range(K + 1):
+        t = k * dt
+        r = reference.at(t)
+        ref[k] = (r.position[0], r.position[1], r.position[2], r.yaw, r.yaw_rate)
+        xs = [plant.x for plant in plants]
+        states[k] = xs
+        if not np.isfinite(states[k]).all():
+            bad = [ids[c] for c in range(n) if not np.isfinite(states[k, c]).all()]
+            raise SimulationError(f'state of UH(s) {bad} became non-finite at step {k} (t = {t:g} s)')
+        for c, ctl in enumerate(controllers):
+            u, st = ctl.step(k, xs[c], {ids[j]: xs[j] for j in hears[c]}, r if linked[c] else None, dt)
+            commands[k, c] = u
+            f_est_p[k, c] = st.fault_estimate_position
+            f_est_w[k, c] = st.fault_estimate_attitude
+            u_p[k, c] = st.u_p
+            z1[k, c] = st.z1
+            saturated[k, c] = st.saturated_tilt or st.saturated_collective or st.saturated_cyclic
+        for c, plant in enumerate(plants):
+            f_true_p[k, c], f_true_w[k, c] = plant.lumped_faults(commands[k, c], t)
+            if plant.stuck(t):
+                stuck.add(ids[c])
+            if k < K:
+                plant.step(commands[k, c], t, dt)
+        if progress is not None and (k % every == 0 or k == K):
+            progress(k, K)
+    wall = _time.perf_counter() - start
+
+    return TeamRun(
+        scenario_name=str(scenario.name), case=case, ids=ids, dt=dt, time=np.arange(K + 1) * dt,
+        states=states, commands=commands, reference=ref, fault_true_p=f_true_p, fault_true_w=f_true_w,
+        fault_est_p=f_est_p, fault_est_w=f_est_w, u_p=u_p, z1=z1, saturated=saturated,
+        errors=_errors(states, ref, scenario), wall_time=wall, stuck_uhs=tuple(sorted(stuck)))
