@@ -200,7 +200,7 @@ def run(args) -> int:
     (out / 'run.json').write_text(json.dumps({
         'command': sys.argv, 'scenario': args.scenario, 'case': args.case, 'clock': args.clock,
         'rate': args.rate, 'duration_s': duration, 'domain_id': domain, 'wall_time_s': wall,
-        'exit_codes': codes, 'interrupted': bool(interrupted), 'failed_node': failure.name if failure else None,
+        'exit_codes': codes, 'pids': {n.name: n.proc.pid for n in sup.nodes if n.proc}, 'interrupted': bool(interrupted), 'failed_node': failure.name if failure else None,
     }, indent=2) + '\n')
     if status == 0 and not args.no_metrics:
         from uh_bringup.bag_metrics import write_metrics_from_bag
