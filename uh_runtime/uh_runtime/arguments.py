@@ -92,7 +92,7 @@ def expand_topic_name(name: str, node_name: str, namespace: str) -> str:
         name = f'{ns}/{node_name}{rest}'
     elif not name.startswith('/'):
         name = f'{ns}/{name}'
-    return validate_full_topic_name(name.replace('//', '/'))
+    return validate_full_topic_name(name)
 
 
 @dataclass
@@ -122,6 +122,16 @@ class ParsedArguments:
         self.enclave = other.enclave or self.enclave
 
 
+class _RosYamlLoader(yaml.SafeLoader):
+    """YAML 1.1 as PyYAML reads it, plus ``1e-3`` (no dot) as a float, as rcl's parser does."""
+
+
+_RosYamlLoader.add_implicit_resolver(
+    'tag:yaml.org,2002:float',
+    re.compile(r'^[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)$'),
+    list('-+0123456789'))
+
+
 def parse_parameter_value(text: str):
     """Type a ``-p name:=value`` value as rcl does: YAML scalars and flow sequences.
 
@@ -129,18 +139,13 @@ def parse_parameter_value(text: str):
     anything else -> str.
     """
     try:
-        value = yaml.safe_load(text)
+        value = yaml.load(text, Loader=_RosYamlLoader)
     except yaml.YAMLError:
         return text
     return _yaml_to_param(text, value)
 
 
-_FLOAT_RE = re.compile(r'^[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$')
-
-
 def _yaml_to_param(text, value):
-    if isinstance(value, str) and _FLOAT_RE.match(value.strip()):
-        return float(value)  # YAML 1.1 leaves '1e-3' a string; rcl reads a double
     if value is None:
         return text
     if isinstance(value, (bool, int, float, str)):
@@ -180,7 +185,7 @@ def load_params_file(path) -> list:
     """
     path = Path(path)
     try:
-        data = yaml.safe_load(path.read_text())
+        data = yaml.load(path.read_text(), Loader=_RosYamlLoader)
     except OSError as exc:
         raise RosArgsError(f'cannot read parameter file {path}: {exc.strerror}') from exc
     except yaml.YAMLError as exc:
@@ -196,11 +201,9 @@ def load_params_file(path) -> list:
                     raise RosArgsError(f'{path}: "ros__parameters" of {prefix or "/"} must be a mapping')
                 params = {}
                 _flatten_params('', value, params, path)
-                pattern = prefix if prefix.startswith('/') else '/' + prefix
-                result.append((pattern, params))
+                result.append((prefix or '/**', params))
             elif isinstance(value, dict):
-                walk(f'{prefix}/{key}'.lstrip('/') if not str(key).startswith('/') or not prefix
-                     else f'{prefix}{key}', value)
+                walk(f"{prefix.rstrip('/')}/{str(key).strip('/')}", value)
             else:
                 raise RosArgsError(
                     f'{path}: key {key!r} under {prefix or "the top level"} is neither a node name '

@@ -1001,8 +1001,16 @@ class Node:
             if name in self._parameters:
                 raise ParameterAlreadyDeclaredException(name)
             if isinstance(value, ParameterType):
+                if value == ParameterType.NOT_SET:
+                    raise ValueError(
+                        f'Cannot declare parameter {{{name}}} as statically typed of type NOT_SET')
                 ptype, value = value, None
             elif value is None:
+                if not descriptor.dynamic_typing:
+                    raise ValueError(
+                        f"parameter '{name}': cannot declare a statically typed parameter without "
+                        'a default value; give a default, a Parameter.Type, or '
+                        'ParameterDescriptor(dynamic_typing=True)')
                 ptype = ParameterType.NOT_SET
             else:
                 try:
@@ -1029,15 +1037,14 @@ class Node:
         return declared
 
     def _coerce(self, name, value, descriptor):
-        """Type check against a statically typed descriptor; ints are accepted for doubles."""
+        """Type check against a statically typed descriptor.
+
+        As in rclpy, an integer is *not* accepted for a double parameter (``-p rate:=20`` for a
+        double fails; write ``20.0``), so a command line that works here works on ROS 2 too.
+        """
         if value is None or descriptor.dynamic_typing or not descriptor.type:
             return value
         expected = ParameterType(descriptor.type)
-        if expected == ParameterType.DOUBLE and isinstance(value, int) and not isinstance(value, bool):
-            return float(value)
-        if expected == ParameterType.DOUBLE_ARRAY and isinstance(value, list) and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-            return [float(v) for v in value]
         if not expected.check(value):
             raise InvalidParameterTypeException(name, value, expected)
         return value
