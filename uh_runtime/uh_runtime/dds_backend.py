@@ -54,6 +54,7 @@ DISCOVERY_TOPIC = 'ros_discovery_info'
 ROS_TOPIC_PREFIX = 'rt'
 _DDS_INFINITY = 0x7FFFFFFFFFFFFFFF
 _TAKE_BATCH = 256
+_PAD4 = [b'', b'\0', b'\0\0', b'\0\0\0']
 
 
 class ExternalShutdownException(Exception):
@@ -594,26 +595,32 @@ class Publisher:
         self.qos_profile = qos_profile
         self._writer = writer
         self.gid = writer.get_guid().bytes
+        from cyclonedds._clayer import ddspy_write
+
+        from .cdr import codec
+        self._write = ddspy_write
+        self._ref = writer._ref
+        self._serialize = codec(msg_type).serialize
 
     @property
     def topic(self):
         return self.topic_name
 
     def publish(self, msg):
-        """Publish ``msg`` (an instance of ``msg_type``) or pre-serialised CDR ``bytes``."""
-        if isinstance(msg, (bytes, bytearray, memoryview)):
-            from cyclonedds._clayer import ddspy_write
+        """Publish ``msg`` (an instance of ``msg_type``) or its CDR bytes (with the 4-byte header)."""
+        if type(msg) is self.msg_type or isinstance(msg, self.msg_type):
+            data = self._serialize(msg)
+        elif isinstance(msg, (bytes, bytearray, memoryview)):
             data = bytes(msg)
-            data = data.ljust((len(data) + 3) & ~3, b'\0')
-            ret = ddspy_write(self._writer._ref, data)
-            if ret < 0:
-                raise RuntimeError(f'publishing raw data on {self.topic_name} failed (DDS error {ret})')
-            return
-        if not isinstance(msg, self.msg_type):
+        else:
             raise TypeError(
                 f'expected {_messages.ros_type_name(self.msg_type)} on {self.topic_name}, '
                 f'got {type(msg).__name__}')
-        self._writer.write(msg)
+        if len(data) & 3:  # rmw_cyclonedds pads the payload to a multiple of 4 bytes too
+            data += _PAD4[-len(data) & 3]
+        ret = self._write(self._ref, data)
+        if ret < 0:
+            raise RuntimeError(f'publishing on {self.topic_name} failed (DDS error {ret})')
 
     def get_subscription_count(self) -> int:
         """Number of matched readers (DDS publication-matched status)."""
@@ -649,8 +656,10 @@ class Subscription:
         self._mask = SampleState.Any | ViewState.Any | InstanceState.Any
         self.gid = reader.get_guid().bytes
         from cyclonedds._clayer import ddspy_take
+
+        from .cdr import codec
         self._take = ddspy_take
-        self._deserialize = msg_type.deserialize
+        self._deserialize = codec(msg_type).deserialize
 
     @property
     def topic(self):
