@@ -91,7 +91,7 @@ def _graph(args):
     from .graph import Graph
     domain = _domain_default() if args.domain_id is None else args.domain_id
     if not 0 <= domain <= 232:
-        raise CliError(f'--domain-id {domain} is outside 0..232')
+        raise CliError(f'--domain-id {domain} is outside 0..232 (the range ROS 2 allows)')
     return Graph(domain_id=domain)
 
 
@@ -103,7 +103,7 @@ def _check_topic(name):
 
 # ----------------------------------------------------------------------------------------------
 def cmd_topic_list(args):
-    graph = _graph(args)
+    graph = args.graph
     graph.settle(args.spin_time)
     for name, types in graph.topic_names_and_types():
         if args.show_types:
@@ -114,7 +114,7 @@ def cmd_topic_list(args):
 
 
 def cmd_node_list(args):
-    graph = _graph(args)
+    graph = args.graph
     graph.settle(args.spin_time)
     nodes = graph.node_names_and_namespaces()
     if args.count_nodes:
@@ -158,7 +158,7 @@ def _qos_text(profile, dds_qos):
 def cmd_topic_info(args):
     from .graph import format_gid
     topic = _check_topic(args.topic_name)
-    graph = _graph(args)
+    graph = args.graph
     graph.settle(args.spin_time)
     types = dict(graph.topic_names_and_types()).get(topic)
     if not types:
@@ -234,7 +234,7 @@ def _field(msg, path):
 def cmd_topic_echo(args):
     from . import messages
     topic = _check_topic(args.topic_name)
-    graph = _graph(args)
+    graph = args.graph
     start = time.monotonic()
     if args.message_type:
         type_name = args.message_type
@@ -270,7 +270,7 @@ def cmd_topic_echo(args):
 def cmd_topic_hz(args):
     from . import messages
     topic = _check_topic(args.topic_name)
-    graph = _graph(args)
+    graph = args.graph
     start = time.monotonic()
     type_name, pubs = _wait_for_type(graph, topic, args.timeout)
     cls = messages.dds_message(type_name)
@@ -323,7 +323,9 @@ def main(argv=None) -> int:
     """Console script ``uh``; returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
-        return COMMANDS[(args.command, args.verb)](args)
+        with _graph(args) as graph:
+            args.graph = graph
+            return COMMANDS[(args.command, args.verb)](args)
     except KeyboardInterrupt:
         return 130
     except CliError as exc:

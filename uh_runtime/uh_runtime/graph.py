@@ -122,8 +122,16 @@ class Graph:
         wake_on_signals(self)
 
     def close(self):
-        if self._own:
+        """Delete the participant if this graph created it."""
+        if self._own and self.participant is not None:
             self.participant.__del__()
+            self.participant = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
     # -- refresh ---------------------------------------------------------------------------
     @staticmethod
