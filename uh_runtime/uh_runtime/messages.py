@@ -183,7 +183,8 @@ def _base_type(types, base: str, bound: int):
     """cyclonedds annotation and default value of a ROS primitive type."""
     table = {
         'bool': (bool, False),
-        'byte': (types.byte, 0),
+        # rmw_cyclonedds describes ROS byte and char as DDS uint8 too (same CDR bytes)
+        'byte': (types.uint8, 0),
         'char': (types.uint8, 0),
         'int8': (types.int8, 0), 'uint8': (types.uint8, 0),
         'int16': (types.int16, 0), 'uint16': (types.uint16, 0),
