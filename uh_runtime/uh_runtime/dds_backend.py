@@ -370,6 +370,15 @@ def wake_on_signals(target):
     _install_signal_wakeup()
 
 
+def _restore_sigterm():
+    """Give SIGTERM back its default action once no context is running."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    if signal.getsignal(signal.SIGTERM) is _on_sigterm and not any(
+            isinstance(c, Context) and c.ok() for c in list(_wakeup_contexts)):
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _on_sigterm(signum, frame):
     for ctx in list(_wakeup_contexts):
         if isinstance(ctx, Context):
@@ -416,6 +425,7 @@ class Context:
         _install_signal_wakeup()
         if threading.current_thread() is threading.main_thread() and \
                 signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
+            # like rclpy: SIGTERM shuts the contexts down (spin raises ExternalShutdownException)
             signal.signal(signal.SIGTERM, _on_sigterm)
 
     def ok(self) -> bool:
@@ -434,6 +444,7 @@ class Context:
 
     def _shutdown(self):
         self._ok = False
+        _restore_sigterm()
         for callback in self._on_shutdown:
             callback()
         for node in list(self._nodes):
