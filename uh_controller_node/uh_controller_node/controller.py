@@ -298,12 +298,13 @@ class UHController:
 
         u = np.array([att.theta_col, u_m[2], u_m[0], u_m[1]])
         wp, ww = outer.weights, inner.weights
+        # one allocation for the ten status vectors; each field is a row of it
+        vecs = np.array([z1, z2, z3, z4, fhat_p, fhat_w, zn_p, zn_w, u_p, euler_d])
         status = ControllerStatusData(
-            uh_id=self.uh_id, step=int(k), stamp=int(k) * dt, z1=np.array(z1), z2=np.array(z2),
-            z3=np.array(z3), z4=np.array(z4), fault_estimate_position=np.array(fhat_p),
-            fault_estimate_attitude=np.array(fhat_w), prediction_error_position=np.array(zn_p),
-            prediction_error_attitude=np.array(zn_w), u_p=np.array(u_p), euler_desired=np.array(euler_d),
-            thrust_command=att.thrust,
+            uh_id=self.uh_id, step=int(k), stamp=int(k) * dt, z1=vecs[0], z2=vecs[1], z3=vecs[2],
+            z4=vecs[3], fault_estimate_position=vecs[4], fault_estimate_attitude=vecs[5],
+            prediction_error_position=vecs[6], prediction_error_attitude=vecs[7], u_p=vecs[8],
+            euler_desired=vecs[9], thrust_command=att.thrust,
             weight_norm_position=math.sqrt(float(np.vdot(wp, wp))),
             weight_norm_attitude=math.sqrt(float(np.vdot(ww, ww))),
             saturated_tilt=att.saturated_tilt, saturated_collective=att.saturated_collective,

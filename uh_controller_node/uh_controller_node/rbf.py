@@ -84,7 +84,7 @@ class GaussianRBF:
 
     def evaluate(self, weights: np.ndarray, x) -> list:
         """``W^T S(x)`` for input ``x`` (3,) as a list of 3 floats (activations left in the buffer)."""
-        return np.einsum('ij,ij->j', weights, self.activations(x)).tolist()
+        return (weights * self.activations(x)).sum(axis=0).tolist()
 
 
 def project_columns(weights: np.ndarray, bound: float) -> bool:
