@@ -7,14 +7,18 @@ import io
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from uh_controller_node.metrics import METRIC_KEYS, metrics_from_arrays
 from uh_controller_node.simulate_cli import _Progress, main
 from uh_controller_node.team_simulation import SimulationError, run_team_simulation
 from uh_topology.scenario import load_scenario
+
+GAINS_FILE = Path(__file__).resolve().parents[1] / 'uh_topology' / 'uh_topology' / 'config' / 'paper_gains.yaml'
 
 
 @pytest.fixture(scope='module')
@@ -153,3 +157,19 @@ def test_progress_bar_draws_one_line_and_ends_it():
     text = stream.getvalue()
     assert text.count('\r') == 11 and text.endswith('[##########] 100%\n')
     assert '[#####.....]  50%' in text
+
+
+def test_cli_reports_invalid_gains_without_traceback(tmp_path):
+    paper_yaml = Path(__file__).resolve().parents[1] / 'uh_topology' / 'uh_topology' / 'config' / 'paper.yaml'
+    gains = yaml.safe_load(GAINS_FILE.read_text())
+    gains['/**']['ros__parameters']['outer']['kappa'] = -1.0
+    (tmp_path / 'bad_gains.yaml').write_text(yaml.safe_dump(gains))
+    text = paper_yaml.read_text()
+    assert 'gains: paper_gains.yaml' in text
+    (tmp_path / 'scenario.yaml').write_text(text.replace('gains: paper_gains.yaml', 'gains: bad_gains.yaml'))
+    proc = subprocess.run([sys.executable, '-m', 'uh_controller_node.simulate_cli', '--scenario',
+                           str(tmp_path / 'scenario.yaml'), '--out', str(tmp_path / 'o')],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert 'outer: kappa must be >= 0, got -1.0' in proc.stderr
+    assert 'Traceback' not in proc.stderr
