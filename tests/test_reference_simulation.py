@@ -173,3 +173,15 @@ def test_cli_reports_invalid_gains_without_traceback(tmp_path):
     assert proc.returncode == 2
     assert 'outer: kappa must be >= 0, got -1.0' in proc.stderr
     assert 'Traceback' not in proc.stderr
+
+
+def test_cli_survives_a_closed_stdout(tmp_path):
+    # e.g. `uh-simulate ... | head -1`: the files are written and nothing is reported as an error
+    proc = subprocess.Popen([sys.executable, '-m', 'uh_controller_node.simulate_cli', '--scenario', 'paper',
+                             '--out', str(tmp_path / 'o'), '--duration', '0.2'],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()
+    err = proc.stderr.read()
+    assert proc.wait(timeout=120) == 0
+    assert 'Traceback' not in err and 'BrokenPipeError' not in err
+    assert (tmp_path / 'o' / 'metrics.json').is_file()

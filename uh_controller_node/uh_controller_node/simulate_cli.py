@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -80,6 +81,18 @@ def _check_out_dir(out: Path, force: bool):
 
 def main(argv=None) -> int:
     """Entry point of ``uh-simulate``; returns the exit status (see module docstring)."""
+    try:
+        return _main(argv)
+    except BrokenPipeError:
+        # stdout closed early (e.g. piped into `head`): the files are written; stay quiet
+        try:
+            sys.stdout = open(os.devnull, 'w')
+        except OSError:
+            pass
+        return 0
+
+
+def _main(argv) -> int:
     args = build_parser().parse_args(argv)
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0.0):
         return _fail(f'--duration must be a finite number of seconds > 0, got {args.duration!r}')
@@ -132,6 +145,7 @@ def main(argv=None) -> int:
         parts = ', '.join(f'{k} {"n/a" if v is None else format(v, ".3f")}' for k, v in entry.items())
         print(f'  fault_nrmse {uh:10s} {parts}')
     print(f'wrote {args.out / "metrics.json"} and {args.out / "timeseries.npz"}')
+    sys.stdout.flush()          # a closed pipe shows up here, inside main()'s handler
     return 0
 
 
