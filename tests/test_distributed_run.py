@@ -213,3 +213,27 @@ def test_fault_injected_at_run_time_shows_in_truth_and_estimate(tmp_path, paper)
     # the observer picks it up: after 3 s it has recovered most of the fault
     assert np.mean(est_z[after]) < 0.5 * np.mean(true_z[after])
     assert np.sqrt(np.mean((est_z[after] - true_z[after]) ** 2)) < 0.5 * np.sqrt(np.mean(true_z[after] ** 2))
+
+
+def test_realtime_run_meets_the_thresholds(tmp_path, paper, reference_run):
+    """--clock realtime --rate 1: wall-clock ticks and latest-value semantics.
+
+    The run is no longer bit-identical to the in-process one (a neighbour's state can miss the
+    controller's short sync wait, a command can miss a tick), so it is held to the thresholds of
+    the control-core issue, not to equality; the fault-estimate bound stays the issue's 0.5. After
+    settling both runs sit on the same formation, so their positions differ by at most the sum of
+    the two formation errors: 0.1 m bounds it with margin (measured about 0.01 m).
+    """
+    out = tmp_path / 'run'
+    proc = _start_run(out, 140 + os.getpid() % 20, '--clock', 'realtime', '--rate', '1')
+    output, _ = proc.communicate(timeout=300)
+    assert proc.returncode == 0, output
+    metrics = json.loads((out / 'metrics.json').read_text())
+    assert metrics['formation_rms_m'] < 0.10
+    assert metrics['containment_rms_m'] < 0.10
+    assert metrics['hull_distance_max_m'] < 0.05
+    assert all(v < 0.5 for vectors in metrics['fault_nrmse'].values() for v in vectors.values()), metrics
+    bag = read_team_bag(out / 'bag', paper)
+    settled = bag['time'] >= paper.settle_time
+    deviation = np.linalg.norm(bag['states'][settled, :, :3] - reference_run.states[settled, :, :3], axis=-1)
+    assert np.nanmax(deviation) < 0.1

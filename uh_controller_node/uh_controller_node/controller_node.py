@@ -7,12 +7,17 @@ runs :class:`uh_controller_node.controller.UHController` and publishes ``command
 - ``lockstep``: step k is computed once the own state k, every neighbour's state k and (if linked)
   reference k have arrived, in step order, so the run reproduces the in-process reference
   simulation exactly.
-- ``realtime``: each own state triggers a step with the latest neighbour states and reference
-  (latest-value semantics).
+- ``realtime``: each own state k starts step k. It is computed as soon as every neighbour's state
+  and the reference of the same step are in, or after ``sync_wait`` wall seconds with the latest
+  values received (latest-value semantics). The short wait matters: the sims publish step k at the
+  same tick, and mixing step-k and step-(k-1) neighbour data makes the consensus error jitter by
+  v dt, which the command filters' derivatives amplify into chattering commands.
 
 Received messages carrying NaN/inf are rejected (logged); the last valid input is kept.
 """
 from __future__ import annotations
+
+import time
 
 import uh_runtime as rt
 from uh_controller_node.controller import UHController
@@ -33,6 +38,10 @@ class ControllerNode(rt.Node):
         self.declare_parameter('case', 'proposed', rt.ParameterDescriptor(
             description='controller variant: proposed, case1 (beta = 1), case2 (no serial-parallel '
                         'estimation model)', read_only=True))
+        self.declare_parameter('sync_wait', 0.004, rt.ParameterDescriptor(
+            description='realtime: wall seconds to wait for same-step neighbour data before using the latest',
+            read_only=True, floating_point_range=[rt.FloatingPointRange(from_value=0.0, to_value=1.0, step=0.0)]))
+        self.sync_wait = float(self.get_parameter('sync_wait').value)
         case = str(self.get_parameter('case').value)
         if case not in CASES:
             from uh_sim_node.run_config import RunConfigError
@@ -43,7 +52,8 @@ class ControllerNode(rt.Node):
         self.neighbours = tuple(scenario.neighbours(self.uh_id))
         self.linked = scenario.leader_link(self.uh_id) > 0
         self.pending: dict[int, dict] = {}   # lockstep: step -> {'own': x, j: x_j, 'ref': r}
-        self.latest: dict = {}               # realtime: latest valid inputs
+        self.latest: dict = {}               # realtime: key -> (step, latest valid input)
+        self.waiting = None                  # realtime: (step, wall deadline) of the step being assembled
         self.next_step = 0
         qos = topics.qos_profile(topics.STEP_QOS)
         self.command_pub = self.create_publisher(m.ActuatorCommand, topics.COMMAND.name, qos)
@@ -54,6 +64,8 @@ class ControllerNode(rt.Node):
                                      lambda msg, j=j: self.on_neighbour_state(j, msg), qos)
         if self.linked:
             self.create_subscription(m.Reference, topics.REFERENCE.name, self.on_reference, qos)
+        if self.mode == 'realtime':
+            self.create_timer(max(self.sync_wait / 2, 0.0005), self._run_realtime)
         self.get_logger().info(f'uh{self.uh_id} ({case}, {self.mode}): hears '
                                f"{', '.join(f'uh{j}' for j in self.neighbours) or 'no UH'}"
                                f"{' and the virtual leader' if self.linked else ''}")
@@ -65,9 +77,10 @@ class ControllerNode(rt.Node):
                 self.pending.setdefault(k, {})[key] = value
             self._run_ready_steps()
         else:
-            self.latest[key] = value
+            self.latest[key] = (k, value)
             if key == 'own':
-                self._run_realtime(k)
+                self.waiting = (k, time.monotonic() + self.sync_wait)
+            self._run_realtime()
 
     def on_own_state(self, msg) -> None:
         try:
@@ -97,10 +110,19 @@ class ControllerNode(rt.Node):
             self._compute(self.next_step, inputs)
             self.next_step += 1
 
-    def _run_realtime(self, k: int) -> None:
-        if k > self.last_step or not self._complete(self.latest):
+    def _run_realtime(self) -> None:
+        if self.waiting is None:
+            return
+        k, deadline = self.waiting
+        keys = (*self.neighbours, *(('ref',) if self.linked else ()))
+        if not all(key in self.latest for key in keys):
             return  # waits for the first message of every neighbour
-        self._compute(k, self.latest)
+        if k > self.last_step:
+            self.waiting = None
+            return
+        if all(self.latest[key][0] >= k for key in keys) or time.monotonic() >= deadline:
+            self.waiting = None
+            self._compute(k, {key: value for key, (_, value) in self.latest.items()})
 
     def _compute(self, k: int, inputs: dict) -> None:
         neighbour_states = {j: inputs[j] for j in self.neighbours}

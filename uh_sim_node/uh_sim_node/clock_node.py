@@ -20,6 +20,9 @@ from uh_topology import topics
 
 __all__ = ['ClockNode', 'expected_endpoints', 'main']
 
+#: realtime: how long after the last tick the clock waits for the recorder to confirm the last step
+REALTIME_FINAL_WAIT_S = 5.0
+
 
 def expected_endpoints(scenario, recorder: bool) -> dict[str, tuple[int, int]]:
     """Minimum (publishers, subscribers) of every team topic once all nodes of a run are up."""
@@ -108,9 +111,18 @@ class ClockNode(rt.Node):
     def on_tick(self) -> None:
         if self.step < self.last_step:
             self.publish_step(self.step + 1)
-        else:
-            self.tick_timer.cancel()
-            self.finish_when_recorded()
+            return
+        self.tick_timer.cancel()
+        self.finish_when_recorded()
+        # realtime has latest-value semantics: do not wait for ever for a last message that was lost
+        self.final_timer = self.create_timer(REALTIME_FINAL_WAIT_S, self.give_up_waiting)
+
+    def give_up_waiting(self) -> None:
+        self.final_timer.cancel()
+        if not self.done:
+            self.get_logger().warn(f'the recorder did not confirm the last step within {REALTIME_FINAL_WAIT_S} s '
+                                   f'(recorded up to step {self.recorded_step}); ending the run')
+            self.finish_when_recorded(force=True)
 
     def on_command(self, msg) -> None:
         self.commands.setdefault(int(msg.step), set()).add(int(msg.uh_id))
@@ -135,8 +147,8 @@ class ClockNode(rt.Node):
             self.commands.pop(self.step, None)
             self.publish_step(self.step + 1)
 
-    def finish_when_recorded(self) -> None:
-        if self.done or (self.expect_recorder and self.recorded_step < self.last_step):
+    def finish_when_recorded(self, force: bool = False) -> None:
+        if self.done or (self.expect_recorder and self.recorded_step < self.last_step and not force):
             return
         wall = time.monotonic() - self.started_wall
         self.get_logger().info(f'run complete: {self.last_step} steps, sim {self.last_step * self.dt:.2f} s '

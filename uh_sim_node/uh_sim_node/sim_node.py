@@ -38,6 +38,8 @@ class SimNode(rt.Node):
         self.dt, self.last_step = run.dt, run.last_step
         self.plant = plant_from_scenario(self.scenario, self.uh_id)
         self.command = hover_trim(self.plant.params, yaw=float(self.plant.x[8]))
+        self.command_step = -1        # step the held command was computed for
+        self.late_commands = 0        # realtime: steps integrated with an older command
         self.step = 0                 # index of the state the plant holds
         self.published_step = -1      # last state index published
         qos = topics.qos_profile(topics.STEP_QOS)
@@ -71,9 +73,11 @@ class SimNode(rt.Node):
             self.get_logger().error(f'rejected command: {exc}; keeping the last valid command')
             return
         self.command = u
+        k = self.command_step = int(msg.step)
         if self.mode != 'lockstep':
+            if k == self.last_step == self.step:  # the final step's truth, as in lockstep
+                self._publish_truth(k)
             return
-        k = int(msg.step)
         if k != self.step:
             self.get_logger().warn(f'ignored command for step {k}: the plant is at step {self.step}')
             return
@@ -101,6 +105,11 @@ class SimNode(rt.Node):
 
     # -- outputs ----------------------------------------------------------------------------------
     def _integrate_one_step(self) -> None:
+        if self.command_step != self.step and self.step > 0:
+            self.late_commands += 1
+            if self.late_commands in (1, 10, 100, 1000):
+                self.get_logger().warn(f'step {self.step} integrated with the command of step {self.command_step} '
+                                       f'({self.late_commands} late command(s) so far)')
         self._publish_truth(self.step)
         t = self.step * self.dt
         self.plant.step(self.command, t, self.dt)
