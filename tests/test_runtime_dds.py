@@ -11,7 +11,6 @@ import selectors
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -51,6 +50,16 @@ def _talker_discovered(graph, node='talker', namespace='/uh3'):
     return check
 
 
+def _wait_discovered(graph, proc, node='talker', namespace='/uh3'):
+    """Wait until ``proc``'s talker is discovered; on failure say what the process did."""
+    if graph.wait_until(_talker_discovered(graph, node, namespace), TIMEOUT):
+        return
+    state = 'running' if proc.poll() is None else f'exited with {proc.returncode}: {proc.stderr.read()}'
+    pytest.fail(f'{namespace}/{node} not discovered within {TIMEOUT} s; process {state}; '
+                f'graph: nodes {graph.node_names_and_namespaces()}, '
+                f'topics {graph.topic_names_and_types()}')
+
+
 @pytest.fixture
 def graph(domain_id):
     g = Graph(domain_id=domain_id)
@@ -73,7 +82,7 @@ def test_two_processes_exchange_uhstate_on_ros_topic_and_type_names_with_declare
     assert listener.wait(timeout=TIMEOUT) == 0
 
     # what the talker announced, as any DDS participant (e.g. ROS 2) discovers it
-    assert graph.wait_until(_talker_discovered(graph), TIMEOUT)
+    _wait_discovered(graph, talker)
     writers = [w for w in graph.writers.values() if w.topic_name == 'rt/uh3/state']
     assert len(writers) == 1
     w = writers[0]
@@ -100,8 +109,8 @@ def test_two_processes_exchange_uhstate_on_ros_topic_and_type_names_with_declare
 
 def test_ros_discovery_info_names_the_node_and_lists_its_endpoint_gids(domain_id, processes, graph,
                                                                         tmp_path):
-    _start(processes, 'talker.py', '-r', '__ns:=/uh3', '-r', '__node:=sim', cwd=tmp_path)
-    assert graph.wait_until(_talker_discovered(graph, node='sim'), TIMEOUT)
+    proc = _start(processes, 'talker.py', '-r', '__ns:=/uh3', '-r', '__node:=sim', cwd=tmp_path)
+    _wait_discovered(graph, proc, node='sim')
 
     info_topic = [w for w in graph.writers.values() if w.topic_name == 'ros_discovery_info']
     assert len(info_topic) == 1  # one per participant, as rmw_cyclonedds
@@ -133,8 +142,8 @@ def _uh(*args, domain_id):
 
 
 def test_uh_cli_lists_topics_and_nodes_and_echoes(domain_id, processes, graph, tmp_path):
-    _start(processes, 'talker.py', '-r', '__ns:=/uh3', '-p', 'uh_id:=3', cwd=tmp_path)
-    assert graph.wait_until(_talker_discovered(graph), TIMEOUT)
+    proc = _start(processes, 'talker.py', '-r', '__ns:=/uh3', '-p', 'uh_id:=3', cwd=tmp_path)
+    _wait_discovered(graph, proc)
 
     listed = _uh('topic', 'list', '-t', domain_id=domain_id)
     assert listed.returncode == 0, listed.stderr
@@ -193,8 +202,8 @@ def test_params_file_with_wildcard_and_node_keys(processes, domain_id, tmp_path,
     params = tmp_path / 'params.yaml'
     params.write_text('/**:\n  ros__parameters:\n    rate: 20.0  # Hz\n'
                       '/uh5/talker:\n  ros__parameters:\n    uh_id: 5\n')
-    _start(processes, 'talker.py', '-r', '__ns:=/uh5', '--params-file', str(params), cwd=tmp_path)
-    assert graph.wait_until(_talker_discovered(graph, namespace='/uh5'), TIMEOUT)
+    proc = _start(processes, 'talker.py', '-r', '__ns:=/uh5', '--params-file', str(params), cwd=tmp_path)
+    _wait_discovered(graph, proc, namespace='/uh5')
     echo = _uh('topic', 'echo', '/uh5/state', '--once', '--field', 'uh_id', domain_id=domain_id)
     assert echo.stdout == '5\n---\n'
 
@@ -208,7 +217,7 @@ def test_params_file_with_wildcard_and_node_keys(processes, domain_id, tmp_path,
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_sigint_and_sigterm_end_the_node_cleanly(processes, domain_id, tmp_path, graph, sig):
     proc = _start(processes, 'talker.py', '-r', '__ns:=/uh3', cwd=tmp_path)
-    assert graph.wait_until(_talker_discovered(graph), TIMEOUT)
+    _wait_discovered(graph, proc)
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=TIMEOUT)
     assert proc.returncode == 0, err

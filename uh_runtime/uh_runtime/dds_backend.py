@@ -36,7 +36,7 @@ from .parameters import (
     SetParametersResult, check_value,
 )
 from .qos import (
-    DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, as_profile, qos_profile_clock,
+    DurabilityPolicy, QoSProfile, ReliabilityPolicy, as_profile, qos_profile_clock,
     to_dds_qos,
 )
 
@@ -380,9 +380,12 @@ def _restore_sigterm():
 
 
 def _on_sigterm(signum, frame):
+    # Runs in the main thread between two bytecodes, possibly inside a callback: only mark the
+    # contexts shut down and wake their executors; the DDS entities stay valid until the entry
+    # point's ``finally`` destroys the nodes and calls ``try_shutdown`` (nothing is cut off).
     for ctx in list(_wakeup_contexts):
         if isinstance(ctx, Context):
-            ctx.try_shutdown()
+            ctx._request_shutdown()
 
 
 class Context:
@@ -403,6 +406,8 @@ class Context:
         self._discovery_writer = None
         self._executors = weakref.WeakSet()
         self._on_shutdown = []
+        self._initialised = False
+        self._torn_down = False
 
     # -- lifecycle --------------------------------------------------------------------------
     def init(self, args=None, *, domain_id=None):
@@ -421,6 +426,7 @@ class Context:
             for logger, level in self._args.log_levels.items():
                 _log_levels[logger] = _SEVERITY['WARN' if level == 'WARNING' else level]
             self._ok = True
+            self._initialised = True
         _wakeup_contexts.add(self)
         _install_signal_wakeup()
         if threading.current_thread() is threading.main_thread() and \
@@ -438,12 +444,19 @@ class Context:
             self._shutdown()
 
     def try_shutdown(self):
+        """Shut down unless already done (also completes a shutdown a SIGTERM requested)."""
         with self._lock:
-            if self._ok:
+            if self._initialised and not self._torn_down:
                 self._shutdown()
+
+    def _request_shutdown(self):
+        self._ok = False
+        _restore_sigterm()
+        self.wake()
 
     def _shutdown(self):
         self._ok = False
+        self._torn_down = True
         _restore_sigterm()
         for callback in self._on_shutdown:
             callback()
@@ -635,7 +648,6 @@ class Publisher:
 
     def get_subscription_count(self) -> int:
         """Number of matched readers (DDS publication-matched status)."""
-        from cyclonedds.core import DDSStatus  # noqa: F401
         return len(self._writer.get_matched_subscriptions())
 
     def wait_for_all_acked(self, timeout_sec=None) -> bool:
@@ -1285,16 +1297,21 @@ class Executor:
         """Wait (at most ``timeout_sec``; ``None`` = until something happens) and run ready work."""
         if not self._context.ok() or self._is_shutdown:
             raise ExternalShutdownException()
-        if self._dirty:
-            self._sync()
-        timeout = _DDS_INFINITY if timeout_sec is None else max(0, int(timeout_sec * 1e9))
-        due = self._next_timer_ns()
-        if due is not None:
-            timeout = max(0, min(timeout, due))
-        self._waitset.wait(timeout)
+        try:
+            if self._dirty:
+                self._sync()
+            timeout = _DDS_INFINITY if timeout_sec is None else max(0, int(timeout_sec * 1e9))
+            due = self._next_timer_ns()
+            if due is not None:
+                timeout = max(0, min(timeout, due))
+            self._waitset.wait(timeout)
+            self._context._guard.take()
+        except Exception:
+            if not self._context.ok():  # shut down (e.g. SIGTERM) while getting ready to wait
+                raise ExternalShutdownException() from None
+            raise
         if not self._context.ok():
             raise ExternalShutdownException()
-        self._context._guard.take()
         self._dispatch()
 
     def _dispatch(self):

@@ -180,9 +180,29 @@ class Graph:
             self._waitset.wait(_DDS_INFINITY if end is None else max(0, int((end - now) * 1e9)))
             self._guard.take()
 
-    def settle(self, spin_time: float, quiet: float = 0.3):
-        """Collect discovery for at most ``spin_time`` s, returning early once other participants
-        are known and nothing has changed for ``quiet`` s (what ``ros2 ... --spin-time`` waits for).
+    def complete(self) -> bool:
+        """True once other participants are known and, for each ROS participant (USER_DATA
+        ``enclave=``), its ``ros_discovery_info`` and every reader and writer listed there."""
+        others = [key for key in self.participants if key != self.own_key]
+        if not others:
+            return False
+        writers = {key.bytes for key in self.writers}
+        readers = {key.bytes for key in self.readers}
+        for key in others:
+            if user_data_value(self.participants[key], 'enclave') is None:
+                continue  # a bare DDS participant: nothing more to wait for
+            info = self.infos.get(key.bytes)
+            if info is None:
+                return False
+            for node in info.node_entities_info_seq:
+                if any(bytes(g.data) not in writers for g in node.writer_gid_seq) or \
+                        any(bytes(g.data) not in readers for g in node.reader_gid_seq):
+                    return False
+        return True
+
+    def settle(self, spin_time: float, quiet: float = 0.2):
+        """Collect discovery for at most ``spin_time`` s (what ``ros2 ... --spin-time`` waits
+        for); return early once the graph is :meth:`complete` and nothing changed for ``quiet`` s.
         """
         end = time.monotonic() + spin_time
         last_change = time.monotonic()
@@ -190,9 +210,10 @@ class Graph:
             if self.update():
                 last_change = time.monotonic()
             now = time.monotonic()
-            if now >= end or (self._live_participant_gids() and now - last_change >= quiet):
+            done = self.complete()
+            if now >= end or (done and now - last_change >= quiet):
                 return
-            deadline = end if not self._live_participant_gids() else min(end, last_change + quiet)
+            deadline = min(end, last_change + quiet) if done else end
             self._waitset.wait(max(0, int((deadline - now) * 1e9)))
             self._guard.take()
 
