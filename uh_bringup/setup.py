@@ -23,6 +23,7 @@ setup(
         'console_scripts': [
             'uh-run-formation = uh_bringup.run_formation:main',
             'uh-inject-fault = uh_bringup.inject_fault:main',
+            'uh-report = uh_bringup.report:main',
         ],
     },
 )

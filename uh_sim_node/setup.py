@@ -25,6 +25,7 @@ setup(
             'sim_node = uh_sim_node.sim_node:main',
             'virtual_leader_node = uh_sim_node.virtual_leader_node:main',
             'lockstep_clock_node = uh_sim_node.clock_node:main',
+            'visualization_node = uh_sim_node.visualization_node:main',
         ],
     },
 )

@@ -105,6 +105,7 @@ def node_commands(scenario, scenario_arg: str, case: str, clock: str, rate: floa
         cmds.append((f'uh{i}_sim', _entry('uh_sim_node', 'sim_node') + ['--ros-args', *ns, *common]))
         cmds.append((f'uh{i}_controller', _entry('uh_controller_node', 'controller_node') +
                      ['--ros-args', *ns, *common, '-p', f'case:={case}']))
+    cmds.append(('visualization', _entry('uh_sim_node', 'visualization_node') + ['--ros-args', *common]))
     cmds.append(('virtual_leader', _entry('uh_sim_node', 'virtual_leader_node') + ['--ros-args', *common]))
     cmds.append(('clock', _entry('uh_sim_node', 'lockstep_clock_node') + [
         '--ros-args', *common, '-p', f'rate:={float(rate)}', '-p', 'expect_recorder:=true',

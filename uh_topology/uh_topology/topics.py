@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
-    'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK',
+    'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK', 'MARKERS',
     'RECORDER_PROGRESS', 'PER_UH', 'TEAM', 'uh_namespace', 'uh_topic', 'team_topics', 'qos_profile',
 ]
 
@@ -70,6 +70,9 @@ REFERENCE = TopicSpec('/reference', 'uh_msgs/msg/Reference', STEP_QOS, True, 'vi
                       'controllers of leaders with a_i0 > 0; recorder', 'virtual-leader reference at step k')
 CLOCK = TopicSpec('/clock', 'rosgraph_msgs/msg/Clock', STEP_QOS, True, 'clock',
                   'sims, virtual leader; recorder', 'simulation time, one message per step')
+MARKERS = TopicSpec('/markers', 'visualization_msgs/msg/MarkerArray', EVENT_QOS, False, 'visualization',
+                    'RViz2 / Foxglove; recorder',
+                    'helicopter poses, trails, formation polygon, convex hull, containment targets (frame world)')
 RECORDER_PROGRESS = TopicSpec('/recorder/progress', 'builtin_interfaces/msg/Time', EVENT_QOS, False,
                               'recorder', 'lockstep clock',
                               'sim time up to which every per-step topic has been written to the bag')
