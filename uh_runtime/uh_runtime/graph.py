@@ -181,16 +181,20 @@ class Graph:
             self._guard.take()
 
     def complete(self) -> bool:
-        """True once other participants are known and, for each ROS participant (USER_DATA
-        ``enclave=``), its ``ros_discovery_info`` and every reader and writer listed there."""
+        """True once other participants are known and, for each participant with ROS endpoints
+        (``rt/``, ``rq/``, ``rr/`` topics), its ``ros_discovery_info`` and every reader and writer
+        listed there. (A participant without ROS endpoints, e.g. another ``uh`` command, never
+        publishes ``ros_discovery_info``.)"""
         others = [key for key in self.participants if key != self.own_key]
         if not others:
             return False
         writers = {key.bytes for key in self.writers}
         readers = {key.bytes for key in self.readers}
+        ros = {sample.participant_key for table in (self.writers, self.readers)
+               for sample in table.values() if sample.topic_name[:3] in ('rt/', 'rq/', 'rr/')}
         for key in others:
-            if user_data_value(self.participants[key], 'enclave') is None:
-                continue  # a bare DDS participant: nothing more to wait for
+            if key not in ros:
+                continue
             info = self.infos.get(key.bytes)
             if info is None:
                 return False
