@@ -227,6 +227,9 @@ def _none_if_nan(x):
 
 
 def _nrmse(est, true):
+    # samples a real-time run did not record (NaN rows) are left out
+    keep = np.isfinite(est).all(axis=-1) & np.isfinite(true).all(axis=-1)
+    est, true = est[keep], true[keep]
     if est.shape[0] == 0:
         return None
     rms_true = math.sqrt(float(np.mean(_dot(true, true))))
@@ -318,17 +321,19 @@ def compute_metrics(*, case: str, time, positions, reference_positions, leaders,
     result['sim_time_s'] = float(time[-1] - time[0])
     result['wall_time_s'] = None if wall_time is None else float(wall_time)
     result['settle_time_s'] = float(settle_time)
-    result['formation_rms_m'] = _none_if_nan(np.sqrt(np.mean(form[after] ** 2))) if after.any() else None
-    result['mse_formation'] = _none_if_nan(np.mean(form ** 2))
+    result['formation_rms_m'] = _none_if_nan(np.sqrt(np.nanmean(form[after] ** 2))) if after.any() else None
+    result['mse_formation'] = _none_if_nan(np.nanmean(form ** 2))
     if n_fol:
         w = _shape('containment_weights', containment_weights, (n_fol, n_lead))
         cont = containment_errors(fol_pos, lead_pos, w)
-        result['mse_containment'] = _none_if_nan(np.mean(cont ** 2))
+        result['mse_containment'] = _none_if_nan(np.nanmean(cont ** 2))
         if after.any():
-            result['containment_rms_m'] = _none_if_nan(np.sqrt(np.mean(cont[after] ** 2)))
+            result['containment_rms_m'] = _none_if_nan(np.sqrt(np.nanmean(cont[after] ** 2)))
             hull = hull_distance(fol_pos[after], lead_pos[after][:, None, :, :])
-            result['hull_distance_max_m'] = _none_if_nan(np.max(hull))
-    result['cpi'] = _none_if_nan(dt * (np.sum(z1 * z1) + np.sum(u_p * u_p)))
+            result['hull_distance_max_m'] = _none_if_nan(np.nanmax(hull))
+    # a step a real-time run did not record (NaN) contributes nothing: the CPI then slightly
+    # underestimates; lockstep and in-process runs have every step
+    result['cpi'] = _none_if_nan(dt * (np.nansum(z1 * z1) + np.nansum(u_p * u_p)))
 
     nrmse = {}
     step_time = time[:steps]
