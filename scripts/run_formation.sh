@@ -7,7 +7,7 @@
 # Sets up .venv on first use. On a ROS 2 machine with the workspace sourced, nodes start with ros2 run.
 set -euo pipefail
 if [ -n "${ROS_DISTRO:-}" ] && command -v ros2 >/dev/null && [ "${UH_BACKEND:-}" != "dds" ]; then
-  exec python3 -m uh_bringup.run_formation "$@"
+  exec python3 -P -m uh_bringup.run_formation "$@"
 fi
 source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
-exec python -m uh_bringup.run_formation "$@"
+exec python -P -m uh_bringup.run_formation "$@"

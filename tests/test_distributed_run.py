@@ -240,3 +240,18 @@ def test_realtime_run_meets_the_thresholds(tmp_path, paper, reference_run):
     settled = bag['time'] >= paper.settle_time
     deviation = np.linalg.norm(bag['states'][settled, :, :3] - reference_run.states[settled, :, :3], axis=-1)
     assert np.nanmax(deviation) < 0.1
+
+
+@pytest.mark.parametrize('layout', ['per-uh', 'single'])
+def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layout):
+    """Composition (several nodes in one process) changes nothing: the lockstep data flow does not
+    depend on which process a node lives in, so the bag equals the in-process run to the bit."""
+    out = tmp_path / layout
+    proc = _start_run(out, 120 + os.getpid() % 20, '--processes', layout, '--duration', '3')
+    output, _ = proc.communicate(timeout=300)
+    assert proc.returncode == 0, output
+    assert json.loads((out / 'run.json').read_text())['processes'] == layout
+    bag = read_team_bag(out / 'bag', paper)
+    reference = run_team_simulation(paper, 'proposed', duration=3.0)
+    assert np.array_equal(bag['states'], reference.states)
+    assert np.array_equal(bag['commands'], reference.commands)

@@ -27,7 +27,7 @@ from pathlib import Path
 from uh_runtime.network import loopback_environment
 from uh_topology import topics
 
-__all__ = ['main', 'build_parser', 'node_commands']
+__all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'LAYOUTS']
 
 CASES = ('proposed', 'case1', 'case2')
 CLOCKS = ('lockstep', 'realtime')
@@ -52,6 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--force', action='store_true', help='write into a non-empty --out (its old content is removed)')
     p.add_argument('--domain-id', type=int, default=None,
                    help='DDS domain id 0..232 (default: ROS_DOMAIN_ID, else one derived from the process id)')
+    p.add_argument('--processes', default='per-node', choices=LAYOUTS,
+                   help='process layout: one process per node (default), one per UH, or a single process; '
+                        'results are identical')
     p.add_argument('--no-metrics', action='store_true', help='do not compute metrics.json after the run')
     p.add_argument('--startup-timeout', type=float, default=60.0, help='s to wait for all nodes to come up')
     return p
@@ -91,26 +94,58 @@ def _entry(package: str, executable: str) -> list:
     return [str(script)] if script.exists() else [executable]
 
 
-def node_commands(scenario, scenario_arg: str, case: str, clock: str, rate: float, duration: float | None,
-                  bag_dir: Path, startup_timeout: float) -> list[tuple[str, list]]:
-    """``[(log name, command), ...]`` of every node of a run, recorder first and clock last."""
+#: node kind -> (package, entry point) of its console script
+ENTRY_POINTS = {
+    'recorder': ('uh_runtime', 'recorder_node'), 'sim': ('uh_sim_node', 'sim_node'),
+    'controller': ('uh_controller_node', 'controller_node'),
+    'visualization': ('uh_sim_node', 'visualization_node'),
+    'virtual_leader': ('uh_sim_node', 'virtual_leader_node'), 'clock': ('uh_sim_node', 'lockstep_clock_node'),
+}
+LAYOUTS = ('per-node', 'per-uh', 'single')
+
+
+def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, duration: float | None,
+               bag_dir: Path, startup_timeout: float) -> list[tuple[str, str, list]]:
+    """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last."""
     common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
     if duration is not None:
         common += ['-p', f'duration:={float(duration)}']
     per_step = [name for name, spec in topics.team_topics(scenario.ids) if spec.per_step]
-    cmds = [('recorder', _entry('uh_runtime', 'recorder_node') + [
-        '--ros-args', '-p', f'output:={bag_dir}', '-p', f'progress_topics:=[{",".join(per_step)}]'])]
+    specs = [('recorder', 'recorder', ['--ros-args', '-p', f'output:={bag_dir}',
+                                       '-p', f'progress_topics:=[{",".join(per_step)}]'])]
     for i in scenario.ids:
         ns = ['-r', f'__ns:={topics.uh_namespace(i)}', '-p', f'uh_id:={i}']
-        cmds.append((f'uh{i}_sim', _entry('uh_sim_node', 'sim_node') + ['--ros-args', *ns, *common]))
-        cmds.append((f'uh{i}_controller', _entry('uh_controller_node', 'controller_node') +
-                     ['--ros-args', *ns, *common, '-p', f'case:={case}']))
-    cmds.append(('visualization', _entry('uh_sim_node', 'visualization_node') + ['--ros-args', *common]))
-    cmds.append(('virtual_leader', _entry('uh_sim_node', 'virtual_leader_node') + ['--ros-args', *common]))
-    cmds.append(('clock', _entry('uh_sim_node', 'lockstep_clock_node') + [
-        '--ros-args', *common, '-p', f'rate:={float(rate)}', '-p', 'expect_recorder:=true',
-        '-p', f'startup_timeout:={float(startup_timeout)}']))
-    return cmds
+        specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common]))
+        specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, '-p', f'case:={case}']))
+    specs.append(('visualization', 'visualization', ['--ros-args', *common]))
+    specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common]))
+    specs.append(('clock', 'clock', ['--ros-args', *common, '-p', f'rate:={float(rate)}',
+                                     '-p', 'expect_recorder:=true', '-p', f'startup_timeout:={float(startup_timeout)}']))
+    return specs
+
+
+def process_commands(specs, layout: str, spec_dir: Path) -> list[tuple[str, list]]:
+    """``[(process name, command), ...]``: one process per node (``per-node``, each through its entry
+    point), one per UH (``per-uh``: its sim and controller; the team nodes and the recorder in one
+    more each) or everything in one (``single``). The process holding the clock is last."""
+    if layout == 'per-node':
+        return [(name, _entry(*ENTRY_POINTS[kind]) + args) for name, kind, args in specs]
+    groups: dict[str, list] = {}
+    for name, kind, args in specs:
+        if layout == 'single':
+            group = 'team'
+        elif name.startswith('uh'):
+            group = name.split('_')[0]
+        else:
+            group = 'recorder' if kind == 'recorder' else 'team'
+        groups.setdefault(group, []).append({'node': kind, 'name': name, 'cli_args': args})
+    spec_dir.mkdir(parents=True, exist_ok=True)
+    out = []
+    for group, nodes in sorted(groups.items(), key=lambda g: any(n['node'] == 'clock' for n in g[1])):
+        path = spec_dir / f'{group}.nodes.json'
+        path.write_text(json.dumps(nodes, indent=1))
+        out.append((group, [sys.executable, '-P', '-m', 'uh_bringup.composed', str(path)]))
+    return out
 
 
 class _Progress:
@@ -168,8 +203,9 @@ def run(args) -> int:
     started = time.monotonic()
     status, failure = 0, None
     try:
-        for name, cmd in node_commands(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
-                                       out / 'bag', args.startup_timeout):
+        specs = node_specs(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
+                           out / 'bag', args.startup_timeout)
+        for name, cmd in process_commands(specs, args.processes, out / 'logs'):
             sup.start(name, cmd)
         clock = sup.nodes[-1]
         progress = _Progress(clock.log_path)
@@ -177,7 +213,7 @@ def run(args) -> int:
             progress.update()
             if clock.poll() is not None:
                 break
-            dead = sup.failed(ignore=('clock',))
+            dead = sup.failed(ignore=(clock.name,))
             if dead is not None:
                 failure = dead
                 break
@@ -200,7 +236,7 @@ def run(args) -> int:
         status = 1
     (out / 'run.json').write_text(json.dumps({
         'command': sys.argv, 'scenario': args.scenario, 'case': args.case, 'clock': args.clock,
-        'rate': args.rate, 'duration_s': duration, 'domain_id': domain, 'wall_time_s': wall,
+        'rate': args.rate, 'processes': args.processes, 'duration_s': duration, 'domain_id': domain, 'wall_time_s': wall,
         'exit_codes': codes, 'pids': {n.name: n.proc.pid for n in sup.nodes if n.proc}, 'interrupted': bool(interrupted), 'failed_node': failure.name if failure else None,
     }, indent=2) + '\n')
     if status == 0 and not args.no_metrics:
