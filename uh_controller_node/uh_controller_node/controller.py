@@ -113,6 +113,15 @@ class ControllerStatusData:
         return self.saturated_tilt or self.saturated_collective or self.saturated_cyclic
 
 
+@dataclass(frozen=True)
+class _HoldTarget:
+    """The reference-shaped target of a held position (see :meth:`UHController.step_degraded`)."""
+
+    position: tuple
+    velocity: tuple
+    yaw: float
+
+
 def _state(x, what: str) -> list:
     """``x`` as a list of 12 finite floats, or a ControllerError naming ``what``."""
     if isinstance(x, np.ndarray):
@@ -194,6 +203,9 @@ class UHController:
             self.offset = zero
             self._neighbour_offsets = tuple(zero for _ in self.neighbours)
         self._neighbour_set = frozenset(self.neighbours)
+        # the whole graph, for the reachability check of a degraded step (Assumption 1)
+        self._hears = {int(j): tuple(int(n) for n in scenario.neighbours(j)) for j in ids}
+        self._linked = frozenset(int(j) for j in ids if float(scenario.leader_link(j)) > 0.0)
         self.case = case
         self.gains = ControllerGains.from_mapping(scenario.gains, case, source=f'gains of scenario '
                                                   f'{getattr(scenario, "name", "?")!r}')
@@ -255,6 +267,89 @@ class UHController:
             that is not 12 finite numbers, or a bad ``dt``.
         """
         self._check_inputs(neighbour_states, reference, dt)
+        return self._step(k, own_state, neighbour_states, self.neighbours, self.neighbour_weights,
+                          self._neighbour_offsets, self.leader_link, reference, self.degree, dt)
+
+    def reachable_without(self, lost) -> bool:
+        """Whether this UH still has a directed path from the virtual leader when the UHs in ``lost``
+        (ids; ``0`` = the virtual leader's reference) are gone: Assumption 1 for this UH on the
+        remaining graph. Leaders never hear followers, so a follower reached from the virtual leader
+        is reached through a leader."""
+        lost = {int(j) for j in lost}
+        reached = set() if 0 in lost else {0}
+        grown = True
+        while grown:
+            grown = False
+            for j, hears in self._hears.items():
+                if j in reached or j in lost:
+                    continue
+                if (j in self._linked and 0 in reached) or any(n in reached for n in hears):
+                    reached.add(j)
+                    grown = True
+        return self.uh_id in reached
+
+    def step_degraded(self, k: int, own_state, neighbour_states: dict, reference, dt: float, *,
+                      hold=None):
+        """One control step with only part of the inputs (a neighbour or the reference is stale).
+
+        The consensus error, the degree and the yaw target are those of :meth:`step` on the
+        subgraph of the neighbours present in ``neighbour_states`` (and the reference if given);
+        the internal states carry on, so the UH rejoins smoothly when the data comes back. With
+        ``hold = (position (3,) m, yaw rad)`` every neighbour and the reference are ignored and the
+        UH is regulated to that point instead: the consensus error is ``p - position`` with degree 1,
+        zero velocity feed-forward and yaw target ``yaw`` (hold position when the remaining graph
+        breaks Assumption 1, see :meth:`reachable_without`).
+
+        Parameters
+        ----------
+        k, own_state, dt
+            As in :meth:`step`.
+        neighbour_states : dict[int, array_like (12,)]
+            States at (about) t_k of any subset of the neighbours; other keys are an error.
+        reference : Reference or None
+            The virtual leader, or None when it is stale (ignored unless this UH hears it).
+        hold : tuple (array_like (3,), float), optional
+            Position (m, inertial) and yaw (rad) to hold.
+
+        Returns
+        -------
+        u, status
+            As in :meth:`step`.
+
+        Raises
+        ------
+        ControllerError
+            A state of a UH this one does not hear, nothing to follow and no ``hold``, bad inputs.
+        """
+        extra = sorted(set(neighbour_states) - self._neighbour_set, key=str)
+        if extra:
+            raise ControllerError(f'UH {self.uh_id} controller: unexpected state of UH(s) {extra} that '
+                                  f'UH {self.uh_id} does not hear; its neighbours are {list(self.neighbours)}')
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
+            raise ControllerError(f'control period dt must be a finite number > 0 s, got {dt!r}')
+        if hold is not None:
+            position, yaw = hold
+            p_hold = _vector3(position, f'UH {self.uh_id} hold position')
+            if not math.isfinite(float(yaw)):
+                raise ControllerError(f'UH {self.uh_id} hold yaw must be finite, got {yaw!r}')
+            h = self.offset
+            # a pseudo virtual leader of weight 1 at p_hold - h: z1 = (p - h) - (p_hold - h)
+            target = _HoldTarget((p_hold[0] - h[0], p_hold[1] - h[1], p_hold[2] - h[2]), (0.0, 0.0, 0.0),
+                                 float(yaw))
+            return self._step(k, own_state, {}, (), (), (), 1.0, target, 1.0, dt)
+        present = [n for n, j in enumerate(self.neighbours) if j in neighbour_states]
+        a0 = self.leader_link if reference is not None else 0.0
+        weights = tuple(self.neighbour_weights[n] for n in present)
+        degree = sum(weights) + a0
+        if not degree > 0.0:
+            raise ControllerError(f'UH {self.uh_id} has no neighbour data and no reference to follow; '
+                                  'give hold=(position, yaw)')
+        return self._step(k, own_state, neighbour_states, tuple(self.neighbours[n] for n in present), weights,
+                          tuple(self._neighbour_offsets[n] for n in present), a0, reference, degree, dt)
+
+    def _step(self, k, own_state, neighbour_states, neighbours, neighbour_weights, neighbour_offsets,
+              leader_link, reference, degree, dt):
+        """The control law of one step on the given (sub)graph; see :meth:`step`."""
         x = _state(own_state, f'UH {self.uh_id} own state')
         v, euler, omega = x[3:6], x[6:9], x[9:12]
         h = self.offset
@@ -263,26 +358,26 @@ class UHController:
         ff = [0.0, 0.0, 0.0]
         psi = euler[2]
         yaw_sum = 0.0
-        for j, a, hj in zip(self.neighbours, self.neighbour_weights, self._neighbour_offsets):
+        for j, a, hj in zip(neighbours, neighbour_weights, neighbour_offsets):
             xj = _state(neighbour_states[j], f'state of neighbour UH {j}')
             for c in range(3):
                 z1[c] += a * (rel[c] - (xj[c] - hj[c]))
                 ff[c] += a * xj[3 + c]
             yaw_sum += a * wrap_angle(xj[8] - psi)
-        if self.leader_link > 0.0:
-            a0 = self.leader_link
+        if leader_link > 0.0:
+            a0 = leader_link
             p0, v0 = reference.position, reference.velocity
             for c in range(3):
                 z1[c] += a0 * (rel[c] - float(p0[c]))
                 ff[c] += a0 * float(v0[c])
             psi_d = float(reference.yaw)
         else:
-            psi_d = psi + yaw_sum / self.degree
+            psi_d = psi + yaw_sum / degree
 
         outer, inner, model = self.outer, self.inner, self.model
         fhat_p = outer.fault_estimate
         fhat_w = inner.fault_estimate
-        u_p, z2, zn_p = outer.command(z1, self.degree, ff, v)
+        u_p, z2, zn_p = outer.command(z1, degree, ff, v)
         att = thrust_and_attitude(u_p, psi_d, model, self.gains.tilt_limit, self.gains.min_vertical_accel)
         euler_d = (att.phi, att.theta, psi_d)
         u_m, z3, z4, zn_w, sat_cyclic = inner.command(euler, omega, euler_d, att.thrust_achieved)
