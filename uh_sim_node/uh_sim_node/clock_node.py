@@ -125,8 +125,8 @@ class ClockNode(rt.Node):
             self.finish_when_recorded(force=True)
 
     def on_command(self, msg) -> None:
-        self.commands.setdefault(int(msg.step), set()).add(int(msg.uh_id))
-        if self.mode == 'lockstep':
+        if self.mode == 'lockstep':  # realtime ticks do not wait for commands
+            self.commands.setdefault(int(msg.step), set()).add(int(msg.uh_id))
             self.try_advance()
 
     def on_progress(self, msg) -> None:
@@ -146,6 +146,11 @@ class ClockNode(rt.Node):
                 return  # the recorder is behind; on_progress retries
             self.commands.pop(self.step, None)
             self.publish_step(self.step + 1)
+
+    def destroy_node(self):
+        if hasattr(self, 'step'):  # not when the constructor failed half-way
+            self.get_logger().info(f'published: {topics.CLOCK.name} {self.step + 1}')
+        return super().destroy_node()
 
     def finish_when_recorded(self, force: bool = False) -> None:
         if self.done or (self.expect_recorder and self.recorded_step < self.last_step and not force):

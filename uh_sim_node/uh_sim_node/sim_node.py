@@ -14,6 +14,14 @@ Clock modes (DESIGN.md section 1):
   (zero-order hold, latest-value semantics) and state k is published.
 
 Until its first command arrives the plant holds the hover trim.
+
+Bad input never stops the plant: a command carrying NaN/inf or another UH's id is rejected (logged,
+at most once a second, with a count) and the last valid command is kept; in realtime a command
+older than the one held is ignored (reordered, or the history a restarted controller replays), and a
+command older than ``stale_timeout`` is reported once (the plant holds it, zero-order hold) until
+commands come again. A fault injection with rho outside [0, 1], a non-finite value, an unknown
+channel or another UH's id is rejected with the reason in the log and the plant keeps its faults;
+rho = 0 (stuck actuator) is accepted with a warning that the controller cannot compensate it.
 """
 from __future__ import annotations
 
@@ -42,6 +50,13 @@ class SimNode(rt.Node):
         self.late_commands = 0        # realtime: steps integrated with an older command
         self.step = 0                 # index of the state the plant holds
         self.published_step = -1      # last state index published
+        self.declare_parameter('stale_timeout', 0.25, rt.ParameterDescriptor(
+            description='realtime: simulated seconds after which a held command is reported stale',
+            read_only=True, floating_point_range=[rt.FloatingPointRange(from_value=0.0, to_value=60.0, step=0.0)]))
+        self.stale_steps = max(1, int(round(float(self.get_parameter('stale_timeout').value) / self.dt)))
+        self.command_stale = False
+        self.rejected = 0
+        self.published = {'state': 0, 'fault_truth': 0}
         qos = topics.qos_profile(topics.STEP_QOS)
         self.state_pub = self.create_publisher(m.UHState, topics.STATE.name, qos)
         self.truth_pub = self.create_publisher(m.FaultTruth, topics.FAULT_TRUTH.name, qos)
@@ -70,11 +85,19 @@ class SimNode(rt.Node):
         try:
             u = msg_to_command(msg, expected_id=self.uh_id)
         except WireError as exc:
-            self.get_logger().error(f'rejected command: {exc}; keeping the last valid command')
+            self.rejected += 1
+            self.get_logger().error(f'rejected command: {exc}; keeping the last valid command '
+                                    f'({self.rejected} rejected so far)', throttle_duration_sec=1.0)
             return
+        k = int(msg.step)
+        if self.mode != 'lockstep' and k < self.command_step:
+            return  # older than the command held: reordered, or replayed history after a controller restart
         self.command = u
-        k = self.command_step = int(msg.step)
+        self.command_step = k
         if self.mode != 'lockstep':
+            if self.command_stale:
+                self.command_stale = False
+                self.get_logger().info(f'commands arrive again (step {k}, plant at step {self.step})')
             if k == self.last_step == self.step:  # the final step's truth, as in lockstep
                 self._publish_truth(k)
             return
@@ -90,18 +113,21 @@ class SimNode(rt.Node):
     def on_fault(self, msg) -> None:
         """Run-time fault injection (uh_msgs/ActuatorFault); invalid ones are rejected and logged."""
         if int(msg.uh_id) != self.uh_id:
-            self.get_logger().error(f'rejected fault injection for uh{msg.uh_id} on /uh{self.uh_id}/fault')
+            self.get_logger().error(f'rejected fault injection: it names uh{msg.uh_id} but arrived on '
+                                    f'/uh{self.uh_id}/fault; the plant keeps its current faults')
             return
         try:
             fault = ActuatorFault(channel=int(msg.channel), rho=float(msg.rho),
                                   bias_constant=float(msg.bias_constant), bias_amplitude=float(msg.bias_amplitude),
                                   bias_frequency=float(msg.bias_frequency), onset_time=float(msg.onset_time))
         except FaultError as exc:
-            self.get_logger().error(f'rejected fault injection: {exc}')
+            self.get_logger().error(f'rejected fault injection: {exc}; the plant keeps its current faults')
             return
         self.plant.faults.add(fault)
-        note = ' (stuck actuator: outside what the controller can compensate)' if fault.is_stuck else ''
-        self.get_logger().warn(f'fault injected on uh{self.uh_id}: {fault}{note}')
+        self.get_logger().warn(f'fault injected on uh{self.uh_id}: {fault}')
+        if fault.is_stuck:
+            self.get_logger().warn(f'rho = 0 on channel {fault.channel}: the actuator is stuck, which is outside '
+                                   'what the controller can compensate (the fault truth reports it as stuck)')
 
     # -- outputs ----------------------------------------------------------------------------------
     def _integrate_one_step(self) -> None:
@@ -110,6 +136,11 @@ class SimNode(rt.Node):
             if self.late_commands in (1, 10, 100, 1000):
                 self.get_logger().warn(f'step {self.step} integrated with the command of step {self.command_step} '
                                        f'({self.late_commands} late command(s) so far)')
+            if self.step - self.command_step > self.stale_steps and not self.command_stale:
+                self.command_stale = True
+                self.get_logger().warn(f'no command since step {self.command_step} (plant at step {self.step}, '
+                                       f'timeout {self.stale_steps * self.dt:g} s): holding it; is '
+                                       f'/uh{self.uh_id}/controller running?')
         self._publish_truth(self.step)
         t = self.step * self.dt
         self.plant.step(self.command, t, self.dt)
@@ -121,10 +152,20 @@ class SimNode(rt.Node):
         u_actual = self.plant.actual_inputs(self.command, t)
         self.truth_pub.publish(fault_truth_to_msg(self.uh_id, k, t, f_p, f_w, u_actual,
                                                   self.plant.fault_active(t), self.plant.stuck(t)))
+        self.published['fault_truth'] += 1
 
     def _publish_state(self) -> None:
         self.state_pub.publish(state_to_msg(self.uh_id, self.step, self.step * self.dt, self.plant.x))
         self.published_step = self.step
+        self.published['state'] += 1
+
+    def destroy_node(self):
+        if hasattr(self, 'published'):  # not when the constructor failed half-way
+            self.get_logger().info(
+                f"published: {topics.uh_topic(self.uh_id, topics.STATE)} {self.published['state']}, "
+                f"{topics.uh_topic(self.uh_id, topics.FAULT_TRUTH)} {self.published['fault_truth']}"
+                + (f'; rejected commands: {self.rejected}' if self.rejected else ''))
+        return super().destroy_node()
 
 
 def main(args=None):

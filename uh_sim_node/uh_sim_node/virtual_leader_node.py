@@ -31,6 +31,11 @@ class VirtualLeaderNode(rt.Node):
             t = self.published_step * self.dt
             self.pub.publish(reference_to_msg(self.published_step, t, self.reference.at(t)))
 
+    def destroy_node(self):
+        if hasattr(self, 'published_step'):  # not when the constructor failed half-way
+            self.get_logger().info(f'published: {topics.REFERENCE.name} {self.published_step + 1}')
+        return super().destroy_node()
+
 
 def main(args=None):
     rt.run_node(VirtualLeaderNode, args)
