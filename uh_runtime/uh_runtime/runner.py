@@ -87,6 +87,9 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
     ``def main(args=None): rt.run_node(MyNode, args)``.
     """
     import uh_runtime as rt
+
+    from . import procstats
+    procstats.install_from_env()
     clear = _clear_errors() + tuple(user_errors)
     prog = _prog(args)
     try:
@@ -100,6 +103,7 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
         try:
             made = node_factory()
             nodes = list(made) if isinstance(made, (list, tuple)) else [made]
+            procstats.set_nodes(nodes)
             for node in nodes:
                 check_parameter_overrides(node, ignore=ignore_overrides)
         except clear + (ValueError, LookupError, OSError) as exc:

@@ -1,0 +1,191 @@
+"""One team run through the run supervisor (``uh_bringup.run_formation``), measured from outside.
+
+The supervisor is started as a child process with ``UH_PROC_STATS_DIR`` set, so every node
+process writes its own resource record when it ends (:mod:`uh_runtime.procstats`: CPU seconds of
+all its threads, peak resident set ``VmHWM``). ``os.wait4`` on the supervisor gives the resource
+use of the whole process tree (the supervisor waits for every node it started, so their usage is
+folded into its children's). The real-time factor is the clock's own figure for the stepping loop
+(``run complete: K steps, sim T s in W s wall (real-time factor R)``), which leaves out start-up
+(process start, discovery) and shutdown.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+__all__ = ['run_team', 'next_domain_id', 'node_kind', 'RunError', 'parse_run_complete']
+
+_COMPLETE = re.compile(r'run complete: (\d+) steps, sim ([\d.]+) s in ([\d.]+) s wall '
+                       r'\(real-time factor ([\d.]+)\)')
+_LATE = re.compile(r'\((\d+) late command\(s\) so far\)')
+_counter = [0]
+
+
+class RunError(RuntimeError):
+    """A benchmark run could not be started or measured."""
+
+
+def next_domain_id() -> int:
+    """A DDS domain id for the next run of this process (200..229, varied by pid and run count),
+    away from the supervisor's default ``1 + pid % 230`` of the usual runs as far as possible."""
+    _counter[0] += 1
+    return 200 + (os.getpid() + 7 * _counter[0]) % 30
+
+
+def node_kind(name: str) -> str:
+    """``'/uh3/controller'`` -> ``'controller'``, ``'/clock'`` -> ``'clock'``."""
+    return name.rstrip('/').rsplit('/', 1)[-1] or name
+
+
+def parse_run_complete(text: str):
+    """(steps, sim s, loop wall s, real-time factor) of the clock's last 'run complete' line, or None."""
+    found = _COMPLETE.findall(text)
+    if not found:
+        return None
+    steps, sim, wall, rtf = found[-1]
+    return int(steps), float(sim), float(wall), float(rtf)
+
+
+def _read_stats(directory: Path) -> list:
+    records = []
+    for path in sorted(directory.glob('*.json')):
+        try:
+            records.append(json.loads(path.read_text()))
+        except (OSError, ValueError):
+            continue
+    return records
+
+
+def _memory_summary(processes: list) -> dict:
+    by_kind: dict[str, list] = {}
+    for proc in processes:
+        kinds = sorted({node_kind(n) for n in proc['nodes']}) or ['?']
+        key = kinds[0] if len(kinds) == 1 else '+'.join(kinds)
+        by_kind.setdefault(key, []).append(proc['peak_rss_kb'])
+    peaks = [p['peak_rss_kb'] for p in processes]
+    return {
+        'max_kb': max(peaks) if peaks else None,
+        'mean_kb': sum(peaks) / len(peaks) if peaks else None,
+        'total_kb': sum(peaks),
+        'by_kind_max_kb': {k: max(v) for k, v in sorted(by_kind.items())},
+    }
+
+
+def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = 'lockstep',
+             rate: float = 1.0, duration: float | None = None, domain_id: int | None = None,
+             timeout: float | None = None, env: dict | None = None, on_started=None) -> dict:
+    """Run a team with ``run_formation`` and measure it.
+
+    Parameters
+    ----------
+    scenario : str
+        ``'paper'`` or a scenario file.
+    out_dir : path
+        New directory: ``run/`` (the supervisor's output), ``stats/`` (per-process records),
+        ``supervisor.log``.
+    layout, clock, rate, duration
+        ``--processes``, ``--clock``, ``--rate``, ``--duration`` of the run.
+    domain_id : int, optional
+        DDS domain (default :func:`next_domain_id`).
+    timeout : float, optional
+        Wall seconds after which the run is interrupted (SIGINT) and reported as failed.
+    env : dict, optional
+        Extra environment for the supervisor and its nodes.
+    on_started : callable, optional
+        Called with the supervisor's ``Popen`` once it runs.
+
+    Returns
+    -------
+    dict
+        ``status`` (exit status), ``rtf``, ``steps``, ``loop_wall_s`` (the clock's stepping loop),
+        ``wall_s`` (whole run with start-up), ``cpu_s`` / ``cpu_user_s`` / ``cpu_system_s`` (sum
+        over the node processes), ``tree_cpu_s`` (supervisor and everything it waited for),
+        ``processes`` (per process: nodes, cpu_s, peak_rss_kb), ``memory`` (peak resident set
+        summary, kB), ``late_commands_logged`` (the sims' late-command counters, realtime),
+        ``out`` (output directory).
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    stats_dir = out / 'stats'
+    domain = next_domain_id() if domain_id is None else int(domain_id)
+    cmd = [sys.executable, '-P', '-m', 'uh_bringup.run_formation', '--scenario', str(scenario),
+           '--out', str(out / 'run'), '--no-metrics', '--processes', layout, '--clock', clock,
+           '--rate', repr(float(rate)), '--domain-id', str(domain)]
+    if duration is not None:
+        cmd += ['--duration', repr(float(duration))]
+    child_env = dict(os.environ)
+    child_env.pop('UH_PROFILE_DIR', None)      # profiling distorts timing: only when asked for here
+    child_env.update(env or {})
+    child_env['UH_PROC_STATS_DIR'] = str(stats_dir)
+    log = open(out / 'supervisor.log', 'w')
+    started = time.monotonic()
+    try:
+        proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                env=child_env)
+    except OSError as exc:
+        log.close()
+        raise RunError(f'cannot start the run supervisor: {exc}') from None
+    timed_out = []
+
+    def interrupt():
+        timed_out.append(True)
+        try:
+            proc.send_signal(signal.SIGINT)
+        except ProcessLookupError:
+            pass
+    timer = threading.Timer(timeout, interrupt) if timeout else None
+    if timer:
+        timer.daemon = True
+        timer.start()
+    try:
+        if on_started is not None:
+            on_started(proc)
+        _, wait_status, usage = os.wait4(proc.pid, 0)
+    finally:
+        if timer:
+            timer.cancel()
+        log.close()
+    proc.returncode = os.waitstatus_to_exitcode(wait_status)
+    wall = time.monotonic() - started
+
+    texts = []
+    for path in sorted((out / 'run' / 'logs').glob('*.log')):
+        try:
+            texts.append(path.read_text(errors='replace'))
+        except OSError:
+            pass
+    complete = None
+    for text in texts:
+        complete = parse_run_complete(text) or complete
+    late = [int(n) for text in texts for n in _LATE.findall(text)]
+    processes = [{'nodes': r['nodes'], 'cpu_s': r['cpu_s'], 'user_s': r['user_s'],
+                  'system_s': r['system_s'], 'peak_rss_kb': r['peak_rss_kb']}
+                 for r in _read_stats(stats_dir)]
+    result = {
+        'scenario': str(scenario), 'layout': layout, 'clock': clock, 'rate': rate,
+        'duration_s': duration, 'domain_id': domain, 'status': proc.returncode,
+        'timed_out': bool(timed_out), 'wall_s': wall,
+        'steps': complete[0] if complete else None,
+        'loop_wall_s': complete[2] if complete else None,
+        'rtf': complete[3] if complete else None,
+        'cpu_s': sum(p['cpu_s'] for p in processes),
+        'cpu_user_s': sum(p['user_s'] for p in processes),
+        'cpu_system_s': sum(p['system_s'] for p in processes),
+        'tree_cpu_s': usage.ru_utime + usage.ru_stime,
+        'n_processes': len(processes),
+        'processes': processes,
+        'memory': _memory_summary(processes),
+        'late_commands_logged': max(late) if late else 0,
+        'out': str(out),
+    }
+    if complete is None or proc.returncode != 0:
+        tail = (out / 'supervisor.log').read_text(errors='replace').splitlines()[-8:]
+        result['error'] = '\n'.join(tail)
+    return result

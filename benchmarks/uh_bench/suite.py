@@ -1,0 +1,372 @@
+"""The benchmark suite: sections, the results file and the markdown table (``scripts/bench.sh``).
+
+Sections (every figure is measured in the same invocation as the baseline it is compared with):
+
+``paper``
+    The paper scenario in lockstep for each process layout (``per-node``: one process per node;
+    ``per-uh``; ``single``), and the in-process reference simulation of the same scenario and
+    duration: real-time factors and their ratio, CPU seconds of the node processes.
+``components``
+    Per-step cost of the controller and of the helicopter model in process (microseconds).
+``scaling``
+    Generated teams (:mod:`uh_topology.generate`) of 5, 10, 20 and 40 UHs in lockstep: real-time
+    factor, total CPU seconds of the node processes, CPU per simulated second, and the
+    in-process reference of the same team as baseline.
+``realtime``
+    Real-time runs at the nominal control rate (rate 1) with the latency probe
+    (:mod:`uh_bench.probe`): state-to-command latency p50/p99 per controller, late and missed
+    steps; 5 UHs is the paper scenario, larger teams are generated.
+``memory``
+    Peak resident set of the node processes (from every lockstep and real-time run above).
+
+The machine is described in the results (CPU model, cores, load average before and after), since
+shared machines make absolute figures noisy; ratios measured in the same invocation are the
+figures to compare.
+"""
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import platform
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from . import inprocess, runs
+
+__all__ = ['MODES', 'GOALS', 'run_suite', 'markdown', 'machine_info', 'evaluate_goals']
+
+#: Section parameters of the quick (< 5 minutes) and the full suite.
+MODES = {
+    'quick': {'paper_duration': 20.0, 'paper_layouts': ('per-node', 'single'),
+              'component_steps': 500, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 3.0,
+              'scaling_layouts': ('per-node',), 'realtime_sizes': (5, 20), 'realtime_duration': 8.0,
+              'realtime_layout': 'per-node'},
+    'full': {'paper_duration': 60.0, 'paper_layouts': ('per-node', 'per-uh', 'single'),
+             'component_steps': 3000, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 20.0,
+             'scaling_layouts': ('per-node', 'single'), 'realtime_sizes': (5, 20),
+             'realtime_duration': 60.0, 'realtime_layout': 'per-node'},
+}
+
+#: The goals of the performance issue: (key, description, target, comparison).
+GOALS = (
+    ('paper_lockstep_rtf', 'paper scenario, lockstep, one process per node: real-time factor', 10.0, '>='),
+    ('paper_lockstep_best_rtf', 'paper scenario, lockstep, best process layout: real-time factor', 10.0, '>='),
+    ('inprocess_rtf', 'paper scenario, in-process reference: real-time factor', 200.0, '>='),
+    ('team20_lockstep_rtf', '20 UHs, lockstep, one process per node: real-time factor', 2.0, '>='),
+    ('team40_lockstep_rtf', '40 UHs, lockstep, one process per node: real-time factor', 1.0, '>='),
+    ('realtime5_p99_ms', '5 UHs, real time: worst controller p99 state-to-command latency (ms)', 5.0, '<'),
+    ('realtime5_missed', '5 UHs, real time: missed + late steps', 0, '<='),
+)
+
+
+def machine_info() -> dict:
+    """CPU model, core count, memory, load average, Python and the repository commit."""
+    model = None
+    try:
+        for line in open('/proc/cpuinfo'):
+            if line.startswith('model name'):
+                model = line.split(':', 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem_kb = None
+    try:
+        for line in open('/proc/meminfo'):
+            if line.startswith('MemTotal:'):
+                mem_kb = int(line.split()[1])
+    except OSError:
+        pass
+    commit = None
+    try:
+        commit = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], capture_output=True, text=True,
+                                cwd=Path(__file__).resolve().parent, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        pass
+    return {'cpu_model': model, 'nproc': os.cpu_count(), 'memory_mb': mem_kb // 1024 if mem_kb else None,
+            'loadavg': os.getloadavg(), 'python': platform.python_version(), 'platform': platform.platform(),
+            'commit': commit}
+
+
+def _log(msg: str) -> None:
+    print(f'[bench] {msg}', file=sys.stderr, flush=True)
+
+
+def _team_file(workdir: Path, size: int, duration: float) -> Path:
+    from uh_topology.generate import split_team, write_team_scenario
+    n, m = split_team(size)
+    return write_team_scenario(workdir / f'team{size}.yaml', n, m, duration=duration)
+
+
+def _paper(cfg, workdir, results):
+    d = cfg['paper_duration']
+    _log(f'in-process reference, paper scenario, {d:g} s')
+    ref = inprocess.reference_rtf('paper', d)
+    section = {'duration_s': d, 'inprocess': ref, 'lockstep': {}}
+    for layout in cfg['paper_layouts']:
+        _log(f'lockstep paper scenario, {layout}, {d:g} s')
+        run = runs.run_team('paper', workdir / f'paper-{layout}', layout=layout, duration=d,
+                            timeout=60 + 30 * d)
+        run['ratio_to_inprocess'] = run['rtf'] / ref['rtf'] if run['rtf'] else None
+        section['lockstep'][layout] = run
+        _log(f'  real-time factor {run["rtf"]}, CPU {run["cpu_s"]:.1f} s, status {run["status"]}')
+    results['paper'] = section
+
+
+def _components(cfg, workdir, results):
+    _log(f'per-step costs in process, {cfg["component_steps"]} steps')
+    results['components'] = {'paper': inprocess.component_costs('paper', cfg['component_steps'])}
+
+
+def _scaling(cfg, workdir, results):
+    d = cfg['scaling_duration']
+    rows = []
+    for size in cfg['scaling_sizes']:
+        path = _team_file(workdir, size, d)
+        from uh_topology.scenario import load_scenario
+        sc = load_scenario(path)
+        _log(f'scaling: {size} UHs ({len(sc.leaders)} leaders, {len(sc.followers)} followers), in process, {d:g} s')
+        ref = inprocess.reference_rtf(path, d)
+        row = {'uhs': size, 'leaders': len(sc.leaders), 'followers': len(sc.followers),
+               'edges': int((sc.adjacency != 0).sum()), 'duration_s': d, 'inprocess': ref, 'lockstep': {}}
+        for layout in cfg['scaling_layouts']:
+            _log(f'scaling: {size} UHs, lockstep, {layout}')
+            run = runs.run_team(str(path), workdir / f'team{size}-{layout}', layout=layout, duration=d,
+                                timeout=120 + 60 * d * max(1.0, size / 5))
+            run['cpu_per_sim_s'] = run['cpu_s'] / d
+            run['ratio_to_inprocess'] = run['rtf'] / ref['rtf'] if run['rtf'] else None
+            row['lockstep'][layout] = run
+            _log(f'  real-time factor {run["rtf"]}, CPU {run["cpu_s"]:.1f} s, status {run["status"]}')
+        rows.append(row)
+    results['scaling'] = rows
+
+
+def _realtime_run(scenario, size, d, workdir, layout='per-node'):
+    out = workdir / f'realtime{size}'
+    out.mkdir(parents=True, exist_ok=True)
+    domain = runs.next_domain_id()
+    probe_out, ready = out / 'probe.json', out / 'probe.ready'
+    last = int(round(d / 0.01))
+    env = dict(os.environ)
+    env.update({'ROS_DOMAIN_ID': str(domain)})
+    from uh_runtime.network import loopback_environment
+    env = loopback_environment(domain, env)
+    bench_dir = str(Path(__file__).resolve().parents[1])
+    env['PYTHONPATH'] = bench_dir + (os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH') else '')
+    probe = subprocess.Popen([sys.executable, '-P', '-m', 'uh_bench.probe', '--domain-id', str(domain),
+                              '--ids', f'1..{size}', '--last-step', str(last), '--out', str(probe_out),
+                              '--ready', str(ready)], env=env, stdout=subprocess.DEVNULL,
+                             stderr=open(out / 'probe.log', 'w'))
+    try:
+        deadline = time.monotonic() + 60
+        while not ready.exists() and probe.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        run = runs.run_team(str(scenario), out, layout=layout, clock='realtime', rate=1.0, duration=d,
+                            domain_id=domain, timeout=120 + 3 * d)
+    finally:
+        if probe.poll() is None:
+            time.sleep(0.5)
+            probe.send_signal(signal.SIGINT)
+        try:
+            probe.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            probe.kill()
+            probe.wait()
+    try:
+        probed = json.loads(probe_out.read_text())['controllers']
+    except (OSError, ValueError, KeyError):
+        probed = {}
+    ctl = list(probed.values())
+    run['controllers'] = probed
+    run['p50_ms_median'] = _median([c['p50_us'] / 1000 for c in ctl if c['p50_us'] is not None])
+    run['p99_ms_max'] = max((c['p99_us'] / 1000 for c in ctl if c['p99_us'] is not None), default=None)
+    run['max_ms'] = max((c['max_us'] / 1000 for c in ctl if c['max_us'] is not None), default=None)
+    run['late_steps'] = sum(c['late_steps'] for c in ctl)
+    run['missed_steps'] = sum(c['missed_steps'] for c in ctl)
+    run['controller_steps'] = sum(c['commands'] for c in ctl)
+    return run
+
+
+def _median(values):
+    values = sorted(values)
+    if not values:
+        return None
+    mid = len(values) // 2
+    return values[mid] if len(values) % 2 else 0.5 * (values[mid - 1] + values[mid])
+
+
+def _realtime(cfg, workdir, results):
+    d = cfg['realtime_duration']
+    rows = []
+    for size in cfg['realtime_sizes']:
+        scenario = 'paper' if size == 5 else _team_file(workdir, size, d)
+        _log(f'real time: {size} UHs ({scenario if size == 5 else "generated"}), rate 1, {d:g} s')
+        run = _realtime_run(scenario, size, d, workdir, cfg['realtime_layout'])
+        run['uhs'] = size
+        rows.append(run)
+        _log(f'  p99 {run["p99_ms_max"]} ms, late {run["late_steps"]}, missed {run["missed_steps"]}, '
+             f'status {run["status"]}')
+    results['realtime'] = rows
+
+
+def _memory(results):
+    procs = []
+    for run in results.get('paper', {}).get('lockstep', {}).values():
+        if run['layout'] == 'per-node':
+            procs += run['processes']
+    by_kind = {}
+    for proc in procs:
+        for name in proc['nodes']:
+            by_kind.setdefault(runs.node_kind(name), []).append(proc['peak_rss_kb'])
+    results['memory'] = {
+        'paper_per_node_max_kb': {k: max(v) for k, v in sorted(by_kind.items())},
+        'per_run': {key: run['memory'] for key, run in _all_runs(results)},
+    }
+
+
+def _all_runs(results):
+    for layout, run in results.get('paper', {}).get('lockstep', {}).items():
+        yield f'paper/{layout}', run
+    for row in results.get('scaling', []):
+        for layout, run in row['lockstep'].items():
+            yield f'team{row["uhs"]}/{layout}', run
+    for run in results.get('realtime', []):
+        yield f'realtime{run["uhs"]}', run
+
+
+def evaluate_goals(results) -> list:
+    """``[(key, description, target, comparison, measured, met), ...]`` (measured None: not run)."""
+    measured = {}
+    paper = results.get('paper', {})
+    lock = paper.get('lockstep', {})
+    if 'per-node' in lock:
+        measured['paper_lockstep_rtf'] = lock['per-node']['rtf']
+    rtfs = [r['rtf'] for r in lock.values() if r.get('rtf')]
+    if rtfs:
+        measured['paper_lockstep_best_rtf'] = max(rtfs)
+    if 'inprocess' in paper:
+        measured['inprocess_rtf'] = paper['inprocess']['rtf']
+    for row in results.get('scaling', []):
+        run = row['lockstep'].get('per-node')
+        if run and row['uhs'] in (20, 40):
+            measured[f'team{row["uhs"]}_lockstep_rtf'] = run['rtf']
+    for run in results.get('realtime', []):
+        if run['uhs'] == 5:
+            measured['realtime5_p99_ms'] = run['p99_ms_max']
+            measured['realtime5_missed'] = run['missed_steps'] + run['late_steps']
+    out = []
+    for key, text, target, cmp in GOALS:
+        value = measured.get(key)
+        met = None
+        if value is not None:
+            met = {'>=': value >= target, '<': value < target, '<=': value <= target}[cmp]
+        out.append((key, text, target, cmp, value, met))
+    return out
+
+
+def run_suite(mode, workdir, sections=('paper', 'components', 'scaling', 'realtime')) -> dict:
+    """Run the chosen sections in ``workdir``; return the results mapping.
+
+    ``mode`` is ``'quick'`` or ``'full'`` (:data:`MODES`), or a mapping with the same keys (used
+    by the harness's own test with tiny runs).
+    """
+    cfg = dict(MODES[mode]) if isinstance(mode, str) else dict(mode)
+    mode = mode if isinstance(mode, str) else 'custom'
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    started = time.monotonic()
+    results = {'mode': mode, 'config': cfg, 'date': datetime.datetime.now().isoformat(timespec='seconds'),
+               'machine': machine_info(), 'sections': list(sections)}
+    table = {'paper': _paper, 'components': _components, 'scaling': _scaling, 'realtime': _realtime}
+    for name in sections:
+        table[name](cfg, workdir, results)
+    _memory(results)
+    results['machine']['loadavg_end'] = os.getloadavg()
+    results['wall_s'] = time.monotonic() - started
+    results['goals'] = [dict(zip(('key', 'description', 'target', 'comparison', 'measured', 'met'), g))
+                        for g in evaluate_goals(results)]
+    return results
+
+
+def _f(value, fmt='{:.2f}', none='—'):
+    return none if value is None else fmt.format(value)
+
+
+def markdown(results) -> str:
+    """The results as markdown tables (what ``scripts/bench.sh`` prints)."""
+    m = results['machine']
+    lines = [f'## Benchmark ({results["mode"]}, {results["date"]}, commit {m.get("commit") or "?"})', '',
+             f'Machine: {m.get("cpu_model")}, {m.get("nproc")} cores, {m.get("memory_mb")} MB; load average '
+             f'{", ".join(f"{x:.1f}" for x in m["loadavg"])} at start, '
+             f'{", ".join(f"{x:.1f}" for x in m.get("loadavg_end", m["loadavg"]))} at the end. '
+             f'Suite wall time {results.get("wall_s", 0):.0f} s.', '']
+    paper = results.get('paper')
+    if paper:
+        ref = paper['inprocess']
+        lines += [f'### Paper scenario ({paper["duration_s"]:g} s simulated)', '',
+                  '| run | processes | real-time factor | ratio to in-process | CPU s (nodes) | CPU s per sim s |',
+                  '|---|---|---|---|---|---|',
+                  f'| in-process reference | 1 | {_f(ref["rtf"], "{:.1f}")} | 1 | — | — |']
+        for layout, run in paper['lockstep'].items():
+            lines.append(f'| lockstep, {layout} | {run["n_processes"]} | {_f(run["rtf"])} | '
+                         f'{_f(run["ratio_to_inprocess"], "{:.3f}")} | {_f(run["cpu_s"], "{:.1f}")} | '
+                         f'{_f(run["cpu_s"] / paper["duration_s"], "{:.2f}")} |')
+        lines.append('')
+    comp = results.get('components')
+    if comp:
+        c = comp['paper']
+        lines += [f'### Per-step cost in process (paper scenario, {c["steps"]} steps x {c["uhs"]} UHs)', '',
+                  '| part | mean us per UH-step | median us |', '|---|---|---|']
+        for key, label in (('controller', 'controller (UHController.step)'),
+                           ('model', f'model (HelicopterPlant.step, RK4 x {c["substeps"]})'),
+                           ('fault_truth', 'true lumped faults (lumped_faults)')):
+            lines.append(f'| {label} | {c[key]["mean_us"]:.1f} | {c[key]["median_us"]:.1f} |')
+        total = sum(c[k]['mean_us'] for k in ('controller', 'model', 'fault_truth'))
+        lines += [f'| sum (floor of one UH-step) | {total:.1f} | |', '']
+    scaling = results.get('scaling')
+    if scaling:
+        d = scaling[0]['duration_s']
+        lines += [f'### Scaling, lockstep ({d:g} s simulated, generated teams)', '',
+                  '| UHs | leaders:followers | layout | processes | real-time factor | CPU s (nodes) | '
+                  'CPU s per sim s | CPU ms per UH-step | in-process RTF | ratio |',
+                  '|---|---|---|---|---|---|---|---|---|---|']
+        for row in scaling:
+            for layout, run in row['lockstep'].items():
+                per_uh_step = run['cpu_s'] * 1000 / (row['uhs'] * d / 0.01)
+                lines.append(
+                    f'| {row["uhs"]} | {row["leaders"]}:{row["followers"]} | {layout} | {run["n_processes"]} | '
+                    f'{_f(run["rtf"])} | {_f(run["cpu_s"], "{:.1f}")} | {_f(run["cpu_per_sim_s"])} | '
+                    f'{_f(per_uh_step, "{:.2f}")} | {_f(row["inprocess"]["rtf"], "{:.1f}")} | '
+                    f'{_f(run["ratio_to_inprocess"], "{:.3f}")} |')
+        lines.append('')
+    realtime = results.get('realtime')
+    if realtime:
+        d = realtime[0]['duration_s']
+        layout = results['config'].get('realtime_layout', 'per-node')
+        lines += [f'### Real time, rate 1 ({d:g} s, layout {layout})', '',
+                  '| UHs | latency p50 (median over controllers) ms | worst p99 ms | worst max ms | '
+                  'late steps | missed steps | controller steps | sims\' late-command log |',
+                  '|---|---|---|---|---|---|---|---|']
+        for run in realtime:
+            lines.append(f'| {run["uhs"]} | {_f(run["p50_ms_median"], "{:.2f}")} | {_f(run["p99_ms_max"])} | '
+                         f'{_f(run["max_ms"])} | {run["late_steps"]} | {run["missed_steps"]} | '
+                         f'{run["controller_steps"]} | {run["late_commands_logged"]} |')
+        lines.append('')
+    mem = results.get('memory', {}).get('paper_per_node_max_kb')
+    if mem:
+        lines += ['### Peak memory per node process (paper scenario, one process per node)', '',
+                  '| node | peak RSS MB |', '|---|---|']
+        lines += [f'| {k} | {v / 1024:.1f} |' for k, v in mem.items()]
+        lines.append('')
+    goals = results.get('goals')
+    if goals:
+        lines += ['### Goals', '', '| goal | target | measured | met |', '|---|---|---|---|']
+        for g in goals:
+            met = '—' if g['met'] is None else ('yes' if g['met'] else 'no')
+            lines.append(f'| {g["description"]} | {g["comparison"]} {g["target"]} | '
+                         f'{_f(g["measured"], "{:.3g}")} | {met} |')
+        lines.append('')
+    return '\n'.join(lines)
