@@ -1,0 +1,528 @@
+"""``uh-report``: figures and a metrics table of one or several runs (the paper's Figures 4-12).
+
+``uh-report RUN_DIR [RUN_DIR ...] [--out DIR]`` reads each run and writes into ``DIR``:
+
+- ``report.md`` and ``index.html``: the metrics table of all runs side by side (one column per
+  run, the numbers of each run's ``metrics.json``, DESIGN.md 2.8) and every figure;
+- ``metrics_table.csv``: the same table at full precision;
+- ``errors.png``, ``errors_per_uh.png``: formation and containment errors, the runs overlaid
+  (Figures 10-12 when the runs are proposed, Case I and Case II);
+- per run, in ``DIR/<run name>/``: ``states.png`` (Figures 4-7), ``trajectory_3d.png``
+  (Figure 8), ``xy_snapshots.png`` (Figure 9) and ``faults_uh<i>.png`` for every faulted UH
+  (see :mod:`uh_bringup.report_figures`).
+
+A run is a directory written by ``scripts/run_formation.sh`` (``bag/``, ``run.json``,
+``metrics.json``; the arrays are read from the bag with :func:`uh_bringup.bag_metrics.read_team_bag`),
+a bare rosbag2 bag directory of such a run, or a directory written by ``uh-simulate``
+(``timeseries.npz``, ``metrics.json``). The scenario comes from ``run.json``; for the other kinds
+it is ``--scenario`` (default ``paper``). Without ``metrics.json`` the metrics are computed from
+the arrays with :func:`uh_controller_node.metrics.metrics_from_arrays` (and the table says so).
+
+Exit status: 0 written, 2 bad input (a missing or empty run directory, a bag that is not MCAP,
+truncated or damaged, arrays that do not fit the scenario, an unwritable output directory); the
+message names the file and what is wrong.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import html
+import io
+import json
+import math
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ['ReportError', 'RunData', 'load_run', 'table_rows', 'format_value', 'write_report', 'main',
+           'build_parser', 'CASE_LABELS']
+
+PROG = 'uh-report'
+
+#: Display names of the controller cases (DESIGN.md 2.6).
+CASE_LABELS = {'proposed': 'proposed', 'case1': 'Case I (β = 1)', 'case2': 'Case II (no SPEM)'}
+
+# (metrics.json key, what, unit, lower is better); fault NRMSE rows are added per UH and vector
+_ROWS = [
+    ('case', 'controller case', '', False),
+    ('sim_time_s', 'simulated time', 's', False),
+    ('cpi', 'CPI = ∫ Σ (‖z1‖² + ‖u_p‖²) dt', '-', True),
+    ('mse_formation', 'MSE formation (whole run)', 'm²', True),
+    ('mse_containment', 'MSE containment (whole run)', 'm²', True),
+    ('formation_rms_m', 'formation RMS after settle', 'm', True),
+    ('containment_rms_m', 'containment RMS after settle', 'm', True),
+    ('hull_distance_max_m', 'max distance outside the hull after settle', 'm', True),
+    ('saturation_fraction', 'saturated fraction of steps', '-', True),
+    ('settle_time_s', 'settle time', 's', False),
+    ('wall_time_s', 'wall time of the run', 's', False),
+]
+
+
+class ReportError(ValueError):
+    """A run directory, bag or output directory that cannot be used; the message says which and why."""
+
+
+@dataclass
+class RunData:
+    """One run as the report sees it.
+
+    Attributes
+    ----------
+    directory : Path
+        The run directory given on the command line.
+    name : str
+        Short unique name (sub-directory of the per-run figures).
+    label : str
+        Legend and table heading.
+    source : str
+        ``'bag'`` (distributed run, read from MCAP) or ``'timeseries'`` (``uh-simulate``).
+    case : str
+    scenario : uh_topology.scenario.Scenario
+    arrays : dict
+        ``time`` (K+1,), ``states`` (K+1, n, 12), ``reference`` (K+1, 5), true and estimated
+        lumped faults (K+1, n, 3), ``u_p``, ``saturated``; UH axis in ``scenario.ids`` order.
+    metrics : dict
+        Content of ``metrics.json`` (or computed, see ``metrics_source``).
+    metrics_source : str
+        ``'metrics.json'`` or ``'computed'``.
+    """
+
+    directory: Path
+    name: str
+    label: str
+    source: str
+    case: str
+    scenario: object
+    arrays: dict
+    metrics: dict
+    metrics_source: str = 'metrics.json'
+    figures: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------------------------
+# Loading
+# ----------------------------------------------------------------------------------------------
+def _read_json(path: Path) -> dict:
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ReportError(f'{path}: not valid JSON ({exc})') from None
+    except OSError as exc:
+        raise ReportError(f'{path}: cannot read it ({exc.strerror})') from None
+    if not isinstance(data, dict):
+        raise ReportError(f'{path}: expected a JSON object, got {type(data).__name__}')
+    return data
+
+
+def _load_scenario(name, run_dir: Path, where: str):
+    from uh_topology.errors import ScenarioError
+    from uh_topology.scenario import load_scenario
+    candidates = [name]
+    if not Path(str(name)).is_absolute() and name != 'paper':
+        candidates.append(run_dir / str(name))
+    last = None
+    for candidate in candidates:
+        try:
+            return load_scenario(candidate)
+        except ScenarioError as exc:
+            last = exc
+    raise ReportError(f'{where}: scenario {name!r}: {last}')
+
+
+def _bag_dir(run_dir: Path) -> Path | None:
+    if (run_dir / 'bag').is_dir():
+        return run_dir / 'bag'
+    if (run_dir / 'metadata.yaml').is_file() or any(run_dir.glob('*.mcap')):
+        return run_dir
+    return None
+
+
+def load_run(run_dir, scenario_name: str = 'paper', check_chunks: bool = True) -> RunData:
+    """Read one run (see the module docstring for the kinds of directory).
+
+    Raises
+    ------
+    ReportError
+        A missing or empty directory, one that holds no run, a bag that cannot be read (file and
+        problem named), arrays that do not fit the scenario, a bad ``run.json``/``metrics.json``.
+    """
+    from uh_bringup.bag_metrics import BagContentError, read_team_bag
+    from uh_controller_node.metrics import MetricsError, metrics_from_arrays
+    from uh_runtime.replay import BagReadError, open_bag
+
+    run_dir = Path(run_dir)
+    if not run_dir.exists():
+        raise ReportError(f'{run_dir}: no such run directory')
+    if not run_dir.is_dir():
+        raise ReportError(f'{run_dir}: not a directory (give the run directory, e.g. runs/proposed)')
+    if not any(run_dir.iterdir()):
+        raise ReportError(f'{run_dir}: empty directory, not a run (expected bag/ of run_formation.sh '
+                          'or timeseries.npz of uh-simulate)')
+    run_json = _read_json(run_dir / 'run.json') if (run_dir / 'run.json').is_file() else {}
+    metrics = _read_json(run_dir / 'metrics.json') if (run_dir / 'metrics.json').is_file() else None
+    scenario = _load_scenario(run_json.get('scenario', scenario_name), run_dir, str(run_dir))
+    case = str(run_json.get('case') or (metrics or {}).get('case') or 'proposed')
+
+    bag = _bag_dir(run_dir)
+    npz = run_dir / 'timeseries.npz'
+    if bag is not None:
+        try:
+            open_bag(bag, check_chunks=check_chunks)
+            arrays = read_team_bag(bag, scenario)
+        except (BagReadError, BagContentError) as exc:
+            raise ReportError(str(exc)) from None
+        source = 'bag'
+    elif npz.is_file():
+        arrays = _load_timeseries(npz, scenario)
+        source = 'timeseries'
+    else:
+        contents = sorted(p.name for p in run_dir.iterdir())
+        raise ReportError(f'{run_dir}: not a run: no bag/ (run_formation.sh) and no timeseries.npz '
+                          f'(uh-simulate); it holds {contents}')
+    if not np.isfinite(arrays['states'][..., 0:3]).any():
+        raise ReportError(f'{run_dir}: the {source} holds no finite position')
+    metrics_source = 'metrics.json'
+    if metrics is None:
+        try:
+            metrics = metrics_from_arrays(arrays, scenario, case)
+        except MetricsError as exc:
+            raise ReportError(f'{run_dir}: no metrics.json and the metrics cannot be computed: {exc}') from None
+        metrics_source = 'computed'
+    return RunData(directory=run_dir, name=run_dir.name, label=CASE_LABELS.get(case, case), source=source,
+                   case=case, scenario=scenario, arrays=arrays, metrics=metrics, metrics_source=metrics_source)
+
+
+def _load_timeseries(path: Path, scenario) -> dict:
+    import zipfile
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise ReportError(f'{path}: not a readable .npz time series ({type(exc).__name__}: {exc})') from None
+    need = ('time', 'states', 'reference', 'fault_true_p', 'fault_true_w', 'fault_est_p', 'fault_est_w')
+    missing = [k for k in need if k not in arrays]
+    if missing:
+        raise ReportError(f'{path}: lacks the arrays {missing} (written by uh-simulate?)')
+    n = len(scenario.ids)
+    samples = arrays['time'].shape[0]
+    if arrays['states'].shape != (samples, n, 12):
+        raise ReportError(f'{path}: states have shape {arrays["states"].shape}; the scenario '
+                          f'{scenario.name!r} needs ({samples}, {n}, 12) (use --scenario)')
+    if 'ids' in arrays and tuple(int(i) for i in arrays['ids']) != tuple(scenario.ids):
+        raise ReportError(f'{path}: UH ids {list(arrays["ids"])} differ from those of scenario '
+                          f'{scenario.name!r} {list(scenario.ids)} (use --scenario)')
+    return arrays
+
+
+def _unique_names(runs) -> None:
+    """Make run names (directories of the per-run figures) and labels unique."""
+    seen = {}
+    for run in runs:
+        base = re.sub(r'[^A-Za-z0-9_.-]+', '_', run.name) or 'run'
+        name, k = base, 1
+        while name in seen:
+            k += 1
+            name = f'{base}_{k}'
+        seen[name] = run
+        run.name = name
+    labels = [r.label for r in runs]
+    for run in runs:
+        if labels.count(run.label) > 1:
+            run.label = f'{run.label} [{run.name}]'
+
+
+# ----------------------------------------------------------------------------------------------
+# Table
+# ----------------------------------------------------------------------------------------------
+def format_value(value) -> str:
+    """Table text of one metrics value: 4 significant digits, ``n/a`` for ``None``, ``-`` if absent."""
+    if value is None:
+        return 'n/a'
+    if isinstance(value, bool):
+        return str(value)
+    if isinstance(value, (int, float)):
+        if not math.isfinite(value):
+            return str(value)
+        return format(float(value), '.4g')
+    return str(value)
+
+
+def _lookup(metrics: dict, key: str):
+    """Value of a dotted key (``fault_nrmse.uh2.F_p``); a KeyError if absent."""
+    value = metrics
+    for part in key.split('.'):
+        if not isinstance(value, dict) or part not in value:
+            raise KeyError(key)
+        value = value[part]
+    return value
+
+
+def table_rows(runs) -> list[tuple[str, str, str, bool]]:
+    """``[(metrics.json key, what, unit, lower is better), ...]`` of the table for ``runs``.
+
+    The fixed rows of DESIGN.md 2.8 and, for every UH and vector any run scores, a fault NRMSE row
+    ``fault_nrmse.uh<i>.F_p`` / ``F_w``.
+    """
+    rows = list(_ROWS[:9])
+    faults = {}
+    for run in runs:
+        for uh, entry in (run.metrics.get('fault_nrmse') or {}).items():
+            for vec in entry:
+                faults.setdefault(uh, set()).add(vec)
+    order = lambda uh: int(re.sub(r'\D', '', uh) or 0)  # noqa: E731
+    for uh in sorted(faults, key=order):
+        for vec in sorted(faults[uh], key=lambda v: (v != 'F_p', v)):
+            loop = 'position' if vec == 'F_p' else 'attitude'
+            rows.append((f'fault_nrmse.{uh}.{vec}', f'fault NRMSE {uh.upper()} {vec} ({loop} loop)', '-', True))
+    rows += _ROWS[9:]
+    return rows
+
+
+def _cells(runs, key: str, lower_is_better: bool, bold: bool) -> list[str]:
+    values = []
+    for run in runs:
+        try:
+            values.append(_lookup(run.metrics, key))
+        except KeyError:
+            values.append(KeyError)
+    texts = ['-' if v is KeyError else format_value(v) for v in values]
+    numeric = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)
+               and math.isfinite(v)]
+    if bold and lower_is_better and len(runs) > 1 and len(numeric) > 1:
+        best = min(float(format_value(v)) for v in numeric)
+        texts = [f'**{t}**' if v is not KeyError and isinstance(v, (int, float)) and not isinstance(v, bool)
+                 and math.isfinite(v) and float(t) == best else t for t, v in zip(texts, values)]
+    return texts
+
+
+def _source_text(run) -> str:
+    kind = 'distributed run (MCAP bag)' if run.source == 'bag' else 'reference simulation (uh-simulate)'
+    return kind + ('' if run.metrics_source == 'metrics.json' else ', metrics computed by uh-report')
+
+
+def markdown_table(runs) -> str:
+    """The metrics table in Markdown: one row per metric, one column per run (best value in bold)."""
+    head = ['metric', 'unit', 'metrics.json key'] + [r.label for r in runs]
+    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * 3 + '---:|' * len(runs)]
+    lines.append('| run directory | | | ' + ' | '.join(f'`{r.directory.name}`' for r in runs) + ' |')
+    lines.append('| source | | | ' + ' | '.join(_source_text(r) for r in runs) + ' |')
+    for key, what, unit, better in table_rows(runs):
+        lines.append(f'| {what} | {unit} | `{key}` | ' + ' | '.join(_cells(runs, key, better, True)) + ' |')
+    return '\n'.join(lines) + '\n'
+
+
+def csv_table(runs) -> str:
+    """The metrics table as CSV at full precision (``repr`` of each number of ``metrics.json``)."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator='\n')
+    writer.writerow(['key'] + [r.name for r in runs])
+    for key, _what, _unit, _better in table_rows(runs):
+        row = [key]
+        for run in runs:
+            try:
+                value = _lookup(run.metrics, key)
+            except KeyError:
+                row.append('')
+                continue
+            row.append('null' if value is None else repr(value) if isinstance(value, float) else str(value))
+        writer.writerow(row)
+    return out.getvalue()
+
+
+def html_table(runs) -> str:
+    head = ''.join(f'<th>{html.escape(h)}</th>' for h in ['metric', 'unit', 'metrics.json key'] + [r.label for r in runs])
+    body = ['<tr><td>run directory</td><td></td><td></td>' +
+            ''.join(f'<td><code>{html.escape(r.directory.name)}</code></td>' for r in runs) + '</tr>',
+            '<tr><td>source</td><td></td><td></td>' +
+            ''.join(f'<td>{html.escape(_source_text(r))}</td>' for r in runs) + '</tr>']
+    for key, what, unit, better in table_rows(runs):
+        cells = []
+        for text in _cells(runs, key, better, True):
+            strong = text.startswith('**')
+            text = html.escape(text.strip('*'))
+            cells.append(f'<td class="num">{"<strong>" + text + "</strong>" if strong else text}</td>')
+        body.append(f'<tr><td>{html.escape(what)}</td><td>{html.escape(unit)}</td>'
+                    f'<td><code>{html.escape(key)}</code></td>{"".join(cells)}</tr>')
+    return f'<table>\n<thead><tr>{head}</tr></thead>\n<tbody>\n' + '\n'.join(body) + '\n</tbody>\n</table>'
+
+
+# ----------------------------------------------------------------------------------------------
+# Writing
+# ----------------------------------------------------------------------------------------------
+_FIGURE_TEXT = {
+    'errors': 'Formation and containment errors (RMS over leaders / followers), runs overlaid (paper Figures 10-12)',
+    'errors_per_uh': 'Error of each UH, runs overlaid',
+    'states': 'x, y, z and yaw of every UH with the virtual leader (paper Figures 4-7)',
+    'trajectory_3d': '3-D trajectories and the three orthogonal planes (paper Figure 8)',
+    'xy_snapshots': "XY plane with snapshots of the leaders' triangle and the followers (paper Figure 9)",
+}
+
+
+def _figure_text(key: str) -> str:
+    if key.startswith('faults_uh'):
+        return f'Estimated vs true lumped faults of UH{key[9:]} (position and attitude loops)'
+    return _FIGURE_TEXT.get(key, key)
+
+
+def write_figures(runs, out: Path) -> dict:
+    """Draw every figure; returns ``{'errors': path, ..., run.name: {kind: path}}``."""
+    from uh_controller_node.metrics import faulted_uhs
+
+    from . import report_figures as F
+
+    written = {'errors': F.plot_errors(runs, out / 'errors.png'),
+               'errors_per_uh': F.plot_errors_per_uh(runs, out / 'errors_per_uh.png')}
+    for run in runs:
+        d = out / run.name
+        d.mkdir(parents=True, exist_ok=True)
+        run.figures = {'states': F.plot_states(run, d / 'states.png'),
+                       'trajectory_3d': F.plot_trajectory_3d(run, d / 'trajectory_3d.png'),
+                       'xy_snapshots': F.plot_xy_snapshots(run, d / 'xy_snapshots.png')}
+        for uh in faulted_uhs(run.scenario):
+            run.figures[f'faults_uh{uh}'] = F.plot_faults(run, uh, d / f'faults_uh{uh}.png')
+        written[run.name] = dict(run.figures)
+    return written
+
+
+def _title(runs) -> str:
+    return 'Run report: ' + ' vs '.join(r.label for r in runs)
+
+
+def _notes(runs) -> list[str]:
+    settle = sorted({r.metrics.get('settle_time_s') for r in runs if r.metrics.get('settle_time_s') is not None})
+    settle_text = ', '.join(f'{s:g}' for s in settle) or 'the settle time'
+    return [
+        'Metrics of DESIGN.md 2.8 (`uh_controller_node/metrics.py`), copied from each run\'s `metrics.json` '
+        '(4 significant digits; full precision in `metrics_table.csv`). Bold: the lowest value of a row.',
+        f'MSE and CPI cover the whole run; RMS errors and the hull distance the samples after t = {settle_text} s; '
+        'fault NRMSE = RMS |F̂ − F| / RMS |F| from the fault onset + 5 s to the end, `F_p` only for a '
+        'UH with a collective fault. `n/a`: undefined (e.g. the run ends before the settle time); '
+        '`-`: the run does not have that entry.',
+    ]
+
+
+def write_report(runs, out: Path) -> Path:
+    """Write the figures, ``report.md``, ``index.html`` and ``metrics_table.csv`` into ``out``."""
+    _unique_names(runs)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / '.write_test'
+        probe.write_text('')
+        probe.unlink()
+    except OSError as exc:
+        raise ReportError(f'--out {out}: cannot write there ({exc.strerror})') from None
+    figures = write_figures(runs, out)
+    (out / 'metrics_table.csv').write_text(csv_table(runs))
+
+    rel = lambda p: p.relative_to(out).as_posix()  # noqa: E731
+    md = [f'# {_title(runs)}', '', 'Runs:', '']
+    for run in runs:
+        md.append(f'- **{run.label}**: `{run.directory}` ({_source_text(run)}, scenario `{run.scenario.name}`, '
+                  f'{run.metrics.get("sim_time_s", float("nan")):g} s simulated)')
+    md += ['', '## Metrics', '', markdown_table(runs)]
+    md += [f'{n}\n' for n in _notes(runs)]
+    md += ['## Comparison figures', '']
+    for key in ('errors', 'errors_per_uh'):
+        md += [f'### {_figure_text(key)}', '', f'![{key}]({rel(figures[key])})', '']
+    for run in runs:
+        md += [f'## {run.label} (`{run.directory.name}`)', '']
+        for key, path in run.figures.items():
+            md += [f'### {_figure_text(key)}', '', f'![{run.name} {key}]({rel(path)})', '']
+    (out / 'report.md').write_text('\n'.join(md))
+
+    parts = [f'<h2>Metrics</h2>', html_table(runs)] + [f'<p>{html.escape(n).replace("`", "")}</p>' for n in _notes(runs)]
+    parts.append('<h2>Comparison figures</h2>')
+    for key in ('errors', 'errors_per_uh'):
+        parts.append(f'<figure><img src="{html.escape(rel(figures[key]))}" alt="{key}">'
+                     f'<figcaption>{html.escape(_figure_text(key))}</figcaption></figure>')
+    for run in runs:
+        parts.append(f'<h2>{html.escape(run.label)} <small><code>{html.escape(str(run.directory))}</code></small></h2>')
+        for key, path in run.figures.items():
+            parts.append(f'<figure><img src="{html.escape(rel(path))}" alt="{html.escape(run.name + " " + key)}">'
+                         f'<figcaption>{html.escape(_figure_text(key))}</figcaption></figure>')
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{html.escape(_title(runs))}</title>
+<style>
+body {{ font-family: sans-serif; margin: 1.5em auto; max-width: 1450px; color: #222; }}
+table {{ border-collapse: collapse; margin: 1em 0; }}
+th, td {{ border: 1px solid #bbb; padding: 0.3em 0.6em; }}
+th {{ background: #eef; }}
+td.num {{ text-align: right; font-variant-numeric: tabular-nums; }}
+figure {{ margin: 1.5em 0; }}
+img {{ max-width: 100%; border: 1px solid #ddd; }}
+figcaption {{ font-style: italic; margin-top: 0.3em; }}
+</style></head>
+<body>
+<h1>{html.escape(_title(runs))}</h1>
+<ul>{''.join(f'<li><b>{html.escape(r.label)}</b>: <code>{html.escape(str(r.directory))}</code> ({html.escape(_source_text(r))})</li>' for r in runs)}</ul>
+{chr(10).join(parts)}
+</body></html>
+"""
+    (out / 'index.html').write_text(page)
+    return out / 'report.md'
+
+
+# ----------------------------------------------------------------------------------------------
+# Entry point
+# ----------------------------------------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog=PROG,
+        description='Figures (the paper\'s Figures 4-12) and a side-by-side metrics table of one or '
+                    'several runs of run_formation.sh (MCAP bag) or uh-simulate (timeseries.npz).',
+        epilog='Example: uh-report runs/proposed runs/case1 runs/case2 --out runs/report')
+    p.add_argument('runs', nargs='+', metavar='RUN_DIR', help='run directories (or bag directories)')
+    p.add_argument('--out', type=Path, default=None,
+                   help='output directory (default: RUN_DIR/report for one run, report/ next to the runs for several)')
+    p.add_argument('--scenario', default='paper',
+                   help='scenario of runs without run.json (uh-simulate output, bare bags); default paper')
+    p.add_argument('--labels', nargs='+', default=None, metavar='LABEL',
+                   help='legend/table names of the runs, in order (default: from the controller case)')
+    return p
+
+
+def _default_out(run_dirs) -> Path:
+    if len(run_dirs) == 1:
+        return Path(run_dirs[0]) / 'report'
+    parents = {Path(d).resolve().parent for d in run_dirs}
+    return (parents.pop() if len(parents) == 1 else Path.cwd()) / 'report'
+
+
+def _fail(message: str, status: int = 2) -> int:
+    print(f'{PROG}: error: {message}', file=sys.stderr)
+    return status
+
+
+def main(argv=None) -> int:
+    """Entry point of ``uh-report``; returns the exit status (see the module docstring)."""
+    import matplotlib
+    matplotlib.use('Agg')
+
+    args = build_parser().parse_args(argv)
+    if args.labels is not None and len(args.labels) != len(args.runs):
+        return _fail(f'--labels gives {len(args.labels)} names for {len(args.runs)} runs')
+    try:
+        runs = []
+        for run_dir in args.runs:
+            print(f'[report] reading {run_dir}', file=sys.stderr, flush=True)
+            runs.append(load_run(run_dir, args.scenario))
+        if args.labels:
+            for run, label in zip(runs, args.labels):
+                run.label = label
+        ids = {tuple(r.scenario.ids) for r in runs}
+        if len(ids) > 1:
+            return _fail('the runs have different teams (UH ids ' + ', '.join(map(str, sorted(ids))) +
+                         '); compare runs of one scenario')
+        out = args.out or _default_out(args.runs)
+        report = write_report(runs, out)
+    except ReportError as exc:
+        return _fail(str(exc))
+    print(f'[report] wrote {report}, {out / "index.html"} and the figures in {out}', file=sys.stderr)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
