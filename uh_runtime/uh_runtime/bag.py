@@ -12,22 +12,34 @@ A bag is a directory holding ``<name>_0.mcap`` and ``metadata.yaml``, laid out e
 - a ``rosbag2`` metadata record with ``serialized_metadata`` written when the bag is opened and
   again, complete, when it is closed; the same text in ``metadata.yaml`` (rosbag2 version 9).
 
-Chunks are written uncompressed (the rosbag2 default) and kept small, so a recorder killed with
-SIGKILL loses at most the chunk being filled (``CHUNK_SIZE`` bytes) and an MCAP reader still opens
-everything written before it.
+Crash safety. Chunks are written uncompressed (the rosbag2 default) and kept small, straight to the
+file with unbuffered writes (a completed chunk is in the operating system's hands as soon as it is
+written), and :meth:`BagWriter.flush` closes the chunk being filled (the recorder calls it every
+``FLUSH_PERIOD_S``). A process killed with SIGKILL therefore loses at most the chunk being filled:
+fewer than ``CHUNK_SIZE`` bytes of messages plus the message that would have completed it, and no
+more than ``FLUSH_PERIOD_S`` seconds of recording. What is on disk is readable up to its last
+complete chunk with :func:`read_messages` (the ``mcap`` stream reader, stopping cleanly at the
+damage), and :func:`recover_bag` turns it into a complete bag again (summary, ``metadata.yaml``) that
+``ros2 bag`` and rosbags open: ``python -m uh_runtime.bag recover BAG_DIR``. A bag closed normally
+(SIGINT/SIGTERM of the recorder) is complete.
 """
 from __future__ import annotations
 
 import functools
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
-__all__ = ['BagWriter', 'BagError', 'TopicInfo', 'qos_profile_yaml', 'message_definition', 'CHUNK_SIZE']
+__all__ = ['BagWriter', 'BagError', 'TopicInfo', 'qos_profile_yaml', 'message_definition', 'CHUNK_SIZE',
+           'FLUSH_PERIOD_S', 'ReadResult', 'read_messages', 'recover_bag', 'bag_file']
 
-#: MCAP chunk size in bytes: the most a SIGKILL of the recorder can lose (the chunk being filled).
+#: MCAP chunk size in bytes: a SIGKILL of the recorder loses at most the chunk being filled (fewer
+#: than CHUNK_SIZE bytes of messages, plus the one message that would have completed it).
 CHUNK_SIZE = 64 * 1024
+#: The recorder closes the chunk being filled at least this often (s), bounding the loss in time.
+FLUSH_PERIOD_S = 1.0
 
 _SEPARATOR = '=' * 80
 _INFINITE = {'sec': 9223372036, 'nsec': 854775807}
@@ -105,6 +117,30 @@ class TopicInfo:
     last_ns: int | None = None
 
 
+class _DirectFile:
+    """A write-only binary file without a user-space buffer: every ``write`` is handed to the
+    operating system at once (so what the MCAP writer wrote survives a SIGKILL of the process)."""
+
+    def __init__(self, path: Path):
+        self._raw = open(path, 'wb', buffering=0)
+
+    def write(self, data) -> int:
+        view = memoryview(data)
+        while view:
+            written = self._raw.write(view)
+            view = view[written:]
+        return len(data)
+
+    def tell(self) -> int:
+        return self._raw.tell()
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self._raw.close()
+
+
 @dataclass
 class BagWriter:
     """Write a rosbag2 MCAP bag into ``directory`` (created; must not exist or be empty).
@@ -115,15 +151,19 @@ class BagWriter:
 
     directory: Path
     topics: dict[str, TopicInfo] = field(default_factory=dict)
+    #: file names that may already be in ``directory`` (used by :func:`recover_bag`)
+    keep: tuple = ()
+    #: name of the MCAP file; default ``<directory name>_0.mcap`` as rosbag2 names it
+    file_name: str = ''
 
     def __post_init__(self):
         self.directory = Path(self.directory)
-        if self.directory.exists() and any(self.directory.iterdir()):
+        if self.directory.exists() and any(p.name not in self.keep for p in self.directory.iterdir()):
             raise BagError(f'bag directory {self.directory} exists and is not empty; refusing to overwrite it')
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
-            self.file_name = f'{self.directory.name}_0.mcap'
-            self._stream = open(self.directory / self.file_name, 'wb')
+            self.file_name = self.file_name or f'{self.directory.name}_0.mcap'
+            self._stream = _DirectFile(self.directory / self.file_name)
         except OSError as exc:
             raise BagError(f'cannot create bag in {self.directory}: {exc.strerror}') from exc
         self._writer = Writer(self._stream, chunk_size=CHUNK_SIZE, compression=CompressionType.NONE)
@@ -159,8 +199,10 @@ class BagWriter:
             info.last_ns = int(log_time_ns)
 
     def flush(self) -> None:
-        """Push buffered bytes to the file (completed chunks only; MCAP appends)."""
-        self._stream.flush()
+        """Close the chunk being filled and hand it to the file: everything written so far survives a
+        crash of this process (a chunk with no messages is not written)."""
+        if not self._closed:
+            self._writer.flush()
 
     def close(self) -> None:
         """Finish the MCAP file (summary, final rosbag2 metadata record) and write ``metadata.yaml``."""
@@ -202,3 +244,178 @@ class BagWriter:
         if indent:
             return 'rosbag2_bagfile_information:\n' + '\n'.join('  ' + line for line in '\n'.join(lines).splitlines())
         return '\n'.join(lines)
+
+
+# -- reading what a crashed recorder left -----------------------------------------------------------
+def bag_file(bag_dir) -> Path:
+    """The MCAP file of a bag directory written by :class:`BagWriter` (``<dir>/<dir name>_0.mcap``), or
+    the only ``*.mcap`` in it; ``bag_dir`` may also be an ``.mcap`` file."""
+    path = Path(bag_dir)
+    if path.is_file():
+        return path
+    if not path.is_dir():
+        raise BagError(f'{path}: no such bag directory or MCAP file')
+    own = path / f'{path.name}_0.mcap'
+    if own.is_file():
+        return own
+    found = sorted(path.glob('*.mcap'))
+    if len(found) != 1:
+        raise BagError(f'{path}: expected one .mcap file in the bag directory, found {len(found)}')
+    return found[0]
+
+
+@dataclass
+class ReadResult:
+    """What :func:`read_messages` found: schemas and channels by id, message count per topic, and
+    whether (and where) the file ended early or was damaged."""
+
+    path: Path
+    schemas: dict = field(default_factory=dict)
+    channels: dict = field(default_factory=dict)
+    counts: dict = field(default_factory=dict)
+    complete: bool = False
+    good_bytes: int = 0
+    file_bytes: int = 0
+    problem: str = ''
+
+    @property
+    def lost_bytes(self) -> int:
+        """Bytes after the last complete record (the chunk being written when the writer stopped)."""
+        return self.file_bytes - self.good_bytes
+
+
+def read_messages(path, on_message=None) -> ReadResult:
+    """Read an MCAP file record by record, up to its end or its last complete chunk.
+
+    Complete files are read entirely; a file cut short (a writer killed mid-chunk) or damaged after
+    some point is read up to the last chunk that is complete and passes its CRC, and the result says
+    where it stopped and why. ``on_message(channel, message)`` (mcap ``Channel`` and ``Message``
+    records) is called for every message in file order.
+
+    Raises
+    ------
+    BagError
+        The file does not exist or does not start like an MCAP file.
+    """
+    import zlib
+
+    from mcap.exceptions import McapError
+    from mcap.records import Channel, Chunk, Footer, Message, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        stream = open(path, 'rb')
+    except OSError as exc:
+        raise BagError(f'cannot open {path}: {exc.strerror}') from None
+    result = ReadResult(path, file_bytes=size)
+    with stream:
+        if stream.read(8) != b'\x89MCAP0\r\n':
+            raise BagError(f'{path} is not an MCAP file (it does not start with the MCAP magic bytes)')
+        stream.seek(0)
+        reader = StreamReader(stream, emit_chunks=True)
+        records = reader.records
+
+        def take(record):
+            if isinstance(record, Schema):
+                result.schemas[record.id] = record
+            elif isinstance(record, Channel):
+                result.channels[record.id] = record
+            elif isinstance(record, Message):
+                channel = result.channels.get(record.channel_id)
+                if channel is None:
+                    raise McapError(f'message on unknown channel {record.channel_id}')
+                result.counts[channel.topic] = result.counts.get(channel.topic, 0) + 1
+                if on_message is not None:
+                    on_message(channel, record)
+
+        try:
+            while True:
+                try:
+                    record = next(records)
+                except StopIteration:
+                    break
+                if isinstance(record, Chunk):
+                    if record.compression == '' and len(record.data) != record.uncompressed_size:
+                        raise McapError(f'chunk cut short ({len(record.data)} of {record.uncompressed_size} bytes)')
+                    if record.uncompressed_crc and record.compression == '' and \
+                            zlib.crc32(record.data) != record.uncompressed_crc:
+                        raise McapError('chunk CRC mismatch')
+                    for inner in breakup_chunk(record, validate_crc=True):
+                        take(inner)
+                else:
+                    take(record)
+                result.good_bytes = reader._stream.count
+                if isinstance(record, Footer):
+                    result.complete = True
+                    result.good_bytes = size
+        except Exception as exc:  # EndOfFile, struct.error, McapError, CRC errors: damage from here on
+            result.problem = f'{type(exc).__name__}: {exc}' if str(exc) else type(exc).__name__
+    if not result.complete and not result.problem:
+        result.problem = 'the file ends without a footer'
+    return result
+
+
+def recover_bag(bag_dir) -> ReadResult:
+    """Make the bag in ``bag_dir`` complete again after its writer was killed.
+
+    Every message up to the last complete chunk is copied, with its topic, type, QoS and times, into
+    a new ``<dir>_0.mcap`` with summary and ``metadata.yaml``; the damaged file is kept beside it as
+    ``<dir>_0.mcap.truncated``. A complete bag is left as it is. Returns what was read.
+
+    Raises
+    ------
+    BagError
+        No MCAP file in ``bag_dir``, or not an MCAP file.
+    """
+    bag_dir = Path(bag_dir)
+    source = bag_file(bag_dir)
+    probe = read_messages(source)
+    if probe.complete and (bag_dir / 'metadata.yaml').exists():
+        return probe
+    kept = source.with_name(source.name + '.truncated')
+    source.rename(kept)
+    writer = BagWriter(bag_dir, keep=(kept.name, 'metadata.yaml'), file_name=source.name)
+    (bag_dir / 'metadata.yaml').unlink(missing_ok=True)
+
+    def copy(channel, message):
+        if channel.topic not in writer.topics:
+            schema = probe.schemas.get(channel.schema_id)
+            writer.add_topic(channel.topic, schema.name if schema else '',
+                             channel.metadata.get('offered_qos_profiles', qos_profile_yaml(
+                                 'reliable', 'volatile', 'keep_last', 10)))
+        writer.write(channel.topic, message.data, message.log_time, message.publish_time)
+
+    try:
+        result = read_messages(kept, copy)
+    finally:
+        writer.close()
+    return result
+
+
+def _main(argv=None) -> int:
+    import argparse
+
+    parser = argparse.ArgumentParser(prog='python -m uh_runtime.bag',
+                                     description='Check or recover a bag a killed recorder left behind.')
+    sub = parser.add_subparsers(dest='command', required=True)
+    for name, text in (('check', 'read the bag up to its last complete chunk and report'),
+                       ('recover', 'rewrite the bag complete (summary, metadata.yaml) from what is readable')):
+        sub.add_parser(name, help=text).add_argument('bag', help='bag directory or .mcap file')
+    args = parser.parse_args(argv)
+    try:
+        result = read_messages(bag_file(args.bag)) if args.command == 'check' else recover_bag(args.bag)
+    except BagError as exc:
+        parser.exit(2, f'{parser.prog}: error: {exc}\n')
+    total = sum(result.counts.values())
+    state = 'complete' if result.complete else (f'cut short: {result.lost_bytes} bytes after the last complete '
+                                                f'chunk are unreadable ({result.problem})')
+    print(f'{result.path}: {total} messages on {len(result.counts)} topics; {state}')
+    if args.command == 'recover' and not result.complete:
+        print(f'recovered into {bag_file(args.bag)} with metadata.yaml')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(_main())

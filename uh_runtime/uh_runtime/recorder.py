@@ -11,8 +11,10 @@ the latest ``/clock``. With ``progress_topics`` set, it publishes on ``/recorder
 time up to which every one of those topics has been written; the lockstep clock waits on it, so a
 lockstep run loses nothing however slow the disk.
 
-SIGINT/SIGTERM finalise the bag (summary and ``metadata.yaml``); a SIGKILL leaves an MCAP file
-readable up to its last complete chunk (:data:`uh_runtime.bag.CHUNK_SIZE`).
+SIGINT/SIGTERM finalise the bag (summary and ``metadata.yaml``). Every ``FLUSH_PERIOD_S`` the
+chunk being filled is closed and written, so a SIGKILL leaves an MCAP file readable up to its last
+complete chunk, losing less than :data:`uh_runtime.bag.CHUNK_SIZE` bytes and at most
+:data:`uh_runtime.bag.FLUSH_PERIOD_S` of recording; :func:`uh_runtime.bag.recover_bag` completes it.
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ import struct
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_runtime.bag import BagError, BagWriter, qos_profile_yaml
+from uh_runtime.bag import FLUSH_PERIOD_S, BagError, BagWriter, qos_profile_yaml
 
 __all__ = ['RecorderNode', 'main', 'stamp_of']
 
@@ -75,6 +77,7 @@ class RecorderNode(rt.Node):
         self.subscriptions_by_topic = {}
         self.progress_pub = self.create_publisher(m.Time, '/recorder/progress', 10)
         self.create_timer(0.05, self.discover)
+        self.create_timer(FLUSH_PERIOD_S, self.bag.flush)
         self.discover()
 
     def discover(self) -> None:
