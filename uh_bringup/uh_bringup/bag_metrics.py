@@ -4,6 +4,13 @@
 ``scenario.ids`` order), the same layout as the in-process reference simulation's
 ``timeseries.npz``; :func:`write_metrics_from_bag` computes ``metrics.json`` from them with the one
 metrics module (:mod:`uh_controller_node.metrics`).
+
+A bag that cannot be read raises :class:`BagContentError` saying which file and why: no such
+directory, a file instead of a bag directory, no ``metadata.yaml``, a file that is not MCAP, an MCAP
+file cut short (a recorder killed with SIGKILL: ``python -m uh_runtime.bag recover DIR`` restores it
+up to its last complete chunk), a message that does not decode. Messages a receiver would have
+rejected (non-finite values, another UH's id on a UH's topic) are left out like the nodes leave
+them out, and counted in ``rejected``.
 """
 from __future__ import annotations
 
@@ -50,19 +57,37 @@ def read_team_bag(bag_dir, scenario) -> dict:
     ids = list(scenario.ids)
     col = {i: c for c, i in enumerate(ids)}
     store = _typestore()
+    _check_bag_dir(bag_dir)
     try:
         reader = Reader(bag_dir)
         reader.open()
     except (ReaderError, OSError) as exc:
-        raise BagContentError(f'cannot open bag {bag_dir}: {exc}') from None
+        raise BagContentError(f'cannot open bag {bag_dir}: {str(exc).rstrip(".")}{_diagnose_mcap(bag_dir)}') from None
     try:
         rows = {}
-        for conn, _, raw in reader.messages():
-            rows.setdefault(conn.topic, []).append((conn.msgtype, raw))
+        try:
+            for conn, _, raw in reader.messages():
+                rows.setdefault(conn.topic, []).append((conn.msgtype, raw))
+        except Exception as exc:  # rosbags raises several types for damaged chunks
+            raise BagContentError(f'cannot read bag {bag_dir}: {str(exc).rstrip(".")}{_diagnose_mcap(bag_dir)}') from None
         counts = {c.topic: c.msgcount for c in reader.connections}
     finally:
         reader.close()
-    steps = [store.deserialize_cdr(raw, t).step for t, raw in rows.get(topics.REFERENCE.name, [])]
+    rejected: dict = {}
+
+    def decode(topic, msgtype, raw):
+        try:
+            return store.deserialize_cdr(raw, msgtype)
+        except Exception as exc:
+            raise BagContentError(f'bag {bag_dir}: a {msgtype} message on {topic} does not decode: {exc}') from None
+
+    def valid(topic, msg, values, uh_id=None) -> bool:
+        ok = np.isfinite(np.asarray(values, dtype=float)).all() and (uh_id is None or int(msg.uh_id) == uh_id)
+        if not ok:
+            rejected[topic] = rejected.get(topic, 0) + 1
+        return bool(ok)
+
+    steps = [decode(topics.REFERENCE.name, t, raw).step for t, raw in rows.get(topics.REFERENCE.name, [])]
     if not steps:
         raise BagContentError(f'bag {bag_dir} has no {topics.REFERENCE.name} messages: not a team run')
     K = max(steps)
@@ -71,33 +96,68 @@ def read_team_bag(bag_dir, scenario) -> dict:
     out = {'time': np.arange(K + 1) * scenario.dt, 'states': nan(K + 1, n, 12), 'commands': nan(K + 1, n, 4),
            'reference': nan(K + 1, 5), 'fault_true_p': nan(K + 1, n, 3), 'fault_true_w': nan(K + 1, n, 3),
            'fault_est_p': nan(K + 1, n, 3), 'fault_est_w': nan(K + 1, n, 3), 'u_p': nan(K + 1, n, 3),
-           'saturated': np.zeros((K + 1, n), dtype=bool), 'counts': counts}
-    for msgtype, raw in rows.get(topics.REFERENCE.name, []):
-        r = store.deserialize_cdr(raw, msgtype)
-        out['reference'][r.step] = [*_vec(r.position), r.yaw, r.yaw_rate]
+           'saturated': np.zeros((K + 1, n), dtype=bool), 'counts': counts, 'rejected': rejected}
+    name = topics.REFERENCE.name
+    for msgtype, raw in rows.get(name, []):
+        r = decode(name, msgtype, raw)
+        row = [*_vec(r.position), r.yaw, r.yaw_rate]
+        if valid(name, r, row + _vec(r.velocity) + _vec(r.acceleration)):
+            out['reference'][r.step] = row
     for i in ids:
         c = col[i]
-        for msgtype, raw in rows.get(topics.uh_topic(i, topics.STATE), []):
-            s = store.deserialize_cdr(raw, msgtype)
-            if s.step <= K:
-                out['states'][s.step, c] = _vec(s.position) + _vec(s.velocity) + _vec(s.euler) + _vec(s.body_rates)
-        for msgtype, raw in rows.get(topics.uh_topic(i, topics.COMMAND), []):
-            u = store.deserialize_cdr(raw, msgtype)
-            if u.step <= K:
-                out['commands'][u.step, c] = [u.theta_col, u.theta_tr, u.delta_lat, u.delta_lon]
-        for msgtype, raw in rows.get(topics.uh_topic(i, topics.FAULT_TRUTH), []):
-            f = store.deserialize_cdr(raw, msgtype)
-            if f.step <= K:
+        name = topics.uh_topic(i, topics.STATE)
+        for msgtype, raw in rows.get(name, []):
+            s = decode(name, msgtype, raw)
+            row = _vec(s.position) + _vec(s.velocity) + _vec(s.euler) + _vec(s.body_rates)
+            if s.step <= K and valid(name, s, row, i):
+                out['states'][s.step, c] = row
+        name = topics.uh_topic(i, topics.COMMAND)
+        for msgtype, raw in rows.get(name, []):
+            u = decode(name, msgtype, raw)
+            row = [u.theta_col, u.theta_tr, u.delta_lat, u.delta_lon]
+            if u.step <= K and valid(name, u, row, i):
+                out['commands'][u.step, c] = row
+        name = topics.uh_topic(i, topics.FAULT_TRUTH)
+        for msgtype, raw in rows.get(name, []):
+            f = decode(name, msgtype, raw)
+            if f.step <= K and valid(name, f, _vec(f.lumped_fault_position) + _vec(f.lumped_fault_attitude), i):
                 out['fault_true_p'][f.step, c] = _vec(f.lumped_fault_position)
                 out['fault_true_w'][f.step, c] = _vec(f.lumped_fault_attitude)
-        for msgtype, raw in rows.get(topics.uh_topic(i, topics.STATUS), []):
-            st = store.deserialize_cdr(raw, msgtype)
-            if st.step <= K:
+        name = topics.uh_topic(i, topics.STATUS)
+        for msgtype, raw in rows.get(name, []):
+            st = decode(name, msgtype, raw)
+            if st.step <= K and st.uh_id == i:
                 out['fault_est_p'][st.step, c] = _vec(st.fault_estimate_position)
                 out['fault_est_w'][st.step, c] = _vec(st.fault_estimate_attitude)
                 out['u_p'][st.step, c] = _vec(st.u_p)
                 out['saturated'][st.step, c] = st.saturated_tilt or st.saturated_collective or st.saturated_cyclic
     return out
+
+
+def _check_bag_dir(bag_dir: Path) -> None:
+    """Raise BagContentError for the ways a path can fail to be a bag before rosbags tries it."""
+    if not bag_dir.exists():
+        raise BagContentError(f'cannot open bag {bag_dir}: no such directory')
+    if not bag_dir.is_dir():
+        raise BagContentError(f'cannot open bag {bag_dir}: it is a file; give the bag directory (the one '
+                              'holding metadata.yaml and the .mcap file)')
+    if not (bag_dir / 'metadata.yaml').is_file():
+        raise BagContentError(f'cannot open bag {bag_dir}: it has no metadata.yaml (not a rosbag2 bag, or its '
+                              f'recorder did not finish it){_diagnose_mcap(bag_dir)}')
+
+
+def _diagnose_mcap(bag_dir: Path) -> str:
+    """What is wrong with the bag's MCAP file, as a sentence to append to an error (or '')."""
+    from uh_runtime.bag import BagError, bag_file, read_messages
+    try:
+        result = read_messages(bag_file(bag_dir))
+    except BagError as exc:
+        return f'; {exc}'
+    if result.complete:
+        return ''
+    return (f'; its MCAP file {result.path.name} is cut short or damaged after {result.good_bytes} of '
+            f'{result.file_bytes} bytes ({result.problem}), as a recorder killed mid-run leaves it: '
+            f'`python -m uh_runtime.bag recover {bag_dir}` restores it up to its last complete chunk')
 
 
 def write_metrics_from_bag(bag_dir, scenario, case: str, out_path, wall_time_s: float | None = None) -> dict:

@@ -2,14 +2,20 @@
 
 Publishes one ``uh_msgs/ActuatorFault`` on ``/uh<N>/fault`` (paper eq. 6:
 u_actual = rho u + bias + amplitude sin(frequency t), from ``--onset`` on) once the UH's simulator
-is listening, and exits. Values are checked here and again by the simulator, which rejects
-invalid injections with a logged reason and keeps running.
+is listening, and exits. Values are checked here (the simulator's own fault model decides what is
+valid: rho in [0, 1], finite numbers, onset >= 0) and again by the simulator, which rejects invalid
+injections with a logged reason and keeps running. rho = 0 (a stuck actuator) is sent with a
+warning: the controller cannot compensate it.
+
+Exit status: 0 sent; 1 the team is not running in that DDS domain; 2 bad input (an option's value,
+or a UH the running team does not have).
 """
 from __future__ import annotations
 
 import argparse
 import math
 import os
+import re
 import sys
 import time
 
@@ -32,16 +38,43 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: s after the first team topic is seen before a UH without a subscriber counts as not in the team
+SETTLE_S = 1.5
+
+
+def _team_uhs(node) -> list:
+    """UH ids whose simulators listen for faults in the running team (from discovery)."""
+    ids = set()
+    for name, _types in node.get_topic_names_and_types():
+        match = re.fullmatch(r'/uh(\d+)/(fault|state)', name)
+        if match and (match.group(2) == 'state' or node.count_subscribers(name)):
+            ids.add(int(match.group(1)))
+    return sorted(ids)
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    for name in ('rho', 'bias', 'amplitude', 'frequency', 'onset'):
+    for name in ('rho', 'bias', 'amplitude', 'frequency', 'onset', 'timeout'):
         if not math.isfinite(getattr(args, name)):
-            parser.exit(2, f'{parser.prog}: error: --{name} must be a finite number\n')
+            parser.exit(2, f'{parser.prog}: error: --{name} {getattr(args, name)}: must be a finite number\n')
     if not 0.0 <= args.rho <= 1.0:
         parser.exit(2, f'{parser.prog}: error: --rho {args.rho}: allowed 0 .. 1 (1 = healthy, 0 = stuck)\n')
     if args.uh < 1:
         parser.exit(2, f'{parser.prog}: error: --uh {args.uh}: helicopter indices start at 1\n')
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        parser.exit(2, f'{parser.prog}: error: --domain-id {args.domain_id}: allowed 0..232\n')
+    if not 0 < args.timeout <= 3600:
+        parser.exit(2, f'{parser.prog}: error: --timeout {args.timeout}: allowed > 0 .. 3600 s\n')
+    from uh_sim_node.faults import ActuatorFault, FaultError
+    try:
+        fault = ActuatorFault(channel=CHANNELS[args.channel], rho=args.rho, bias_constant=args.bias,
+                              bias_amplitude=args.amplitude, bias_frequency=args.frequency, onset_time=args.onset)
+    except FaultError as exc:
+        parser.exit(2, f'{parser.prog}: error: {exc}\n')
+    if fault.is_stuck:
+        print(f'{parser.prog}: warning: --rho 0 makes the {args.channel} actuator stuck at its bias, which is '
+              'outside what the controller can compensate', file=sys.stderr)
     if args.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
     os.environ.setdefault('CYCLONEDDS_URI', __import__('uh_runtime.network', fromlist=['x']).loopback_config())
@@ -56,11 +89,20 @@ def main(argv=None) -> int:
         topic = topics.uh_topic(args.uh, topics.FAULT)
         pub = node.create_publisher(m.ActuatorFault, topic, topics.qos_profile(topics.FAULT.qos))
         deadline = time.monotonic() + args.timeout
+        domain = os.environ.get('ROS_DOMAIN_ID', '0')
+        team_seen = None
         while node.count_subscribers(topic) == 0:
-            if time.monotonic() > deadline:
-                print(f'{parser.prog}: error: nobody subscribes to {topic} in DDS domain '
-                      f'{os.environ.get("ROS_DOMAIN_ID", "0")} (is the team running, with that --domain-id?)',
-                      file=sys.stderr)
+            now = time.monotonic()
+            team = _team_uhs(node)
+            if team and team_seen is None:
+                team_seen = now
+            if team and args.uh not in team and now - team_seen > SETTLE_S:
+                print(f'{parser.prog}: error: --uh {args.uh}: the team running in DDS domain {domain} has no '
+                      f'UH {args.uh}; its UHs: {", ".join(map(str, team))}', file=sys.stderr)
+                return 2
+            if now > deadline:
+                print(f'{parser.prog}: error: nobody subscribes to {topic} in DDS domain {domain} '
+                      '(is the team running, with that --domain-id?)', file=sys.stderr)
                 return 1
             rt.spin_once(node, timeout_sec=0.05)
         msg = m.ActuatorFault()

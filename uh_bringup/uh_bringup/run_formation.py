@@ -5,6 +5,29 @@ each through its own entry point (``ros2 run`` on a ROS 2 machine), on a private
 for the run to end; stops everything (also on Ctrl-C and when a node fails: no orphans); then
 computes ``metrics.json`` from the recorded bag.
 
+Everything it is given is checked before anything starts: options (one line naming the option,
+the value and what is allowed; exit status 2), the output directory (new or empty unless
+``--force``, writable), the scenario, its gains and airframe files and the controller of every UH.
+
+When a node dies during the run it is named with how it ended (exit status or signal) and the
+tail of its log, and the run goes on only where that makes sense:
+
+- lockstep: every step needs every node, so any death ends the run (status 1);
+- realtime: the clock, the virtual leader and the recorder are essential (the run ends, status 1);
+  a simulator's death loses that helicopter, whose neighbours report it stale and fly on without it
+  (status 3 at the end: completed with failures); a controller is restarted with ``--respawn`` (up
+  to ``MAX_RESPAWNS`` times) and rejoins the running team, otherwise its helicopter flies on with the
+  last command it got (status 3); the visualisation is not needed (status 3).
+
+Every node failure is listed in ``run.json`` (``node_failures``). If the recorder did not finalise
+the bag (killed), the bag is recovered up to its last complete chunk (:func:`uh_runtime.bag.recover_bag`).
+
+``--hosts netns`` runs each UH's nodes in a network namespace of its own (:mod:`uh_bringup.netns`),
+``--loss PCT`` drops that share of the packets on every link between helicopters.
+
+Exit status: 0 success; 1 the run failed; 2 bad input (nothing was started); 3 the run completed
+but nodes failed during it; 130 interrupted (Ctrl-C, SIGTERM).
+
 Output directory::
 
     DIR/bag/            rosbag2 MCAP bag of every topic
@@ -27,10 +50,15 @@ from pathlib import Path
 from uh_runtime.network import loopback_environment
 from uh_topology import topics
 
-__all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'LAYOUTS']
+__all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
+           'EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED']
 
 CASES = ('proposed', 'case1', 'case2')
 CLOCKS = ('lockstep', 'realtime')
+HOSTS = ('local', 'netns')
+#: how often --respawn restarts one controller before giving up on it
+MAX_RESPAWNS = 3
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DEGRADED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
 class UsageError(Exception):
@@ -57,6 +85,16 @@ def build_parser() -> argparse.ArgumentParser:
                         'results are identical')
     p.add_argument('--no-metrics', action='store_true', help='do not compute metrics.json after the run')
     p.add_argument('--startup-timeout', type=float, default=60.0, help='s to wait for all nodes to come up')
+    p.add_argument('--respawn', action='store_true',
+                   help=f'realtime: restart a controller process that dies (up to {MAX_RESPAWNS} times each); '
+                        'it rejoins the running team')
+    p.add_argument('--stale-timeout', type=float, default=0.25,
+                   help='realtime: simulated s after which a neighbour\'s data is stale and left out (default 0.25)')
+    p.add_argument('--hosts', default='local', choices=HOSTS,
+                   help='local: every node on this host (default); netns: each UH\'s nodes in their own network '
+                        'namespace, linked by a bridge (needs root and iproute2)')
+    p.add_argument('--loss', type=float, default=0.0,
+                   help='with --hosts netns: percent of packets lost on every link between helicopters (nftables)')
     return p
 
 
@@ -64,26 +102,74 @@ def _check_args(args) -> None:
     if not 0.01 <= args.rate <= 1000:
         raise UsageError(f'--rate {args.rate}: allowed 0.01 .. 1000 (simulated seconds per wall second)')
     if args.duration is not None and not 0 < args.duration <= 1e6:
-        raise UsageError(f'--duration {args.duration}: must be > 0 s')
+        raise UsageError(f'--duration {args.duration}: allowed > 0 .. 1e6 s')
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise UsageError(f'--domain-id {args.domain_id}: allowed 0..232')
+    if not 0 < args.startup_timeout <= 3600:
+        raise UsageError(f'--startup-timeout {args.startup_timeout}: allowed > 0 .. 3600 s')
+    if not 0 < args.stale_timeout <= 60:
+        raise UsageError(f'--stale-timeout {args.stale_timeout}: allowed > 0 .. 60 s (simulated)')
+    if not 0 <= args.loss <= 100:
+        raise UsageError(f'--loss {args.loss}: allowed 0 .. 100 (percent)')
+    if args.loss > 0 and args.hosts != 'netns':
+        raise UsageError(f'--loss {args.loss:g} needs --hosts netns (loss is applied on the links between '
+                         'network namespaces)')
+    if args.respawn and args.clock != 'realtime':
+        raise UsageError('--respawn needs --clock realtime: a lockstep run cannot go on without the steps a '
+                         'restarted controller missed')
+    if args.respawn and args.processes != 'per-node':
+        raise UsageError(f'--respawn needs --processes per-node (with {args.processes} a controller shares '
+                         'its process with its simulator, which cannot be restarted)')
+    if args.hosts == 'netns' and args.processes == 'single':
+        raise UsageError('--hosts netns cannot run --processes single (one process cannot be in several '
+                         'network namespaces)')
+
+
+#: errors of a team's configuration (scenario, gains, airframe, faults, reference): exit status 2
+def _config_errors() -> tuple:
+    from uh_controller_node.controller import ControllerError
+    from uh_controller_node.gains import GainsError
+    from uh_sim_node.faults import FaultError
+    from uh_sim_node.helicopter import HelicopterParamsError
+    from uh_sim_node.reference import ReferenceParameterError
+    from uh_topology.errors import ScenarioError
+    return (ScenarioError, GainsError, ControllerError, HelicopterParamsError, FaultError, ReferenceParameterError)
+
+
+def validate_team(scenario, case: str) -> None:
+    """Build what every node would build (each UH's controller and plant, the reference) so a bad
+    gains or airframe file is reported before any process starts; raises the node's own error."""
+    from uh_controller_node.controller import UHController
+    from uh_controller_node.gains import ControllerGains
+    from uh_sim_node.helicopter import load_helicopter_params, plant_from_scenario
+    from uh_sim_node.reference import VirtualLeaderReference
+
+    # the gains first, named by their file (the controllers would name the scenario)
+    ControllerGains.from_mapping(scenario.gains, case, source=str(scenario.gains_path or
+                                                                  f'gains of scenario {scenario.name!r}'))
+    params = load_helicopter_params(scenario.helicopter)
+    for i in scenario.ids:
+        UHController(i, scenario, case=case, helicopter_params=params)
+        plant_from_scenario(scenario, i, params)
+    VirtualLeaderReference(scenario.reference)
 
 
 def _prepare_out(out: Path, force: bool) -> None:
-    if out.exists() and not out.is_dir():
-        raise UsageError(f'--out {out}: exists and is not a directory')
-    if out.exists() and any(out.iterdir()):
-        if not force:
-            raise UsageError(f'--out {out}: exists and is not empty (use --force to replace its content)')
-        for child in out.iterdir():
-            shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
     try:
+        if out.exists() and not out.is_dir():
+            raise UsageError(f'--out {out}: exists and is not a directory')
+        if out.exists() and any(out.iterdir()):
+            if not force:
+                raise UsageError(f'--out {out}: exists and is not empty (use --force to replace its content)')
+            for child in out.iterdir():
+                shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
         out.mkdir(parents=True, exist_ok=True)
         probe = out / '.write_test'
         probe.write_text('')
         probe.unlink()
     except OSError as exc:
-        raise UsageError(f'--out {out}: cannot write there ({exc.strerror})') from None
+        where = f' ({exc.filename})' if exc.filename and str(exc.filename) != str(out) else ''
+        raise UsageError(f'--out {out}: cannot write there: {exc.strerror}{where}') from None
 
 
 def _entry(package: str, executable: str) -> list:
@@ -105,9 +191,10 @@ LAYOUTS = ('per-node', 'per-uh', 'single')
 
 
 def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, duration: float | None,
-               bag_dir: Path, startup_timeout: float) -> list[tuple[str, str, list]]:
+               bag_dir: Path, startup_timeout: float, stale_timeout: float | None = None) -> list[tuple[str, str, list]]:
     """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last."""
     common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
+    stale = ['-p', f'stale_timeout:={float(stale_timeout)}'] if stale_timeout is not None else []
     if duration is not None:
         common += ['-p', f'duration:={float(duration)}']
     per_step = [name for name, spec in topics.team_topics(scenario.ids) if spec.per_step]
@@ -115,8 +202,8 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
                                        '-p', f'progress_topics:=[{",".join(per_step)}]'])]
     for i in scenario.ids:
         ns = ['-r', f'__ns:={topics.uh_namespace(i)}', '-p', f'uh_id:={i}']
-        specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common]))
-        specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, '-p', f'case:={case}']))
+        specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *stale]))
+        specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, *stale, '-p', f'case:={case}']))
     specs.append(('visualization', 'visualization', ['--ros-args', *common]))
     specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common]))
     specs.append(('clock', 'clock', ['--ros-args', *common, '-p', f'rate:={float(rate)}',
@@ -128,8 +215,19 @@ def process_commands(specs, layout: str, spec_dir: Path) -> list[tuple[str, list
     """``[(process name, command), ...]``: one process per node (``per-node``, each through its entry
     point), one per UH (``per-uh``: its sim and controller; the team nodes and the recorder in one
     more each) or everything in one (``single``). The process holding the clock is last."""
+    return [(name, cmd) for name, _kind, cmd in _processes(specs, layout, spec_dir)]
+
+
+def _group_kind(group: str) -> str:
+    """The node kind that decides what a composed process's death means (see the module docstring)."""
+    return 'recorder' if group == 'recorder' else ('sim' if group.startswith('uh') else 'clock')
+
+
+def _processes(specs, layout: str, spec_dir: Path) -> list[tuple[str, str, list]]:
+    """As :func:`process_commands`, with the node kind of each process (for composed ones,
+    :func:`_group_kind`)."""
     if layout == 'per-node':
-        return [(name, _entry(*ENTRY_POINTS[kind]) + args) for name, kind, args in specs]
+        return [(name, kind, _entry(*ENTRY_POINTS[kind]) + args) for name, kind, args in specs]
     groups: dict[str, list] = {}
     for name, kind, args in specs:
         if layout == 'single':
@@ -144,7 +242,7 @@ def process_commands(specs, layout: str, spec_dir: Path) -> list[tuple[str, list
     for group, nodes in sorted(groups.items(), key=lambda g: any(n['node'] == 'clock' for n in g[1])):
         path = spec_dir / f'{group}.nodes.json'
         path.write_text(json.dumps(nodes, indent=1))
-        out.append((group, [sys.executable, '-P', '-m', 'uh_bringup.composed', str(path)]))
+        out.append((group, _group_kind(group), [sys.executable, '-P', '-m', 'uh_bringup.composed', str(path)]))
     return out
 
 
@@ -153,6 +251,7 @@ class _Progress:
 
     def __init__(self, log_path: Path):
         self.log_path, self.offset, self.last = log_path, 0, ''
+        self.team_complete = False
         self.tty = sys.stderr.isatty()
 
     def update(self) -> None:
@@ -164,6 +263,8 @@ class _Progress:
         except OSError:
             return
         for line in chunk.splitlines():
+            if 'team complete' in line:
+                self.team_complete = True
             if 'step ' in line or 'team complete' in line or 'run complete' in line:
                 self.last = line.split(']: ')[-1]
                 print(('\r\033[K' if self.tty else '') + f'[run] {self.last}', end='' if self.tty else '\n',
@@ -174,14 +275,117 @@ class _Progress:
             print(file=sys.stderr)
 
 
+def _neighbours_of(scenario, uh_id: int) -> list:
+    """UHs whose controllers hear ``uh_id``."""
+    return [i for i in scenario.ids if uh_id in scenario.neighbours(i)]
+
+
+class _Run:
+    """Watches a running team and decides what a node's death means (see the module docstring)."""
+
+    def __init__(self, args, scenario, sup, progress, on_change=lambda: None):
+        self.args, self.scenario, self.sup, self.progress = args, scenario, sup, progress
+        self.on_change = on_change
+        self.failures: list = []     # every node death: dicts for run.json
+        self.fatal = None            # the NodeProcess whose death ended the run
+        self.team_started = None     # wall time of the clock's 'team complete'
+
+    def sim_time(self) -> str:
+        if self.args.clock == 'realtime' and self.team_started is not None:
+            return f'sim t ~ {(time.monotonic() - self.team_started) * self.args.rate:.1f} s'
+        return self.progress.last or 'before the team was complete'
+
+    def handle(self, node) -> None:
+        what = node.describe()
+        entry = {'node': node.name, 'kind': node.kind, 'how': what, 'returncode': node.returncode,
+                 'wall_s': round(time.monotonic() - self.started, 2), 'when': self.sim_time()}
+        action, note = self.decide(node)
+        entry['action'] = action
+        self.failures.append(entry)
+        print(f'\n[run] node {node.name} {what} ({entry["when"]}); log {node.log_path}:\n{node.log_tail(8)}',
+              file=sys.stderr)
+        print(f'[run] {note}', file=sys.stderr)
+        if action == 'stop':
+            self.fatal = node
+        elif action == 'respawn':
+            self.sup.respawn(node)
+        self.on_change()
+
+    def decide(self, node) -> tuple[str, str]:
+        kind = node.kind
+        if self.args.clock == 'lockstep':
+            return 'stop', 'lockstep: every step needs every node; stopping the run'
+        if kind in ('clock', 'virtual_leader', 'recorder'):
+            return 'stop', f'the {kind.replace("_", " ")} is essential to the run; stopping it'
+        if kind == 'visualization':
+            return 'continue', 'the visualisation is not needed by the team; the run goes on without markers'
+        uh = int(node.name[2:].split('_')[0])
+        if kind == 'sim':
+            hearers = ', '.join(f'uh{i}' for i in _neighbours_of(self.scenario, uh)) or 'no UH'
+            return 'continue', (f'UH{uh} is lost; {hearers} hear it and report it stale after '
+                                f'{self.args.stale_timeout:g} s (status.stale_neighbours), then fly on without it '
+                                'or hold position; the run goes on')
+        if kind == 'controller':
+            if self.args.respawn and node.restarts < MAX_RESPAWNS:
+                return 'respawn', (f'restarting {node.name} ({node.restarts + 1}/{MAX_RESPAWNS}); it rejoins the '
+                                   'running team at the current step')
+            why = f'it was restarted {MAX_RESPAWNS} times already' if self.args.respawn else 'no --respawn'
+            return 'continue', (f'UH{uh} flies on with its last command ({why}); the run goes on')
+        return 'stop', 'stopping the run'
+
+    def watch(self, interrupted: list) -> None:
+        clock = self.sup.nodes[-1]
+        self.started = time.monotonic()
+        while not interrupted:
+            self.progress.update()
+            if self.team_started is None and self.progress.team_complete:
+                self.team_started = time.monotonic()
+            if clock.poll() is not None:
+                break
+            for node in self.sup.exited(ignore=(clock.name,)):
+                self.handle(node)
+            if self.fatal is not None:
+                return
+            time.sleep(0.1)
+        self.progress.update()
+        if not interrupted and clock.poll() not in (None, 0):
+            self.handle(clock)
+            self.fatal = clock
+
+
+def _recover_bag_if_needed(bag_dir: Path) -> dict | None:
+    """Complete a bag the recorder did not finalise (it was killed); report what was kept."""
+    from uh_runtime.bag import BagError, recover_bag
+    if (bag_dir / 'metadata.yaml').exists() or not bag_dir.is_dir():
+        return None
+    try:
+        result = recover_bag(bag_dir)
+    except BagError as exc:
+        print(f'[run] the bag in {bag_dir} was not finalised and cannot be recovered: {exc}', file=sys.stderr)
+        return {'recovered': False, 'problem': str(exc)}
+    total = sum(result.counts.values())
+    print(f'[run] the recorder did not finalise the bag: recovered {total} messages up to the last complete '
+          f'chunk ({result.lost_bytes} bytes after it were unreadable); the damaged file is kept as '
+          f'{result.path.name}', file=sys.stderr)
+    return {'recovered': True, 'messages': total, 'lost_bytes': result.lost_bytes, 'problem': result.problem}
+
+
 def run(args) -> int:
     from uh_bringup.supervisor import Supervisor
     from uh_topology.scenario import load_scenario
 
     _check_args(args)
     scenario = load_scenario(args.scenario)
+    validate_team(scenario, args.case)
     scenario_arg = args.scenario if args.scenario == 'paper' else str(Path(args.scenario).resolve())
     out = Path(args.out or Path('runs') / datetime.datetime.now().strftime('%Y%m%d-%H%M%S')).resolve()
+    network = None
+    if args.hosts == 'netns':
+        from uh_bringup import netns
+        try:
+            netns.check_available(args.loss)
+        except netns.NetnsError as exc:
+            raise UsageError(str(exc)) from None
     _prepare_out(out, args.force)
     domain = args.domain_id
     if domain is None:
@@ -201,45 +405,69 @@ def run(args) -> int:
         interrupted.append(signum)
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     started = time.monotonic()
-    status, failure = 0, None
+    watcher = None
+    dropped = None
+    # run.json is written when the nodes have started (status "running", their pids), after every
+    # node failure and at the end
+    info = {'command': sys.argv, 'scenario': args.scenario, 'case': args.case, 'clock': args.clock,
+            'rate': args.rate, 'processes': args.processes, 'duration_s': duration, 'domain_id': domain,
+            'hosts': args.hosts, 'loss_pct': args.loss, 'respawn': args.respawn, 'exit_status': None}
+
+    def write_info():
+        info.update(pids={n.name: n.proc.pid for n in sup.nodes if n.proc},
+                    all_pids={n.name: n.pids for n in sup.nodes},
+                    respawns={n.name: n.restarts for n in sup.nodes if n.restarts},
+                    node_failures=watcher.failures if watcher else [])
+        tmp = out / 'run.json.tmp'
+        tmp.write_text(json.dumps(info, indent=2) + '\n')
+        tmp.replace(out / 'run.json')
     try:
+        if args.hosts == 'netns':
+            from uh_bringup import netns
+            swept = netns.sweep_stale()
+            if swept:
+                print(f'[run] removed {len(swept)} network namespaces left by runs that were killed', file=sys.stderr)
+            network = netns.TeamNetwork(scenario.ids, args.loss).__enter__()
+            print(f'[run] network: {network.describe()}', file=sys.stderr)
         specs = node_specs(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
-                           out / 'bag', args.startup_timeout)
-        for name, cmd in process_commands(specs, args.processes, out / 'logs'):
-            sup.start(name, cmd)
-        clock = sup.nodes[-1]
-        progress = _Progress(clock.log_path)
-        while not interrupted:
-            progress.update()
-            if clock.poll() is not None:
-                break
-            dead = sup.failed(ignore=(clock.name,))
-            if dead is not None:
-                failure = dead
-                break
-            time.sleep(0.1)
-        progress.update()
+                           out / 'bag', args.startup_timeout, args.stale_timeout)
+        for name, kind, cmd in _processes(specs, args.processes, out / 'logs'):
+            if network is not None:
+                sup.prefix[name] = network.prefix(name)
+                sup.envs[name] = network.environment(name, env)
+            sup.start(name, cmd, kind=kind)
+        progress = _Progress(sup.nodes[-1].log_path)
+        watcher = _Run(args, scenario, sup, progress, on_change=write_info)
+        write_info()
+        watcher.watch(interrupted)
         progress.close()
-        if failure is None and clock.poll() not in (None, 0):
-            failure = clock
     finally:
         codes = sup.stop_all(last=('recorder',))
+        if network is not None:
+            dropped = network.dropped()
+            network.close()
         for s, handler in previous.items():
             signal.signal(s, handler)
     wall = time.monotonic() - started
+    recovery = _recover_bag_if_needed(out / 'bag')
+    failures = watcher.failures if watcher else []
+    fatal = watcher.fatal if watcher else None
     if interrupted:
         print(f'\n[run] interrupted: every node stopped, bag finalised in {out / "bag"}', file=sys.stderr)
-        status = 130
-    elif failure is not None:
-        print(f'[run] FAILED: node {failure.name} exited with status {failure.returncode}; '
-              f'log {failure.log_path}:\n{failure.log_tail()}', file=sys.stderr)
-        status = 1
-    (out / 'run.json').write_text(json.dumps({
-        'command': sys.argv, 'scenario': args.scenario, 'case': args.case, 'clock': args.clock,
-        'rate': args.rate, 'processes': args.processes, 'duration_s': duration, 'domain_id': domain, 'wall_time_s': wall,
-        'exit_codes': codes, 'pids': {n.name: n.proc.pid for n in sup.nodes if n.proc}, 'interrupted': bool(interrupted), 'failed_node': failure.name if failure else None,
-    }, indent=2) + '\n')
-    if status == 0 and not args.no_metrics:
+        status = EXIT_INTERRUPTED
+    elif fatal is not None:
+        print(f'[run] FAILED: node {fatal.name} {fatal.describe()}; log {fatal.log_path}', file=sys.stderr)
+        status = EXIT_FAILED
+    elif failures:
+        print('[run] completed with node failures: ' + '; '.join(f'{f["node"]} {f["how"]} ({f["action"]})'
+                                                                 for f in failures), file=sys.stderr)
+        status = EXIT_DEGRADED
+    else:
+        status = EXIT_OK
+    info.update(wall_time_s=wall, exit_status=status, exit_codes=codes, interrupted=bool(interrupted),
+                failed_node=fatal.name if fatal else None, bag_recovery=recovery, dropped_packets=dropped)
+    write_info()
+    if status in (EXIT_OK, EXIT_DEGRADED) and not args.no_metrics:
         from uh_bringup.bag_metrics import write_metrics_from_bag
         metrics = write_metrics_from_bag(out / 'bag', scenario, args.case, out / 'metrics.json', wall_time_s=wall)
         print('[run] metrics: ' + ', '.join(f'{k} {v:.4g}' for k, v in metrics.items()
@@ -254,11 +482,13 @@ def main(argv=None) -> int:
     try:
         return run(args)
     except UsageError as exc:
-        parser.exit(2, f'{parser.prog}: error: {exc}\n')
-    except Exception as exc:  # scenario errors and the like: one clear line, no traceback
-        from uh_topology.errors import ScenarioError
-        if isinstance(exc, ScenarioError):
-            parser.exit(2, f'{parser.prog}: error: {exc}\n')
+        parser.exit(EXIT_USAGE, f'{parser.prog}: error: {exc}\n')
+    except _config_errors() as exc:  # scenario, gains, airframe: one clear line, no traceback
+        parser.exit(EXIT_USAGE, f'{parser.prog}: error: {exc}\n')
+    except RuntimeError as exc:
+        from uh_bringup.netns import NetnsError
+        if isinstance(exc, NetnsError):
+            parser.exit(EXIT_FAILED, f'{parser.prog}: error: cannot set up the network namespaces: {exc}\n')
         raise
 
 

@@ -1,9 +1,14 @@
-"""Process supervision for a run: start node processes, watch them, stop them all, always.
+"""Process supervision for a run: start node processes, watch them, restart or stop them, always clean up.
 
 Every node runs as its own process in its own process group, with stdout/stderr in
 ``logs/<name>.log``. :class:`Supervisor` stops every process it started when the run ends, when a
 node fails, on Ctrl-C/SIGTERM and when the supervisor itself raises: SIGINT first (nodes shut down
 cleanly, the recorder finalises its bag), SIGKILL after a grace period. No orphans.
+
+A node that exits while the run still needs it is reported once by :meth:`Supervisor.exited`
+(with how it ended: exit status or signal); the caller decides whether the run goes on, and may
+:meth:`Supervisor.respawn` it (like ``respawn=True`` of a ROS 2 launch file): the same command is
+started again and its output appended to the same log, after a marker line.
 """
 from __future__ import annotations
 
@@ -14,7 +19,19 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ['NodeProcess', 'Supervisor', 'NodeFailure']
+__all__ = ['NodeProcess', 'Supervisor', 'NodeFailure', 'describe_exit']
+
+
+def describe_exit(returncode: int | None) -> str:
+    """``'exited with status 1'``, ``'killed by SIGKILL'`` or ``'running'``."""
+    if returncode is None:
+        return 'running'
+    if returncode < 0:
+        try:
+            return f'killed by {signal.Signals(-returncode).name}'
+        except ValueError:
+            return f'killed by signal {-returncode}'
+    return f'exited with status {returncode}'
 
 
 class NodeFailure(RuntimeError):
@@ -22,17 +39,24 @@ class NodeFailure(RuntimeError):
 
     def __init__(self, node: 'NodeProcess'):
         self.node = node
-        super().__init__(f'node {node.name} exited with status {node.returncode} '
+        super().__init__(f'node {node.name} {describe_exit(node.returncode)} '
                          f'(log: {node.log_path}):\n{node.log_tail()}')
 
 
 @dataclass
 class NodeProcess:
+    """One supervised process: its name, node kind (``sim``, ``controller``, ... or the kind that
+    decides for a group of nodes), command, log, the running ``Popen`` and its exit status."""
+
     name: str
     cmd: list
     log_path: Path
+    kind: str = ''
     proc: subprocess.Popen | None = None
     returncode: int | None = None
+    restarts: int = 0
+    reported: bool = False
+    pids: list = field(default_factory=list)
 
     def log_tail(self, lines: int = 15) -> str:
         try:
@@ -46,6 +70,9 @@ class NodeProcess:
             self.returncode = self.proc.poll()
         return self.returncode
 
+    def describe(self) -> str:
+        return describe_exit(self.poll())
+
 
 @dataclass
 class Supervisor:
@@ -53,21 +80,54 @@ class Supervisor:
     env: dict
     nodes: list = field(default_factory=list)
     grace_s: float = 15.0
+    #: per-process command prefix (e.g. ``ip netns exec NS``): name -> list
+    prefix: dict = field(default_factory=dict)
+    #: per-process environment replacing ``env``: name -> dict
+    envs: dict = field(default_factory=dict)
 
-    def start(self, name: str, cmd: list) -> NodeProcess:
-        self.log_dir.mkdir(parents=True, exist_ok=True)
-        node = NodeProcess(name, [str(c) for c in cmd], self.log_dir / f'{name}.log')
-        log = open(node.log_path, 'w')
+    def _popen(self, node: NodeProcess, mode: str) -> None:
+        log = open(node.log_path, mode)
         try:
-            node.proc = subprocess.Popen(node.cmd, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                         env=self.env, start_new_session=True)
+            if mode == 'a':
+                log.write(f'---- {time.strftime("%H:%M:%S")} respawned ({node.restarts}) after the process '
+                          f'{describe_exit(node.returncode)} ----\n')
+                log.flush()
+            node.proc = subprocess.Popen([*self.prefix.get(node.name, []), *node.cmd], stdout=log,
+                                         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                         env=self.envs.get(node.name, self.env),
+                                         start_new_session=True)
         finally:
             log.close()
+        node.pids.append(node.proc.pid)
+        node.returncode = None
+        node.reported = False
+
+    def start(self, name: str, cmd: list, kind: str = '') -> NodeProcess:
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        node = NodeProcess(name, [str(c) for c in cmd], self.log_dir / f'{name}.log', kind=kind or name)
+        self._popen(node, 'w')
         self.nodes.append(node)
         return node
 
+    def respawn(self, node: NodeProcess) -> NodeProcess:
+        """Start ``node``'s command again (it must have exited); output goes on in the same log."""
+        if node.poll() is None:
+            raise RuntimeError(f'node {node.name} is still running')
+        node.restarts += 1
+        self._popen(node, 'a')
+        return node
+
+    def exited(self, ignore=()) -> list:
+        """Nodes (not in ``ignore``) that exited since the last call, each reported once."""
+        out = []
+        for node in self.nodes:
+            if node.name not in ignore and not node.reported and node.poll() is not None:
+                node.reported = True
+                out.append(node)
+        return out
+
     def failed(self, ignore=()) -> NodeProcess | None:
-        """The first node that exited with a non-zero status (or at all, unless in ``ignore``)."""
+        """The first node that exited (unless in ``ignore``)."""
         for node in self.nodes:
             if node.poll() is not None and node.name not in ignore:
                 return node
