@@ -1,0 +1,122 @@
+"""Bad messages on a running team (real processes over DDS): invalid fault injections, states and
+commands carrying NaN/inf or another UH's id. Each is rejected by its receiver with the reason in
+its log, the receiver keeps its last valid input, the plant keeps running, nothing is taken down,
+and the bag stays complete."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from uh_bringup.bag_metrics import read_team_bag
+from uh_topology.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+RUN = ROOT / 'scripts' / 'run_formation.sh'
+ROGUE = ROOT / 'tests' / 'data' / 'reliability_rogue_publisher.py'
+
+pytestmark = [pytest.mark.dds, pytest.mark.slow]
+
+DURATION = 10.0  # s simulated, realtime at rate 1: long enough for the rogue to join mid-run
+
+
+def _wait_for_log(path: Path, needle: str, proc, timeout: float) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if path.exists() and needle in path.read_text(errors='replace'):
+            return
+        if proc.poll() is not None:
+            raise AssertionError(f'run ended before {needle!r} appeared in {path}:\n{proc.stdout.read()}')
+        time.sleep(0.05)
+    raise AssertionError(f'{needle!r} did not appear in {path} within {timeout} s')
+
+
+@pytest.fixture(scope='module')
+def rogue_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp('rogue') / 'run'
+    domain = 100 + os.getpid() % 20
+    proc = subprocess.Popen([str(RUN), '--out', str(out), '--domain-id', str(domain), '--clock', 'realtime',
+                             '--duration', str(DURATION)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, start_new_session=True)
+    try:
+        _wait_for_log(out / 'logs' / 'clock.log', 'team complete', proc, timeout=120)
+        from uh_runtime.network import loopback_environment
+        rogue = subprocess.run([sys.executable, str(ROGUE)], env=loopback_environment(domain),
+                               capture_output=True, text=True, timeout=60)
+        output, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+            proc.wait(timeout=60)
+    return out, proc.returncode, output, rogue
+
+
+def _log(out: Path, node: str) -> str:
+    return (out / 'logs' / f'{node}.log').read_text(errors='replace')
+
+
+def test_rogue_messages_were_sent_while_the_team_ran(rogue_run):
+    out, code, output, rogue = rogue_run
+    assert rogue.returncode == 0 and 'sent' in rogue.stdout, rogue.stderr
+    # nothing was taken down: the run ends normally, every node with status 0
+    assert code == 0, output
+    info = json.loads((out / 'run.json').read_text())
+    assert info['node_failures'] == [] and set(info['exit_codes'].values()) == {0}, info
+
+
+@pytest.mark.parametrize('message', [
+    # each invalid injection: the reason, and that the plant goes on with its current faults
+    r'rejected fault injection: fault rho \(effectiveness\) must be in \[0, 1\], got 1\.5 on channel 0 '
+    r'\(theta_col\); the plant keeps its current faults',
+    r"rejected fault injection: fault parameter 'bias_constant' must be finite, got nan; the plant keeps",
+    r'rejected fault injection: fault channel must be an int in 0\.\.3 .*got 7; the plant keeps',
+    r'rejected fault injection: it names uh3 but arrived on /uh1/fault; the plant keeps its current faults',
+    # rho = 0 is accepted, with the warning that no controller compensates a stuck actuator
+    r'rho = 0 on channel 0: the actuator is stuck, which is outside what the controller can compensate',
+    # the infinite command: rejected, the last valid command kept
+    r'rejected command: command of uh1 at step 100 carries a non-finite value .*; keeping the last valid command',
+])
+def test_simulator_rejects_with_the_reason(rogue_run, message):
+    import re
+    out = rogue_run[0]
+    assert re.search(message, _log(out, 'uh1_sim')), _log(out, 'uh1_sim')[-3000:]
+
+
+@pytest.mark.parametrize('node, message', [
+    ('uh2_controller', r'rejected own state: state of uh2 at step 100 carries a non-finite value'),
+    ('uh3_controller', r'rejected state of uh2: state of uh2 at step 100 carries a non-finite value'),
+    ('uh4_controller', r'rejected state of uh2: state of uh2 at step 100 carries a non-finite value'),
+    ('uh3_controller', r'rejected state of uh2: state message carries uh_id 9, expected 2'),
+])
+def test_controllers_reject_with_the_reason(rogue_run, node, message):
+    import re
+    out = rogue_run[0]
+    # errors are rate-limited to one line a second per input; the count is in the shutdown summary
+    text = _log(out, node)
+    assert re.search(message, text) or 'rejected inputs: ' in text, text[-3000:]
+    assert re.search(r'rejected inputs: .*state', text), text[-2000:]
+
+
+def test_plant_kept_running_and_the_bag_is_complete(rogue_run):
+    out = rogue_run[0]
+    paper = load_scenario('paper')
+    meta = yaml.safe_load((out / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['message_count'] > 0   # finalised by the recorder on SIGINT
+    bag = read_team_bag(out / 'bag', paper)
+    # the recorder keeps what was on the wire; the reader leaves out what the receivers rejected
+    assert bag['rejected'] == {'/uh2/state': 2, '/uh1/command': 1}
+    last = int(round(DURATION / paper.dt))
+    # UH1 (whose simulator got every bad injection and the bad command) flew to the end with
+    # finite states, and its faults are the scenario's: it is healthy, so its true fault stays 0
+    states = bag['states'][:, 0]
+    recorded = ~np.isnan(states[:, 0])
+    assert recorded[last] and np.isfinite(states[recorded]).all()
+    assert np.nanmax(np.abs(bag['fault_true_p'][:, 0])) == 0.0
+    # and it kept flying near the formation: its altitude never left the 6..14 m band
+    assert 6.0 < np.nanmin(states[:, 2]) and np.nanmax(states[:, 2]) < 14.0

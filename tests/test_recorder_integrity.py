@@ -1,0 +1,193 @@
+"""Recording integrity with real processes and real signals: a recorder killed with SIGKILL leaves an
+MCAP file readable up to its last complete chunk (at most the chunk being filled is lost, see
+uh_runtime.bag.CHUNK_SIZE), which recover_bag completes; SIGINT and SIGTERM leave a complete bag;
+in lockstep the bag holds exactly what every node published; a run whose recorder is killed says
+so and recovers the bag."""
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from rosbags.rosbag2 import Reader
+
+from uh_runtime.bag import CHUNK_SIZE, bag_file, read_messages, recover_bag
+
+ROOT = Path(__file__).resolve().parents[1]
+TALKER = ROOT / 'tests' / 'data' / 'reliability_talker.py'
+RUN = ROOT / 'scripts' / 'run_formation.sh'
+
+pytestmark = [pytest.mark.dds]
+
+N = 3000  # messages: about 7 chunks of CHUNK_SIZE
+
+
+def _until(predicate, timeout: float, what: str, proc=None):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        if proc is not None and proc.poll() is not None:
+            raise AssertionError(f'{what}: process ended ({proc.returncode})')
+        time.sleep(0.05)
+    raise AssertionError(f'{what}: not within {timeout} s')
+
+
+def _recorded(bag_dir: Path) -> int:
+    """Messages of /uh1/state readable right now in the (live) bag file."""
+    try:
+        return read_messages(bag_file(bag_dir)).counts.get('/uh1/state', 0)
+    except Exception:
+        return 0
+
+
+@pytest.fixture
+def recording(tmp_path, domain_id, processes):
+    """A recorder process recording /uh1/state and a talker that has published N messages to it (all
+    acknowledged): returns (recorder process, bag directory)."""
+    bag = tmp_path / 'bag'
+    recorder = processes.start([str(Path(sys.executable).with_name('recorder_node')), '--ros-args',
+                                '-p', f'output:={bag}', '-p', 'topics:=[/uh1/state]'],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    talker = processes.start([sys.executable, str(TALKER), str(N)], stdout=subprocess.PIPE, text=True)
+    out, _ = talker.communicate(timeout=120)
+    assert talker.returncode == 0 and f'published {N}' in out
+    return recorder, bag
+
+
+def _prefix_steps(bag_dir: Path) -> list:
+    """Steps of the /uh1/state messages readable in the bag's MCAP file, in file order."""
+    from uh_runtime import messages as m
+    from uh_runtime.cdr import codec
+    decode = codec(m.UHState).deserialize
+    steps = []
+    read_messages(bag_file(bag_dir), lambda ch, msg: steps.append(int(decode(msg.data).step)))
+    return steps
+
+
+def test_sigkill_loses_at_most_the_chunk_being_filled(recording):
+    recorder, bag = recording
+    # every message is acknowledged by the recorder, i.e. in its process; kill it at once
+    os.kill(recorder.pid, signal.SIGKILL)
+    recorder.wait(timeout=10)
+    assert recorder.returncode == -signal.SIGKILL
+    assert not (bag / 'metadata.yaml').exists()     # no chance to finish: the summary is missing
+    result = read_messages(bag_file(bag))
+    assert not result.complete
+    steps = _prefix_steps(bag)
+    # what is readable is a gap-free prefix of what was published ...
+    assert steps == list(range(len(steps)))
+    # ... missing at most the chunk being filled: CHUNK_SIZE bytes of message records (31 bytes of
+    # MCAP framing - opcode, length, channel, sequence, two times - plus the CDR payload each) and
+    # the message that would have completed it
+    from uh_runtime import messages as m
+    from uh_runtime.cdr import codec
+    size = len(codec(m.UHState).serialize(_state_msg(0)))
+    print(f'SIGKILL right after the last acknowledgement: {N - len(steps)} of {N} messages lost, '
+          f'{result.lost_bytes} bytes unreadable')
+    assert N - len(steps) <= CHUNK_SIZE // (size + 31) + 1, (N, len(steps))
+    # the unreadable tail is shorter than a chunk (plus its record header)
+    assert result.lost_bytes < CHUNK_SIZE + size + 200
+
+
+def _state_msg(k):
+    import numpy as np
+    from uh_sim_node.wire import state_to_msg
+    return state_to_msg(1, k, k * 0.01, np.zeros(12))
+
+
+def test_sigkill_after_a_flush_loses_nothing_and_recovers_to_a_complete_bag(recording):
+    recorder, bag = recording
+    # the recorder closes its chunk every FLUSH_PERIOD_S: wait until the file holds all N
+    _until(lambda: _recorded(bag) == N, 30, 'all messages readable in the live bag file', recorder)
+    os.kill(recorder.pid, signal.SIGKILL)
+    recorder.wait(timeout=10)
+    assert _prefix_steps(bag) == list(range(N))
+    result = recover_bag(bag)
+    assert result.counts == {'/uh1/state': N}
+    # the recovered bag is a complete rosbag2 bag: rosbags (an independent reader) opens it
+    with Reader(bag) as reader:
+        assert {c.topic: c.msgcount for c in reader.connections} == {'/uh1/state': N}
+        assert sum(1 for _ in reader.messages()) == N
+    assert read_messages(bag_file(bag)).complete
+    assert (bag / f'{bag_file(bag).name}.truncated').exists()   # the damaged original is kept
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_sigint_and_sigterm_leave_a_complete_bag(recording, sig):
+    recorder, bag = recording
+    recorder.send_signal(sig)
+    out, _ = recorder.communicate(timeout=30)
+    assert recorder.returncode == 0, out
+    assert 'Traceback' not in out
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert meta['message_count'] == N
+    assert read_messages(bag_file(bag)).complete
+    with Reader(bag) as reader:
+        assert {c.topic: c.msgcount for c in reader.connections} == {'/uh1/state': N}
+    assert f'/uh1/state: {N}' in out   # the recorder's own account when it closed the bag
+
+
+# -- whole runs ------------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_lockstep_bag_holds_exactly_what_was_published(tmp_path):
+    """Every node logs what it published when it shuts down; the bag has exactly those counts."""
+    out = tmp_path / 'run'
+    proc = subprocess.run([str(RUN), '--out', str(out), '--duration', '2', '--domain-id',
+                           str(60 + os.getpid() % 20)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    published = {}
+    for log in (out / 'logs').glob('*.log'):
+        for line in log.read_text().splitlines():
+            if ': published: ' in line:
+                for topic, count in re.findall(r'(/[\w/]+) (\d+)', line.split(': published: ', 1)[1]):
+                    published[topic] = int(count)
+    steps = 201  # 2 s at dt = 0.01: steps 0..200
+    per_step = {t for t in published if not t.startswith('/markers')}
+    assert len(per_step) == 2 + 4 * 5            # clock, reference and 4 topics per UH
+    assert all(published[t] == steps for t in per_step), published
+    meta = yaml.safe_load((out / 'bag' / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    recorded = {e['topic_metadata']['name']: e['message_count'] for e in meta['topics_with_message_count']}
+    assert {t: recorded[t] for t in per_step} == {t: published[t] for t in per_step}
+
+
+@pytest.mark.slow
+def test_run_whose_recorder_is_killed_fails_and_recovers_the_bag(tmp_path):
+    out = tmp_path / 'run'
+    proc = subprocess.Popen([str(RUN), '--out', str(out), '--clock', 'realtime', '--rate', '2', '--duration', '30',
+                             '--domain-id', str(40 + os.getpid() % 20)], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        def pid():
+            try:
+                info = json.loads((out / 'run.json').read_text())
+            except (OSError, ValueError):
+                return None
+            log = out / 'logs' / 'clock.log'
+            return info['pids']['recorder'] if log.exists() and 'step 600/' in log.read_text() else None
+        recorder_pid = _until(pid, 120, 'the run reaching step 600', proc)
+        os.kill(recorder_pid, signal.SIGKILL)
+        output, _ = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 1, output
+    assert 'node recorder killed by SIGKILL' in output
+    assert 'the recorder is essential to the run; stopping it' in output
+    assert 'the recorder did not finalise the bag: recovered' in output
+    info = json.loads((out / 'run.json').read_text())
+    assert info['failed_node'] == 'recorder' and info['bag_recovery']['recovered'] is True
+    from uh_bringup.bag_metrics import read_team_bag
+    from uh_topology.scenario import load_scenario
+    bag = read_team_bag(out / 'bag', load_scenario('paper'))
+    # the recovered bag reaches at least step 600 (the recorder had seen it when it was killed,
+    # less what the last chunk and the last flush period held: at rate 2, 1 s is 200 steps)
+    import numpy as np
+    recorded = np.flatnonzero(~np.isnan(bag['states'][:, 0, 0]))
+    assert recorded[0] == 0 and recorded[-1] >= 600 - 200 - 50
