@@ -1203,20 +1203,55 @@ class Node:
 # ----------------------------------------------------------------------------------------------
 # Executors
 # ----------------------------------------------------------------------------------------------
+class _WaitSetCalls:
+    """``dds_waitset_attach/detach/wait`` with integer attach arguments (ctypes, loaded once).
+
+    cyclonedds' ``WaitSet.wait`` only returns how many entities triggered; calling
+    ``dds_waitset_wait`` with an array gets the attach argument of each triggered entity, so the
+    executor visits exactly the ready subscriptions (no ``is_triggered`` call per subscription).
+    """
+
+    _loaded = None
+
+    @classmethod
+    def get(cls):
+        if cls._loaded is None:
+            import ctypes as ct
+
+            from cyclonedds.internal import load_cyclonedds
+            dll = load_cyclonedds()
+            attach, detach, wait = dll.dds_waitset_attach, dll.dds_waitset_detach, dll.dds_waitset_wait
+            attach.argtypes, attach.restype = [ct.c_int32, ct.c_int32, ct.c_ssize_t], ct.c_int32
+            detach.argtypes, detach.restype = [ct.c_int32, ct.c_int32], ct.c_int32
+            wait.argtypes = [ct.c_int32, ct.POINTER(ct.c_ssize_t), ct.c_size_t, ct.c_int64]
+            wait.restype = ct.c_int32
+            cls._loaded = (attach, detach, wait, ct.c_ssize_t)
+        return cls._loaded
+
+
+#: attach argument of the context's guard condition in an executor's wait set
+_GUARD_ARG = 0
+
+
 class Executor:
     """Runs the callbacks of one or more nodes in the calling thread (``rclpy.executors.Executor``).
 
     One Cyclone WaitSet holds a read condition per subscription and the context's guard
     condition; ``spin_once`` blocks until data arrives, the guard is triggered (new entity,
     shutdown, signal) or the next wall-clock timer is due, then takes every available sample of
-    every ready subscription in one batch each and runs the callbacks, then the due timers.
+    every ready subscription (the wait set names them) in one batch each and runs the callbacks,
+    in the order of the nodes and of their subscriptions, then the due timers.
     """
 
     def __init__(self, *, context=None):
         self._context = context or _default_context
         self._nodes = []
         self._waitset = None
-        self._attached = {}
+        self._attached = {}      # id(subscription) -> (attach argument, read condition)
+        self._by_arg = {}        # attach argument -> subscription
+        self._rank = {}          # id(subscription) -> dispatch order
+        self._next_arg = _GUARD_ARG + 1
+        self._triggered = None   # ctypes array the wait fills with attach arguments
         self._dirty = True
         self._is_shutdown = False
         self._lock = threading.RLock()
@@ -1252,35 +1287,49 @@ class Executor:
         self._context.wake()
 
     def _detach(self, sub):
-        cond = self._attached.pop(id(sub), None)
-        if cond is not None and self._waitset is not None:
-            try:
-                self._waitset.detach(cond)
-            except Exception:
-                pass
+        with self._lock:
+            self._detach_key(id(sub))
 
     def _sync(self):
         from cyclonedds.core import WaitSet
+        attach, _, _, c_ssize_t = _WaitSetCalls.get()
         with self._lock:
             if self._waitset is None:
                 self._waitset = WaitSet(self._context.participant)
-                self._waitset.attach(self._context.guard)
-            wanted = {id(s): s for n in self._nodes for s in n.subscriptions}
+                ret = attach(self._waitset._ref, self._context.guard._ref, _GUARD_ARG)
+                if ret < 0:
+                    raise RuntimeError(f'cannot attach the guard condition to the wait set (DDS error {ret})')
+            wanted = [s for n in self._nodes for s in n.subscriptions]
+            keys = {id(s) for s in wanted}
             for key in list(self._attached):
-                if key not in wanted:
+                if key not in keys:
                     self._detach_key(key)
-            for key, sub in wanted.items():
-                if key not in self._attached:
-                    self._waitset.attach(sub._condition)
-                    self._attached[key] = sub._condition
+            for sub in wanted:
+                if id(sub) not in self._attached:
+                    arg = self._next_arg
+                    self._next_arg += 1
+                    ret = attach(self._waitset._ref, sub._condition._ref, arg)
+                    if ret < 0:
+                        raise RuntimeError(f'cannot attach the read condition of {sub.topic_name} to the '
+                                           f'wait set (DDS error {ret})')
+                    self._attached[id(sub)] = (arg, sub._condition)
+                    self._by_arg[arg] = sub
+            self._rank = {id(s): i for i, s in enumerate(wanted)}
+            if self._triggered is None or len(self._triggered) < len(self._attached) + 1:
+                self._triggered = (c_ssize_t * (len(self._attached) + 9))()
             self._dirty = False
 
     def _detach_key(self, key):
-        cond = self._attached.pop(key)
-        try:
-            self._waitset.detach(cond)
-        except Exception:
-            pass
+        entry = self._attached.pop(key, None)
+        if entry is None:
+            return
+        arg, cond = entry
+        self._by_arg.pop(arg, None)
+        if self._waitset is not None:
+            try:
+                _WaitSetCalls.get()[1](self._waitset._ref, cond._ref)
+            except Exception:
+                pass
 
     def _next_timer_ns(self):
         """Nanoseconds until the next wall-clock timer is due (None: no such timer)."""
@@ -1304,24 +1353,41 @@ class Executor:
             due = self._next_timer_ns()
             if due is not None:
                 timeout = max(0, min(timeout, due))
-            self._waitset.wait(timeout)
-            self._context._guard.take()
+            triggered = self._triggered
+            n = _WaitSetCalls.get()[2](self._waitset._ref, triggered, len(triggered), timeout)
+            if n < 0:
+                raise RuntimeError(f'waiting in the wait set failed (DDS error {n})')
+            ready = triggered[:min(n, len(triggered))]
+            if _GUARD_ARG in ready:
+                self._context._guard.take()
         except Exception:
             if not self._context.ok():  # shut down (e.g. SIGTERM) while getting ready to wait
                 raise ExternalShutdownException() from None
             raise
         if not self._context.ok():
             raise ExternalShutdownException()
-        self._dispatch()
+        self._dispatch(ready)
 
-    def _dispatch(self):
-        for node in list(self._nodes):
-            for sub in list(node.subscriptions):
-                if not sub._condition.is_triggered():
-                    continue
-                callback = sub.callback
-                for msg in sub._take_messages():
-                    callback(msg)
+    def _dispatch(self, ready=None):
+        """Run the callbacks of the subscriptions whose attach arguments are in ``ready`` (all
+        triggered ones if None), in node/subscription order, then the due timers."""
+        by_arg = self._by_arg
+        if ready is None:
+            subs = [s for n in list(self._nodes) for s in list(n.subscriptions)
+                    if id(s) in self._attached and s._condition.is_triggered()]
+        else:
+            subs = [by_arg[a] for a in ready if a in by_arg]
+            if len(subs) > 1:
+                rank = self._rank
+                subs.sort(key=lambda s: rank.get(id(s), 0))
+        attached = self._attached
+        for sub in subs:
+            # destroyed, or its node removed, by an earlier callback of this round
+            if id(sub) not in attached or (self._dirty and sub._node not in self._nodes):
+                continue
+            callback = sub.callback
+            for msg in sub._take_messages():
+                callback(msg)
         for node in list(self._nodes):
             for timer in list(node.timers):
                 timer._fire_if_due()
@@ -1351,6 +1417,7 @@ class Executor:
                 self.remove_node(node)
             self._waitset = None
             self._attached.clear()
+            self._by_arg.clear()
         return True
 
 

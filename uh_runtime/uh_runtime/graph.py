@@ -118,6 +118,7 @@ class Graph:
         self.readers = {}
         self.infos = {}          # participant gid (bytes) -> ParticipantEntitiesInfo
         self.version = 0
+        self._topics_cache = None
         from .dds_backend import wake_on_signals
         wake_on_signals(self)
 
@@ -140,26 +141,36 @@ class Graph:
         return sample.sample_info.valid_data and sample.sample_info.instance_state == InstanceState.Alive
 
     def update(self) -> bool:
-        """Take everything discovery has delivered; True if anything changed."""
+        """Take everything discovery has delivered; True if anything changed.
+
+        Only readers whose read condition is triggered are taken from (a take allocates room for
+        1000 samples, and nodes such as the recorder ask many times a second).
+        """
         changed = False
-        for sample in self._participants_reader.take(N=1000):
-            changed = True
-            if self._alive(sample):
-                self.participants[sample.key] = sample.qos
-            else:
-                self.participants.pop(sample.key, None)
-                self.infos.pop(sample.key.bytes, None)
-        for reader, table in ((self._pub_reader, self.writers), (self._sub_reader, self.readers)):
+        cond_part, cond_pub, cond_sub, cond_info = self._conditions
+        if cond_part.is_triggered():
+            for sample in self._participants_reader.take(N=1000):
+                changed = True
+                if self._alive(sample):
+                    self.participants[sample.key] = sample.qos
+                else:
+                    self.participants.pop(sample.key, None)
+                    self.infos.pop(sample.key.bytes, None)
+        for cond, reader, table in ((cond_pub, self._pub_reader, self.writers),
+                                    (cond_sub, self._sub_reader, self.readers)):
+            if not cond.is_triggered():
+                continue
             for sample in reader.take(N=1000):
                 changed = True
                 if self._alive(sample):
                     table[sample.key] = sample
                 else:
                     table.pop(sample.key, None)
-        for msg in self._info_reader.take(N=1000):
-            if getattr(msg.sample_info, 'valid_data', True) and hasattr(msg, 'gid'):
-                changed = True
-                self.infos[bytes(msg.gid.data)] = msg
+        if cond_info.is_triggered():
+            for msg in self._info_reader.take(N=1000):
+                if getattr(msg.sample_info, 'valid_data', True) and hasattr(msg, 'gid'):
+                    changed = True
+                    self.infos[bytes(msg.gid.data)] = msg
         if changed:
             self.version += 1
         return changed
@@ -258,13 +269,21 @@ class Graph:
                 yield key, sample
 
     def topic_names_and_types(self):
-        """Sorted [(ros topic name, [ros type names])] of every ROS topic with a reader or writer."""
+        """Sorted [(ros topic name, [ros type names])] of every ROS topic with a reader or writer.
+
+        Cached until discovery changes (:attr:`version`): a recorder asks for it many times a second.
+        """
+        cached = self._topics_cache
+        if cached is not None and cached[0] == self.version:
+            return [(name, list(types)) for name, types in cached[1]]
         topics = {}
         for writers in (True, False):
             for _, sample in self._ros_endpoints(writers):
                 topics.setdefault(sample.topic_name[2:], set()).add(
                     _messages.ros_type_from_dds(sample.type_name))
-        return [(name, sorted(types)) for name, types in sorted(topics.items())]
+        result = [(name, sorted(types)) for name, types in sorted(topics.items())]
+        self._topics_cache = (self.version, result)
+        return [(name, list(types)) for name, types in result]
 
     def count(self, topic: str, writers: bool) -> int:
         """Number of writers (or readers) of ROS topic ``topic``."""
