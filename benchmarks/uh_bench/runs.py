@@ -106,7 +106,8 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
     dict
         ``status`` (exit status), ``rtf``, ``steps``, ``loop_wall_s`` (the clock's stepping loop),
         ``wall_s`` (whole run with start-up), ``cpu_s`` / ``cpu_user_s`` / ``cpu_system_s`` (sum
-        over the node processes), ``tree_cpu_s`` (supervisor and everything it waited for),
+        over the node processes), ``cpu_startup_s`` (their part before spinning) and ``cpu_run_s``
+        (the rest: discovery, the run, shutdown), ``tree_cpu_s`` (supervisor and everything it waited for),
         ``processes`` (per process: nodes, cpu_s, peak_rss_kb), ``memory`` (peak resident set
         summary, kB), ``late_commands_logged`` (the sims' late-command counters, realtime),
         ``out`` (output directory).
@@ -166,7 +167,8 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
         complete = parse_run_complete(text) or complete
     late = [int(n) for text in texts for n in _LATE.findall(text)]
     processes = [{'nodes': r['nodes'], 'cpu_s': r['cpu_s'], 'user_s': r['user_s'],
-                  'system_s': r['system_s'], 'peak_rss_kb': r['peak_rss_kb']}
+                  'system_s': r['system_s'], 'startup_cpu_s': r.get('cpu_startup_s') or 0.0,
+                  'peak_rss_kb': r['peak_rss_kb']}
                  for r in _read_stats(stats_dir)]
     result = {
         'scenario': str(scenario), 'layout': layout, 'clock': clock, 'rate': rate,
@@ -178,6 +180,8 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
         'cpu_s': sum(p['cpu_s'] for p in processes),
         'cpu_user_s': sum(p['user_s'] for p in processes),
         'cpu_system_s': sum(p['system_s'] for p in processes),
+        'cpu_startup_s': sum(p['startup_cpu_s'] for p in processes),
+        'cpu_run_s': sum(p['cpu_s'] - p['startup_cpu_s'] for p in processes),
         'tree_cpu_s': usage.ru_utime + usage.ru_stime,
         'n_processes': len(processes),
         'processes': processes,

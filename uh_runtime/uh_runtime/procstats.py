@@ -5,7 +5,9 @@ Both are off unless asked for, and cost nothing then:
 ``UH_PROC_STATS_DIR=DIR``
     When the process ends, write ``DIR/<pid>.json``: the nodes it ran (fully qualified names),
     its command line, CPU seconds in user and kernel mode (``getrusage(RUSAGE_SELF)``, all
-    threads, so Cyclone DDS's receive threads are included), voluntary and involuntary context
+    threads, so Cyclone DDS's receive threads are included), the part of them spent before the
+    executor started spinning (``cpu_startup_s``: imports, parameters, scenario, DDS entities),
+    voluntary and involuntary context
     switches, the peak resident set (``VmHWM`` of ``/proc/self/status``, kB, with ``ru_maxrss``
     as fallback) and the wall time since :func:`install_from_env`. The benchmark harness
     (``benchmarks/``) sums these over the node processes of a run.
@@ -26,14 +28,15 @@ import resource
 import sys
 import time
 
-__all__ = ['install_from_env', 'set_nodes', 'snapshot', 'peak_rss_kb', 'STATS_ENV', 'PROFILE_ENV']
+__all__ = ['install_from_env', 'set_nodes', 'mark_spinning', 'snapshot', 'peak_rss_kb', 'STATS_ENV',
+           'PROFILE_ENV']
 
 #: Environment variable naming the directory for the per-process resource records.
 STATS_ENV = 'UH_PROC_STATS_DIR'
 #: Environment variable naming the directory for per-process cProfile dumps.
 PROFILE_ENV = 'UH_PROFILE_DIR'
 
-_state = {'installed': False, 'nodes': [], 'start': None, 'profiler': None}
+_state = {'installed': False, 'nodes': [], 'start': None, 'profiler': None, 'spin_cpu': None}
 
 
 def peak_rss_kb() -> int:
@@ -52,6 +55,7 @@ def snapshot() -> dict:
     """Resource use of this process so far (see the module docstring for the fields)."""
     ru = resource.getrusage(resource.RUSAGE_SELF)
     start = _state['start']
+    spin = _state['spin_cpu']
     return {
         'pid': os.getpid(),
         'nodes': list(_state['nodes']),
@@ -59,6 +63,7 @@ def snapshot() -> dict:
         'user_s': ru.ru_utime,
         'system_s': ru.ru_stime,
         'cpu_s': ru.ru_utime + ru.ru_stime,
+        'cpu_startup_s': spin,
         'voluntary_switches': ru.ru_nvcsw,
         'involuntary_switches': ru.ru_nivcsw,
         'peak_rss_kb': peak_rss_kb(),
@@ -78,6 +83,14 @@ def set_nodes(nodes) -> None:
     profiler = _state['profiler']
     if profiler is not None and names:
         profiler[1] = names[0].strip('/').replace('/', '_') or 'node'
+
+
+def mark_spinning() -> None:
+    """Note the CPU seconds used so far as the start-up cost (imports, building the nodes): call it
+    once the nodes are built and the executor is about to spin."""
+    if _state['spin_cpu'] is None:
+        ru = resource.getrusage(resource.RUSAGE_SELF)
+        _state['spin_cpu'] = ru.ru_utime + ru.ru_stime
 
 
 def _write_stats(directory: str) -> None:
