@@ -325,8 +325,9 @@ def plot_faults(run, uh: int, path: Path) -> Path:
                     ax.set_title(f'{loop}: $F_{name}$ ({"scored" if scored else "not scored: no collective fault"})')
                 _mark_faults(ax, run, uh)
             axes[2, col].set_xlabel('time t (s)')
-        handles = [axes[0, 0].lines[0], axes[0, 0].lines[1], axes[0, 1].lines[0], axes[0, 1].lines[1]]
-        fig.legend(handles, [h.get_label() for h in handles], loc='outside lower center', ncol=4, frameon=False)
+        handles = axes[0, 0].lines[:2]
+        fig.legend(handles, ['true lumped fault $F$', r'estimate $\hat{F}$ of the fault observer'],
+                   loc='outside lower center', ncol=2, frameon=False)
         clipped = f' (y range without the first {skip:g} s transient)' if skip else ''
         _title(fig, run, f'Lumped faults of UH{uh}, estimated vs true{clipped}')
         return _save(fig, path)
