@@ -12,8 +12,9 @@ Both are off unless asked for, and cost nothing then:
     as fallback) and the wall time since :func:`install_from_env`. The benchmark harness
     (``benchmarks/``) sums these over the node processes of a run.
 ``UH_PROFILE_DIR=DIR``
-    Run the process under :mod:`cProfile` from :func:`install_from_env` on and dump
-    ``DIR/<first node name>-<pid>.prof`` at exit (read with ``python -m pstats``). Profiling
+    Run the process under :mod:`cProfile` from :func:`mark_spinning` on (the nodes are built, the
+    executor starts: start-up is left out) and dump
+    ``DIR/<first node name>[+<other nodes>]-<pid>.prof`` at exit (read with ``python -m pstats``). Profiling
     roughly doubles the cost of Python code, so profile one run and time another.
 
 :func:`uh_runtime.run_node` calls :func:`install_from_env` and :func:`set_nodes`, so every
@@ -82,7 +83,8 @@ def set_nodes(nodes) -> None:
     _state['nodes'] = names
     profiler = _state['profiler']
     if profiler is not None and names:
-        profiler[1] = names[0].strip('/').replace('/', '_') or 'node'
+        first = names[0].strip('/').replace('/', '_') or 'node'
+        profiler[1] = first if len(names) == 1 else f'{first}+{len(names) - 1}'
 
 
 def mark_spinning() -> None:
@@ -91,6 +93,8 @@ def mark_spinning() -> None:
     if _state['spin_cpu'] is None:
         ru = resource.getrusage(resource.RUSAGE_SELF)
         _state['spin_cpu'] = ru.ru_utime + ru.ru_stime
+        if _state['profiler'] is not None:
+            _state['profiler'][0].enable()
 
 
 def _write_stats(directory: str) -> None:
@@ -128,6 +132,5 @@ def install_from_env() -> None:
         profiler = cProfile.Profile()
         _state['profiler'] = [profiler, os.path.basename(sys.argv[0] or 'python')]
         atexit.register(_dump_profile, profile_dir)
-        profiler.enable()
     if stats_dir:
         atexit.register(_write_stats, stats_dir)
