@@ -536,13 +536,15 @@ class ReplayNode(rt.Node):
                 return True
 
     def flush(self, timeout: float = 2.0) -> None:
-        """Wait (bounded) until reliable subscribers acknowledged what was sent."""
+        """Wait until reliable subscribers acknowledged what was sent, ``timeout`` s at most in all."""
+        deadline = time.monotonic() + timeout
         for pub in self.all_publishers().values():
+            left = max(0.0, deadline - time.monotonic())
             try:
                 if rt.BACKEND == 'rclpy':
-                    pub.wait_for_all_acked(rt.Duration(seconds=timeout))
+                    pub.wait_for_all_acked(rt.Duration(seconds=left))
                 else:
-                    pub.wait_for_all_acked(timeout)
+                    pub.wait_for_all_acked(left)
             except Exception:  # a best-effort topic or a backend without acks: nothing to wait for
                 pass
 
