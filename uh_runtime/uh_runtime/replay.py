@@ -29,6 +29,7 @@ import heapq
 import io
 import math
 import os
+import signal
 import sys
 import time
 import zlib
@@ -609,6 +610,8 @@ def main(args=None) -> int:
         return _fail(f'{info.files[0]}: the bag holds no messages')
     # same network set-up as run_formation.sh: loopback unless the user chose a CYCLONEDDS_URI
     os.environ.update(loopback_environment(domain))
+    # Ctrl-C stops the replay also when a shell started it in the background (which ignores SIGINT)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
     try:
         rt.init(args=argv)
