@@ -91,7 +91,7 @@ def test_component_costs_and_reference_rtf_are_positive():
 def test_tiny_suite_records_every_section_and_prints_the_table(tmp_path, domain_id):
     cfg = {'paper_duration': 0.2, 'paper_layouts': ('single',), 'component_steps': 5,
            'scaling_sizes': (3,), 'scaling_duration': 0.2, 'scaling_layouts': ('single',),
-           'realtime_sizes': (5,), 'realtime_duration': 0.5, 'realtime_layout': 'single'}
+           'realtime_duration': 0.5, 'realtime_runs': ((5, 'single'),)}
     results = suite.run_suite(cfg, tmp_path)
     paper = results['paper']['lockstep']['single']
     assert paper['status'] == 0, paper.get('error')
