@@ -89,7 +89,7 @@ def test_component_costs_and_reference_rtf_are_positive():
 @pytest.mark.dds
 @pytest.mark.slow
 def test_tiny_suite_records_every_section_and_prints_the_table(tmp_path, domain_id):
-    cfg = {'paper_duration': 0.2, 'paper_layouts': ('single',), 'component_steps': 5,
+    cfg = {'transport_quick': True, 'paper_duration': 0.2, 'paper_layouts': ('single',), 'component_steps': 5,
            'scaling_sizes': (3,), 'scaling_duration': 0.2, 'scaling_layouts': ('single',),
            'realtime_duration': 0.5, 'realtime_runs': ((5, 'single'),)}
     results = suite.run_suite(cfg, tmp_path)
@@ -109,7 +109,9 @@ def test_tiny_suite_records_every_section_and_prints_the_table(tmp_path, domain_
     assert set(rt_run['controllers']) == {'1', '2', '3', '4', '5'}
     assert all(c['samples'] > 0 for c in rt_run['controllers'].values())
     text = suite.markdown(results)
-    for heading in ('### Paper scenario', '### Per-step cost in process', '### Scaling, lockstep',
+    assert results['transport']['inprocess']['received'] > 0
+    assert results['transport']['dds']['echo_cpu_us_per_message'] >= 0
+    for heading in ('### Cost of one message', '### Paper scenario', '### Per-step cost in process', '### Scaling, lockstep',
                     '### Real time, rate 1', '### Goals'):
         assert heading in text
     json.dumps(results, default=str)  # the results file is plain JSON

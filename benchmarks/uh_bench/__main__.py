@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .suite import MODES, markdown, run_suite
 
-SECTIONS = ('paper', 'components', 'scaling', 'realtime')
+SECTIONS = ('transport', 'paper', 'components', 'scaling', 'realtime')
 
 
 def main(argv=None) -> int:

@@ -2,6 +2,9 @@
 
 Sections (every figure is measured in the same invocation as the baseline it is compared with):
 
+``transport``
+    What one message costs (:mod:`uh_bench.transport`): loopback UDP, a node of this stack in
+    another process, publisher and subscription in one process.
 ``paper``
     The paper scenario in lockstep for each process layout (``per-node``: one process per node;
     ``per-uh``; ``single``), and the in-process reference simulation of the same scenario and
@@ -35,17 +38,17 @@ import sys
 import time
 from pathlib import Path
 
-from . import inprocess, runs
+from . import inprocess, runs, transport
 
 __all__ = ['MODES', 'GOALS', 'run_suite', 'markdown', 'machine_info', 'evaluate_goals']
 
 #: Section parameters of the quick (< 5 minutes) and the full suite.
 MODES = {
-    'quick': {'paper_duration': 20.0, 'paper_layouts': ('per-node', 'single'),
+    'quick': {'transport_quick': True, 'paper_duration': 20.0, 'paper_layouts': ('per-node', 'single'),
               'component_steps': 500, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 3.0,
               'scaling_layouts': ('per-node',), 'realtime_duration': 8.0,
               'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'))},
-    'full': {'paper_duration': 60.0, 'paper_layouts': ('per-node', 'per-uh', 'single'),
+    'full': {'transport_quick': False, 'paper_duration': 60.0, 'paper_layouts': ('per-node', 'per-uh', 'single'),
              'component_steps': 3000, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 20.0,
              'scaling_layouts': ('per-node', 'single'), 'realtime_duration': 60.0,
              'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'), (20, 'single'))},
@@ -118,6 +121,11 @@ def _paper(cfg, workdir, results):
         section['lockstep'][layout] = run
         _log(f'  real-time factor {run["rtf"]}, CPU {run["cpu_s"]:.1f} s, status {run["status"]}')
     results['paper'] = section
+
+
+def _transport(cfg, workdir, results):
+    _log('cost of one message: UDP, DDS between processes, in one process')
+    results['transport'] = transport.measure(runs.next_domain_id(), quick=cfg.get('transport_quick', False))
 
 
 def _components(cfg, workdir, results):
@@ -277,7 +285,7 @@ def evaluate_goals(results) -> list:
     return out
 
 
-def run_suite(mode, workdir, sections=('paper', 'components', 'scaling', 'realtime')) -> dict:
+def run_suite(mode, workdir, sections=('transport', 'paper', 'components', 'scaling', 'realtime')) -> dict:
     """Run the chosen sections in ``workdir``; return the results mapping.
 
     ``mode`` is ``'quick'`` or ``'full'`` (:data:`MODES`), or a mapping with the same keys (used
@@ -290,7 +298,8 @@ def run_suite(mode, workdir, sections=('paper', 'components', 'scaling', 'realti
     started = time.monotonic()
     results = {'mode': mode, 'config': cfg, 'date': datetime.datetime.now().isoformat(timespec='seconds'),
                'machine': machine_info(), 'sections': list(sections)}
-    table = {'paper': _paper, 'components': _components, 'scaling': _scaling, 'realtime': _realtime}
+    table = {'transport': _transport, 'paper': _paper, 'components': _components, 'scaling': _scaling,
+             'realtime': _realtime}
     for name in sections:
         table[name](cfg, workdir, results)
     _memory(results)
@@ -313,6 +322,16 @@ def markdown(results) -> str:
              f'{", ".join(f"{x:.1f}" for x in m["loadavg"])} at start, '
              f'{", ".join(f"{x:.1f}" for x in m.get("loadavg_end", m["loadavg"]))} at the end. '
              f'Suite wall time {results.get("wall_s", 0):.0f} s.', '']
+    tr = results.get('transport')
+    if tr:
+        lines += ['### Cost of one message (ping-pong of a 132-byte UHState)', '',
+                  '| path | CPU us per message (receiving and answering side) | round trip us |', '|---|---|---|',
+                  f'| loopback UDP between two processes (kernel only) | {tr["udp"]["echo_cpu_us_per_message"]:.1f} | '
+                  f'{tr["udp"]["round_trip_us"]:.0f} |',
+                  f'| node runtime + Cyclone DDS, another process | {tr["dds"]["echo_cpu_us_per_message"]:.1f} | '
+                  f'{tr["dds"]["round_trip_us"]:.0f} |',
+                  f'| node runtime + Cyclone DDS, same process (publish + spin_once) | '
+                  f'{tr["inprocess"]["cpu_us_per_message"]:.1f} | — |', '']
     paper = results.get('paper')
     if paper:
         ref = paper['inprocess']
@@ -328,6 +347,22 @@ def markdown(results) -> str:
                          f'{_f(run["ratio_to_inprocess"], "{:.3f}")} | {run["cpu_s"]:.1f} '
                          f'({run["cpu_startup_s"]:.1f} + {run["cpu_run_s"]:.1f}) | '
                          f'{1000 * run["cpu_run_s"] / steps:.2f} |')
+        lines.append('')
+    per_node = (paper or {}).get('lockstep', {}).get('per-node')
+    if per_node and per_node.get('steps'):
+        kinds = {}
+        for proc in per_node['processes']:
+            if len(proc['nodes']) == 1:
+                kinds.setdefault(runs.node_kind(proc['nodes'][0]), []).append(proc)
+        lines += ['### Where the CPU goes, one process per node (paper scenario, lockstep)', '',
+                  '| node | processes | run CPU us per step (each) | start-up CPU s (each) | peak RSS MB (each) |',
+                  '|---|---|---|---|---|']
+        for kind, procs in sorted(kinds.items()):
+            n = len(procs)
+            run_us = sum(p['cpu_s'] - p['startup_cpu_s'] for p in procs) / n * 1e6 / per_node['steps']
+            start = sum(p['startup_cpu_s'] for p in procs) / n
+            rss = max(p['peak_rss_kb'] for p in procs) / 1024
+            lines.append(f'| {kind} | {n} | {run_us:.0f} | {start:.2f} | {rss:.1f} |')
         lines.append('')
     comp = results.get('components')
     if comp:
