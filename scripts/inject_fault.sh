@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Inject an actuator fault into a running team (publishes uh_msgs/ActuatorFault on /uhN/fault).
 #   scripts/inject_fault.sh --uh 4 --channel collective --rho 0.7 [--bias 0.01] [--amplitude A]
-#                           [--frequency W] [--onset T] [--domain-id N]
+#                           [--frequency W] [--onset T] [--domain-id N] [--timeout S]
+# Exit status: 0 sent, 1 no team in that DDS domain, 2 bad input (a value outside what the fault
+# model allows, or a UH the running team does not have). rho 0 (stuck) is sent with a warning.
 # On a ROS 2 machine the same can be done with:
 #   ros2 topic pub --once /uh4/fault uh_msgs/msg/ActuatorFault "{uh_id: 4, channel: 0, rho: 0.7, onset_time: 30.0}"
 set -euo pipefail

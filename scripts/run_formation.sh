@@ -2,8 +2,11 @@
 # Run a UH formation-containment team, one process per node, recorded to MCAP.
 #   scripts/run_formation.sh [--scenario FILE|paper] [--case proposed|case1|case2]
 #                            [--clock lockstep|realtime] [--rate R] [--duration S]
-#                            [--out DIR] [--force] [--domain-id N]
-# Output: DIR/bag/ (rosbag2 MCAP), DIR/metrics.json, DIR/logs/ (one log per node).
+#                            [--out DIR] [--force] [--domain-id N] [--processes per-node|per-uh|single]
+#                            [--respawn] [--stale-timeout S] [--hosts local|netns] [--loss PCT]
+# Output: DIR/bag/ (rosbag2 MCAP), DIR/metrics.json, DIR/logs/ (one log per node), DIR/run.json.
+# Exit status: 0 ok, 1 run failed, 2 bad input (nothing started), 3 completed with node failures,
+# 130 interrupted. Failures, respawns, lossy links: docs/reliability.md.
 # Sets up .venv on first use. On a ROS 2 machine with the workspace sourced, nodes start with ros2 run.
 set -euo pipefail
 if [ -n "${ROS_DISTRO:-}" ] && command -v ros2 >/dev/null && [ "${UH_BACKEND:-}" != "dds" ]; then

@@ -87,6 +87,7 @@ class ControllerNode(rt.Node):
         self.stale: tuple = ()               # realtime: inputs currently stale (keys)
         self.hold = None                     # realtime: (position, yaw) held while the graph breaks Assumption 1
         self.rejected: dict = {}             # input name -> messages rejected
+        self.lag: dict = {}                  # realtime: key -> [sum, count, max] of steps behind the own state
         self.published = {'command': 0, 'status': 0}
         qos = topics.qos_profile(topics.STEP_QOS)
         self.command_pub = self.create_publisher(m.ActuatorCommand, topics.COMMAND.name, qos)
@@ -184,6 +185,12 @@ class ControllerNode(rt.Node):
             # while) is taken in before anything is declared stale.
             return
         self.waiting = None
+        for key, s in steps.items():
+            stats = self.lag.setdefault(key, [0, 0, 0])
+            behind = max(0, k - s)
+            stats[0] += behind
+            stats[1] += 1
+            stats[2] = max(stats[2], behind)
         stale = tuple(key for key in self.input_keys if key in unheard or steps[key] < k - self.stale_steps)
         self._update_stale(stale, k)
         self.joined = True
@@ -260,6 +267,9 @@ class ControllerNode(rt.Node):
                 f"published: {topics.uh_topic(self.uh_id, topics.COMMAND)} {self.published['command']}, "
                 f"{topics.uh_topic(self.uh_id, topics.STATUS)} {self.published['status']}"
                 + (f'; rejected inputs: {rejected}' if rejected else ''))
+            if self.lag:
+                self.get_logger().info('input lag behind the own state (steps, mean/max): ' + ', '.join(
+                    f'{self._label(key)} {total / max(n, 1):.2f}/{worst}' for key, (total, n, worst) in self.lag.items()))
         return super().destroy_node()
 
 def main(args=None):
