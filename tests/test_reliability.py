@@ -161,7 +161,9 @@ def test_respawned_controller_rejoins_and_the_team_reconverges(tmp_path):
     # silent while dead: a gap after the kill (a restart takes well over 0.25 s wall = 50 steps)
     gap = np.flatnonzero(~commands[1200:joined + 10]) + 1200
     assert len(gap) >= 50 and gap[-1] <= joined + 10, (gap[:3], gap[-3:], joined)
-    assert commands[joined + 50:].mean() > 0.95         # commanding again (realtime: a few missed)
+    # commanding again: as regularly as before the kill (a loaded machine makes a realtime
+    # controller miss some steps; the share before the kill is the baseline)
+    assert commands[joined + 50:].mean() > commands[100:1200].mean() - 0.1
     # re-converged: UH2's formation error over the last 5 s is back to the paper's threshold
     # (0.10 m RMS, the bound the realtime run is held to; measured about 0.02 m)
     ref = bag['reference'][:, :3]

@@ -177,8 +177,9 @@ class ControllerNode(rt.Node):
         unheard = [key for key in self.input_keys if key not in steps]
         if unheard and now - self.first_own_wall < self.startup_grace:
             return  # waits for the first message of every input
-        if len(steps) == len(self.input_keys) and all(s >= k for s in steps.values()):
-            pass  # every input of step k is in
+        still_stale = [key for key in self.stale if key in unheard or steps[key] < k - self.stale_steps]
+        if all(key in still_stale or (key in steps and steps[key] >= k) for key in self.input_keys):
+            pass  # every input of step k is in, except those already known to be stale: no waiting for them
         elif not from_timer or now < deadline:
             # Late or stale data is judged by the timer only: it runs after every message already
             # received has been handled, so a backlog (a process that was not scheduled for a
