@@ -110,6 +110,7 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
         (the rest: discovery, the run, shutdown), ``tree_cpu_s`` (supervisor and everything it waited for),
         ``processes`` (per process: nodes, cpu_s, peak_rss_kb), ``memory`` (peak resident set
         summary, kB), ``late_commands_logged`` (the sims' late-command counters, realtime),
+        ``abnormal_exits`` (node processes that did not exit with status 0, from ``run.json``),
         ``out`` (output directory).
     """
     out = Path(out_dir)
@@ -166,6 +167,10 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
     for text in texts:
         complete = parse_run_complete(text) or complete
     late = [int(n) for text in texts for n in _LATE.findall(text)]
+    try:
+        exit_codes = json.loads((out / 'run' / 'run.json').read_text()).get('exit_codes', {})
+    except (OSError, ValueError):
+        exit_codes = {}
     processes = [{'nodes': r['nodes'], 'cpu_s': r['cpu_s'], 'user_s': r['user_s'],
                   'system_s': r['system_s'], 'startup_cpu_s': r.get('cpu_startup_s') or 0.0,
                   'peak_rss_kb': r['peak_rss_kb']}
@@ -187,6 +192,7 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
         'processes': processes,
         'memory': _memory_summary(processes),
         'late_commands_logged': max(late) if late else 0,
+        'abnormal_exits': {name: code for name, code in exit_codes.items() if code not in (0, None)},
         'out': str(out),
     }
     if complete is None or proc.returncode != 0:

@@ -411,6 +411,10 @@ def markdown(results) -> str:
                   '| node | peak RSS MB |', '|---|---|']
         lines += [f'| {k} | {v / 1024:.1f} |' for k, v in mem.items()]
         lines.append('')
+    abnormal = [(key, run['abnormal_exits']) for key, run in _all_runs(results) if run.get('abnormal_exits')]
+    if abnormal:
+        lines += ['Node processes that did not exit with status 0 (negative: killed by that signal): ' +
+                  '; '.join(f'{key}: {codes}' for key, codes in abnormal) + '.', '']
     goals = results.get('goals')
     if goals:
         lines += ['### Goals', '', '| goal | target | measured | met |', '|---|---|---|---|']

@@ -1,4 +1,5 @@
 """Entry-point helpers shared by both backends: the Jazzy ``main()`` shape and parameter checks."""
+import faulthandler
 import fnmatch
 import os
 import sys
@@ -106,6 +107,9 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
 
     from . import procstats
     procstats.install_from_env()
+    if not faulthandler.is_enabled():
+        # a crash in native code (Cyclone DDS, numpy) leaves the Python stack in the node's log
+        faulthandler.enable()
     clear = _clear_errors() + tuple(user_errors)
     prog = _prog(args)
     try:
