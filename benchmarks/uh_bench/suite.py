@@ -332,6 +332,12 @@ def markdown(results) -> str:
                   f'{tr["dds"]["round_trip_us"]:.0f} |',
                   f'| node runtime + Cyclone DDS, same process (publish + spin_once) | '
                   f'{tr["inprocess"]["cpu_us_per_message"]:.1f} | — |', '']
+        fan = tr.get('fanout_cpu_us_per_publish')
+        if fan:
+            lines += ['| subscriber processes | ' + ' | '.join(str(k) for k in fan) + ' |',
+                      '|---|' + '---|' * len(fan),
+                      '| publishing thread CPU us per publish (with a 0.5 ms sleep between publishes) | ' +
+                      ' | '.join(f'{v:.1f}' for v in fan.values()) + ' |', '']
     paper = results.get('paper')
     if paper:
         ref = paper['inprocess']

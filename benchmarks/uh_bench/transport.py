@@ -12,7 +12,12 @@ threads, user and kernel):
 - ``in-process``: publisher and subscription in one process (the composed layouts): ``publish``
   then ``spin_once`` running the callback, no kernel involved.
 
-``python -P -m uh_bench.transport --echo DOMAIN`` is the echo process of ``dds``.
+and, with :func:`fanout`, what one ``publish`` costs the publishing thread when 0, 1, 3 or 6 node
+processes subscribe (the publishes are spaced 0.5 ms apart, as in a run, so every one wakes the
+readers; the figure with no remote reader includes that sleep and is the baseline of the others).
+
+``python -P -m uh_bench.transport --echo DOMAIN`` is the echo process of ``dds``,
+``--reader DOMAIN`` a subscriber of :func:`fanout`.
 """
 from __future__ import annotations
 
@@ -23,7 +28,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ['udp_pingpong', 'dds_pingpong', 'inprocess_delivery', 'measure']
+__all__ = ['udp_pingpong', 'dds_pingpong', 'inprocess_delivery', 'fanout', 'measure']
 
 _PAYLOAD = 132
 
@@ -173,15 +178,87 @@ def inprocess_delivery(domain: int, n: int = 20000) -> dict:
             'received': len(got)}
 
 
+def _reader_main(domain: int) -> int:
+    import uh_runtime as rt
+    from uh_runtime import messages as m
+    from uh_topology import topics
+    rt.init(args=['uh_bench_reader'], domain_id=domain)
+    node = rt.Node('reader')
+    node.create_subscription(m.UHState, '/bench/fanout', lambda msg: None, topics.qos_profile(topics.STEP_QOS))
+    try:
+        rt.spin(node)
+    except (KeyboardInterrupt, rt.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rt.try_shutdown()
+    return 0
+
+
+def fanout(domain: int, counts=(0, 1, 3, 6), n: int = 2000) -> dict:
+    """``{readers: publishing thread's CPU us per publish}`` with that many subscriber processes."""
+    import signal
+
+    import uh_runtime as rt
+    from uh_runtime import messages as m
+    from uh_runtime.network import loopback_environment
+    from uh_topology import topics
+    env = loopback_environment(domain)
+    env['PYTHONPATH'] = str(Path(__file__).resolve().parents[1]) + (
+        os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH') else '')
+    os.environ.setdefault('CYCLONEDDS_URI', env['CYCLONEDDS_URI'])
+    out = {}
+    for count in counts:
+        readers = [subprocess.Popen([sys.executable, '-P', '-m', 'uh_bench.transport', '--reader', str(domain)],
+                                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                   for _ in range(count)]
+        context = rt.Context()
+        try:
+            rt.init(args=['uh_bench_fanout'], context=context, domain_id=domain)
+            node = rt.Node('writer', context=context)
+            pub = node.create_publisher(m.UHState, '/bench/fanout', topics.qos_profile(topics.STEP_QOS))
+            deadline = time.monotonic() + 60
+            while pub.get_subscription_count() < count:
+                if time.monotonic() > deadline:
+                    raise RuntimeError(f'only {pub.get_subscription_count()} of {count} readers matched in 60 s')
+                time.sleep(0.05)
+            time.sleep(0.5)
+            msg = m.UHState()
+            c0 = time.thread_time()
+            for k in range(n):
+                msg.step = k
+                pub.publish(msg)
+                time.sleep(0.0005)
+            out[count] = (time.thread_time() - c0) * 1e6 / n
+            node.destroy_node()
+        finally:
+            context.try_shutdown()
+            for proc in readers:
+                proc.send_signal(signal.SIGINT)
+            for proc in readers:
+                try:
+                    proc.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+    return out
+
+
 def measure(domain: int, quick: bool = False) -> dict:
-    """All three measurements (fewer messages when ``quick``)."""
+    """All the measurements (fewer messages, and no fan-out, when ``quick``)."""
     scale = 4 if quick else 1
-    return {'udp': udp_pingpong(20000 // scale), 'dds': dds_pingpong(domain, 8000 // scale),
-            'inprocess': inprocess_delivery(domain + 1 if domain < 232 else domain - 1, 20000 // scale)}
+    other = domain + 1 if domain < 232 else domain - 1
+    result = {'udp': udp_pingpong(20000 // scale), 'dds': dds_pingpong(domain, 8000 // scale),
+              'inprocess': inprocess_delivery(other, 20000 // scale)}
+    if not quick:
+        result['fanout_cpu_us_per_publish'] = fanout(domain)
+    return result
 
 
 if __name__ == '__main__':
     if len(sys.argv) == 3 and sys.argv[1] == '--echo':
         sys.exit(_echo_main(int(sys.argv[2])))
+    if len(sys.argv) == 3 and sys.argv[1] == '--reader':
+        sys.exit(_reader_main(int(sys.argv[2])))
     import json
     print(json.dumps(measure(int(sys.argv[1]) if len(sys.argv) > 1 else 201, quick=True), indent=1))
