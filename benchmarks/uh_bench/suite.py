@@ -386,8 +386,9 @@ def markdown(results) -> str:
         d = scaling[0]['duration_s']
         lines += [f'### Scaling, lockstep ({d:g} s simulated, generated teams)', '',
                   '| UHs | leaders:followers | layout | processes | real-time factor | CPU s of the node processes '
-                  '(start-up + run) | run CPU ms per step | per UH-step | in-process RTF | ratio |',
-                  '|---|---|---|---|---|---|---|---|---|---|']
+                  '(start-up + run) | run CPU ms per step | per UH-step | peak RSS MB (sum over processes) | '
+                  'in-process RTF | ratio |',
+                  '|---|---|---|---|---|---|---|---|---|---|---|']
         for row in scaling:
             for layout, run in row['lockstep'].items():
                 steps = run['steps'] or d / 0.01
@@ -395,7 +396,8 @@ def markdown(results) -> str:
                 lines.append(
                     f'| {row["uhs"]} | {row["leaders"]}:{row["followers"]} | {layout} | {run["n_processes"]} | '
                     f'{_f(run["rtf"])} | {run["cpu_s"]:.1f} ({run["cpu_startup_s"]:.1f} + {run["cpu_run_s"]:.1f}) | '
-                    f'{per_step:.2f} | {per_step / row["uhs"]:.3f} | {_f(row["inprocess"]["rtf"], "{:.1f}")} | '
+                    f'{per_step:.2f} | {per_step / row["uhs"]:.3f} | {run["memory"]["total_kb"] / 1024:.0f} | '
+                    f'{_f(row["inprocess"]["rtf"], "{:.1f}")} | '
                     f'{_f(run["ratio_to_inprocess"], "{:.3f}")} |')
         lines.append('')
     realtime = results.get('realtime')
