@@ -22,6 +22,7 @@ readers; the figure with no remote reader includes that sleep and is the baselin
 from __future__ import annotations
 
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -55,18 +56,23 @@ def udp_pingpong(n: int = 20000) -> dict:
         finally:
             os._exit(0)
     msg = b'x' * _PAYLOAD
-    a.sendto(msg, pb)
-    a.recvfrom(2048)
-    c0 = _proc_cpu_s(pid)
-    t0 = time.perf_counter()
-    for _ in range(n):
+    try:
         a.sendto(msg, pb)
         a.recvfrom(2048)
-    rtt = (time.perf_counter() - t0) / n
-    c1 = _proc_cpu_s(pid)
-    os.waitpid(pid, 0)
-    a.close()
-    b.close()
+        c0 = _proc_cpu_s(pid)
+        t0 = time.perf_counter()
+        for _ in range(n):
+            a.sendto(msg, pb)
+            a.recvfrom(2048)
+        rtt = (time.perf_counter() - t0) / n
+        c1 = _proc_cpu_s(pid)
+    except BaseException:
+        os.kill(pid, signal.SIGKILL)   # the echo would wait for ever
+        raise
+    finally:
+        os.waitpid(pid, 0)
+        a.close()
+        b.close()
     return {'round_trip_us': rtt * 1e6, 'echo_cpu_us_per_message': (c1 - c0) * 1e6 / n, 'messages': n}
 
 
@@ -98,11 +104,12 @@ def dds_pingpong(domain: int, n: int = 5000) -> dict:
     env = loopback_environment(domain)
     env['PYTHONPATH'] = str(Path(__file__).resolve().parents[1]) + (
         os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH') else '')
+    os.environ.setdefault('CYCLONEDDS_URI', env['CYCLONEDDS_URI'])   # this process joins on loopback too
     echo = subprocess.Popen([sys.executable, '-P', '-m', 'uh_bench.transport', '--echo', str(domain)], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    os.environ.setdefault('CYCLONEDDS_URI', env['CYCLONEDDS_URI'])   # this process joins on loopback too
-    context = rt.Context()
+    context = None
     try:
+        context = rt.Context()
         rt.init(args=['uh_bench_ping'], context=context, domain_id=domain)
         node = rt.Node('ping', context=context)
         qos = topics.qos_profile(topics.STEP_QOS)
@@ -133,7 +140,8 @@ def dds_pingpong(domain: int, n: int = 5000) -> dict:
         c1 = _proc_cpu_s(echo.pid)
         node.destroy_node()
     finally:
-        context.try_shutdown()
+        if context is not None:
+            context.try_shutdown()
         echo.terminate()
         try:
             echo.wait(timeout=10)
@@ -197,8 +205,6 @@ def _reader_main(domain: int) -> int:
 
 def fanout(domain: int, counts=(0, 1, 3, 6), n: int = 2000) -> dict:
     """``{readers: publishing thread's CPU us per publish}`` with that many subscriber processes."""
-    import signal
-
     import uh_runtime as rt
     from uh_runtime import messages as m
     from uh_runtime.network import loopback_environment
@@ -209,11 +215,14 @@ def fanout(domain: int, counts=(0, 1, 3, 6), n: int = 2000) -> dict:
     os.environ.setdefault('CYCLONEDDS_URI', env['CYCLONEDDS_URI'])
     out = {}
     for count in counts:
-        readers = [subprocess.Popen([sys.executable, '-P', '-m', 'uh_bench.transport', '--reader', str(domain)],
-                                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-                   for _ in range(count)]
-        context = rt.Context()
+        readers = []
+        context = None
         try:
+            for _ in range(count):
+                readers.append(subprocess.Popen(
+                    [sys.executable, '-P', '-m', 'uh_bench.transport', '--reader', str(domain)],
+                    env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+            context = rt.Context()
             rt.init(args=['uh_bench_fanout'], context=context, domain_id=domain)
             node = rt.Node('writer', context=context)
             pub = node.create_publisher(m.UHState, '/bench/fanout', topics.qos_profile(topics.STEP_QOS))
@@ -232,7 +241,8 @@ def fanout(domain: int, counts=(0, 1, 3, 6), n: int = 2000) -> dict:
             out[count] = (time.thread_time() - c0) * 1e6 / n
             node.destroy_node()
         finally:
-            context.try_shutdown()
+            if context is not None:
+                context.try_shutdown()
             for proc in readers:
                 proc.send_signal(signal.SIGINT)
             for proc in readers:
