@@ -23,7 +23,7 @@ ROGUE = ROOT / 'tests' / 'data' / 'reliability_rogue_publisher.py'
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
-DURATION = 10.0  # s simulated, realtime at rate 1: long enough for the rogue to join mid-run
+DURATION = 14.0  # s simulated, realtime at rate 1: long enough for the rogue and inject_fault to join
 
 
 def _wait_for_log(path: Path, needle: str, proc, timeout: float) -> None:
@@ -49,12 +49,15 @@ def rogue_run(tmp_path_factory):
         from uh_runtime.network import loopback_environment
         rogue = subprocess.run([sys.executable, str(ROGUE)], env=loopback_environment(domain),
                                capture_output=True, text=True, timeout=60)
+        unknown = subprocess.run([str(ROOT / 'scripts' / 'inject_fault.sh'), '--domain-id', str(domain), '--uh', '9',
+                                  '--channel', 'collective', '--rho', '0.5'], capture_output=True, text=True,
+                                 timeout=60)
         output, _ = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGINT)
             proc.wait(timeout=60)
-    return out, proc.returncode, output, rogue
+    return out, proc.returncode, output, rogue, unknown
 
 
 def _log(out: Path, node: str) -> str:
@@ -62,7 +65,7 @@ def _log(out: Path, node: str) -> str:
 
 
 def test_rogue_messages_were_sent_while_the_team_ran(rogue_run):
-    out, code, output, rogue = rogue_run
+    out, code, output, rogue, _ = rogue_run
     assert rogue.returncode == 0 and 'sent' in rogue.stdout, rogue.stderr
     # nothing was taken down: the run ends normally, every node with status 0
     assert code == 0, output
@@ -101,6 +104,13 @@ def test_controllers_reject_with_the_reason(rogue_run, node, message):
     text = _log(out, node)
     assert re.search(message, text) or 'rejected inputs: ' in text, text[-3000:]
     assert re.search(r'rejected inputs: .*state', text), text[-2000:]
+
+
+def test_inject_fault_names_a_uh_the_running_team_lacks(rogue_run):
+    unknown = rogue_run[4]
+    assert unknown.returncode == 2
+    assert 'inject_fault.sh: error: --uh 9: the team running in DDS domain' in unknown.stderr
+    assert 'has no UH 9; its UHs: 1, 2, 3, 4, 5' in unknown.stderr
 
 
 def test_plant_kept_running_and_the_bag_is_complete(rogue_run):

@@ -103,9 +103,12 @@ def test_neighbours_report_the_dead_simulator_within_the_timeout(sim_killed):
         stale_steps = sorted(k for k, names in status.items() if 'uh2' in names)
         assert stale_steps, f'uh{uh} never reported uh2 stale'
         first = stale_steps[0]
-        # reported once uh2's newest state is more than the timeout behind the step computed;
-        # the margin of 10 steps (50 ms wall at rate 2) covers the sync wait and timer period
-        assert STALE_STEPS < first - last_uh2 <= STALE_STEPS + 10, (uh, first, last_uh2)
+        print(f'uh{uh} reported uh2 stale at step {first}, {first - last_uh2} steps after its last state')
+        # reported once uh2's newest state is more than the timeout behind the step computed. The
+        # bag's last uh2 state may be a step or two older than the controller's (the dying process's
+        # last samples can reach one reader and not the other): 2 steps below; the margin of 10
+        # steps above (50 ms wall at rate 2) covers the sync wait and the timer period
+        assert STALE_STEPS - 2 < first - last_uh2 <= STALE_STEPS + 10, (uh, first, last_uh2)
         # and on every status from then on: the data never came back
         assert stale_steps == [k for k in sorted(status) if k >= first]
         assert max(status) == 2000   # it kept computing to the end of the run (20 s at dt = 0.01)
@@ -126,10 +129,12 @@ def test_uh3_holds_position_and_uh4_keeps_following(sim_killed):
     p3 = bag['states'][:, 2, :3]
     later = slice(hold_from + 200, None)    # 2 s after the hold began: transients have decayed
     # UH3 stays where it was when it lost its only neighbour: within 0.5 m of that point (the hold
-    # starts from a moving UH at about 1 m/s; the command filter stops it within a metre or so)
+    # starts from a UH moving at about 1 m/s, which the command filter stops within tens of
+    # centimetres; measured 0.02 m on a quiet machine)
     held = p3[hold_from]
     drift = np.linalg.norm(p3[later] - held, axis=1)
-    assert np.nanmax(drift) < 1.5, np.nanmax(drift)
+    print(f'uh3 held within {np.nanmax(drift):.2f} m of its hold point from 2 s after the hold on')
+    assert np.nanmax(drift) < 0.5, np.nanmax(drift)
     assert np.nanmax(np.linalg.norm(bag['states'][later, 2, 3:6], axis=1)) < 0.3   # at rest
     # UH4 keeps flying with UH1 and UH5: finite, airborne, never far from UH1
     p4, p1 = bag['states'][:, 3, :3], bag['states'][:, 0, :3]
@@ -169,6 +174,9 @@ def test_respawned_controller_rejoins_and_the_team_reconverges(tmp_path):
     ref = bag['reference'][:, :3]
     err = np.linalg.norm(bag['states'][:, 1, :3] - np.asarray(paper.offsets[2]) - ref, axis=1)
     last = bag['time'] >= 25.0
+    gap_wall = (len(gap) * paper.dt) / 2.0
+    print(f'uh2 controller: {len(gap)} steps without a command ({gap_wall:.1f} s wall at rate 2), joined at step '
+          f'{joined}; formation error of uh2 over the last 5 s: {np.sqrt(np.nanmean(err[last] ** 2)):.4f} m RMS')
     assert np.sqrt(np.nanmean(err[last] ** 2)) < 0.10
 
 

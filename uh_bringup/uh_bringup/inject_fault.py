@@ -42,12 +42,20 @@ def build_parser() -> argparse.ArgumentParser:
 SETTLE_S = 1.5
 
 
+def _sim_listens(node, topic: str) -> bool:
+    """Whether the UH's simulator (node ``sim`` in the topic's namespace) subscribes to ``topic``; a
+    recorder, which subscribes to every topic it discovers, does not count."""
+    namespace = topic.rsplit('/', 1)[0]
+    return any(info.node_name == 'sim' and info.node_namespace == namespace
+               for info in node.get_subscriptions_info_by_topic(topic))
+
+
 def _team_uhs(node) -> list:
     """UH ids whose simulators listen for faults in the running team (from discovery)."""
     ids = set()
     for name, _types in node.get_topic_names_and_types():
         match = re.fullmatch(r'/uh(\d+)/(fault|state)', name)
-        if match and (match.group(2) == 'state' or node.count_subscribers(name)):
+        if match and (match.group(2) == 'state' or _sim_listens(node, name)):
             ids.add(int(match.group(1)))
     return sorted(ids)
 
@@ -91,7 +99,7 @@ def main(argv=None) -> int:
         deadline = time.monotonic() + args.timeout
         domain = os.environ.get('ROS_DOMAIN_ID', '0')
         team_seen = None
-        while node.count_subscribers(topic) == 0:
+        while not _sim_listens(node, topic):
             now = time.monotonic()
             team = _team_uhs(node)
             if team and team_seen is None:
