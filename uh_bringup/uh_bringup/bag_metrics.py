@@ -27,13 +27,9 @@ class BagContentError(ValueError):
 
 
 def _typestore():
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
-    from uh_runtime.bag import _msg_directory
-    store = get_typestore(Stores.ROS2_JAZZY)
-    for path in sorted(_msg_directory().glob('*.msg')):
-        store.register(get_types_from_msg(path.read_text(), f'uh_msgs/msg/{path.stem}'))
-    return store
+    """rosbags' Jazzy type store with the uh_msgs types (the bag writer's, built once per process)."""
+    from uh_runtime.bag import _typestore as bag_typestore
+    return bag_typestore()[0]
 
 
 def _vec(v) -> list:

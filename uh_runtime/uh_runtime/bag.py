@@ -65,22 +65,15 @@ def qos_profile_yaml(reliability: str, durability: str, history: str, depth: int
     )
 
 
-def _msg_directory() -> Path:
-    # TODO(runtime): use the message-file lookup of uh_runtime.messages once it exists.
-    import sys
-    for candidate in (Path(sys.prefix) / 'share/uh_msgs/msg', Path(__file__).resolve().parents[2] / 'uh_msgs/msg'):
-        if candidate.is_dir():
-            return candidate
-    raise BagError('cannot find the uh_msgs .msg files')
-
-
 @functools.lru_cache(maxsize=None)
 def _typestore():
     from rosbags.typesys import Stores, get_typestore, get_types_from_msg
 
+    from uh_runtime.messages import _uh_msgs_dir  # the one lookup of the .msg files
+
     store = get_typestore(Stores.ROS2_JAZZY)
     texts = {}
-    for path in sorted(_msg_directory().glob('*.msg')):
+    for path in sorted(_uh_msgs_dir().glob('*.msg')):
         name = f'uh_msgs/msg/{path.stem}'
         texts[name] = path.read_text()
         store.register(get_types_from_msg(texts[name], name))
