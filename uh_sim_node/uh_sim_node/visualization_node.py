@@ -132,10 +132,10 @@ class VisualizationNode(rt.Node):
             label.pose.position = _point(x[:3] + np.array([0.0, 0.0, 0.6]))
             label.text = f'uh{i}'
             trail = self.trails[i]
-            trail.append(x[:3].copy())
+            trail.append(_point(x[:3]))   # the trail keeps its Point messages: one new Point per publication
             del trail[:-self.trail_length]
             line = marker('trail', i, 4, rgba[:3] + (0.6,), (0.05, 0, 0))  # LINE_STRIP
-            line.points = [_point(p) for p in trail]
+            line.points = list(trail)
         if len(leaders) >= 2:
             poly = marker('formation', 0, 4, LEADER_RGBA, (0.05, 0, 0))
             poly.points = [_point(states[i]) for i in leaders + leaders[:1]]

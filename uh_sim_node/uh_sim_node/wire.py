@@ -29,9 +29,8 @@ class WireError(ValueError):
 def stamp(t: float):
     """``builtin_interfaces/Time`` for simulation time ``t`` (s), rounded to the nanosecond."""
     ns = int(round(t * 1e9))
-    msg = m.Time()
-    msg.sec, msg.nanosec = ns // 1_000_000_000, ns % 1_000_000_000
-    return msg
+    # built with keyword arguments (both backends accept them): no default field objects made and replaced
+    return m.Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 def stamp_seconds(time_msg) -> float:
@@ -56,63 +55,66 @@ def step_of(msg) -> int:
 
 
 def _header(t: float):
-    header = m.Header()
-    header.stamp = stamp(t)
-    header.frame_id = FRAME_ID
-    return header
+    return m.Header(stamp=stamp(t), frame_id=FRAME_ID)
+
+
+def _floats(values) -> list:
+    """Python floats of a numpy array (one ``tolist``) or of any sequence of numbers."""
+    return values.tolist() if isinstance(values, np.ndarray) else [float(v) for v in values]
 
 
 def vector3(values) -> object:
-    vec = m.Vector3()
-    vec.x, vec.y, vec.z = float(values[0]), float(values[1]), float(values[2])
-    return vec
+    if isinstance(values, np.ndarray):
+        values = values.tolist()
+    return m.Vector3(x=float(values[0]), y=float(values[1]), z=float(values[2]))
+
+
+def _values(*vectors) -> list:
+    return [c for v in vectors for c in (v.x, v.y, v.z)]
 
 
 def _array(*vectors) -> np.ndarray:
-    out = np.array([c for v in vectors for c in (v.x, v.y, v.z)], dtype=float)
-    return out
+    return np.array(_values(*vectors), dtype=float)
 
 
 def _check_finite(values, what: str) -> None:
-    if not all(math.isfinite(float(v)) for v in np.ravel(values)):
+    """``values``: a list of Python floats (cheapest) or an array."""
+    if not all(map(math.isfinite, values if isinstance(values, list) else np.ravel(values).tolist())):
         raise WireError(f'{what} carries a non-finite value (NaN or inf): {np.ravel(values).tolist()}')
 
 
 def state_to_msg(uh_id: int, k: int, t: float, x: np.ndarray):
     """``UHState`` of UH ``uh_id`` at step ``k`` (time ``t``) from state vector ``x`` (12,)."""
-    msg = m.UHState()
-    msg.header = _header(t)
-    msg.uh_id, msg.step = int(uh_id), int(k)
-    msg.position, msg.velocity = vector3(x[0:3]), vector3(x[3:6])
-    msg.euler, msg.body_rates = vector3(x[6:9]), vector3(x[9:12])
-    return msg
+    v = _floats(x)
+    vec = m.Vector3
+    return m.UHState(header=_header(t), uh_id=int(uh_id), step=int(k),
+                     position=vec(x=v[0], y=v[1], z=v[2]), velocity=vec(x=v[3], y=v[4], z=v[5]),
+                     euler=vec(x=v[6], y=v[7], z=v[8]), body_rates=vec(x=v[9], y=v[10], z=v[11]))
 
 
 def msg_to_state(msg, expected_id: int | None = None) -> np.ndarray:
     """State vector (12,) of a ``UHState``; raises :class:`WireError` if unusable."""
     if expected_id is not None and int(msg.uh_id) != expected_id:
         raise WireError(f'state message carries uh_id {msg.uh_id}, expected {expected_id}')
-    x = _array(msg.position, msg.velocity, msg.euler, msg.body_rates)
-    _check_finite(x, f'state of uh{msg.uh_id} at step {msg.step}')
-    return x
+    values = _values(msg.position, msg.velocity, msg.euler, msg.body_rates)
+    _check_finite(values, f'state of uh{msg.uh_id} at step {msg.step}')
+    return np.array(values)
 
 
 def command_to_msg(uh_id: int, k: int, t: float, u: np.ndarray):
     """``ActuatorCommand`` (theta_col, theta_tr, delta_lat, delta_lon) = ``u`` for step ``k``."""
-    msg = m.ActuatorCommand()
-    msg.header = _header(t)
-    msg.uh_id, msg.step = int(uh_id), int(k)
-    msg.theta_col, msg.theta_tr, msg.delta_lat, msg.delta_lon = (float(v) for v in u)
-    return msg
+    col, tr, lat, lon = _floats(u)
+    return m.ActuatorCommand(header=_header(t), uh_id=int(uh_id), step=int(k), theta_col=col, theta_tr=tr,
+                             delta_lat=lat, delta_lon=lon)
 
 
 def msg_to_command(msg, expected_id: int | None = None) -> np.ndarray:
     """Input vector (4,) of an ``ActuatorCommand``; raises :class:`WireError` if unusable."""
     if expected_id is not None and int(msg.uh_id) != expected_id:
         raise WireError(f'command message carries uh_id {msg.uh_id}, expected {expected_id}')
-    u = np.array([msg.theta_col, msg.theta_tr, msg.delta_lat, msg.delta_lon], dtype=float)
-    _check_finite(u, f'command of uh{msg.uh_id} at step {msg.step}')
-    return u
+    values = [msg.theta_col, msg.theta_tr, msg.delta_lat, msg.delta_lon]
+    _check_finite(values, f'command of uh{msg.uh_id} at step {msg.step}')
+    return np.array(values, dtype=float)
 
 
 def reference_to_msg(k: int, t: float, ref):
@@ -137,13 +139,9 @@ def msg_to_reference(msg):
 
 def fault_truth_to_msg(uh_id: int, k: int, t: float, f_p, f_w, u_actual, active: bool, stuck: bool):
     """``FaultTruth`` of UH ``uh_id`` at step ``k``."""
-    msg = m.FaultTruth()
-    msg.header = _header(t)
-    msg.uh_id, msg.step = int(uh_id), int(k)
-    msg.lumped_fault_position, msg.lumped_fault_attitude = vector3(f_p), vector3(f_w)
-    msg.actual_inputs = [float(v) for v in u_actual]
-    msg.fault_active, msg.stuck = bool(active), bool(stuck)
-    return msg
+    return m.FaultTruth(header=_header(t), uh_id=int(uh_id), step=int(k), lumped_fault_position=vector3(f_p),
+                        lumped_fault_attitude=vector3(f_w), actual_inputs=_floats(u_actual),
+                        fault_active=bool(active), stuck=bool(stuck))
 
 
 _STATUS_VECTORS = ('z1', 'z2', 'z3', 'z4', 'fault_estimate_position', 'fault_estimate_attitude',
@@ -154,14 +152,8 @@ _STATUS_FLAGS = ('saturated_tilt', 'saturated_collective', 'saturated_cyclic')
 
 def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=()):
     """``ControllerStatus`` from the controller core's status record (same field names)."""
-    msg = m.ControllerStatus()
-    msg.header = _header(t)
-    msg.uh_id, msg.step = int(uh_id), int(k)
-    for name in _STATUS_VECTORS:
-        setattr(msg, name, vector3(getattr(status, name)))
-    for name in _STATUS_SCALARS:
-        setattr(msg, name, float(getattr(status, name)))
-    for name in _STATUS_FLAGS:
-        setattr(msg, name, bool(getattr(status, name)))
-    msg.stale_neighbours = [str(s) for s in stale_neighbours]
-    return msg
+    fields = {name: vector3(getattr(status, name)) for name in _STATUS_VECTORS}
+    fields.update((name, float(getattr(status, name))) for name in _STATUS_SCALARS)
+    fields.update((name, bool(getattr(status, name))) for name in _STATUS_FLAGS)
+    return m.ControllerStatus(header=_header(t), uh_id=int(uh_id), step=int(k),
+                              stale_neighbours=[str(s) for s in stale_neighbours], **fields)
