@@ -18,6 +18,7 @@ Cyclone ``WaitSet`` on one read condition per subscription and a guard condition
 entities, shutdown and signals); the wait times out only at the next wall-clock timer deadline.
 Each wake-up takes every available sample of a reader in one batch.
 """
+import collections
 import inspect
 import os
 import signal
@@ -28,6 +29,7 @@ import time
 import weakref
 
 from . import arguments as _args
+from . import intra_process as _intra
 from . import messages as _messages
 from .parameters import (
     InvalidParameterTypeException, InvalidParameterValueException, Parameter,
@@ -36,7 +38,7 @@ from .parameters import (
     SetParametersResult, check_value,
 )
 from .qos import (
-    DurabilityPolicy, QoSProfile, ReliabilityPolicy, as_profile, qos_profile_clock,
+    DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, as_profile, qos_profile_clock,
     to_dds_qos,
 )
 
@@ -408,6 +410,8 @@ class Context:
         self._on_shutdown = []
         self._initialised = False
         self._torn_down = False
+        # in-process delivery between the nodes of this process (uh_runtime.intra_process)
+        self._intra = _intra.IntraProcess(self.wake) if _intra.enabled() else None
 
     # -- lifecycle --------------------------------------------------------------------------
     def init(self, args=None, *, domain_id=None):
@@ -625,6 +629,14 @@ class Publisher:
         self._write = ddspy_write
         self._ref = writer._ref
         self._serialize = codec(msg_type).serialize
+        self._intra = node._context._intra
+        self._local = []       # subscriptions of this process fed directly (set by IntraProcess)
+        # a transient-local publisher keeps its last messages for subscriptions of this process
+        # created later, as a DDS writer keeps them for late-joining readers
+        self._history = None
+        if self._intra is not None and qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+            self._history = collections.deque(
+                maxlen=None if qos_profile.history == HistoryPolicy.KEEP_ALL else max(1, qos_profile.depth))
 
     @property
     def topic(self):
@@ -636,6 +648,7 @@ class Publisher:
             data = self._serialize(msg)
         elif isinstance(msg, (bytes, bytearray, memoryview)):
             data = bytes(msg)
+            msg = None
         else:
             raise TypeError(
                 f'expected {_messages.ros_type_name(self.msg_type)} on {self.topic_name}, '
@@ -645,10 +658,16 @@ class Publisher:
         ret = self._write(self._ref, data)
         if ret < 0:
             raise RuntimeError(f'publishing on {self.topic_name} failed (DDS error {ret})')
+        if self._history is not None:
+            self._history.append((msg, data))
+        if self._local:
+            # the subscriptions of this process get the message object itself (and the bytes)
+            self._intra.deliver(self._local, (msg, data))
 
     def get_subscription_count(self) -> int:
-        """Number of matched readers (DDS publication-matched status)."""
-        return len(self._writer.get_matched_subscriptions())
+        """Number of matched readers (DDS publication-matched status) plus the subscriptions of
+        this process it feeds directly."""
+        return len(self._writer.get_matched_subscriptions()) + len(self._local)
 
     def wait_for_all_acked(self, timeout_sec=None) -> bool:
         ns = _DDS_INFINITY if timeout_sec is None else int(timeout_sec * 1e9)
@@ -682,24 +701,35 @@ class Subscription:
 
         from .cdr import codec
         self._take = ddspy_take
-        self._deserialize = codec(msg_type).deserialize
+        self._codec = codec(msg_type)
+        self._deserialize = self._codec.deserialize
+        self._inbox = _intra.Inbox(qos_profile)   # messages from publishers of this process
 
     @property
     def topic(self):
         return self.topic_name
 
     def get_publisher_count(self) -> int:
-        return len(self._reader.get_matched_publications())
+        local = self._node._context._intra
+        return len(self._reader.get_matched_publications()) + (
+            local.local_publisher_count(self) if local is not None else 0)
 
-    def _take_messages(self):
-        """Every available sample in one batch (raw CDR bytes or deserialised messages)."""
-        ret = self._take(self._reader._ref, self._mask, _TAKE_BATCH)
-        if isinstance(ret, int):
-            raise RuntimeError(f'taking samples from {self.topic_name} failed (DDS error {ret})')
-        if self.raw:
-            return [data for data, info in ret if info.valid_data]
-        deserialize = self._deserialize
-        return [deserialize(data) for data, info in ret if info.valid_data]
+    def _take_messages(self, from_dds=True):
+        """Every available sample in one batch (raw CDR bytes or deserialised messages): those of
+        DDS (if ``from_dds``), then those delivered in process."""
+        out = []
+        if from_dds:
+            ret = self._take(self._reader._ref, self._mask, _TAKE_BATCH)
+            if isinstance(ret, int):
+                raise RuntimeError(f'taking samples from {self.topic_name} failed (DDS error {ret})')
+            if self.raw:
+                out = [data for data, info in ret if info.valid_data]
+            else:
+                deserialize = self._deserialize
+                out = [deserialize(data) for data, info in ret if info.valid_data]
+        if self._inbox.items:
+            out += self._inbox.take(self.raw, self._codec.serialize, self._deserialize)
+        return out
 
     def destroy(self):
         self._node.destroy_subscription(self)
@@ -891,10 +921,13 @@ class Node:
         profile = as_profile(qos_profile)
         name = self.resolve_topic_name(topic)
         dds_topic = self._context.topic(ROS_TOPIC_PREFIX + name, msg_type)
+        intra = self._context._intra
         writer = DataWriter(self._context._pub, dds_topic,
-                            qos=to_dds_qos(profile, _typehash_user_data(msg_type)))
+                            qos=to_dds_qos(profile, _typehash_user_data(msg_type), ignore_local=intra is not None))
         pub = Publisher(self, msg_type, name, profile, writer)
         self.publishers.append(pub)
+        if intra is not None:
+            intra.add_publisher(pub)
         self._context.publish_discovery_info()
         return pub
 
@@ -905,10 +938,13 @@ class Node:
         profile = as_profile(qos_profile)
         name = self.resolve_topic_name(topic)
         dds_topic = self._context.topic(ROS_TOPIC_PREFIX + name, msg_type)
+        intra = self._context._intra
         reader = DataReader(self._context._sub, dds_topic,
-                            qos=to_dds_qos(profile, _typehash_user_data(msg_type)))
+                            qos=to_dds_qos(profile, _typehash_user_data(msg_type), ignore_local=intra is not None))
         sub = Subscription(self, msg_type, name, callback, profile, reader, raw=raw)
         self.subscriptions.append(sub)
+        if intra is not None:
+            intra.add_subscription(sub)
         self._context.publish_discovery_info()
         self._changed()
         return sub
@@ -925,6 +961,8 @@ class Node:
         if publisher not in self.publishers:
             return False
         self.publishers.remove(publisher)
+        if self._context._intra is not None:
+            self._context._intra.remove_publisher(publisher)
         publisher._writer.__del__()
         self._context.publish_discovery_info()
         return True
@@ -933,6 +971,8 @@ class Node:
         if subscription not in self.subscriptions:
             return False
         self.subscriptions.remove(subscription)
+        if self._context._intra is not None:
+            self._context._intra.remove_subscription(subscription)
         self._changed()
         for executor in list(self._executors):
             executor._detach(subscription)
@@ -1360,6 +1400,11 @@ class Executor:
             due = self._next_timer_ns()
             if due is not None:
                 timeout = max(0, min(timeout, due))
+            intra = self._context._intra
+            if intra is not None:
+                intra.spinning_thread = threading.get_ident()
+                if intra.pending:   # messages delivered in process are waiting: just poll DDS
+                    timeout = 0
             triggered = self._triggered
             n = _wait_for_work(self._waitset._ref, triggered, timeout)
             if n < 0:
@@ -1379,21 +1424,25 @@ class Executor:
         """Run the callbacks of the subscriptions whose attach arguments are in ``ready`` (all
         triggered ones if None), in node/subscription order, then the due timers."""
         by_arg = self._by_arg
+        attached = self._attached
         if ready is None:
             subs = [s for n in list(self._nodes) for s in list(n.subscriptions)
-                    if id(s) in self._attached and s._condition.is_triggered()]
+                    if id(s) in attached and s._condition.is_triggered()]
         else:
             subs = [by_arg[a] for a in ready if a in by_arg]
-            if len(subs) > 1:
-                rank = self._rank
-                subs.sort(key=lambda s: rank.get(id(s), 0))
-        attached = self._attached
+        from_dds = {id(s) for s in subs}
+        intra = self._context._intra
+        if intra is not None and intra.pending:
+            subs += [s for s in intra.take_pending(lambda s: id(s) in attached) if id(s) not in from_dds]
+        if len(subs) > 1:
+            rank = self._rank
+            subs.sort(key=lambda s: rank.get(id(s), 0))
         for sub in subs:
             # destroyed, or its node removed, by an earlier callback of this round
             if id(sub) not in attached or (self._dirty and sub._node not in self._nodes):
                 continue
             callback = sub.callback
-            for msg in sub._take_messages():
+            for msg in sub._take_messages(id(sub) in from_dds):
                 callback(msg)
         for node in list(self._nodes):
             for timer in list(node.timers):

@@ -132,8 +132,13 @@ def _ns(duration) -> int | None:
     return int(ns) if ns else None
 
 
-def to_dds_qos(profile: QoSProfile, user_data: bytes | None = None):
-    """``cyclonedds.qos.Qos`` for a reader/writer with this profile (rmw_cyclonedds mapping)."""
+def to_dds_qos(profile: QoSProfile, user_data: bytes | None = None, ignore_local: bool = False):
+    """``cyclonedds.qos.Qos`` for a reader/writer with this profile (rmw_cyclonedds mapping).
+
+    ``ignore_local``: Cyclone's ``IgnoreLocal(Participant)`` (what rmw_cyclonedds sets for
+    ``ignore_local_publications``): no match with endpoints of the same participant, which
+    :mod:`uh_runtime.intra_process` serves instead.
+    """
     from cyclonedds.qos import Policy, Qos
     from cyclonedds.util import duration
     policies = []
@@ -168,6 +173,8 @@ def to_dds_qos(profile: QoSProfile, user_data: bytes | None = None):
     policies.append(Policy.DataRepresentation(use_cdrv0_representation=True))
     if user_data is not None:
         policies.append(Policy.Userdata(user_data))
+    if ignore_local:
+        policies.append(Policy.IgnoreLocal.Participant)
     return Qos(*policies)
 
 
