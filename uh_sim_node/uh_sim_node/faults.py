@@ -24,7 +24,10 @@ boundary at or after the onset (exact for onsets on the grid, at most one subste
 and the input is smooth inside every substep, which keeps RK4 fourth order.
 
 This module is pure Python (no ROS); the physical input limits are applied by the plant
-(:class:`uh_sim_node.helicopter.HelicopterPlant`), not here.
+(:class:`uh_sim_node.helicopter.HelicopterPlant`), not here. The plant evaluates eq. 6 in its
+native kernels (:mod:`uh_sim_node.plant_kernels`) from a table built from the schedule, with the
+same arithmetic as :meth:`ActuatorFault.apply`; :attr:`FaultSchedule.revision` tells it when the
+schedule changed.
 """
 from __future__ import annotations
 
@@ -153,11 +156,12 @@ class FaultSchedule:
         Initial faults; a later fault of the same channel replaces an earlier one.
     """
 
-    __slots__ = ('_faults', '_list')
+    __slots__ = ('_faults', '_list', '_revision')
 
     def __init__(self, faults: Iterable[ActuatorFault] = ()):
         self._faults: list = [None] * NUM_CHANNELS
         self._list: tuple = ()
+        self._revision = 0
         for fault in faults:
             self.add(fault)
 
@@ -174,7 +178,7 @@ class FaultSchedule:
         if not isinstance(fault, ActuatorFault):
             raise FaultError(f'FaultSchedule.add expects an ActuatorFault, got {type(fault).__name__}')
         self._faults[fault.channel] = None if fault.is_nominal else fault
-        self._list = tuple(f for f in self._faults if f is not None)
+        self._changed()
 
     def clear(self, channel: int | None = None) -> None:
         """Remove the fault of ``channel`` (all faults when ``None``)."""
@@ -182,7 +186,21 @@ class FaultSchedule:
             self._faults = [None] * NUM_CHANNELS
         else:
             self._faults[channel] = None
+        self._changed()
+
+    def _changed(self) -> None:
         self._list = tuple(f for f in self._faults if f is not None)
+        self._revision += 1
+
+    @property
+    def revision(self) -> int:
+        """Counter bumped by every :meth:`add` and :meth:`clear`.
+
+        Holders of a derived form of the schedule (the plant's kernel fault table, see
+        :mod:`uh_sim_node.plant_kernels`) rebuild it when the revision differs from the one they
+        built it from, so faults injected at run time act from the next step on.
+        """
+        return self._revision
 
     def fault(self, channel: int) -> ActuatorFault | None:
         """The fault of ``channel`` or ``None``."""

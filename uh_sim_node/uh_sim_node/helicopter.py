@@ -39,8 +39,9 @@ Integration is classical RK4 with ``substeps`` equal substeps per control period
 and the disturbance are evaluated at the RK4 stage times (RK4 of the non-autonomous system). A fault
 switches on at a substep boundary (its activity is decided at the substep's start time), so the
 input is smooth inside every substep and the scheme keeps its fourth order.
-The core works on Python floats (no per-stage numpy allocation) because the team simulation calls
-it several hundred thousand times per scenario.
+The mathematics (rates, RK4, eq. 6 with the limits, disturbance, lumped faults) lives in the
+compiled kernels of :mod:`uh_sim_node.plant_kernels`; this module holds the parameters, the numpy
+helpers of the kinematics and :class:`HelicopterPlant`, a thin wrapper around those kernels.
 """
 from __future__ import annotations
 
@@ -53,7 +54,8 @@ from typing import Callable
 import numpy as np
 import yaml
 
-from .faults import ONSET_TOLERANCE, FaultSchedule
+from . import plant_kernels as _k
+from .faults import FaultError, FaultSchedule
 
 __all__ = [
     'INPUT_NAMES', 'STATE_SIZE', 'INPUT_SIZE', 'HelicopterParamsError', 'HelicopterParams',
@@ -65,8 +67,8 @@ __all__ = [
 
 #: Names of the four physical inputs, in channel order 0..3.
 INPUT_NAMES = ('theta_col', 'theta_tr', 'delta_lat', 'delta_lon')
-STATE_SIZE = 12
-INPUT_SIZE = 4
+STATE_SIZE = _k.STATE_SIZE
+INPUT_SIZE = _k.INPUT_SIZE
 
 _CONFIG_DIR = Path(__file__).resolve().parent / 'config'
 
@@ -326,90 +328,16 @@ def hover_trim(params: HelicopterParams, yaw: float = 0.0) -> np.ndarray:
     return np.array([(mg - params.c_M2) / params.c_M1, params.c_Q * mg / params.K_tr, 0.0, 0.0])
 
 
-def _make_rates(params: HelicopterParams):
-    """Closure ``f(vx, vy, vz, phi, theta, psi, p, q, r, u0, u1, u2, u3, dx, dy, dz)`` on floats.
-
-    Returns the 9 derivatives ``(v', Theta', omega')`` of DESIGN.md 2.1 (``p' = v`` is handled by
-    the caller). Constants live in the closure so that a call does no lookups or allocations
-    besides the result tuple.
-    """
-    cos, sin = math.cos, math.sin
-    m, g, dv = params.mass, params.gravity, params.D_v
-    cm1, cm2, kb, hm = params.c_M1, params.c_M2, params.K_beta, params.h_M
-    blat, alon, tauf = params.B_lat, params.A_lon, params.tau_f
-    ktr, dr, cq = params.K_tr, params.D_r, params.c_Q
-    jx, jy, jz = (float(v) for v in params.inertia)
-    im, ijx, ijy, ijz = 1.0 / m, 1.0 / jx, 1.0 / jy, 1.0 / jz
-    jyz, jzx, jxy = jy - jz, jz - jx, jx - jy
-
-    def rates(vx, vy, vz, phi, th, psi, p, q, r, u0, u1, u2, u3, dx, dy, dz):
-        cf = cos(phi)
-        sf = sin(phi)
-        ct = cos(th)
-        st = sin(th)
-        cp = cos(psi)
-        sp = sin(psi)
-        T = cm1 * u0 + cm2                 # main-rotor thrust, N
-        tm = T * im
-        stcf = st * cf
-        qs = sf * q + cf * r
-        k = kb + T * hm                    # flapping moment stiffness, N m/rad
-        return (
-            # m v' = T R e3 - D_v v + d_p - m g e3, with R e3 the third column of R
-            tm * (cp * stcf + sp * sf) + (dx - dv * vx) * im,
-            tm * (sp * stcf - cp * sf) + (dy - dv * vy) * im,
-            tm * ct * cf + (dz - dv * vz) * im - g,
-            # Theta' = H omega
-            p + st / ct * qs,
-            cf * q - sf * r,
-            qs / ct,
-            # J omega' = -omega x J omega + Gamma, J diagonal; flapping b_1s, a_1s inline
-            (jyz * q * r + k * (blat * u2 - tauf * p)) * ijx,
-            (jzx * r * p + k * (alon * u3 - tauf * q)) * ijy,
-            (jxy * p * q + ktr * u1 - dr * r - cq * T) * ijz,
-        )
-
-    return rates
-
-
-def _rk4_substep(f, x, h, ua, ub, uc, d0, d1, d2):
-    """One classical RK4 step of length ``h`` on the 12 floats ``x``.
-
-    ``ua``/``d0`` act at the start, ``ub``/``d1`` at the midpoint, ``uc``/``d2`` at the end.
-    """
-    h2 = 0.5 * h
-    x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11 = x
-    a = f(x3, x4, x5, x6, x7, x8, x9, x10, x11, ua[0], ua[1], ua[2], ua[3], d0[0], d0[1], d0[2])
-    b = f(x3 + h2 * a[0], x4 + h2 * a[1], x5 + h2 * a[2], x6 + h2 * a[3], x7 + h2 * a[4],
-          x8 + h2 * a[5], x9 + h2 * a[6], x10 + h2 * a[7], x11 + h2 * a[8],
-          ub[0], ub[1], ub[2], ub[3], d1[0], d1[1], d1[2])
-    c = f(x3 + h2 * b[0], x4 + h2 * b[1], x5 + h2 * b[2], x6 + h2 * b[3], x7 + h2 * b[4],
-          x8 + h2 * b[5], x9 + h2 * b[6], x10 + h2 * b[7], x11 + h2 * b[8],
-          ub[0], ub[1], ub[2], ub[3], d1[0], d1[1], d1[2])
-    d = f(x3 + h * c[0], x4 + h * c[1], x5 + h * c[2], x6 + h * c[3], x7 + h * c[4],
-          x8 + h * c[5], x9 + h * c[6], x10 + h * c[7], x11 + h * c[8],
-          uc[0], uc[1], uc[2], uc[3], d2[0], d2[1], d2[2])
-    h6 = h / 6.0
-    # p' = v: the stage velocities are v, v + h/2 a_v, v + h/2 b_v, v + h c_v, so
-    # (k1 + 2 k2 + 2 k3 + k4)_p = 6 v + h (a_v + b_v + c_v).
-    return (
-        x0 + h6 * (6.0 * x3 + h * (a[0] + b[0] + c[0])),
-        x1 + h6 * (6.0 * x4 + h * (a[1] + b[1] + c[1])),
-        x2 + h6 * (6.0 * x5 + h * (a[2] + b[2] + c[2])),
-        x3 + h6 * (a[0] + 2.0 * b[0] + 2.0 * c[0] + d[0]),
-        x4 + h6 * (a[1] + 2.0 * b[1] + 2.0 * c[1] + d[1]),
-        x5 + h6 * (a[2] + 2.0 * b[2] + 2.0 * c[2] + d[2]),
-        x6 + h6 * (a[3] + 2.0 * b[3] + 2.0 * c[3] + d[3]),
-        x7 + h6 * (a[4] + 2.0 * b[4] + 2.0 * c[4] + d[4]),
-        x8 + h6 * (a[5] + 2.0 * b[5] + 2.0 * c[5] + d[5]),
-        x9 + h6 * (a[6] + 2.0 * b[6] + 2.0 * c[6] + d[6]),
-        x10 + h6 * (a[7] + 2.0 * b[7] + 2.0 * c[7] + d[7]),
-        x11 + h6 * (a[8] + 2.0 * b[8] + 2.0 * c[8] + d[8]),
-    )
+def _vector(values, size: int, what: str) -> np.ndarray:
+    """``values`` as a fresh C-contiguous float64 array of shape (size,) (ValueError otherwise)."""
+    arr = np.array(values, dtype=float).reshape(-1)
+    if arr.shape != (size,):
+        raise ValueError(f'{what} must have {size} elements, got shape {np.shape(values)}')
+    return arr
 
 
 def state_derivative(params: HelicopterParams, x, u_actual, force_disturbance=None) -> np.ndarray:
-    """State derivative ``x'`` (12,) of DESIGN.md 2.1.
+    """State derivative ``x'`` (12,) of DESIGN.md 2.1 (kernel :func:`.plant_kernels.state_derivative`).
 
     Parameters
     ----------
@@ -426,25 +354,23 @@ def state_derivative(params: HelicopterParams, x, u_actual, force_disturbance=No
     ndarray (12,)
         ``[v, v', Theta', omega']`` in m/s, m/s^2, rad/s, rad/s^2.
     """
-    xs = [float(v) for v in np.asarray(x, dtype=float).reshape(STATE_SIZE)]
-    u = [float(v) for v in np.asarray(u_actual, dtype=float).reshape(INPUT_SIZE)]
-    d = (0.0, 0.0, 0.0) if force_disturbance is None else [float(v) for v in force_disturbance]
-    rates = _make_rates(params)(*xs[3:], u[0], u[1], u[2], u[3], d[0], d[1], d[2])
-    return np.array(xs[3:6] + list(rates))
+    d = np.zeros(3) if force_disturbance is None else _vector(force_disturbance, 3, 'force_disturbance')
+    out = np.empty(STATE_SIZE)
+    _k.state_derivative(_vector(x, STATE_SIZE, 'state x'), _vector(u_actual, INPUT_SIZE, 'u_actual'), d,
+                        _k.params_vector(params), out)
+    return out
 
 
 def lumped_faults(params: HelicopterParams, x, u_cmd, u_actual) -> tuple:
     """True lumped faults ``(F_p (3,) m/s^2 inertial, F_w (3,) rad/s^2 body)`` of DESIGN.md 2.2.
 
     ``u_cmd`` are the commanded inputs after the limits, ``u_actual`` the inputs after faults and
-    limits, both (4,) rad; ``x`` (12,) the state at which they are evaluated.
+    limits, both (4,) rad; ``x`` (12,) the state at which they are evaluated
+    (kernel :func:`.plant_kernels.lumped_faults_of_inputs`).
     """
-    x = np.asarray(x, dtype=float)
-    R = rotation_matrix(x[6:9])
-    t_act = thrust(params, u_actual[0])
-    t_cmd = thrust(params, u_cmd[0])
-    f_p = (t_act - t_cmd) / params.mass * R[:, 2]
-    f_w = (rotor_moments(params, x[9:12], u_actual) - rotor_moments(params, x[9:12], u_cmd)) / params.inertia
+    f_p, f_w = np.empty(3), np.empty(3)
+    _k.lumped_faults_of_inputs(_vector(x, STATE_SIZE, 'state x'), _vector(u_cmd, INPUT_SIZE, 'u_cmd'),
+                               _vector(u_actual, INPUT_SIZE, 'u_actual'), _k.params_vector(params), f_p, f_w)
     return f_p, f_w
 
 
@@ -464,7 +390,9 @@ class SinusoidalDisturbance:
     phase : array_like (3,)
         rad.
 
-    Calling the object with time ``t`` s returns a tuple of 3 floats (N).
+    Calling the object with time ``t`` s returns a tuple of 3 floats (N). The plant does not call
+    it: it evaluates the same formula in its kernels from
+    :func:`uh_sim_node.plant_kernels.disturbance_table`, built when the disturbance is assigned.
     """
 
     __slots__ = ('amplitude', 'frequency', 'phase', '_zero')
@@ -510,34 +438,109 @@ def disturbance_from_spec(spec, uh_id: int) -> SinusoidalDisturbance | None:
 class HelicopterPlant:
     """One simulated helicopter: state, faults, disturbance and RK4 integration.
 
+    A thin wrapper around :mod:`uh_sim_node.plant_kernels`: it holds the state as a (12,) float64
+    array and the kernel arrays of its parameters, faults and disturbance, checks inputs once and
+    calls the compiled kernels.
+
     Parameters
     ----------
     params : HelicopterParams
         True parameters of this airframe.
     faults : FaultSchedule, optional
         Actuator faults (none when ``None``). The schedule object is kept, so faults added to it
-        later (fault injection) act from then on.
+        later (fault injection) act from the next step on (the kernel table is rebuilt when
+        ``faults.revision`` changes).
     x0 : array_like (12,), optional
         Initial state (default: origin, at rest, level).
     substeps : int
         RK4 substeps per control period (>= 1).
-    disturbance : callable, optional
-        ``t -> d_p(t)`` force, 3 floats N, inertial frame.
+    disturbance : SinusoidalDisturbance or callable, optional
+        ``t -> d_p(t)`` force, 3 floats N, inertial frame. A :class:`SinusoidalDisturbance` runs in
+        the kernels; any other callable is sampled in Python at the RK4 stage times (slower, and
+        not available to njit callers, see :meth:`kernel_arrays`).
+
+    Raises
+    ------
+    ValueError
+        ``substeps`` not an int >= 1, a state that is not 12 finite numbers, or a disturbance that
+        is neither ``None`` nor callable.
+    FaultError
+        ``faults`` not a :class:`FaultSchedule`.
     """
 
     def __init__(self, params: HelicopterParams, faults: FaultSchedule | None = None, x0=None,
                  substeps: int = 5, disturbance: Callable | None = None):
         if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or substeps < 1:
             raise ValueError(f'substeps must be an int >= 1, got {substeps!r}')
-        self.params = params
-        self.faults = faults if faults is not None else FaultSchedule()
         self.substeps = int(substeps)
+        self.params = params
+        self.faults = faults
         self.disturbance = disturbance
-        self._rates = _make_rates(params)
-        self._inertia = tuple(float(v) for v in params.inertia)
-        self._lo = tuple(float(v) for v in params.input_lower)
-        self._hi = tuple(float(v) for v in params.input_upper)
         self.reset(np.zeros(STATE_SIZE) if x0 is None else x0)
+
+    # -- configuration ----------------------------------------------------------------------
+    @property
+    def params(self) -> HelicopterParams:
+        """True parameters of the airframe (assigning rebuilds the kernel parameter vector)."""
+        return self._params
+
+    @params.setter
+    def params(self, params: HelicopterParams) -> None:
+        self._params = params
+        self._params_vec = _k.params_vector(params)
+
+    @property
+    def faults(self) -> FaultSchedule:
+        """The fault schedule; ``add``/``clear`` on it take effect from the next kernel call."""
+        return self._faults
+
+    @faults.setter
+    def faults(self, faults: FaultSchedule | None) -> None:
+        if faults is None:
+            faults = FaultSchedule()
+        if not isinstance(faults, FaultSchedule):
+            raise FaultError(f'HelicopterPlant faults must be a FaultSchedule or None, '
+                             f'got {type(faults).__name__}')
+        self._faults = faults
+        self._fault_revision = faults.revision
+        self._fault_table = _k.fault_table(faults)
+
+    def _fault_array(self) -> np.ndarray:
+        """The kernel fault table, rebuilt when the schedule changed since it was built."""
+        if self._faults.revision != self._fault_revision:
+            self._fault_table = _k.fault_table(self._faults)
+            self._fault_revision = self._faults.revision
+        return self._fault_table
+
+    @property
+    def disturbance(self):
+        """The force disturbance ``t -> d_p(t)`` N (``None``: no force)."""
+        return self._disturbance
+
+    @disturbance.setter
+    def disturbance(self, disturbance) -> None:
+        if disturbance is not None and not callable(disturbance):
+            raise ValueError(f'disturbance must be a SinusoidalDisturbance, a callable t -> 3 floats N '
+                             f'or None, got {type(disturbance).__name__}')
+        self._disturbance = disturbance
+        sinusoid = disturbance is None or isinstance(disturbance, SinusoidalDisturbance)
+        self._sampled = not sinusoid
+        self._dist_table = _k.disturbance_table(disturbance if sinusoid else None)
+
+    def kernel_arrays(self) -> _k.PlantArrays:
+        """Copies of the arrays the kernels take for this plant (see :mod:`.plant_kernels`).
+
+        Raises
+        ------
+        ValueError
+            When the disturbance is an arbitrary Python callable (not a
+            :class:`SinusoidalDisturbance`), which njit code cannot evaluate.
+        """
+        if self._sampled:
+            raise ValueError(f'kernel_arrays: the disturbance {self._disturbance!r} is a Python callable, '
+                             f'not a SinusoidalDisturbance; only plant_step_sampled can use it')
+        return _k.PlantArrays(self._params_vec.copy(), self._fault_array().copy(), self._dist_table.copy(),
+                              self.substeps)
 
     # -- state ------------------------------------------------------------------------------
     def reset(self, x0) -> None:
@@ -545,162 +548,89 @@ class HelicopterPlant:
         arr = np.array(x0, dtype=float).reshape(-1)
         if arr.shape != (STATE_SIZE,) or not np.all(np.isfinite(arr)):
             raise ValueError(f'helicopter state must be 12 finite numbers, got {np.shape(x0)}')
-        self._x = tuple(float(v) for v in arr)
+        self._x = arr
 
     @property
     def x(self) -> np.ndarray:
         """Current state (12,) float64 (a fresh array)."""
-        return np.array(self._x)
+        return self._x.copy()
 
     # -- inputs -----------------------------------------------------------------------------
-    def _clip(self, u0, u1, u2, u3):
-        lo, hi = self._lo, self._hi
-        return (min(max(u0, lo[0]), hi[0]), min(max(u1, lo[1]), hi[1]),
-                min(max(u2, lo[2]), hi[2]), min(max(u3, lo[3]), hi[3]))
-
-    def _actual(self, uc, t, t_switch):
-        """Faulted and re-limited inputs (4 floats) for limited command ``uc`` at time ``t``; the
-        faults' activity is decided at ``t_switch`` (the substep start, see :mod:`.faults`)."""
-        faults = self.faults.faults
-        if not faults:
-            return uc
-        u = list(uc)
-        lo, hi = self._lo, self._hi
-        for f in faults:
-            if t_switch >= f.onset_time - ONSET_TOLERANCE:
-                ch = f.channel
-                # eq. 6, then the physical travel limits of that actuator again
-                u[ch] = min(max(f.apply(u[ch], t), lo[ch]), hi[ch])
+    @staticmethod
+    def _command(u_cmd) -> np.ndarray:
+        """``u_cmd`` as a C-contiguous float64 (4,) array (no copy when it already is one)."""
+        u = np.ascontiguousarray(u_cmd, dtype=np.float64)
+        if u.shape != (INPUT_SIZE,):
+            raise ValueError(f'command u_cmd must have 4 elements (theta_col, theta_tr, delta_lat, '
+                             f'delta_lon), got shape {np.shape(u_cmd)}')
         return u
 
-    def _disturbance_function(self):
-        """``t -> (3 floats)``: the sinusoidal disturbance's own evaluation, else a float wrapper."""
-        d = self.disturbance
-        if isinstance(d, SinusoidalDisturbance):
-            return d
-        return self._disturb
-
-    def _disturb(self, t):
-        d = self.disturbance
-        if d is None:
-            return (0.0, 0.0, 0.0)
-        f = d(t)
-        return (float(f[0]), float(f[1]), float(f[2]))
+    def _inputs(self, u_cmd, t: float) -> tuple:
+        uc, ua = np.empty(INPUT_SIZE), np.empty(INPUT_SIZE)
+        _k.actual_inputs(self._command(u_cmd), float(t), float(t), self._params_vec, self._fault_array(), uc, ua)
+        return uc, ua
 
     def commanded_inputs(self, u_cmd) -> np.ndarray:
         """``u_cmd`` (4,) rad after the input limits."""
-        return np.array(self._clip(*(float(v) for v in u_cmd)))
+        return self._inputs(u_cmd, 0.0)[0]
 
     def actual_inputs(self, u_cmd, t: float) -> np.ndarray:
         """Inputs (4,) rad acting at time ``t`` s: limits, faults (eq. 6), limits again."""
-        uc = self._clip(*(float(v) for v in u_cmd))
-        return np.array(self._actual(uc, float(t), float(t)))
+        return self._inputs(u_cmd, t)[1]
 
     def fault_active(self, t: float) -> bool:
         """True when any fault channel is past its onset at ``t`` s."""
-        return self.faults.active(t)
+        return self._faults.active(t)
 
     def stuck(self, t: float) -> bool:
         """True when an active channel is stuck (``rho = 0``, not compensable)."""
-        return self.faults.stuck(t)
+        return self._faults.stuck(t)
+
+    def _force(self, t: float) -> np.ndarray:
+        """Force disturbance (3,) N at ``t`` s."""
+        out = np.empty(3)
+        if self._sampled:
+            out[:] = self._disturbance(t)
+        else:
+            _k.force_disturbance(self._dist_table, t, out)
+        return out
 
     def lumped_faults(self, u_cmd, t: float) -> tuple:
-        """True lumped faults ``(F_p (3,), F_w (3,))`` at the current state and time ``t`` s.
+        """True lumped faults ``(F_p (3,) m/s^2 inertial, F_w (3,) rad/s^2 body)`` at the current
+        state and time ``t`` s (DESIGN.md 2.2); exactly zero when no fault acts.
 
-        ``u_cmd`` is the controller's command (4,) rad; it is limited first (DESIGN.md 2.2).
+        ``u_cmd`` is the controller's command (4,) rad; it is limited first.
         """
-        uc = self._clip(*(float(v) for v in u_cmd))
-        ua = self._actual(uc, float(t), float(t))
-        if ua is uc:  # no fault: exactly zero
-            return np.zeros(3), np.zeros(3)
-        # scalar form of lumped_faults() (same formulas; this runs once per step per UH)
-        prm = self.params
-        phi, th, psi, p, q, r = self._x[6:12]
-        cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(th), math.sin(th)
-        cp, sp = math.cos(psi), math.sin(psi)
-        t_act = prm.c_M1 * ua[0] + prm.c_M2
-        t_cmd = prm.c_M1 * uc[0] + prm.c_M2
-        g = (t_act - t_cmd) / prm.mass
-        f_p = np.array([g * (cp * st * cf + sp * sf), g * (sp * st * cf - cp * sf), g * ct * cf])
-        k_act = prm.K_beta + t_act * prm.h_M
-        k_cmd = prm.K_beta + t_cmd * prm.h_M
-        jx, jy, jz = self._inertia
-        f_w = np.array([
-            (k_act * (prm.B_lat * ua[2] - prm.tau_f * p) - k_cmd * (prm.B_lat * uc[2] - prm.tau_f * p)) / jx,
-            (k_act * (prm.A_lon * ua[3] - prm.tau_f * q) - k_cmd * (prm.A_lon * uc[3] - prm.tau_f * q)) / jy,
-            ((prm.K_tr * ua[1] - prm.D_r * r - prm.c_Q * t_act)
-             - (prm.K_tr * uc[1] - prm.D_r * r - prm.c_Q * t_cmd)) / jz,
-        ])
+        f_p, f_w = np.empty(3), np.empty(3)
+        _k.lumped_faults(self._x, self._command(u_cmd), float(t), self._params_vec, self._fault_array(), f_p, f_w)
         return f_p, f_w
 
     def derivative(self, u_cmd, t: float) -> np.ndarray:
         """State derivative (12,) at the current state for command ``u_cmd`` at time ``t``."""
-        uc = self._clip(*(float(v) for v in u_cmd))
-        ua = self._actual(uc, float(t), float(t))
-        d = self._disturb(float(t))
-        x = self._x
-        return np.array(x[3:6] + self._rates(*x[3:], ua[0], ua[1], ua[2], ua[3], d[0], d[1], d[2]))
+        t = float(t)
+        _, ua = self._inputs(u_cmd, t)
+        out = np.empty(STATE_SIZE)
+        _k.state_derivative(self._x, ua, self._force(t), self._params_vec, out)
+        return out
 
     # -- integration ------------------------------------------------------------------------
     def step(self, u_cmd, t: float, dt: float) -> np.ndarray:
         """Advance from ``t`` to ``t + dt`` s holding ``u_cmd`` (4,) rad; returns the new state (12,).
 
-        ``u_cmd`` is limited, then faults and limits are applied at each RK4 stage time.
+        ``u_cmd`` is limited, then faults and limits are applied at each RK4 stage time
+        (kernel :func:`.plant_kernels.plant_step`).
         """
-        uc = self._clip(*(float(v) for v in u_cmd))
-        t = float(t)
-        n = self.substeps
-        h = float(dt) / n
-        f = self._rates
-        x = self._x
-        faulty = bool(self.faults.faults)
-        dist = self.disturbance is not None
-        zero = (0.0, 0.0, 0.0)
-        # Substep s spans [t + s h, t + (s + 1) h]. The faults' activity is decided at its start
-        # (a fault switches on at a substep boundary, see uh_sim_node.faults); the bias and the
-        # disturbance are evaluated at the stage times. The end value of a substep is reused as the
-        # start value of the next when the activity has not changed (same float time).
-        u_mid, u_end, d_mid, d_end = uc, uc, zero, zero
-        u_start = self._actual(uc, t, t) if faulty else uc
-        disturb = self._disturbance_function()
-        d_start = disturb(t) if dist else zero
-        # Does a fault switch on inside this control period? If not, the set of acting faults is
-        # constant, the constant-bias channels are evaluated once and only the sinusoidal biases
-        # are re-evaluated at the stage times (same arithmetic as _actual, faster).
-        switching = faulty and any(t < f.onset_time - ONSET_TOLERANCE <= t + float(dt)
-                                   for f in self.faults.faults)
-        sinusoids = ()
-        if faulty and not switching:
-            lo, hi = self._lo, self._hi
-            sinusoids = tuple((f.channel, f.rho * uc[f.channel] + f.bias_constant, f.bias_amplitude,
-                               f.bias_frequency, lo[f.channel], hi[f.channel])
-                              for f in self.faults.faults
-                              if f.bias_amplitude != 0.0 and f.started(t))
-            u_mid = u_end = u_start
-        sin = math.sin
-        for s in range(n):
-            t_start = t + s * h
-            t_mid = t + (s + 0.5) * h
-            t_end = t + (s + 1) * h
-            if switching:
-                if s > 0:
-                    u_start = self._actual(uc, t_start, t_start)
-                u_mid = self._actual(uc, t_mid, t_start)
-                u_end = self._actual(uc, t_end, t_start)
-            elif sinusoids:
-                u_start = u_end if s > 0 else u_start
-                u_mid = list(u_start)
-                u_end = list(u_start)
-                for ch, base, amp, freq, lo_c, hi_c in sinusoids:
-                    u_mid[ch] = min(max(base + amp * sin(freq * t_mid), lo_c), hi_c)
-                    u_end[ch] = min(max(base + amp * sin(freq * t_end), lo_c), hi_c)
-            if dist:
-                d_mid = disturb(t_mid)
-                d_end = disturb(t_end)
-            x = _rk4_substep(f, x, h, u_start, u_mid, u_end, d_start, d_mid, d_end)
-            d_start = d_end
-        self._x = x
-        return np.array(x)
+        u = self._command(u_cmd)
+        t, dt = float(t), float(dt)
+        if self._sampled:
+            times = _k.disturbance_sample_times(t, dt, self.substeps)
+            samples = np.array([self._disturbance(tt) for tt in times], dtype=float).reshape(len(times), 3)
+            _k.plant_step_sampled(self._x, u, t, dt, self.substeps, self._params_vec, self._fault_array(),
+                                  samples)
+        else:
+            _k.plant_step(self._x, u, t, dt, self.substeps, self._params_vec, self._fault_array(),
+                          self._dist_table)
+        return self._x.copy()
 
 
 def plant_from_scenario(scenario, uh_id: int, params: HelicopterParams | None = None) -> HelicopterPlant:

@@ -1,0 +1,319 @@
+"""Compiled kernels of the helicopter model (uh_sim_node.plant_kernels, DESIGN.md 2.1, 2.2).
+
+The reference here is independent of the kernels: a numpy matrix form of the dynamics, textbook RK4
+on whole vectors, and eq. 6 evaluated by ``ActuatorFault.apply`` in Python.
+"""
+import math
+
+import numpy as np
+import pytest
+from numba import njit
+
+from uh_sim_node import plant_kernels as K
+from uh_sim_node.faults import NUM_CHANNELS, ActuatorFault, FaultError, FaultSchedule
+from uh_sim_node.helicopter import HelicopterPlant, SinusoidalDisturbance, hover_trim, load_helicopter_params
+
+P = load_helicopter_params()
+DT = 0.01
+SUBSTEPS = 5
+X0 = np.concatenate([[1.0, 2.0, 12.0], [0.8, -0.4, 0.3], [0.12, -0.08, 0.9], [0.3, -0.25, 0.4]])
+U = hover_trim(P) + np.array([0.02, -0.01, 0.01, -0.015])  # inside the limits
+DIST = SinusoidalDisturbance([0.3, 0.3, 0.2], [0.5, 4.0, 3.0], [0.0, 1.0, 2.0])
+
+
+# ------------------------------------------------------------------------------------------------
+# Independent reference
+
+
+def _rotation(phi, th, psi):
+    rx = np.array([[1, 0, 0], [0, math.cos(phi), -math.sin(phi)], [0, math.sin(phi), math.cos(phi)]])
+    ry = np.array([[math.cos(th), 0, math.sin(th)], [0, 1, 0], [-math.sin(th), 0, math.cos(th)]])
+    rz = np.array([[math.cos(psi), -math.sin(psi), 0], [math.sin(psi), math.cos(psi), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def _derivative(x, u, d):
+    """DESIGN.md 2.1 in matrix form, (12,)."""
+    v, euler, w = x[3:6], x[6:9], x[9:12]
+    phi, th, _ = euler
+    T = P.c_M1 * u[0] + P.c_M2
+    e3 = np.array([0.0, 0.0, 1.0])
+    vdot = (-P.mass * P.gravity * e3 + T * _rotation(*euler) @ e3 - P.D_v * v + d) / P.mass
+    H = np.array([[1, math.sin(phi) * math.tan(th), math.cos(phi) * math.tan(th)],
+                  [0, math.cos(phi), -math.sin(phi)],
+                  [0, math.sin(phi) / math.cos(th), math.cos(phi) / math.cos(th)]])
+    J = np.diag(P.inertia)
+    k = P.K_beta + T * P.h_M
+    gamma = np.array([k * (P.B_lat * u[2] - P.tau_f * w[0]), k * (P.A_lon * u[3] - P.tau_f * w[1]),
+                      P.K_tr * u[1] - P.D_r * w[2] - P.c_Q * T])
+    wdot = np.linalg.solve(J, -np.cross(w, J @ w) + gamma)
+    return np.concatenate([v, vdot, H @ w, wdot])
+
+
+def _reference_step(x, u_cmd, t, dt, substeps, schedule, dist):
+    """Textbook RK4; eq. 6 with the activity decided at each substep start, limits before and after."""
+    lo, hi = P.input_lower, P.input_upper
+    uc = np.clip(u_cmd, lo, hi)
+    zero = (lambda tt: np.zeros(3)) if dist is None else (lambda tt: np.array(dist(tt)))
+
+    def f(tt, xx, ts):
+        return _derivative(xx, np.clip(schedule.apply(uc, tt, switch_time=ts), lo, hi), zero(tt))
+
+    h = dt / substeps
+    for s in range(substeps):
+        ts = t + s * h
+        k1 = f(ts, x, ts)
+        k2 = f(t + (s + 0.5) * h, x + h / 2 * k1, ts)
+        k3 = f(t + (s + 0.5) * h, x + h / 2 * k2, ts)
+        k4 = f(t + (s + 1) * h, x + h * k3, ts)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
+
+
+def _arrays(faults=(), dist=None):
+    return K.params_vector(P), K.fault_table(FaultSchedule(faults)), K.disturbance_table(dist)
+
+
+# ------------------------------------------------------------------------------------------------
+# Array layout
+
+
+def test_params_vector_puts_each_parameter_at_its_named_index():
+    vec = K.params_vector(P)
+    assert vec.shape == (K.PARAMS_SIZE,) and vec.dtype == np.float64
+    named = {K.P_MASS: P.mass, K.P_GRAVITY: P.gravity, K.P_D_V: P.D_v, K.P_C_M1: P.c_M1, K.P_C_M2: P.c_M2,
+             K.P_K_BETA: P.K_beta, K.P_H_M: P.h_M, K.P_B_LAT: P.B_lat, K.P_A_LON: P.A_lon,
+             K.P_TAU_F: P.tau_f, K.P_K_TR: P.K_tr, K.P_D_R: P.D_r, K.P_C_Q: P.c_Q,
+             K.P_J_X: P.inertia[0], K.P_J_Y: P.inertia[1], K.P_J_Z: P.inertia[2]}
+    for index, value in named.items():
+        assert vec[index] == value
+    np.testing.assert_array_equal(vec[K.P_LOWER:K.P_LOWER + 4], P.input_lower)
+    np.testing.assert_array_equal(vec[K.P_UPPER:K.P_UPPER + 4], P.input_upper)
+    # every slot is named exactly once
+    assert sorted(list(named) + list(range(K.P_LOWER, K.P_UPPER + 4))) == list(range(K.PARAMS_SIZE))
+
+
+def test_fault_and_disturbance_tables():
+    table = K.fault_table(FaultSchedule([ActuatorFault(3, 0.75, -0.005, 0.01, 0.5, 10.0)]))
+    assert table.shape == (NUM_CHANNELS, K.FAULT_FIELDS)
+    np.testing.assert_array_equal(table[3, [K.F_PRESENT, K.F_RHO, K.F_BIAS_CONSTANT, K.F_BIAS_AMPLITUDE,
+                                            K.F_BIAS_FREQUENCY, K.F_ONSET_TIME]],
+                                  [1.0, 0.75, -0.005, 0.01, 0.5, 10.0])
+    np.testing.assert_array_equal(table[:3], 0.0)  # channels without fault: not present
+    dist = K.disturbance_table(DIST)
+    np.testing.assert_array_equal(dist[:, K.D_AMPLITUDE], DIST.amplitude)
+    np.testing.assert_array_equal(dist[:, K.D_FREQUENCY], DIST.frequency)
+    np.testing.assert_array_equal(dist[:, K.D_PHASE], DIST.phase)
+    np.testing.assert_array_equal(K.disturbance_table(None), 0.0)
+    out = np.empty(3)
+    K.force_disturbance(dist, 2.0, out)
+    np.testing.assert_array_equal(out, DIST(2.0))  # same libm sin, same formula
+
+
+# ------------------------------------------------------------------------------------------------
+# Dynamics and integration against the independent reference
+
+
+def test_state_derivative_kernel_equals_matrix_form():
+    rng = np.random.default_rng(7)
+    params = K.params_vector(P)
+    out = np.empty(12)
+    for _ in range(10):
+        x = np.concatenate([rng.normal(size=6), rng.uniform(-0.8, 0.8, 3), rng.normal(size=3)])
+        u = rng.uniform(P.input_lower, P.input_upper)
+        d = rng.normal(size=3)
+        K.state_derivative(x, u, d, params, out)
+        # differences of O(100) terms in another order: a few ulps of 100
+        np.testing.assert_allclose(out, _derivative(x, u, d), rtol=0, atol=1e-12)
+
+
+def test_plant_step_equals_textbook_rk4_with_faults_disturbance_and_onset():
+    schedule = FaultSchedule([ActuatorFault(0, 0.8, 0.0, 0.01, 0.5, onset_time=0.05),
+                              ActuatorFault(2, 0.85, 0.002, 0.003, 7.0, onset_time=0.0),
+                              ActuatorFault(1, 0.0, 0.02, onset_time=0.07)])     # stuck tail rotor
+    params, faults, dist = _arrays(schedule.faults, DIST)
+    x = X0.copy()
+    ref = X0.copy()
+    for k in range(12):  # across both onsets
+        t = k * DT
+        K.plant_step(x, U, t, DT, SUBSTEPS, params, faults, dist)
+        ref = _reference_step(ref, U, t, DT, SUBSTEPS, schedule, DIST)
+        # same arithmetic in another order on O(10) numbers, propagated over 12 steps
+        np.testing.assert_allclose(x, ref, rtol=0, atol=1e-12)
+
+
+def test_hover_trim_stays_trimmed_in_the_kernel():
+    params, faults, dist = _arrays()
+    x0 = np.concatenate([[1.0, -2.0, 10.0], [0, 0, 0], [0, 0, 0.7], [0, 0, 0]])
+    x = x0.copy()
+    u = hover_trim(P)
+    for k in range(1000):  # 10 s
+        K.plant_step(x, u, k * DT, DT, SUBSTEPS, params, faults, dist)
+    # residual acceleration of rounding size (1e-14 m/s^2) moves the helicopter ~5e-13 m in 10 s
+    np.testing.assert_allclose(x, x0, rtol=0, atol=1e-9)
+
+
+def test_a_fault_switches_on_at_the_first_substep_start_after_its_onset():
+    """dt = 10 ms, 5 substeps of 2 ms from t = 10 ms: substeps start at 10, 12, 14, 16, 18 ms."""
+    params, _, dist = _arrays()
+
+    def step(onset):
+        faults = K.fault_table([ActuatorFault(0, 0.7, 0.01, onset_time=onset)])
+        x = X0.copy()
+        K.plant_step(x, U, 0.01, DT, SUBSTEPS, params, faults, dist)
+        return x
+
+    mid = step(0.013)
+    np.testing.assert_array_equal(mid, step(0.014))           # acts from the substep at 14 ms
+    assert np.max(np.abs(mid - step(0.012))) > 1e-7          # one more substep of fault: 2 ms x ~10 m/s^2
+    assert np.max(np.abs(mid - step(0.05))) > 1e-7           # and the fault does act within the step
+    schedule = FaultSchedule([ActuatorFault(0, 0.7, 0.01, onset_time=0.013)])
+    np.testing.assert_allclose(mid, _reference_step(X0, U, 0.01, DT, SUBSTEPS, schedule, None),
+                               rtol=0, atol=1e-12)
+
+
+def test_sampled_disturbance_equals_the_sinusoid_table():
+    params, faults, dist = _arrays([ActuatorFault(3, 0.75, -0.005)], DIST)
+    times = K.disturbance_sample_times(0.3, DT, SUBSTEPS)
+    assert len(times) == 2 * SUBSTEPS + 1 and times[0] == 0.3 and times[-1] == pytest.approx(0.31, abs=1e-15)
+    samples = np.array([DIST(t) for t in times])
+    a, b = X0.copy(), X0.copy()
+    K.plant_step(a, U, 0.3, DT, SUBSTEPS, params, faults, dist)
+    K.plant_step_sampled(b, U, 0.3, DT, SUBSTEPS, params, faults, samples)
+    np.testing.assert_array_equal(a, b)  # the same floats reach the same arithmetic
+
+
+def test_input_chain_limits_before_and_after_the_fault():
+    params = K.params_vector(P)
+    faults = K.fault_table([ActuatorFault(2, 1.0, 0.2), ActuatorFault(1, 0.5, -0.4), ActuatorFault(0, 0.0, 0.11)])
+    uc, ua = np.empty(4), np.empty(4)
+    K.actual_inputs(np.array([0.25, -0.3, 0.9, 0.0]), 0.0, 0.0, params, faults, uc, ua)
+    np.testing.assert_array_equal(uc, [0.25, -0.3, 0.3, 0.0])       # 0.9 -> upper limit 0.3
+    np.testing.assert_array_equal(ua, [0.11, -0.5, 0.3, 0.0])       # stuck; -0.55 -> -0.5; 0.5 -> 0.3
+
+
+# ------------------------------------------------------------------------------------------------
+# Lumped faults
+
+
+def test_lumped_faults_kernel_equals_difference_of_the_dynamics():
+    schedule = FaultSchedule([ActuatorFault(0, 0.85, -0.01, onset_time=1.0),
+                              ActuatorFault(2, 0.8, 0.0, 0.005, 0.3, onset_time=1.0)])
+    params, faults, _ = _arrays(schedule.faults)
+    f_p, f_w = np.empty(3), np.empty(3)
+    K.lumped_faults(X0, U, 0.5, params, faults, f_p, f_w)  # before the onset: exactly zero
+    np.testing.assert_array_equal(np.concatenate([f_p, f_w]), 0.0)
+    t = 3.7
+    K.lumped_faults(X0, U, t, params, faults, f_p, f_w)
+    u_cmd = np.clip(U, P.input_lower, P.input_upper)
+    u_act = np.clip(schedule.apply(u_cmd, t), P.input_lower, P.input_upper)
+    diff = _derivative(X0, u_act, np.zeros(3)) - _derivative(X0, u_cmd, np.zeros(3))
+    # differences of O(10) quantities computed in another order
+    np.testing.assert_allclose(f_p, diff[3:6], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(f_w, diff[9:12], rtol=0, atol=1e-12)
+    assert np.linalg.norm(f_p) > 1e-2 and np.linalg.norm(f_w) > 1e-2
+
+
+# ------------------------------------------------------------------------------------------------
+# The plant wrapper follows its schedule
+
+
+def test_fault_table_follows_schedule_changes():
+    plant = HelicopterPlant(P, None, X0)
+    r0 = plant.faults.revision
+    np.testing.assert_array_equal(plant.kernel_arrays().faults, 0.0)
+    plant.faults.add(ActuatorFault(2, 0.9, 0.01))
+    assert plant.faults.revision > r0
+    table = plant.kernel_arrays().faults
+    assert table[2, K.F_PRESENT] == 1.0 and table[2, K.F_RHO] == 0.9
+    plant.faults.add(ActuatorFault(2, 0.6))                       # replaces channel 2
+    assert plant.kernel_arrays().faults[2, K.F_RHO] == 0.6
+    plant.faults.add(ActuatorFault(2, 1.0))                       # nominal: clears channel 2
+    np.testing.assert_array_equal(plant.kernel_arrays().faults, 0.0)
+    plant.faults.add(ActuatorFault(0, 0.5))
+    plant.faults.clear()
+    np.testing.assert_array_equal(plant.kernel_arrays().faults, 0.0)
+    # kernel_arrays hands out copies: writing them does not change the plant
+    arrays = plant.kernel_arrays()
+    arrays.params[K.P_MASS] = 1.0
+    assert plant.kernel_arrays().params[K.P_MASS] == P.mass and arrays.substeps == plant.substeps
+
+
+def test_fault_injected_after_construction_acts_on_the_next_step():
+    injected = HelicopterPlant(P, None, X0, disturbance=DIST)
+    built = HelicopterPlant(P, FaultSchedule([ActuatorFault(3, 0.5, 0.01)]), X0, disturbance=DIST)
+    healthy = HelicopterPlant(P, None, X0, disturbance=DIST)
+    injected.step(U, 0.0, DT)                       # the healthy step happens first in both
+    healthy.step(U, 0.0, DT)
+    built.reset(injected.x)
+    injected.faults.add(ActuatorFault(3, 0.5, 0.01))
+    np.testing.assert_array_equal(injected.step(U, DT, DT), built.step(U, DT, DT))
+    assert np.max(np.abs(injected.x - healthy.step(U, DT, DT))) > 1e-6
+    f_p, f_w = injected.lumped_faults(U, 2 * DT)
+    assert np.linalg.norm(f_w) > 1.0                # 0.5 delta_lon change of ~0.02 rad: ~3 rad/s^2
+
+
+def test_replacing_the_schedule_object_is_followed_too():
+    plant = HelicopterPlant(P, None, X0)
+    plant.faults = FaultSchedule([ActuatorFault(1, 0.0, 0.1)])
+    assert plant.actual_inputs(U, 0.0)[1] == 0.1
+    assert plant.kernel_arrays().faults[1, K.F_PRESENT] == 1.0
+
+
+def test_plant_rejects_bad_faults_disturbance_and_commands():
+    with pytest.raises(FaultError, match='faults must be a FaultSchedule or None, got list'):
+        HelicopterPlant(P, [ActuatorFault(0, 0.5)], X0)
+    with pytest.raises(ValueError, match='disturbance must be a SinusoidalDisturbance, a callable .* got float'):
+        HelicopterPlant(P, None, X0, disturbance=0.3)
+    plant = HelicopterPlant(P, None, X0)
+    with pytest.raises(ValueError, match=r'command u_cmd must have 4 elements .* got shape \(3,\)'):
+        plant.step([0.1, 0.0, 0.0], 0.0, DT)
+    with pytest.raises(ValueError, match=r'command u_cmd must have 4 elements .* got shape \(5,\)'):
+        plant.lumped_faults(np.zeros(5), 0.0)
+    callable_plant = HelicopterPlant(P, None, X0, disturbance=lambda t: (0.0, 0.0, 0.1))
+    with pytest.raises(ValueError, match='is a Python callable, not a SinusoidalDisturbance'):
+        callable_plant.kernel_arrays()
+
+
+# ------------------------------------------------------------------------------------------------
+# Use from njit code, and the compile helper
+
+
+@njit
+def _team_step(states, commands, t, dt, substeps, params, faults, disturbance, f_p, f_w):
+    for c in range(states.shape[0]):
+        K.lumped_faults(states[c], commands[c], t, params[c], faults[c], f_p[c], f_w[c])
+        K.plant_step(states[c], commands[c], t, dt, substeps, params[c], faults[c], disturbance[c])
+
+
+def test_kernels_called_from_njit_code_equal_the_plants():
+    """The recipe of the plant_kernels docstring: stacked kernel_arrays, a loop over the UHs."""
+    from uh_sim_node.helicopter import plant_from_scenario
+    from uh_topology.scenario import load_scenario
+
+    sc = load_scenario('paper')
+    plants = [plant_from_scenario(sc, i, P) for i in sc.ids]
+    arrays = [p.kernel_arrays() for p in plants]
+    params = np.stack([a.params for a in arrays])
+    faults = np.stack([a.faults for a in arrays])
+    dist = np.stack([a.disturbance for a in arrays])
+    states = np.stack([p.x for p in plants])
+    commands = np.stack([hover_trim(P) + 0.01 * c for c in range(len(plants))])
+    f_p, f_w = np.empty((len(plants), 3)), np.empty((len(plants), 3))
+    for k in range(995, 1010):  # across the fault onset at 10 s
+        t = k * sc.dt
+        _team_step(states, commands, t, sc.dt, sc.substeps, params, faults, dist, f_p, f_w)
+        for c, plant in enumerate(plants):
+            fp, fw = plant.lumped_faults(commands[c], t)
+            plant.step(commands[c], t, sc.dt)
+            np.testing.assert_array_equal(f_p[c], fp)
+            np.testing.assert_array_equal(f_w[c], fw)
+            np.testing.assert_array_equal(states[c], plant.x)
+    assert np.any(f_w != 0.0)  # the faults did switch on
+
+
+def test_compile_plant_kernels_compiles_every_public_kernel():
+    assert K.compile_plant_kernels() >= 0.0
+    for name in ('plant_step', 'plant_step_sampled', 'lumped_faults', 'lumped_faults_of_inputs',
+                 'state_derivative', 'actual_inputs', 'force_disturbance'):
+        assert getattr(K, name).signatures, name
