@@ -317,3 +317,16 @@ def test_compile_plant_kernels_compiles_every_public_kernel():
     for name in ('plant_step', 'plant_step_sampled', 'lumped_faults', 'lumped_faults_of_inputs',
                  'state_derivative', 'actual_inputs', 'force_disturbance'):
         assert getattr(K, name).signatures, name
+
+
+def test_commands_of_any_array_kind_give_the_same_step():
+    """Lists, read-only and strided arrays are converted once, to the one kernel signature."""
+    ro = U.copy()
+    ro.setflags(write=False)
+    strided = np.repeat(U, 2)[::2]
+    results = [HelicopterPlant(P, None, X0).step(u, 0.0, DT) for u in (U, list(U), ro, strided)]
+    for r in results[1:]:
+        np.testing.assert_array_equal(r, results[0])
+    # no read-only or non-contiguous specialisation was compiled
+    for sig in K.plant_step.signatures:
+        assert all(arg.mutable and arg.layout == 'C' for arg in sig if hasattr(arg, 'layout')), sig

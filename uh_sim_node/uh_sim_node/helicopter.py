@@ -558,11 +558,14 @@ class HelicopterPlant:
     # -- inputs -----------------------------------------------------------------------------
     @staticmethod
     def _command(u_cmd) -> np.ndarray:
-        """``u_cmd`` as a C-contiguous float64 (4,) array (no copy when it already is one)."""
+        """``u_cmd`` as a writable C-contiguous float64 (4,) array (no copy when it already is one;
+        a read-only array would make numba compile another specialisation of every kernel)."""
         u = np.ascontiguousarray(u_cmd, dtype=np.float64)
         if u.shape != (INPUT_SIZE,):
             raise ValueError(f'command u_cmd must have 4 elements (theta_col, theta_tr, delta_lat, '
                              f'delta_lon), got shape {np.shape(u_cmd)}')
+        if not u.flags.writeable:
+            u = u.copy()
         return u
 
     def _inputs(self, u_cmd, t: float) -> tuple:
