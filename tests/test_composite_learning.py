@@ -3,8 +3,8 @@
 The reason for the serial-parallel estimation model (DESIGN.md 2.4 steps 4-5): the tracking-error
 law ``W' = Gamma S z2`` learns only as fast as the tracking error grows, and a well-tuned controller
 keeps that error small; the prediction error ``z_n = v - vhat`` of the SPEM is driven by the
-approximation error directly, whatever the feedback gain. Both runs below use the real outer loop
-(:class:`OuterLoop`) on a toy plant ``p' = v, v' = f(v) + u_p`` with the same gains, learning rate
+approximation error directly, whatever the feedback gain. Both runs below use the real outer-loop
+kernels (``outer_law`` then ``outer_advance``, as ``uh_control_step`` calls them) on a toy plant ``p' = v, v' = f(v) + u_p`` with the same gains, learning rate
 and trajectory; the only difference is the DESIGN.md 2.6 ``case2`` change (``gamma = gamma_F =
 kappa = 0``). The fault observer is off so the network has to learn all of ``f``.
 """
@@ -16,9 +16,10 @@ import numpy as np
 import pytest
 import yaml
 
+from uh_controller_node.control_kernels import (FLAG_STARTED, M_FLAGS, MEMORY_ROWS, control_parameters,
+                                                outer_advance, outer_law)
 from uh_controller_node.gains import ControllerGains
 from uh_controller_node.nominal_model import NominalModel
-from uh_controller_node.outer_loop import OuterLoop
 
 GAINS_FILE = Path(__file__).resolve().parents[1] / 'uh_topology' / 'uh_topology' / 'config' / 'paper_gains.yaml'
 
@@ -41,17 +42,24 @@ def learn(case, duration=15.0, dt=0.01):
     gains['outer'].update({'k': 2.0, 'r': 0.1, 'learning_rate': 1.0, 'gamma': 20.0, 'gamma_F': 0.0,
                            'kappa': 20.0, 'sigma': 0.0, 'lambda': 0.0, 'rbf_nodes': 11,
                            'rbf_low': -2.0, 'rbf_high': 2.0, 'rbf_width': 0.6, 'weight_bound': 100.0})
-    loop = OuterLoop(ControllerGains.from_mapping(gains, case), TOY)
+    params = control_parameters(ControllerGains.from_mapping(gains, case), TOY)
+    memory = np.zeros((MEMORY_ROWS, 3))
+    weights = np.zeros((11, 3))
+    act = np.empty((11, 3))
+    alpha_v, alpha_rate, net, drift, z2, zn, u_p = (np.empty(3) for _ in range(7))
     p, v = np.zeros(3), np.zeros(3)
     errors = []
     for k in range(int(round(duration / dt))):
         t = k * dt
         p_d = np.array([math.sin(0.8 * t), 0.8 * math.sin(1.1 * t + 0.5), 0.7 * math.sin(0.6 * t)])
         v_d = np.array([0.8 * math.cos(0.8 * t), 0.88 * math.cos(1.1 * t + 0.5), 0.42 * math.cos(0.6 * t)])
-        u_p, _, _ = loop.command(p - p_d, 1.0, v_d, v)
-        net = loop.rbf.output(loop.weights, loop.rbf.activations(v))
-        errors.append(net - unknown(v))
-        loop.advance(u_p, dt)
+        started = memory[M_FLAGS, FLAG_STARTED] != 0.0
+        outer_law(params, 1.0, p - p_d, v_d, v, started, memory, weights, act, alpha_v, alpha_rate, net,
+                  drift, z2, zn, u_p)
+        errors.append(net - unknown(v))              # net = W^T S(v) at t_k
+        # the toy plant delivers u_p exactly: it is the achieved acceleration
+        outer_advance(params, dt, memory, weights, act, alpha_v, net, drift, u_p, z2, zn)
+        memory[M_FLAGS, FLAG_STARTED] = 1.0
         h = dt / 10                                  # toy plant, u_p held over the step
         for _ in range(10):
             a = unknown(v) + u_p

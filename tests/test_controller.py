@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 import yaml
 
-from uh_controller_node.command_filter import FilterError, FirstOrderFilter, wrap_angle
+from uh_controller_node.control_kernels import (CP_MIN_VERTICAL_ACCEL, CP_TILT_LIMIT, control_parameters,
+                                                filter_advance, filter_gain, filter_rate, thrust_and_attitude,
+                                                wrap_angle)
 from uh_controller_node.controller import ControllerError, UHController
 from uh_controller_node.gains import CASES, ControllerGains, GainsError
 from uh_controller_node.nominal_model import NominalModel
-from uh_controller_node.outer_loop import thrust_and_attitude
 
 ROOT = Path(__file__).resolve().parents[1]
 GAINS_FILE = ROOT / 'uh_topology' / 'uh_topology' / 'config' / 'paper_gains.yaml'
@@ -118,6 +119,9 @@ def test_plain_mapping_equals_ros_parameter_layout():
     (lambda g: g['outer'].update(tau_rate=0.02), r"outer: unknown key\(s\) \['tau_rate'\]"),
     (lambda g: g['inner'].update(rbf_nodes=2.5), 'inner: rbf_nodes must be an integer >= 1, got 2.5'),
     (lambda g: g.update(tilt_limit_deg=95.0), 'tilt_limit_deg must be < 90'),
+    (lambda g: g['inner'].update(tau_rate=0.0), 'inner: tau_rate must be > 0, got 0.0'),
+    (lambda g: g['outer'].update(rbf_width=0.0), 'outer: rbf_width must be > 0, got 0.0'),
+    (lambda g: g['outer'].update(rbf_low=4.0), 'outer: rbf_low must be < rbf_high, got 4.0 and 4.0'),
 ])
 def test_invalid_gains_are_rejected_with_the_offending_key(edit, match):
     gains = copy.deepcopy(paper_gains()['/**']['ros__parameters'])
@@ -135,33 +139,30 @@ def test_unknown_case_is_rejected():
 # command filter
 
 def test_filter_matches_the_exact_solution_for_a_held_input():
-    f = FirstOrderFilter(0.05)
-    f.reset([1.0, -2.0, 0.0])
+    y = np.array([1.0, -2.0, 0.0])
     u = np.array([3.0, 3.0, 3.0])
+    gain = filter_gain(0.05, 0.01)
     for _ in range(7):
-        f.advance(u, 0.01)
+        filter_advance(u, y, gain, False)
     expected = u + (np.array([1.0, -2.0, 0.0]) - u) * math.exp(-0.07 / 0.05)
-    assert np.allclose(f.value, expected, rtol=1e-13)
-    assert np.allclose(f.derivative(u), (u - f.value) / 0.05)
+    assert np.allclose(y, expected, rtol=1e-13)
+    rate = np.empty(3)
+    filter_rate(u, y, 0.05, False, rate)
+    assert np.allclose(rate, (u - y) / 0.05)
 
 
 def test_angle_axis_takes_the_short_way_and_stays_continuous():
-    f = FirstOrderFilter(0.05, angle_axes=(2,))
-    f.reset([0.0, 0.0, 3.1])
+    y = np.array([0.0, 0.0, 3.1])
     target = np.array([0.0, 0.0, -3.1])        # 0.083 rad away through +-pi
-    assert f.derivative(target)[2] == pytest.approx((2 * math.pi - 6.2) / 0.05)
+    rate = np.empty(3)
+    filter_rate(target, y, 0.05, True, rate)
+    assert rate[2] == pytest.approx((2 * math.pi - 6.2) / 0.05)
+    gain = filter_gain(0.05, 0.01)
     for _ in range(200):
-        f.advance(target, 0.01)
-    assert f.value[2] == pytest.approx(2 * math.pi - 3.1)   # unwrapped, same heading as -3.1
+        filter_advance(target, y, gain, True)
+    assert y[2] == pytest.approx(2 * math.pi - 3.1)   # unwrapped, same heading as -3.1
     assert wrap_angle(math.pi) == math.pi and wrap_angle(-math.pi) == math.pi
     assert wrap_angle(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
-
-
-def test_filter_errors():
-    with pytest.raises(FilterError, match='time constant must be a finite number > 0 s'):
-        FirstOrderFilter(0.0)
-    with pytest.raises(FilterError, match=r'advanced before reset\(\)'):
-        FirstOrderFilter(0.1).advance(np.zeros(3), 0.01)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -173,8 +174,19 @@ def _rotation_e3(phi, theta, psi):
     return np.array([cp * st * cf + sp * sf, sp * st * cf - cp * sf, ct * cf])
 
 
+def attitude(u_p, psi):
+    """thrust_and_attitude of the kernels with MODEL, a 30 deg tilt limit and 2 m/s^2 minimum
+    vertical acceleration, as a record."""
+    params = control_parameters(ControllerGains.from_mapping(paper_gains()), MODEL)
+    params[CP_TILT_LIMIT] = math.radians(30)
+    params[CP_MIN_VERTICAL_ACCEL] = 2.0
+    out = thrust_and_attitude(params, np.asarray(u_p, float), psi)
+    return SimpleNamespace(**dict(zip(('phi', 'theta', 'thrust', 'theta_col', 'thrust_achieved',
+                                       'saturated_tilt', 'saturated_collective'), out)))
+
+
 def test_hover_demand_gives_level_attitude_and_hover_collective():
-    att = thrust_and_attitude(np.zeros(3), 0.7, MODEL, math.radians(30), 2.0)
+    att = attitude(np.zeros(3), 0.7)
     assert att.phi == 0.0 and att.theta == 0.0
     assert att.thrust == pytest.approx(8.2 * 9.81)
     assert att.theta_col == pytest.approx((8.2 * 9.81 - 10.0) / 700.0)
@@ -186,20 +198,20 @@ def test_attitude_and_thrust_realise_the_demanded_acceleration():
     for _ in range(50):
         u_p = rng.uniform(-3.0, 3.0, size=3)
         psi = rng.uniform(-math.pi, math.pi)
-        att = thrust_and_attitude(u_p, psi, MODEL, math.radians(30), 2.0)
+        att = attitude(u_p, psi)
         assert not att.saturated_tilt
         achieved = att.thrust / MODEL.mass * _rotation_e3(att.phi, att.theta, psi) - [0, 0, MODEL.gravity]
         assert np.allclose(achieved, u_p, atol=1e-12)
 
 
 def test_tilt_limit_keeps_the_vertical_demand_and_collective_limit_is_flagged():
-    att = thrust_and_attitude(np.array([20.0, 0.0, 1.0]), 0.0, MODEL, math.radians(30), 2.0)
+    att = attitude([20.0, 0.0, 1.0], 0.0)
     assert att.saturated_tilt
     tilt = math.acos(math.cos(att.phi) * math.cos(att.theta))
     assert tilt == pytest.approx(math.radians(30))
     vertical = att.thrust / MODEL.mass * math.cos(att.phi) * math.cos(att.theta)
     assert vertical == pytest.approx(MODEL.gravity + 1.0)
-    big = thrust_and_attitude(np.array([0.0, 0.0, 30.0]), 0.0, MODEL, math.radians(30), 2.0)
+    big = attitude([0.0, 0.0, 30.0], 0.0)
     assert big.saturated_collective and big.theta_col == 0.3
     assert big.thrust_achieved == pytest.approx(700.0 * 0.3 + 10.0)
 

@@ -19,21 +19,31 @@ Per step the order is fixed: consensus error -> outer law (u_p) -> thrust and at
 (tilt and collective limits) -> inner law (u_m, cyclic and pedal limits) -> explicit-Euler update
 of every internal state from t_k to t_{k+1}. Neighbours are visited in ascending id order and the
 controller uses no randomness, so two runs with the same inputs give bit-identical outputs.
+
+The law itself is :func:`uh_controller_node.control_kernels.uh_control_step` (numba); this class
+checks the inputs, copies them into float64 arrays, makes one kernel call per step and turns the
+kernel's status vector into a :class:`ControllerStatusData`. :meth:`UHController.kernel_arrays`
+gives the arrays for calling the kernel from other njit code.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
-from .command_filter import wrap_angle
-from .gains import ControllerGains, GainsError
-from .inner_loop import InnerLoop
+from .control_kernels import (
+    INPUT_SIZE, M_ALPHA_F, M_ALPHA_WF, M_F_HAT_P, M_F_HAT_W, M_OMEGA_HAT, M_V_HAT, MEMORY_ROWS,
+    R_P, R_V, R_YAW, REFERENCE_SIZE, S_COST_RATE, S_EULER_D, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE,
+    S_SAT_CYCLIC, S_SAT_TILT, S_THRUST, S_U_P, S_W_NORM_P, S_W_NORM_W, S_Z1, S_Z2, S_Z3, S_Z4, S_ZN_P, S_ZN_W,
+    STATE_SIZE, STATUS_SIZE, STEP_DONE, ControlArrays, control_parameters, uh_control_step)
+from .gains import ControllerGains
 from .nominal_model import NominalModel
-from .outer_loop import OuterLoop, thrust_and_attitude
 
-__all__ = ['ControllerError', 'ControllerStatusData', 'UHController']
+__all__ = ['ControllerError', 'ControllerStatusData', 'LoopState', 'UHController']
+
+_STATE_SHAPE = (STATE_SIZE,)
 
 
 class ControllerError(ValueError):
@@ -113,19 +123,45 @@ class ControllerStatusData:
         return self.saturated_tilt or self.saturated_collective or self.saturated_cyclic
 
 
-@dataclass(frozen=True)
-class _HoldTarget:
-    """The reference-shaped target of a held position (see :meth:`UHController.step_degraded`)."""
+    @classmethod
+    def from_vector(cls, uh_id: int, step: int, stamp: float, status: np.ndarray) -> 'ControllerStatusData':
+        """The record of the kernel's ``status`` vector (STATUS_SIZE,) (layout: ``S_*`` constants of
+        :mod:`~uh_controller_node.control_kernels`). The vector fields are views of ``status``,
+        which the record then owns."""
+        s = status.tolist()
+        # positional, in field order (this runs every control step)
+        return cls(uh_id, step, stamp, status[S_Z1:S_Z1 + 3], status[S_Z2:S_Z2 + 3], status[S_Z3:S_Z3 + 3],
+                   status[S_Z4:S_Z4 + 3], status[S_F_HAT_P:S_F_HAT_P + 3], status[S_F_HAT_W:S_F_HAT_W + 3],
+                   status[S_ZN_P:S_ZN_P + 3], status[S_ZN_W:S_ZN_W + 3], status[S_U_P:S_U_P + 3],
+                   status[S_EULER_D:S_EULER_D + 3], s[S_THRUST], s[S_W_NORM_P], s[S_W_NORM_W],
+                   s[S_SAT_TILT] != 0.0, s[S_SAT_COLLECTIVE] != 0.0, s[S_SAT_CYCLIC] != 0.0, s[S_COST_RATE])
 
-    position: tuple
-    velocity: tuple
-    yaw: float
+
+class LoopState(NamedTuple):
+    """Live views of one loop's internal states (read them; the kernel updates them in place).
+
+    Attributes
+    ----------
+    weights : ndarray (mu, 3)
+        Network weights W (column a = axis a).
+    fault_estimate : ndarray (3,)
+        Fhat: m/s^2 inertial (outer), rad/s^2 body (inner).
+    model_estimate : ndarray (3,)
+        State of the serial-parallel estimation model: vhat m/s (outer), omegahat rad/s (inner).
+    command_filter : ndarray (3,)
+        Filtered virtual control: alpha_f m/s (outer), alpha_wf rad/s (inner).
+    """
+
+    weights: np.ndarray
+    fault_estimate: np.ndarray
+    model_estimate: np.ndarray
+    command_filter: np.ndarray
 
 
 def _state(x, what: str) -> list:
     """``x`` as a list of 12 finite floats, or a ControllerError naming ``what``."""
     if isinstance(x, np.ndarray):
-        if x.shape != (12,):
+        if x.shape != _STATE_SHAPE:
             raise ControllerError(f'{what} must be a state vector of shape (12,), got shape {x.shape}')
         values = x.tolist()
     else:
@@ -133,9 +169,13 @@ def _state(x, what: str) -> list:
             values = [float(v) for v in x]
         except (TypeError, ValueError):
             raise ControllerError(f'{what} must be a state vector of 12 numbers, got {x!r}') from None
-        if len(values) != 12:
+        if len(values) != STATE_SIZE:
             raise ControllerError(f'{what} must be a state vector of shape (12,), got shape ({len(values)},)')
-    if not all(map(math.isfinite, values)):
+    try:
+        finite = all(map(math.isfinite, values))
+    except TypeError:
+        raise ControllerError(f'{what} must be a state vector of 12 numbers, got {x!r}') from None
+    if not finite:
         raise ControllerError(f'{what} contains NaN or infinity: {values}')
     return values
 
@@ -145,6 +185,12 @@ def _vector3(value, what: str) -> tuple:
     if arr.shape != (3,) or not np.isfinite(arr).all():
         raise ControllerError(f'{what} must be 3 finite numbers, got {value!r}')
     return tuple(arr.tolist())
+
+
+def _check_dt(dt) -> float:
+    if isinstance(dt, bool) or not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
+        raise ControllerError(f'control period dt must be a finite number > 0 s, got {dt!r}')
+    return float(dt)
 
 
 class UHController:
@@ -162,6 +208,26 @@ class UHController:
     helicopter_params : HelicopterParams, optional
         Airframe parameters; default: loaded from ``scenario.helicopter``. The controller's nominal
         model scales their ``D_v`` and ``c_Q`` by ``scenario.model_mismatch``.
+
+    Attributes
+    ----------
+    uh_id : int
+    is_leader : bool
+    neighbours : tuple of int
+        The UHs heard, ascending id.
+    neighbour_weights : tuple of float
+        a_ij in the order of ``neighbours``.
+    leader_link : float
+        a_i0.
+    degree : float
+        ``sum_j a_ij + a_i0``.
+    offset : tuple of 3 float
+        Own formation offset h_i, m (zero for followers).
+    case : str
+    gains : ControllerGains
+    model : NominalModel
+    outer, inner : LoopState
+        Live views of the loops' learning states.
 
     Raises
     ------
@@ -197,11 +263,11 @@ class UHController:
                 if j not in offsets:
                     raise ControllerError(f'no formation offset for leader UH {j} (needed by UH {i})')
             self.offset = _vector3(offsets[i], f'formation offset of leader UH {i}')
-            self._neighbour_offsets = tuple(_vector3(offsets[j], f'formation offset of leader UH {j}')
-                                            for j in self.neighbours)
+            neighbour_offsets = tuple(_vector3(offsets[j], f'formation offset of leader UH {j}')
+                                      for j in self.neighbours)
         else:
             self.offset = zero
-            self._neighbour_offsets = tuple(zero for _ in self.neighbours)
+            neighbour_offsets = tuple(zero for _ in self.neighbours)
         self._neighbour_set = frozenset(self.neighbours)
         # the whole graph, for the reachability check of a degraded step (Assumption 1)
         self._hears = {int(j): tuple(int(n) for n in scenario.neighbours(j)) for j in ids}
@@ -213,12 +279,49 @@ class UHController:
             from uh_sim_node.helicopter import load_helicopter_params
             helicopter_params = load_helicopter_params(scenario.helicopter)
         self.model = NominalModel.from_params(helicopter_params, float(scenario.model_mismatch))
-        self.outer = OuterLoop(self.gains, self.model)
-        self.inner = InnerLoop(self.gains, self.model)
+
+        # the kernel's arrays (control_kernels module doc): constants of this UH ...
+        n_nb = len(self.neighbours)
+        self._params = control_parameters(self.gains, self.model)
+        self._offset = np.array(self.offset)
+        self._nb_weights = np.array(self.neighbour_weights, dtype=float).reshape(n_nb)
+        self._nb_offsets = np.array(neighbour_offsets, dtype=float).reshape(n_nb, 3)
+        # ... its internal states (all zero: the first step initialises filters and SPEMs) ...
+        self._weights_p = np.zeros((self.gains.outer.rbf.nodes, 3))
+        self._weights_w = np.zeros((self.gains.inner.rbf.nodes, 3))
+        self._memory = np.zeros((MEMORY_ROWS, 3))
+        # ... and input buffers, refilled every step
+        self._own = np.empty(STATE_SIZE)
+        self._nb_states = np.empty((n_nb, STATE_SIZE))
+        self._reference = np.zeros(REFERENCE_SIZE)
+
+    # ------------------------------------------------------------------------------------------
+    @property
+    def outer(self) -> LoopState:
+        """Live views of the outer loop's W_p, Fhat_p, vhat and alpha_f."""
+        m = self._memory
+        return LoopState(self._weights_p, m[M_F_HAT_P], m[M_V_HAT], m[M_ALPHA_F])
+
+    @property
+    def inner(self) -> LoopState:
+        """Live views of the inner loop's W_w, Fhat_w, omegahat and alpha_wf (Theta_df is
+        ``kernel_arrays().memory[M_THETA_DF]``)."""
+        m = self._memory
+        return LoopState(self._weights_w, m[M_F_HAT_W], m[M_OMEGA_HAT], m[M_ALPHA_WF])
+
+    def kernel_arrays(self) -> ControlArrays:
+        """The arrays :func:`~uh_controller_node.control_kernels.uh_control_step` needs for this UH.
+
+        These are the controller's own arrays, not copies: a kernel that updates ``weights_p``,
+        ``weights_w`` and ``memory`` in place carries this controller on; stack copies of them
+        (``np.stack``) for a team kernel. ``memory[M_THETA_DF]`` is the filtered attitude command.
+        """
+        return ControlArrays(self._params, self._offset, self._nb_weights, self._nb_offsets, self.leader_link,
+                             self._weights_p, self._weights_w, self._memory)
 
     # ------------------------------------------------------------------------------------------
     def _check_inputs(self, neighbour_states, reference, dt):
-        keys = set(neighbour_states)
+        keys = neighbour_states.keys()
         if keys != self._neighbour_set:
             missing = sorted(self._neighbour_set - keys)
             extra = sorted(keys - self._neighbour_set, key=str)
@@ -234,8 +337,7 @@ class UHController:
                                   f'{self.leader_link:g}): a reference is required')
         if self.leader_link == 0.0 and reference is not None:
             raise ControllerError(f'UH {self.uh_id} does not hear the virtual leader: reference must be None')
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
-            raise ControllerError(f'control period dt must be a finite number > 0 s, got {dt!r}')
+        return _check_dt(dt)
 
     def step(self, k: int, own_state, neighbour_states: dict, reference, dt: float):
         """One control step at ``t_k = k dt`` (DESIGN.md 2.3-2.5).
@@ -264,11 +366,14 @@ class UHController:
         ------
         ControllerError
             Missing or extra neighbour state, reference given/missing against the graph, a state
-            that is not 12 finite numbers, or a bad ``dt``.
+            that is not 12 finite numbers, or a bad ``dt``. Nothing is changed then.
         """
-        self._check_inputs(neighbour_states, reference, dt)
-        return self._step(k, own_state, neighbour_states, self.neighbours, self.neighbour_weights,
-                          self._neighbour_offsets, self.leader_link, reference, self.degree, dt)
+        dt = self._check_inputs(neighbour_states, reference, dt)
+        self._load_states(own_state, neighbour_states, self.neighbours, self._nb_states)
+        if self.leader_link > 0.0:
+            self._load_reference(reference.position, reference.velocity, reference.yaw)
+        return self._run(k, self._nb_states, self._nb_weights, self._nb_offsets, self.leader_link, dt,
+                         self.neighbours)
 
     def reachable_without(self, lost) -> bool:
         """Whether this UH still has a directed path from the virtual leader when the UHs in ``lost``
@@ -325,8 +430,7 @@ class UHController:
         if extra:
             raise ControllerError(f'UH {self.uh_id} controller: unexpected state of UH(s) {extra} that '
                                   f'UH {self.uh_id} does not hear; its neighbours are {list(self.neighbours)}')
-        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
-            raise ControllerError(f'control period dt must be a finite number > 0 s, got {dt!r}')
+        dt = _check_dt(dt)
         if hold is not None:
             position, yaw = hold
             p_hold = _vector3(position, f'UH {self.uh_id} hold position')
@@ -334,75 +438,67 @@ class UHController:
                 raise ControllerError(f'UH {self.uh_id} hold yaw must be finite, got {yaw!r}')
             h = self.offset
             # a pseudo virtual leader of weight 1 at p_hold - h: z1 = (p - h) - (p_hold - h)
-            target = _HoldTarget((p_hold[0] - h[0], p_hold[1] - h[1], p_hold[2] - h[2]), (0.0, 0.0, 0.0),
+            self._load_states(own_state, {}, (), self._nb_states[:0])
+            self._load_reference((p_hold[0] - h[0], p_hold[1] - h[1], p_hold[2] - h[2]), (0.0, 0.0, 0.0),
                                  float(yaw))
-            return self._step(k, own_state, {}, (), (), (), 1.0, target, 1.0, dt)
+            return self._run(k, self._nb_states[:0], self._nb_weights[:0], self._nb_offsets[:0], 1.0, dt, ())
         present = [n for n, j in enumerate(self.neighbours) if j in neighbour_states]
         a0 = self.leader_link if reference is not None else 0.0
         weights = tuple(self.neighbour_weights[n] for n in present)
-        degree = sum(weights) + a0
-        if not degree > 0.0:
+        if not sum(weights) + a0 > 0.0:
             raise ControllerError(f'UH {self.uh_id} has no neighbour data and no reference to follow; '
                                   'give hold=(position, yaw)')
-        return self._step(k, own_state, neighbour_states, tuple(self.neighbours[n] for n in present), weights,
-                          tuple(self._neighbour_offsets[n] for n in present), a0, reference, degree, dt)
+        ids = tuple(self.neighbours[n] for n in present)
+        nb_states = np.empty((len(present), STATE_SIZE))
+        self._load_states(own_state, neighbour_states, ids, nb_states)
+        if a0 > 0.0:
+            self._load_reference(reference.position, reference.velocity, reference.yaw)
+        return self._run(k, nb_states, self._nb_weights[present], self._nb_offsets[present], a0, dt, ids)
 
-    def _step(self, k, own_state, neighbour_states, neighbours, neighbour_weights, neighbour_offsets,
-              leader_link, reference, degree, dt):
-        """The control law of one step on the given (sub)graph; see :meth:`step`."""
-        x = _state(own_state, f'UH {self.uh_id} own state')
-        v, euler, omega = x[3:6], x[6:9], x[9:12]
-        h = self.offset
-        rel = [x[0] - h[0], x[1] - h[1], x[2] - h[2]]
-        z1 = [0.0, 0.0, 0.0]
-        ff = [0.0, 0.0, 0.0]
-        psi = euler[2]
-        yaw_sum = 0.0
-        for j, a, hj in zip(neighbours, neighbour_weights, neighbour_offsets):
-            xj = _state(neighbour_states[j], f'state of neighbour UH {j}')
-            for c in range(3):
-                z1[c] += a * (rel[c] - (xj[c] - hj[c]))
-                ff[c] += a * xj[3 + c]
-            yaw_sum += a * wrap_angle(xj[8] - psi)
-        if leader_link > 0.0:
-            a0 = leader_link
-            p0, v0 = reference.position, reference.velocity
-            for c in range(3):
-                z1[c] += a0 * (rel[c] - float(p0[c]))
-                ff[c] += a0 * float(v0[c])
-            psi_d = float(reference.yaw)
-        else:
-            psi_d = psi + yaw_sum / degree
+    # ------------------------------------------------------------------------------------------
+    def _load_states(self, own_state, neighbour_states, ids, nb_states):
+        """Copy the own state and the states of ``ids`` (in that order) into the kernel's buffers.
 
-        outer, inner, model = self.outer, self.inner, self.model
-        fhat_p = outer.fault_estimate
-        fhat_w = inner.fault_estimate
-        u_p, z2, zn_p = outer.command(z1, degree, ff, v)
-        att = thrust_and_attitude(u_p, psi_d, model, self.gains.tilt_limit, self.gains.min_vertical_accel)
-        euler_d = (att.phi, att.theta, psi_d)
-        u_m, z3, z4, zn_w, sat_cyclic = inner.command(euler, omega, euler_d, att.thrust_achieved)
+        Only the shape is checked here; finiteness is checked by the kernel. On a bad input the
+        inputs are checked one by one in the order the law reads them, so the error reported is
+        the first one (also when an earlier state holds NaN)."""
+        try:
+            x = own_state
+            if type(x) is np.ndarray and x.shape == _STATE_SHAPE:
+                self._own[:] = x
+            else:
+                self._own[:] = _state(x, f'UH {self.uh_id} own state')
+            for n, j in enumerate(ids):
+                x = neighbour_states[j]
+                if type(x) is np.ndarray and x.shape == _STATE_SHAPE:
+                    nb_states[n] = x
+                else:
+                    nb_states[n] = _state(x, f'state of neighbour UH {j}')
+        except (ControllerError, TypeError, ValueError):
+            _state(own_state, f'UH {self.uh_id} own state')
+            for j in ids:
+                _state(neighbour_states[j], f'state of neighbour UH {j}')
+            raise
 
-        # acceleration the limited thrust gives at the measured attitude: (T/m) R(Theta) e3 - g e3
-        cf, sf = math.cos(euler[0]), math.sin(euler[0])
-        ct, st = math.cos(euler[1]), math.sin(euler[1])
-        cp, sp = math.cos(psi), math.sin(psi)
-        tm = att.thrust_achieved / model.mass
-        accel = (tm * (cp * st * cf + sp * sf), tm * (sp * st * cf - cp * sf), tm * ct * cf - model.gravity)
-        outer.advance(accel, dt)
-        inner.advance(dt)
+    def _load_reference(self, position, velocity, yaw):
+        """Copy the virtual leader's position (3,) m, velocity (3,) m/s and yaw rad into the buffer."""
+        ref = self._reference
+        ref[R_P:R_P + 3] = position
+        ref[R_V:R_V + 3] = velocity
+        ref[R_YAW] = yaw
 
-        u = np.array([att.theta_col, u_m[2], u_m[0], u_m[1]])
-        wp, ww = outer.weights, inner.weights
-        # one allocation for the ten status vectors; each field is a row of it
-        vecs = np.array([z1, z2, z3, z4, fhat_p, fhat_w, zn_p, zn_w, u_p, euler_d])
-        status = ControllerStatusData(
-            uh_id=self.uh_id, step=int(k), stamp=int(k) * dt, z1=vecs[0], z2=vecs[1], z3=vecs[2],
-            z4=vecs[3], fault_estimate_position=vecs[4], fault_estimate_attitude=vecs[5],
-            prediction_error_position=vecs[6], prediction_error_attitude=vecs[7], u_p=vecs[8],
-            euler_desired=vecs[9], thrust_command=att.thrust,
-            weight_norm_position=math.sqrt(float(np.vdot(wp, wp))),
-            weight_norm_attitude=math.sqrt(float(np.vdot(ww, ww))),
-            saturated_tilt=att.saturated_tilt, saturated_collective=att.saturated_collective,
-            saturated_cyclic=sat_cyclic,
-            cost_rate=math.fsum(c * c for c in z1) + math.fsum(c * c for c in u_p))
-        return u, status
+    def _run(self, k, nb_states, nb_weights, nb_offsets, leader_link, dt, ids):
+        """One kernel call on the loaded inputs; the command and the status record."""
+        u = np.empty(INPUT_SIZE)
+        status = np.empty(STATUS_SIZE)
+        done = uh_control_step(self._params, self._own, nb_states, nb_weights, nb_offsets, self._offset,
+                               leader_link, self._reference, dt, self._weights_p, self._weights_w,
+                               self._memory, u, status)
+        if done != STEP_DONE:
+            if done == 0:
+                what, values = f'UH {self.uh_id} own state', self._own
+            else:
+                what, values = f'state of neighbour UH {ids[done - 1]}', nb_states[done - 1]
+            raise ControllerError(f'{what} contains NaN or infinity: {values.tolist()}')
+        k = int(k)
+        return u, ControllerStatusData.from_vector(self.uh_id, k, k * dt, status)

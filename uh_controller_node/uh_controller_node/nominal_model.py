@@ -15,6 +15,12 @@ the control-oriented model of DESIGN.md 2.2::
             u_m = (delta_lat, delta_lon, theta_tr)
 
 The bracketed residuals are what the RBF networks learn; F_p and F_w what the observers estimate.
+The control law evaluates ``f_p,nom``, ``f_w,nom`` and ``G`` in its kernels
+(:func:`~uh_controller_node.control_kernels.outer_law`,
+:func:`~uh_controller_node.control_kernels.inner_drift`,
+:func:`~uh_controller_node.control_kernels.control_effectiveness`) from the entries ``CP_*`` of the
+parameter vector that :func:`~uh_controller_node.control_kernels.control_parameters` builds from
+this record.
 """
 from __future__ import annotations
 
@@ -79,23 +85,3 @@ class NominalModel:
             D_r=f(params.D_r), c_Q=f(params.c_Q) * mismatch, D_v=f(params.D_v) * mismatch,
             input_lower=tuple(f(v) for v in params.input_lower),
             input_upper=tuple(f(v) for v in params.input_upper))
-
-    def thrust(self, theta_col: float) -> float:
-        """Main-rotor thrust ``c_M1 theta_col + c_M2``, N."""
-        return self.c_M1 * theta_col + self.c_M2
-
-    def control_effectiveness(self, thrust: float) -> tuple:
-        """Diagonal of ``G(T)``, 3 floats, rad/s^2 per rad, for (delta_lat, delta_lon, theta_tr)."""
-        k = self.K_beta + thrust * self.h_M
-        jx, jy, jz = self.inertia
-        return (k * self.B_lat / jx, k * self.A_lon / jy, self.K_tr / jz)
-
-    def inner_drift(self, omega, thrust: float) -> tuple:
-        """``f_w,nom(omega, T)``, 3 floats, rad/s^2: gyroscopic term, flapping damping, yaw damping,
-        torque reaction."""
-        p, q, r = float(omega[0]), float(omega[1]), float(omega[2])
-        jx, jy, jz = self.inertia
-        k = self.K_beta + thrust * self.h_M
-        return (((jy - jz) * q * r - k * self.tau_f * p) / jx,
-                ((jz - jx) * r * p - k * self.tau_f * q) / jy,
-                ((jx - jy) * p * q - self.D_r * r - self.c_Q * thrust) / jz)
