@@ -4,9 +4,10 @@ The reason for the serial-parallel estimation model (DESIGN.md 2.4 steps 4-5): t
 law ``W' = Gamma S z2`` learns only as fast as the tracking error grows, and a well-tuned controller
 keeps that error small; the prediction error ``z_n = v - vhat`` of the SPEM is driven by the
 approximation error directly, whatever the feedback gain. Both runs below use the real outer-loop
-kernels (``outer_law`` then ``outer_advance``, as ``uh_control_step`` calls them) on a toy plant ``p' = v, v' = f(v) + u_p`` with the same gains, learning rate
-and trajectory; the only difference is the DESIGN.md 2.6 ``case2`` change (``gamma = gamma_F =
-kappa = 0``). The fault observer is off so the network has to learn all of ``f``.
+kernels (``outer_law`` then ``outer_advance``, as ``uh_control_step`` calls them) on a toy plant
+``p' = v, v' = f(v) + u_p`` with the same gains, learning rate and trajectory; the only difference
+is the DESIGN.md 2.6 ``case2`` change (``gamma = gamma_F = kappa = 0``). The fault observer is off
+so the network has to learn all of ``f``.
 """
 import math
 from pathlib import Path

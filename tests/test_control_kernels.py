@@ -77,8 +77,8 @@ def test_status_and_memory_layouts_are_consistent():
     # ControllerStatusData.from_vector relies on the vectors being in field order
     fields = [f.name for f in dataclasses.fields(ControllerStatusData)][3:3 + ck.STATUS_VECTORS]
     assert fields[0] == 'z1' and fields[-1] == 'euler_desired' and vectors == sorted(vectors)
-    rows = [ck.M_ALPHA_F, ck.M_V_HAT, ck.M_F_HAT_P, ck.M_THETA_DF, ck.M_ALPHA_WF, ck.M_OMEGA_HAT, ck.M_F_HAT_W,
-            ck.M_FLAGS]
+    rows = [ck.M_ALPHA_F, ck.M_V_HAT, ck.M_F_HAT_P, ck.M_THETA_DF, ck.M_ALPHA_WF, ck.M_OMEGA_HAT,
+            ck.M_F_HAT_W, ck.M_FLAGS]
     assert sorted(rows) == list(range(ck.MEMORY_ROWS))
 
 
@@ -97,9 +97,10 @@ def test_control_parameters_hold_every_model_constant_and_gain(paper):
     params = ck.control_parameters(gains, ctl.model)
     assert params.shape == (ck.CONTROL_PARAMS_SIZE,) and params.dtype == np.float64
     m = ctl.model
-    expected = {ck.CP_MASS: m.mass, ck.CP_GRAVITY: m.gravity, ck.CP_J_X: m.inertia[0], ck.CP_J_Y: m.inertia[1],
-                ck.CP_J_Z: m.inertia[2], ck.CP_C_M1: m.c_M1, ck.CP_C_M2: m.c_M2, ck.CP_K_BETA: m.K_beta,
-                ck.CP_H_M: m.h_M, ck.CP_B_LAT: m.B_lat, ck.CP_A_LON: m.A_lon, ck.CP_TAU_F: m.tau_f,
+    expected = {ck.CP_MASS: m.mass, ck.CP_GRAVITY: m.gravity, ck.CP_J_X: m.inertia[0],
+                ck.CP_J_Y: m.inertia[1], ck.CP_J_Z: m.inertia[2], ck.CP_C_M1: m.c_M1, ck.CP_C_M2: m.c_M2,
+                ck.CP_K_BETA: m.K_beta, ck.CP_H_M: m.h_M, ck.CP_B_LAT: m.B_lat, ck.CP_A_LON: m.A_lon,
+                ck.CP_TAU_F: m.tau_f,
                 ck.CP_K_TR: m.K_tr, ck.CP_D_R: m.D_r, ck.CP_C_Q: m.c_Q, ck.CP_D_V: m.D_v,
                 ck.CP_BETA: 2.5, ck.CP_TILT_LIMIT: 0.4, ck.CP_MIN_VERTICAL_ACCEL: 1.5}
     for c in range(ck.INPUT_SIZE):
@@ -164,8 +165,9 @@ def test_team_kernel_built_from_kernel_arrays_reproduces_the_controllers_bit_for
     for k in range(300):
         states, ref = _inputs(paper, k)
         x = np.stack([states[i] for i in ids])
-        assert _team_control_step(x, _reference_vector(ref), paper.dt, hears, count, params, offsets, nb_weights,
-                                  nb_offsets, links, weights_p, weights_w, memory, u, status) == -1
+        first_bad = _team_control_step(x, _reference_vector(ref), paper.dt, hears, count, params, offsets,
+                                       nb_weights, nb_offsets, links, weights_p, weights_w, memory, u, status)
+        assert first_bad == -1
         for c, ctl in enumerate(ctls):
             uc, st = ctl.step(k, states[ids[c]], {j: states[j] for j in ctl.neighbours},
                               ref if ctl.leader_link > 0 else None, paper.dt)
@@ -180,7 +182,8 @@ def test_team_kernel_built_from_kernel_arrays_reproduces_the_controllers_bit_for
         assert np.array_equal(memory[c], a.memory) and np.array_equal(weights_w[c], a.weights_w)
     # the run exercised the learning states (and the limits)
     assert np.all(np.abs(memory[:, ck.M_F_HAT_W]).sum(axis=1) > 0.0)
-    assert np.all(np.abs(weights_p).sum(axis=(1, 2)) > 0.0) and np.all(np.abs(weights_w).sum(axis=(1, 2)) > 0.0)
+    assert np.all(np.abs(weights_p).sum(axis=(1, 2)) > 0.0)
+    assert np.all(np.abs(weights_w).sum(axis=(1, 2)) > 0.0)
     assert saturated
 
 
@@ -238,11 +241,13 @@ def test_a_rejected_step_changes_nothing(paper):
     # the first problem in reading order is reported: the own NaN before the neighbour's bad shape
     with pytest.raises(ControllerError, match='UH 5 own state contains NaN'):
         a.step(20, nan_own, {3: states[3], 4: states[4][:9]}, None, paper.dt)
-    with pytest.raises(ControllerError, match=r'state of neighbour UH 4 must be a state vector of shape \(12,\)'):
+    with pytest.raises(ControllerError,
+                       match=r'state of neighbour UH 4 must be a state vector of shape \(12,\)'):
         a.step(20, list(states[5]), {3: states[3], 4: states[4][:9]}, None, paper.dt)
     nb = {j: states[j] for j in a.neighbours}
     ua, sa = a.step(20, states[5], nb, None, paper.dt)
-    ub, sb = b.step(20, list(states[5]), {j: list(x) for j, x in nb.items()}, None, paper.dt)   # lists work too
+    # lists work too
+    ub, sb = b.step(20, list(states[5]), {j: list(x) for j, x in nb.items()}, None, paper.dt)
     assert np.array_equal(ua, ub)
     _assert_same_status(sa, sb)
 

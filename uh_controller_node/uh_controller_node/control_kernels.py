@@ -56,6 +56,7 @@ stack them (``np.stack``; the neighbour arrays padded to the largest in-degree) 
 views; the neighbours' states are gathered in ascending id order, as :meth:`UHController.step`
 does::
 
+    import numpy as np
     from numba import njit
     from uh_controller_node.control_kernels import STATE_SIZE, STEP_DONE, uh_control_step
 
@@ -76,21 +77,28 @@ does::
                                    offsets[c], links[c], reference, dt, weights_p[c], weights_w[c],
                                    memory[c], u[c], status[c])
             if done != STEP_DONE:
-                return c        # a non-finite state: nothing of UH c was changed
+                return c        # a state is not finite: UH c (and the UHs after it) not stepped
         return -1
+
+(``tests/test_control_kernels.py`` runs exactly this loop against the controllers, bit for bit.)
+The degraded steps of :meth:`UHController.step_degraded` are the same call on fewer neighbours
+(and ``leader_link = 0`` without the reference); holding a point ``p_hold`` with yaw ``psi_h`` is
+the call with no neighbours, ``leader_link = 1`` and ``reference = [p_hold - h_i, 0, 0, 0, psi_h]``.
 
 The kernels do not check shapes (the Python wrapper does); wrong shapes read or write out of
 bounds. They check only that the states are finite (:func:`uh_control_step` returns which one is
-not, before it changes anything).
+not, before it changes anything). Division by zero raises ``ZeroDivisionError`` (numba's Python
+error model), as the same expression would in Python.
 
 Compilation and the on-disk cache
 ---------------------------------
 The first call compiles a kernel (seconds) and stores it in numba's cache (``__pycache__`` next to
 this file, or ``NUMBA_CACHE_DIR``); later processes load it. :func:`compile_control_kernels`
-compiles every kernel with the signatures :class:`UHController` uses, for install scripts that warm
-the cache. numba invalidates a cached kernel only when *its own* source file changes: a kernel in
-another file that calls these (a team kernel) keeps its cached copy of the old control law after
-this file is edited, so clear that file's cache (or touch it) whenever this file changes.
+compiles :func:`uh_control_step` (with everything it calls) for the one signature
+:class:`UHController` uses, for install scripts that warm the cache. numba invalidates a cached
+kernel only when *its own* source file changes: a kernel in another file that calls these (a team
+kernel) keeps its cached copy of the old control law after this file is edited, so clear that
+file's cache (or touch it) whenever this file changes.
 """
 from __future__ import annotations
 
@@ -102,7 +110,7 @@ import numpy as np
 from numba import njit
 
 __all__ = [
-    'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
+    'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'YAW', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
     'CP_MASS', 'CP_GRAVITY', 'CP_J_X', 'CP_J_Y', 'CP_J_Z', 'CP_C_M1', 'CP_C_M2', 'CP_K_BETA', 'CP_H_M',
     'CP_B_LAT', 'CP_A_LON', 'CP_TAU_F', 'CP_K_TR', 'CP_D_R', 'CP_C_Q', 'CP_D_V', 'CP_LOWER', 'CP_UPPER',
     'CP_BETA', 'CP_TILT_LIMIT', 'CP_MIN_VERTICAL_ACCEL', 'CP_OUTER', 'CP_INNER', 'CONTROL_PARAMS_SIZE',
@@ -128,6 +136,7 @@ INPUT_SIZE = 4
 X_P, X_V, X_THETA, X_OMEGA = 0, 3, 6, 9          # first index of p, v, Theta, omega in x
 U_COL, U_TR, U_LAT, U_LON = 0, 1, 2, 3            # theta_col, theta_tr, delta_lat, delta_lon
 _MOMENT_CHANNELS = (U_LAT, U_LON, U_TR)         # command channels of u_m = (delta_lat, delta_lon, theta_tr)
+YAW = 2                                           # yaw in an Euler-angle 3-vector (phi, theta, psi)
 R_P, R_V, R_YAW = 0, 3, 6                         # p_0 (3) m, v_0 (3) m/s, psi_0 rad
 REFERENCE_SIZE = 7
 
@@ -364,7 +373,7 @@ def filter_rate(u, y, tau, wrap_last, out):
     inv = 1.0 / tau
     for a in range(3):
         d = u[a] - y[a]
-        if wrap_last and a == 2:
+        if wrap_last and a == YAW:
             d = wrap_angle(d)
         out[a] = inv * d
 
@@ -379,7 +388,7 @@ def filter_advance(u, y, gain, wrap_last):
     """
     for a in range(3):
         d = u[a] - y[a]
-        if wrap_last and a == 2:
+        if wrap_last and a == YAW:
             d = wrap_angle(d)
         y[a] = y[a] + gain * d
 
@@ -594,7 +603,7 @@ def consensus_errors(own_state, offset, nb_states, nb_weights, nb_offsets, leade
     psi_d : float
         Yaw target, rad.
     """
-    psi = own_state[X_THETA + 2]
+    psi = own_state[X_THETA + YAW]
     degree = 0.0
     yaw_sum = 0.0
     for a in range(3):
@@ -607,7 +616,7 @@ def consensus_errors(own_state, offset, nb_states, nb_weights, nb_offsets, leade
             rel = own_state[X_P + a] - offset[a]
             z1[a] += w * (rel - (nb_states[n, X_P + a] - nb_offsets[n, a]))
             feedforward[a] += w * nb_states[n, X_V + a]
-        yaw_sum += w * wrap_angle(nb_states[n, X_THETA + 2] - psi)
+        yaw_sum += w * wrap_angle(nb_states[n, X_THETA + YAW] - psi)
     degree += leader_link
     if leader_link > 0.0:
         for a in range(3):
@@ -898,7 +907,7 @@ def inner_law(params, euler, omega, euler_d, thrust, started, memory, weights, a
     filter_rate(euler_d, theta_df, params[base + L_TAU_COMMAND], True, theta_rate)
     for a in range(3):
         z3[a] = euler[a] - theta_df[a]
-    z3[2] = wrap_angle(z3[2])
+    z3[YAW] = wrap_angle(z3[YAW])
     k3 = params[base + L_K]
     rate_command = np.empty(3)                  # -k3 z3 + Theta_df', Euler-angle rates, rad/s
     for a in range(3):
@@ -1065,7 +1074,7 @@ def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset
         thrust_and_attitude(params, u_p, psi_d)
     euler_d[0] = phi_d
     euler_d[1] = theta_d
-    euler_d[2] = psi_d
+    euler_d[YAW] = psi_d
     sat_cyclic = inner_law(params, euler, omega, euler_d, thrust_achieved, started, memory, weights_w,
                            act_w, work[_W_THETA_DF_RATE], work[_W_ALPHA_W], work[_W_ALPHA_W_RATE],
                            work[_W_NET_W], work[_W_DRIFT_W], work[_W_EFFECTIVENESS], z3, z4, zn_w,
@@ -1101,25 +1110,19 @@ def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset
 
 
 def compile_control_kernels() -> float:
-    """Compile every kernel for the signatures :class:`UHController` uses (C-contiguous float64
-    arrays, float scalars) and fill numba's on-disk cache.
+    """Compile :func:`uh_control_step` (and every kernel it calls) for the signature
+    :class:`UHController` uses (C-contiguous float64 arrays, float scalars) and fill numba's on-disk
+    cache.
 
     Returns the wall time spent, s (compilation on a cold cache, loading on a warm one).
     """
     start = time.perf_counter()
-    params = np.zeros(CONTROL_PARAMS_SIZE)
-    params[[CP_MASS, CP_GRAVITY, CP_J_X, CP_J_Y, CP_J_Z, CP_C_M1, CP_K_BETA, CP_B_LAT, CP_A_LON, CP_K_TR,
-            CP_BETA]] = 1.0
-    params[CP_UPPER:CP_UPPER + INPUT_SIZE] = 1.0
+    # a unit airframe with unit gains: any values without a zero divisor compile the same code
+    params = np.ones(CONTROL_PARAMS_SIZE)
     params[CP_LOWER:CP_LOWER + INPUT_SIZE] = -1.0
-    for base in (CP_OUTER, CP_INNER):
-        params[[base + L_K, base + L_R, base + L_TAU_COMMAND, base + L_TAU_RATE, base + L_RBF_HIGH,
-                base + L_RBF_WIDTH, base + L_FAULT_BOUND, base + L_WEIGHT_BOUND]] = 1.0
-    params[CP_TILT_LIMIT] = 0.5
-    x = np.zeros(STATE_SIZE)
-    for n_nb in (0, 1):       # the shapes differ, the types do not: one compilation
-        uh_control_step(params, x, np.zeros((n_nb, STATE_SIZE)), np.ones(n_nb), np.zeros((n_nb, 3)),
-                        np.zeros(3), 1.0, np.zeros(REFERENCE_SIZE), 0.01, np.zeros((3, 3)),
-                        np.zeros((3, 3)), np.zeros((MEMORY_ROWS, 3)), np.zeros(INPUT_SIZE),
-                        np.zeros(STATUS_SIZE))
+    no_neighbours = 0
+    uh_control_step(params, np.zeros(STATE_SIZE), np.zeros((no_neighbours, STATE_SIZE)),
+                    np.ones(no_neighbours), np.zeros((no_neighbours, 3)), np.zeros(3), 1.0,
+                    np.zeros(REFERENCE_SIZE), 0.01, np.zeros((3, 3)), np.zeros((3, 3)),
+                    np.zeros((MEMORY_ROWS, 3)), np.zeros(INPUT_SIZE), np.zeros(STATUS_SIZE))
     return time.perf_counter() - start
