@@ -21,3 +21,15 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$VENV/.uh_stamp" 2>/dev/null)" != "$
 fi
 # shellcheck disable=SC1091
 source "$VENV/bin/activate"
+# numba compiles the model and control-law kernels on first use and caches them next to their
+# sources (__pycache__). Warm that cache here, once per change of the kernel packages, so node
+# processes started together load compiled kernels instead of each compiling them.
+kernels_stamp() {
+  find "$REPO_ROOT/uh_sim_node/uh_sim_node" "$REPO_ROOT/uh_controller_node/uh_controller_node" \
+    -maxdepth 1 -name '*.py' -printf '%p %T@ %s\n' | sort | sha256sum | cut -d' ' -f1
+}
+if [ "$(cat "$VENV/.uh_kernels_stamp" 2>/dev/null)" != "$(kernels_stamp)" ]; then
+  echo "[setup] compiling the numba kernels of the model and the control law (cached afterwards)" >&2
+  python -P -m uh_controller_node.compile_kernels >&2
+  kernels_stamp > "$VENV/.uh_kernels_stamp"
+fi

@@ -82,7 +82,38 @@ def test_comparison_cases_run_and_differ_from_the_proposed_law(full_run, paper, 
     assert not np.array_equal(other.commands[:200], run.commands[:200])
 
 
+def test_team_kernel_equals_the_per_uh_objects_bit_for_bit(full_run, paper):
+    """The native team loop and the Python loop over UHController/HelicopterPlant (what the nodes
+    run) call the same kernels: identical arrays, through the fault onset at t = 10 s."""
+    kernel, _ = full_run
+    objects = run_team_simulation(paper, 'proposed', duration=12.0, engine='objects')
+    rows = objects.time.size
+    for key in kernel.ARRAY_KEYS:
+        assert np.array_equal(getattr(objects, key), getattr(kernel, key)[:rows]), key
+    assert np.abs(kernel.fault_true_p[rows - 1]).max() > 0.0   # the faults acted in the compared span
+
+
+def test_a_python_callable_disturbance_runs_on_the_object_loop(full_run, paper, monkeypatch):
+    """njit code cannot call a Python function: a plant with one makes the run fall back to the
+    object loop (same kernels, the force sampled in Python), with the same result."""
+    from uh_sim_node import helicopter
+
+    real = helicopter.disturbance_from_spec
+    calls = []
+
+    def as_callable(spec, uh_id):
+        sinusoid = real(spec, uh_id)
+        return lambda t: calls.append(t) or sinusoid(t)
+
+    monkeypatch.setattr(helicopter, 'disturbance_from_spec', as_callable)
+    fallback = run_team_simulation(paper, 'proposed', duration=0.5)
+    assert calls   # the Python function was called: the object loop ran
+    assert np.array_equal(fallback.states, full_run[0].states[:fallback.time.size])
+
+
 def test_simulation_rejects_bad_requests(paper):
+    with pytest.raises(SimulationError, match="unknown engine 'fortran'; allowed: kernel, objects"):
+        run_team_simulation(paper, 'proposed', engine='fortran')
     with pytest.raises(SimulationError, match="unknown controller case 'case7'"):
         run_team_simulation(paper, 'case7')
     with pytest.raises(SimulationError, match='duration must be a finite number of seconds > 0'):
@@ -185,3 +216,22 @@ def test_cli_survives_a_closed_stdout(tmp_path):
     assert proc.wait(timeout=120) == 0
     assert 'Traceback' not in err and 'BrokenPipeError' not in err
     assert (tmp_path / 'o' / 'metrics.json').is_file()
+
+
+def test_team_kernel_cache_is_emptied_when_the_kernels_it_calls_change():
+    """numba checks a cached kernel against its own file only; the team kernel's cache index is
+    emptied when control_kernels.py, plant_kernels.py or faults.py no longer match its digest."""
+    from pathlib import Path
+
+    from uh_controller_node import team_kernel
+
+    marker = Path(team_kernel.run_team_steps._cache.cache_path) / 'team_kernel.dependencies.sha256'
+    team_kernel.refresh_cache()
+    assert marker.is_file() and not team_kernel.refresh_cache()   # up to date: left alone
+    saved = marker.read_text()
+    try:
+        marker.write_text('0' * 64 + '\n')                          # as after an edit of a dependency
+        assert team_kernel.refresh_cache()
+        assert marker.read_text() == saved                           # the digest of the files again
+    finally:
+        marker.write_text(saved)

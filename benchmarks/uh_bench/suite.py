@@ -61,6 +61,8 @@ GOALS = (
     ('inprocess_rtf', 'paper scenario, in-process reference: real-time factor', 200.0, '>='),
     ('team20_lockstep_rtf', '20 UHs, lockstep, one process per node: real-time factor', 2.0, '>='),
     ('team40_lockstep_rtf', '40 UHs, lockstep, one process per node: real-time factor', 1.0, '>='),
+    ('team20_lockstep_best_rtf', '20 UHs, lockstep, best process layout: real-time factor', 2.0, '>='),
+    ('team40_lockstep_best_rtf', '40 UHs, lockstep, best process layout: real-time factor', 1.0, '>='),
     ('realtime5_p99_ms', '5 UHs, real time, one process per node: worst controller p99 '
      'state-to-command latency (ms)', 5.0, '<'),
     ('realtime5_missed', '5 UHs, real time, one process per node: missed + late steps', 0, '<='),
@@ -261,9 +263,14 @@ def evaluate_goals(results) -> list:
     if 'inprocess' in paper:
         measured['inprocess_rtf'] = paper['inprocess']['rtf']
     for row in results.get('scaling', []):
+        if row['uhs'] not in (20, 40):
+            continue
         run = row['lockstep'].get('per-node')
-        if run and row['uhs'] in (20, 40):
+        if run:
             measured[f'team{row["uhs"]}_lockstep_rtf'] = run['rtf']
+        rtfs = [r['rtf'] for r in row['lockstep'].values() if r.get('rtf')]
+        if rtfs:
+            measured[f'team{row["uhs"]}_lockstep_best_rtf'] = max(rtfs)
     best = None
     for run in results.get('realtime', []):
         if run['uhs'] != 5 or run['p99_ms_max'] is None:

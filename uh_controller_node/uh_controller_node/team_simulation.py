@@ -26,7 +26,10 @@ import numpy as np
 from .controller import UHController
 from .gains import CASES, GainsError
 
-__all__ = ['SimulationError', 'TeamRun', 'run_team_simulation']
+__all__ = ['SimulationError', 'TeamRun', 'run_team_simulation', 'ENGINES']
+
+#: Ways to run the step loop (see :func:`run_team_simulation`).
+ENGINES = ('kernel', 'objects')
 
 
 class SimulationError(ValueError):
@@ -117,7 +120,7 @@ def _errors(states, reference, scenario):
 
 
 def run_team_simulation(scenario, case: str = 'proposed', duration: float | None = None,
-                        progress: Callable[[int, int], None] | None = None) -> TeamRun:
+                        progress: Callable[[int, int], None] | None = None, engine: str = 'kernel') -> TeamRun:
     """Run the whole team in one process with the per-UH controllers (see module docstring).
 
     Parameters
@@ -129,6 +132,12 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         Simulated time, s (default ``scenario.duration``); rounded to whole control periods.
     progress : callable, optional
         ``progress(k, K)`` called now and then (about every 1 % of the steps and at the end).
+    engine : str
+        ``'kernel'`` (default): the whole step loop in one native kernel
+        (:func:`uh_controller_node.team_kernel.run_team_steps`); ``'objects'``: a Python loop calling
+        ``UHController.step`` and ``HelicopterPlant.step`` per UH, as the distributed nodes do. Both
+        call the same kernels and give bit-identical results; ``'kernel'`` falls back to
+        ``'objects'`` for a plant whose disturbance is a Python callable.
 
     Returns
     -------
@@ -145,6 +154,8 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
 
     if case not in CASES:
         raise SimulationError(f'unknown controller case {case!r}; allowed: {", ".join(CASES)}')
+    if engine not in ENGINES:
+        raise SimulationError(f'unknown engine {engine!r}; allowed: {", ".join(ENGINES)}')
     dt = float(scenario.dt)
     if duration is None:
         duration = float(scenario.duration)
@@ -163,51 +174,101 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         controllers = [UHController(i, scenario, case, helicopter_params=params) for i in ids]
     except GainsError as exc:
         raise SimulationError(str(exc)) from None
-    col = {i: c for c, i in enumerate(ids)}
-    hears = [tuple(col[j] for j in ctl.neighbours) for ctl in controllers]
-    linked = [ctl.leader_link > 0.0 for ctl in controllers]
     reference = VirtualLeaderReference(scenario.reference)
+    arrays = None
+    if engine == 'kernel':
+        from .team_kernel import team_arrays
+        try:
+            arrays = team_arrays(ids, controllers, plants)
+        except ValueError:
+            engine = 'objects'   # e.g. a Python-callable disturbance: njit code cannot evaluate it
 
-    states = np.empty((K + 1, n, 12))
-    commands = np.empty((K + 1, n, 4))
+    out = {key: np.empty((K + 1, n, size)) for key, size in (
+        ('states', 12), ('commands', 4), ('fault_true_p', 3), ('fault_true_w', 3), ('fault_est_p', 3),
+        ('fault_est_w', 3), ('u_p', 3), ('z1', 3))}
+    out['saturated'] = np.zeros((K + 1, n), dtype=bool)
     ref = np.empty((K + 1, 5))
-    f_true_p, f_true_w = np.empty((K + 1, n, 3)), np.empty((K + 1, n, 3))
-    f_est_p, f_est_w = np.empty((K + 1, n, 3)), np.empty((K + 1, n, 3))
-    u_p, z1 = np.empty((K + 1, n, 3)), np.empty((K + 1, n, 3))
-    saturated = np.zeros((K + 1, n), dtype=bool)
-    stuck = set()
+    stuck = {ids[c] for c, plant in enumerate(plants) if plant.stuck(K * dt)}  # rho = 0 from an onset on
     every = max(1, K // 100)
 
+    if arrays is not None:
+        # load (or compile) the kernel before the clock starts: that is start-up, like imports
+        _run_kernel(K, dt, ids, arrays, np.empty((1, 7)), out, every, None, load_only=True)
     start = _time.perf_counter()
+    references = np.empty((K + 1, 7))   # [p_0, v_0, psi_0] at every step, as the virtual leader sends it
     for k in range(K + 1):
-        t = k * dt
-        r = reference.at(t)
+        r = reference.at(k * dt)
+        references[k, 0:3], references[k, 3:6], references[k, 6] = r.position, r.velocity, r.yaw
         ref[k] = (r.position[0], r.position[1], r.position[2], r.yaw, r.yaw_rate)
-        xs = [plant.x for plant in plants]
-        states[k] = xs
-        if not np.isfinite(states[k]).all():
-            bad = [ids[c] for c in range(n) if not np.isfinite(states[k, c]).all()]
-            raise SimulationError(f'state of UH(s) {bad} became non-finite at step {k} (t = {t:g} s)')
-        for c, ctl in enumerate(controllers):
-            u, st = ctl.step(k, xs[c], {ids[j]: xs[j] for j in hears[c]}, r if linked[c] else None, dt)
-            commands[k, c] = u
-            f_est_p[k, c] = st.fault_estimate_position
-            f_est_w[k, c] = st.fault_estimate_attitude
-            u_p[k, c] = st.u_p
-            z1[k, c] = st.z1
-            saturated[k, c] = st.saturated_tilt or st.saturated_collective or st.saturated_cyclic
-        for c, plant in enumerate(plants):
-            f_true_p[k, c], f_true_w[k, c] = plant.lumped_faults(commands[k, c], t)
-            if plant.stuck(t):
-                stuck.add(ids[c])
-            if k < K:
-                plant.step(commands[k, c], t, dt)
-        if progress is not None and (k % every == 0 or k == K):
-            progress(k, K)
+    if engine == 'kernel':
+        _run_kernel(K, dt, ids, arrays, references, out, every, progress)
+    else:
+        _run_objects(K, dt, ids, controllers, plants, references, out, every, progress)
     wall = _time.perf_counter() - start
 
     return TeamRun(
         scenario_name=str(scenario.name), case=case, ids=ids, dt=dt, time=np.arange(K + 1) * dt,
-        states=states, commands=commands, reference=ref, fault_true_p=f_true_p, fault_true_w=f_true_w,
-        fault_est_p=f_est_p, fault_est_w=f_est_w, u_p=u_p, z1=z1, saturated=saturated,
-        errors=_errors(states, ref, scenario), wall_time=wall, stuck_uhs=tuple(sorted(stuck)))
+        reference=ref, errors=_errors(out['states'], ref, scenario), wall_time=wall,
+        stuck_uhs=tuple(sorted(stuck)), **out)
+
+
+def _non_finite(K, dt, ids, states, k):
+    bad = [ids[c] for c in range(states.shape[1]) if not np.isfinite(states[k, c]).all()]
+    raise SimulationError(f'state of UH(s) {bad} became non-finite at step {k} (t = {k * dt:g} s)')
+
+
+def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False):
+    """The step loop in :func:`~uh_controller_node.team_kernel.run_team_steps` on the stacked arrays
+    ``a``, in chunks of about 1 % of the steps so ``progress`` is called as often as by the object
+    loop (``load_only``: one call that runs no step, which loads or compiles the kernel)."""
+    from .team_kernel import TEAM_DONE, run_team_steps
+
+    for k0 in ([0] if load_only else range(0, K + 1, every)):
+        k1 = k0 if load_only else min(K + 1, k0 + every)
+        failed = run_team_steps(
+            k0, k1, K, dt, references, a.x, a.hears, a.count, a.links, a.control_params, a.offsets,
+            a.nb_weights, a.nb_offsets, a.weights_p, a.weights_w, a.memory, a.plant_params, a.faults,
+            a.disturbance, a.substeps, out['states'], out['commands'], out['fault_true_p'], out['fault_true_w'],
+            out['fault_est_p'], out['fault_est_w'], out['u_p'], out['z1'], out['saturated'])
+        if failed != TEAM_DONE:
+            _non_finite(K, dt, ids, out['states'], failed)
+        if progress is not None and k1 > k0:
+            progress(k1 - 1, K)
+
+
+def _run_objects(K, dt, ids, controllers, plants, references, out, every, progress):
+    """The step loop in Python over the per-UH objects (what the distributed nodes run)."""
+    col = {i: c for c, i in enumerate(ids)}
+    hears = [tuple(col[j] for j in ctl.neighbours) for ctl in controllers]
+    linked = [ctl.leader_link > 0.0 for ctl in controllers]
+    states, commands = out['states'], out['commands']
+    for k in range(K + 1):
+        t = k * dt
+        r = _Reference(references[k])
+        xs = [plant.x for plant in plants]
+        states[k] = xs
+        if not np.isfinite(states[k]).all():
+            _non_finite(K, dt, ids, states, k)
+        for c, ctl in enumerate(controllers):
+            u, st = ctl.step(k, xs[c], {ids[j]: xs[j] for j in hears[c]}, r if linked[c] else None, dt)
+            commands[k, c] = u
+            out['fault_est_p'][k, c] = st.fault_estimate_position
+            out['fault_est_w'][k, c] = st.fault_estimate_attitude
+            out['u_p'][k, c] = st.u_p
+            out['z1'][k, c] = st.z1
+            out['saturated'][k, c] = st.saturated_tilt or st.saturated_collective or st.saturated_cyclic
+        for c, plant in enumerate(plants):
+            out['fault_true_p'][k, c], out['fault_true_w'][k, c] = plant.lumped_faults(commands[k, c], t)
+            if k < K:
+                plant.step(commands[k, c], t, dt)
+        if progress is not None and (k % every == 0 or k == K):
+            progress(k, K)
+
+
+class _Reference:
+    """The virtual leader of one step as the controllers read it (position, velocity, yaw)."""
+
+    __slots__ = ('position', 'velocity', 'yaw')
+
+    def __init__(self, row):
+        self.position, self.velocity, self.yaw = row[0:3], row[3:6], float(row[6])
