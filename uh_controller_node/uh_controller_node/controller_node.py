@@ -34,6 +34,7 @@ from __future__ import annotations
 import time
 
 import uh_runtime as rt
+from uh_controller_node.control_kernels import compile_control_kernels
 from uh_controller_node.controller import ControllerError, UHController
 from uh_runtime import messages as m
 from uh_sim_node.run_config import declare_run_parameters
@@ -71,6 +72,8 @@ class ControllerNode(rt.Node):
         self.uh_id, self.mode, self.dt, self.last_step = run.uh_id, run.clock_mode, run.dt, run.last_step
         scenario = run.scenario
         self.controller = UHController(self.uh_id, scenario, case=case)
+        # load the control law's numba kernel now (before the endpoints exist and the clock can start)
+        compile_control_kernels()
         self.neighbours = tuple(scenario.neighbours(self.uh_id))
         self.linked = scenario.leader_link(self.uh_id) > 0
         self.pending: dict[int, dict] = {}   # lockstep: step -> {'own': x, j: x_j, 'ref': r}

@@ -29,6 +29,7 @@ import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
+from uh_sim_node.plant_kernels import compile_plant_kernels
 from uh_sim_node.wire import (WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg)
 from uh_topology import topics
 from uh_sim_node.run_config import declare_run_parameters
@@ -45,6 +46,9 @@ class SimNode(rt.Node):
         self.uh_id, self.scenario, self.mode = run.uh_id, run.scenario, run.clock_mode
         self.dt, self.last_step = run.dt, run.last_step
         self.plant = plant_from_scenario(self.scenario, self.uh_id)
+        # load the model's numba kernels now (0.2 s from the cache, seconds if they must be compiled),
+        # before the endpoints exist and the clock can start: a realtime run would lose those steps
+        compile_plant_kernels()
         self.command = hover_trim(self.plant.params, yaw=float(self.plant.x[8]))
         self.command_step = -1        # step the held command was computed for
         self.late_commands = 0        # realtime: steps integrated with an older command
