@@ -6,7 +6,11 @@
   recorder has written everything up to step k - ``RECORDER_LAG_STEPS`` (so nothing is dropped).
   After the last step K it waits for the recorder to have written step K, then exits: the run is
   deterministic and as fast as the slowest node allows.
-- ``realtime``: a wall-clock timer publishes step k+1 every dt / rate seconds.
+- ``realtime``: publishes step 0 and waits until every UH's command of step 0 has arrived (the
+  team is live: every controller has heard its inputs and answered; at most
+  ``REALTIME_START_WAIT_S``), then a wall-clock timer publishes step k+1 every dt / rate seconds.
+  Without that wait the first steps of a team whose processes are still finishing their start-up
+  would count as missed.
 """
 from __future__ import annotations
 
@@ -22,6 +26,8 @@ __all__ = ['ClockNode', 'expected_endpoints', 'main']
 
 #: realtime: how long after the last tick the clock waits for the recorder to confirm the last step
 REALTIME_FINAL_WAIT_S = 5.0
+#: realtime: how long the clock waits at step 0 for every UH's first command before ticking anyway
+REALTIME_START_WAIT_S = 10.0
 
 
 def expected_endpoints(scenario, recorder: bool) -> dict[str, tuple[int, int]]:
@@ -64,6 +70,7 @@ class ClockNode(rt.Node):
         self.done = False
         self.failed = None
         self.started_wall = None
+        self.tick_timer = None
         qos = topics.qos_profile(topics.STEP_QOS)
         self.pub = self.create_publisher(m.Clock, topics.CLOCK.name, qos)
         for i in self.scenario.ids:
@@ -97,7 +104,25 @@ class ClockNode(rt.Node):
                                f'{self.last_step} steps starts')
         self.publish_step(0)
         if self.mode == 'realtime':
-            self.tick_timer = self.create_timer(self.dt / self.rate, self.on_tick)
+            self.live_deadline = time.monotonic() + REALTIME_START_WAIT_S
+            self.live_timer = self.create_timer(0.05, self.start_ticking)
+            self.start_ticking()
+
+    def start_ticking(self) -> None:
+        """realtime: start the wall-clock ticks once every UH commanded step 0 (or the wait is over)."""
+        if self.tick_timer is not None or self.done:
+            return
+        answered = self.commands.get(0, set())
+        if len(answered) < len(self.scenario.ids):
+            if time.monotonic() < self.live_deadline:
+                return
+            missing = sorted(set(self.scenario.ids) - answered)
+            self.get_logger().warn(f'no command of step 0 from uh{", uh".join(map(str, missing))} after '
+                                   f'{REALTIME_START_WAIT_S:g} s: starting the realtime ticks anyway')
+        self.live_timer.cancel()
+        self.commands.pop(0, None)
+        self.started_wall = time.monotonic()   # the real-time factor counts the ticking loop
+        self.tick_timer = self.create_timer(self.dt / self.rate, self.on_tick)
 
     # -- stepping ----------------------------------------------------------------------------------
     def publish_step(self, k: int) -> None:
@@ -125,9 +150,12 @@ class ClockNode(rt.Node):
             self.finish_when_recorded(force=True)
 
     def on_command(self, msg) -> None:
-        if self.mode == 'lockstep':  # realtime ticks do not wait for commands
+        if self.mode == 'lockstep':  # realtime ticks do not wait for commands (but start on step 0's)
             self.commands.setdefault(int(msg.step), set()).add(int(msg.uh_id))
             self.try_advance()
+        elif self.tick_timer is None and int(msg.step) == 0:
+            self.commands.setdefault(0, set()).add(int(msg.uh_id))
+            self.start_ticking()
 
     def on_progress(self, msg) -> None:
         self.recorded_step = int(round(stamp_seconds(msg) / self.dt))
