@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 import pytest
+from textbook_rk4 import rk4
 
 from uh_sim_node.faults import ActuatorFault, FaultSchedule
 from uh_sim_node.helicopter import (INPUT_NAMES, HelicopterParams, HelicopterParamsError, HelicopterPlant,
@@ -261,15 +262,7 @@ def _textbook_rk4(params, x, u_cmd, t, dt, substeps, faults, dist):
         ua = np.clip(faults.apply(uc, tt, switch_time=ts), lo, hi)
         return state_derivative(params, xx, ua, dist(tt))
 
-    h = dt / substeps
-    for s in range(substeps):
-        ts = t + s * h
-        k1 = f(ts, x, ts)
-        k2 = f(t + (s + 0.5) * h, x + h / 2 * k1, ts)
-        k3 = f(t + (s + 0.5) * h, x + h / 2 * k2, ts)
-        k4 = f(t + (s + 1) * h, x + h * k3, ts)
-        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return x
+    return rk4(f, x, t, dt, substeps)
 
 
 def _maneuver():

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from textbook_rk4 import rk4
 from numba import njit
 
 from uh_sim_node import plant_kernels as K
@@ -59,15 +60,7 @@ def _reference_step(x, u_cmd, t, dt, substeps, schedule, dist):
     def f(tt, xx, ts):
         return _derivative(xx, np.clip(schedule.apply(uc, tt, switch_time=ts), lo, hi), zero(tt))
 
-    h = dt / substeps
-    for s in range(substeps):
-        ts = t + s * h
-        k1 = f(ts, x, ts)
-        k2 = f(t + (s + 0.5) * h, x + h / 2 * k1, ts)
-        k3 = f(t + (s + 0.5) * h, x + h / 2 * k2, ts)
-        k4 = f(t + (s + 1) * h, x + h * k3, ts)
-        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return x
+    return rk4(f, x, t, dt, substeps)
 
 
 def _arrays(faults=(), dist=None):
