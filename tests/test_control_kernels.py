@@ -127,7 +127,7 @@ def test_control_parameters_hold_every_model_constant_and_gain(paper):
 @njit(cache=True)
 def _team_control_step(states, reference, dt, hears, count, params, offsets, nb_weights, nb_offsets, links,
                        weights_p, weights_w, memory, u, status):
-    """The team loop of the control_kernels module docstring."""
+    """A control-only team loop: the per-UH kernel on stacked arrays, as team_kernel.run_team_steps calls it."""
     for c in range(states.shape[0]):
         m = count[c]
         nb = np.empty((m, ck.STATE_SIZE))

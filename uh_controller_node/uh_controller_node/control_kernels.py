@@ -53,34 +53,11 @@ Calling the per-UH kernel from njit code
 ``neighbour_weights``, ``neighbour_offsets``, ``leader_link``, ``weights_p``, ``weights_w`` and
 ``memory`` of one controller (its live arrays: copy them to stack them). For a team of ``n`` UHs,
 stack them (``np.stack``; the neighbour arrays padded to the largest in-degree) and pass row
-views; the neighbours' states are gathered in ascending id order, as :meth:`UHController.step`
-does::
-
-    import numpy as np
-    from numba import njit
-    from uh_controller_node.control_kernels import STATE_SIZE, STEP_DONE, uh_control_step
-
-    @njit(cache=True)
-    def team_control_step(states, reference, dt, hears, count, params, offsets, nb_weights,
-                          nb_offsets, links, weights_p, weights_w, memory, u, status):
-        # states (n, 12); reference (7,); hears (n, max_nb) int64 rows of the neighbours in
-        # ascending id order, count (n,) int64 in-degrees; params (n, CONTROL_PARAMS_SIZE),
-        # offsets (n, 3), nb_weights (n, max_nb), nb_offsets (n, max_nb, 3), links (n,);
-        # weights_p (n, mu_p, 3), weights_w (n, mu_w, 3), memory (n, MEMORY_ROWS, 3) updated in
-        # place; u (n, 4), status (n, STATUS_SIZE) outputs
-        for c in range(states.shape[0]):
-            m = count[c]
-            nb = np.empty((m, STATE_SIZE))
-            for j in range(m):
-                nb[j] = states[hears[c, j]]
-            done = uh_control_step(params[c], states[c], nb, nb_weights[c, :m], nb_offsets[c, :m],
-                                   offsets[c], links[c], reference, dt, weights_p[c], weights_w[c],
-                                   memory[c], u[c], status[c])
-            if done != STEP_DONE:
-                return c        # a state is not finite: UH c (and the UHs after it) not stepped
-        return -1
-
-(``tests/test_control_kernels.py`` runs exactly this loop against the controllers, bit for bit.)
+views, gathering each UH's neighbour states in ascending id order, as :meth:`UHController.step`
+does. :func:`uh_controller_node.team_kernel.team_arrays` does that stacking and
+:func:`uh_controller_node.team_kernel.run_team_steps` is such a loop (with the plants), bit-identical
+to the controllers (``tests/test_reference_simulation.py``; ``tests/test_control_kernels.py`` checks
+a control-only loop, status vectors included).
 The degraded steps of :meth:`UHController.step_degraded` are the same call on fewer neighbours
 (and ``leader_link = 0`` without the reference); holding a point ``p_hold`` with yaw ``psi_h`` is
 the call with no neighbours, ``leader_link = 1`` and ``reference = [p_hold - h_i, 0, 0, 0, psi_h]``.
