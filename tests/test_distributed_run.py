@@ -246,15 +246,20 @@ def test_realtime_run_meets_the_thresholds(tmp_path, paper, reference_run):
     assert np.nanmax(deviation) < 0.1
 
 
-@pytest.mark.parametrize('layout', ['per-uh', 'single'])
-def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layout):
+@pytest.mark.parametrize('layout, extra', [('per-uh', ()), ('single', ()), ('per-node', ('--no-visualization',))])
+def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layout, extra):
     """Composition (several nodes in one process) changes nothing: the lockstep data flow does not
-    depend on which process a node lives in, so the bag equals the in-process run to the bit."""
+    depend on which process a node lives in, so the bag equals the in-process run to the bit; nor
+    does leaving out the visualisation (which then records no markers)."""
     out = tmp_path / layout
-    proc = _start_run(out, 120 + os.getpid() % 20, '--processes', layout, '--duration', '3')
+    proc = _start_run(out, 120 + os.getpid() % 20, '--processes', layout, '--duration', '3', *extra)
     output, _ = proc.communicate(timeout=300)
     assert proc.returncode == 0, output
-    assert json.loads((out / 'run.json').read_text())['processes'] == layout
+    info = json.loads((out / 'run.json').read_text())
+    assert info['processes'] == layout and info['visualization'] == ('--no-visualization' not in extra)
+    recorded = {t['topic_metadata']['name'] for t in yaml.safe_load((out / 'bag' / 'metadata.yaml').read_text())[
+        'rosbag2_bagfile_information']['topics_with_message_count'] if t['message_count'] > 0}
+    assert ('/markers' in recorded) == info['visualization'], sorted(recorded)
     bag = read_team_bag(out / 'bag', paper)
     reference = run_team_simulation(paper, 'proposed', duration=3.0)
     assert np.array_equal(bag['states'], reference.states)

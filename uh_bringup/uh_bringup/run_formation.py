@@ -84,6 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='process layout: one process per node (default), one per UH, or a single process; '
                         'results are identical')
     p.add_argument('--no-metrics', action='store_true', help='do not compute metrics.json after the run')
+    p.add_argument('--no-visualization', action='store_true',
+                   help='do not start the visualisation node (no /markers in the bag): headless batch runs; '
+                        'with one process per node it saves about 8 %% of the CPU of a lockstep step')
     p.add_argument('--startup-timeout', type=float, default=60.0, help='s to wait for all nodes to come up')
     p.add_argument('--respawn', action='store_true',
                    help=f'realtime: restart a controller process that dies (up to {MAX_RESPAWNS} times each); '
@@ -191,8 +194,10 @@ LAYOUTS = ('per-node', 'per-uh', 'single')
 
 
 def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, duration: float | None,
-               bag_dir: Path, startup_timeout: float, stale_timeout: float | None = None) -> list[tuple[str, str, list]]:
-    """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last."""
+               bag_dir: Path, startup_timeout: float, stale_timeout: float | None = None,
+               visualization: bool = True) -> list[tuple[str, str, list]]:
+    """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last
+    (the visualisation node only if ``visualization``)."""
     common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
     stale = ['-p', f'stale_timeout:={float(stale_timeout)}'] if stale_timeout is not None else []
     if duration is not None:
@@ -204,7 +209,8 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
         ns = ['-r', f'__ns:={topics.uh_namespace(i)}', '-p', f'uh_id:={i}']
         specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *stale]))
         specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, *stale, '-p', f'case:={case}']))
-    specs.append(('visualization', 'visualization', ['--ros-args', *common]))
+    if visualization:
+        specs.append(('visualization', 'visualization', ['--ros-args', *common]))
     specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common]))
     specs.append(('clock', 'clock', ['--ros-args', *common, '-p', f'rate:={float(rate)}',
                                      '-p', 'expect_recorder:=true', '-p', f'startup_timeout:={float(startup_timeout)}']))
@@ -410,7 +416,7 @@ def run(args) -> int:
     # run.json is written when the nodes have started (status "running", their pids), after every
     # node failure and at the end
     info = {'command': sys.argv, 'scenario': args.scenario, 'case': args.case, 'clock': args.clock,
-            'rate': args.rate, 'processes': args.processes, 'duration_s': duration, 'domain_id': domain,
+            'rate': args.rate, 'processes': args.processes, 'visualization': not args.no_visualization, 'duration_s': duration, 'domain_id': domain,
             'hosts': args.hosts, 'loss_pct': args.loss, 'respawn': args.respawn, 'exit_status': None}
 
     def write_info():
@@ -430,7 +436,8 @@ def run(args) -> int:
             network = netns.TeamNetwork(scenario.ids, args.loss).__enter__()
             print(f'[run] network: {network.describe()}', file=sys.stderr)
         specs = node_specs(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
-                           out / 'bag', args.startup_timeout, args.stale_timeout)
+                           out / 'bag', args.startup_timeout, args.stale_timeout,
+                           visualization=not args.no_visualization)
         for name, kind, cmd in _processes(specs, args.processes, out / 'logs'):
             if network is not None:
                 sup.prefix[name] = network.prefix(name)
