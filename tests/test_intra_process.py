@@ -10,6 +10,8 @@ import time
 from pathlib import Path
 
 import pytest
+import spinning
+from spinning import spin_for
 
 from uh_runtime import dds_backend as rt
 from uh_runtime import messages
@@ -35,17 +37,7 @@ def ctx(domain_id, monkeypatch):
 
 
 def spin_until(executor, condition, bound=BOUND):
-    end = time.monotonic() + bound
-    while not condition():
-        remaining = end - time.monotonic()
-        assert remaining > 0, 'condition not reached'
-        executor.spin_once(timeout_sec=min(remaining, 0.2))
-
-
-def spin_for(executor, seconds):
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.05)
+    spinning.spin_until(executor, condition, bound)
 
 
 def _state(step):

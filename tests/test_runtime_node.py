@@ -4,6 +4,7 @@ Each test has its own context (one DDS participant) on a private domain. Waits a
 ``spin_until`` spins the executor until a condition holds, failing after a bound.
 """
 import pytest
+import spinning
 
 from uh_runtime import dds_backend as rt
 from uh_runtime import messages
@@ -29,12 +30,7 @@ def ctx(domain_id):
 
 
 def spin_until(executor, condition, bound=BOUND):
-    import time
-    end = time.monotonic() + bound
-    while not condition():
-        remaining = end - time.monotonic()
-        assert remaining > 0, 'condition not reached'
-        executor.spin_once(timeout_sec=min(remaining, 0.5))
+    spinning.spin_until(executor, condition, bound)
 
 
 def test_names_namespace_and_remaps(ctx):
