@@ -7,7 +7,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -16,9 +15,9 @@ import yaml
 
 from uh_bringup.bag_metrics import read_team_bag
 from uh_topology.scenario import load_scenario
+from team_runs import start_run, wait_for_log
 
 ROOT = Path(__file__).resolve().parents[1]
-RUN = ROOT / 'scripts' / 'run_formation.sh'
 ROGUE = ROOT / 'tests' / 'data' / 'reliability_rogue_publisher.py'
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
@@ -26,26 +25,13 @@ pytestmark = [pytest.mark.dds, pytest.mark.slow]
 DURATION = 14.0  # s simulated, realtime at rate 1: long enough for the rogue and inject_fault to join
 
 
-def _wait_for_log(path: Path, needle: str, proc, timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if path.exists() and needle in path.read_text(errors='replace'):
-            return
-        if proc.poll() is not None:
-            raise AssertionError(f'run ended before {needle!r} appeared in {path}:\n{proc.stdout.read()}')
-        time.sleep(0.05)
-    raise AssertionError(f'{needle!r} did not appear in {path} within {timeout} s')
-
-
 @pytest.fixture(scope='module')
 def rogue_run(tmp_path_factory):
     out = tmp_path_factory.mktemp('rogue') / 'run'
     domain = 100 + os.getpid() % 20
-    proc = subprocess.Popen([str(RUN), '--out', str(out), '--domain-id', str(domain), '--clock', 'realtime',
-                             '--duration', str(DURATION)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True, start_new_session=True)
+    proc = start_run(out, domain, '--clock', 'realtime', '--duration', str(DURATION))
     try:
-        _wait_for_log(out / 'logs' / 'clock.log', 'team complete', proc, timeout=120)
+        wait_for_log(out / 'logs' / 'clock.log', 'team complete', proc, timeout=120)
         from uh_runtime.network import loopback_environment
         rogue = subprocess.run([sys.executable, str(ROGUE)], env=loopback_environment(domain),
                                capture_output=True, text=True, timeout=60)

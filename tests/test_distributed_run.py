@@ -5,8 +5,6 @@ import json
 import os
 import signal
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +16,9 @@ from uh_bringup.bag_metrics import read_team_bag
 from uh_controller_node.team_simulation import run_team_simulation
 from uh_topology import topics
 from uh_topology.scenario import load_scenario
+from team_runs import start_run, wait_for_log
 
 ROOT = Path(__file__).resolve().parents[1]
-RUN = ROOT / 'scripts' / 'run_formation.sh'
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
@@ -33,22 +31,6 @@ PAPER_READS = {
     4: {'/uh4/state', '/uh1/state', '/uh2/state', '/uh5/state'},
     5: {'/uh5/state', '/uh3/state', '/uh4/state'},
 }
-
-
-def _start_run(out, domain, *extra):
-    return subprocess.Popen([str(RUN), '--out', str(out), '--domain-id', str(domain), *extra],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
-
-
-def _wait_for_log(path: Path, needle: str, proc, timeout: float) -> None:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if path.exists() and needle in path.read_text(errors='replace'):
-            return
-        if proc.poll() is not None:
-            raise AssertionError(f'run ended before {needle!r} appeared in {path}:\n{proc.stdout.read()}')
-        time.sleep(0.05)
-    raise AssertionError(f'{needle!r} did not appear in {path} within {timeout} s')
 
 
 def _controller_reads(domain: int, timeout: float = 30.0) -> dict:
@@ -86,9 +68,9 @@ def lockstep_run(tmp_path_factory):
     from the live DDS graph while it runs."""
     out = tmp_path_factory.mktemp('lockstep') / 'run'
     domain = 200 + os.getpid() % 20
-    proc = _start_run(out, domain, '--clock', 'lockstep')
+    proc = start_run(out, domain, '--clock', 'lockstep')
     try:
-        _wait_for_log(out / 'logs' / 'clock.log', 'run of', proc, timeout=120)
+        wait_for_log(out / 'logs' / 'clock.log', 'run of', proc, timeout=120)
         reads = _controller_reads(domain)
         output, _ = proc.communicate(timeout=600)
     finally:
@@ -167,10 +149,10 @@ def test_bag_is_complete_and_decodes_with_rosbags(lockstep_run, paper, reference
 
 def test_ctrl_c_stops_every_process_and_leaves_a_readable_bag(tmp_path):
     out = tmp_path / 'run'
-    proc = _start_run(out, 180 + os.getpid() % 20, '--clock', 'lockstep')
+    proc = start_run(out, 180 + os.getpid() % 20, '--clock', 'lockstep')
     try:
         # a progress line ('step 600/6000: sim 6.00 s ...'), not the start line: the run is under way
-        _wait_for_log(out / 'logs' / 'clock.log', ': sim ', proc, timeout=120)
+        wait_for_log(out / 'logs' / 'clock.log', ': sim ', proc, timeout=120)
         os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in the terminal does
         output, _ = proc.communicate(timeout=60)
     finally:
@@ -189,9 +171,9 @@ def test_fault_injected_at_run_time_shows_in_truth_and_estimate(tmp_path, paper)
     out = tmp_path / 'run'
     domain = 160 + os.getpid() % 20
     # UH1 is healthy in the paper scenario; its collective loses 30 % from t = 12 s
-    proc = _start_run(out, domain, '--clock', 'lockstep', '--duration', '20')
+    proc = start_run(out, domain, '--clock', 'lockstep', '--duration', '20')
     try:
-        _wait_for_log(out / 'logs' / 'clock.log', 'run of', proc, timeout=120)
+        wait_for_log(out / 'logs' / 'clock.log', 'run of', proc, timeout=120)
         inject = subprocess.run([str(ROOT / 'scripts' / 'inject_fault.sh'), '--domain-id', str(domain), '--uh', '1',
                                  '--channel', 'collective', '--rho', '0.7', '--onset', '12'],
                                 capture_output=True, text=True, timeout=60)
@@ -232,7 +214,7 @@ def test_realtime_run_meets_the_thresholds(tmp_path, paper, reference_run):
     # All nodes in one process (--processes single): on a 2-core machine 14 node processes make
     # late and missed ticks under any other load (docs/performance.md: p99 4.7 ms and missed steps
     # per node, 2.2 ms and none in one process), and every miss spikes the instantaneous fault truth.
-    proc = _start_run(out, 140 + os.getpid() % 20, '--clock', 'realtime', '--rate', '1', '--processes', 'single')
+    proc = start_run(out, 140 + os.getpid() % 20, '--clock', 'realtime', '--rate', '1', '--processes', 'single')
     output, _ = proc.communicate(timeout=300)
     assert proc.returncode == 0, output
     metrics = json.loads((out / 'metrics.json').read_text())
@@ -252,7 +234,7 @@ def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layou
     depend on which process a node lives in, so the bag equals the in-process run to the bit; nor
     does leaving out the visualisation (which then records no markers)."""
     out = tmp_path / layout
-    proc = _start_run(out, 120 + os.getpid() % 20, '--processes', layout, '--duration', '3', *extra)
+    proc = start_run(out, 120 + os.getpid() % 20, '--processes', layout, '--duration', '3', *extra)
     output, _ = proc.communicate(timeout=300)
     assert proc.returncode == 0, output
     info = json.loads((out / 'run.json').read_text())

@@ -76,6 +76,19 @@ def udp_pingpong(n: int = 20000) -> dict:
     return {'round_trip_us': rtt * 1e6, 'echo_cpu_us_per_message': (c1 - c0) * 1e6 / n, 'messages': n}
 
 
+def _spin_until_stopped(node) -> int:
+    """Spin ``node`` until the process is told to stop (SIGTERM or Ctrl-C), then clean up."""
+    import uh_runtime as rt
+    try:
+        rt.spin(node)
+    except (KeyboardInterrupt, rt.ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rt.try_shutdown()
+    return 0
+
+
 def _echo_main(domain: int) -> int:
     import uh_runtime as rt
     from uh_runtime import messages as m
@@ -85,14 +98,7 @@ def _echo_main(domain: int) -> int:
     qos = topics.qos_profile(topics.STEP_QOS)
     pong = node.create_publisher(m.UHState, '/bench/pong', qos)
     node.create_subscription(m.UHState, '/bench/ping', pong.publish, qos)
-    try:
-        rt.spin(node)
-    except (KeyboardInterrupt, rt.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rt.try_shutdown()
-    return 0
+    return _spin_until_stopped(node)
 
 
 def dds_pingpong(domain: int, n: int = 5000) -> dict:
@@ -193,14 +199,7 @@ def _reader_main(domain: int) -> int:
     rt.init(args=['uh_bench_reader'], domain_id=domain)
     node = rt.Node('reader')
     node.create_subscription(m.UHState, '/bench/fanout', lambda msg: None, topics.qos_profile(topics.STEP_QOS))
-    try:
-        rt.spin(node)
-    except (KeyboardInterrupt, rt.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rt.try_shutdown()
-    return 0
+    return _spin_until_stopped(node)
 
 
 def fanout(domain: int, counts=(0, 1, 3, 6), n: int = 2000) -> dict:

@@ -195,15 +195,18 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         # load (or compile) the kernel before the clock starts: that is start-up, like imports
         _run_kernel(K, dt, ids, arrays, np.empty((1, 7)), out, every, None, load_only=True)
     start = _time.perf_counter()
-    references = np.empty((K + 1, 7))   # [p_0, v_0, psi_0] at every step, as the virtual leader sends it
-    for k in range(K + 1):
-        r = reference.at(k * dt)
-        references[k, 0:3], references[k, 3:6], references[k, 6] = r.position, r.velocity, r.yaw
+    samples = [reference.at(k * dt) for k in range(K + 1)]   # the virtual leader at every step
+    for k, r in enumerate(samples):
         ref[k] = (r.position[0], r.position[1], r.position[2], r.yaw, r.yaw_rate)
     if engine == 'kernel':
+        # [p_0, v_0, psi_0] per step, the layout of the controllers' kernel
+        references = np.empty((K + 1, 7))
+        references[:, 0:3] = [r.position for r in samples]
+        references[:, 3:6] = [r.velocity for r in samples]
+        references[:, 6] = [r.yaw for r in samples]
         _run_kernel(K, dt, ids, arrays, references, out, every, progress)
     else:
-        _run_objects(K, dt, ids, controllers, plants, references, out, every, progress)
+        _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress)
     wall = _time.perf_counter() - start
 
     return TeamRun(
@@ -236,15 +239,16 @@ def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False
             progress(k1 - 1, K)
 
 
-def _run_objects(K, dt, ids, controllers, plants, references, out, every, progress):
-    """The step loop in Python over the per-UH objects (what the distributed nodes run)."""
+def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress):
+    """The step loop in Python over the per-UH objects (what the distributed nodes run); ``samples``
+    are the virtual leader's references of every step."""
     col = {i: c for c, i in enumerate(ids)}
     hears = [tuple(col[j] for j in ctl.neighbours) for ctl in controllers]
     linked = [ctl.leader_link > 0.0 for ctl in controllers]
     states, commands = out['states'], out['commands']
     for k in range(K + 1):
         t = k * dt
-        r = _Reference(references[k])
+        r = samples[k]
         xs = [plant.x for plant in plants]
         states[k] = xs
         if not np.isfinite(states[k]).all():
@@ -264,11 +268,3 @@ def _run_objects(K, dt, ids, controllers, plants, references, out, every, progre
         if progress is not None and (k % every == 0 or k == K):
             progress(k, K)
 
-
-class _Reference:
-    """The virtual leader of one step as the controllers read it (position, velocity, yaw)."""
-
-    __slots__ = ('position', 'velocity', 'yaw')
-
-    def __init__(self, row):
-        self.position, self.velocity, self.yaw = row[0:3], row[3:6], float(row[6])

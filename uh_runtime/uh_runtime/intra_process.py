@@ -154,11 +154,8 @@ class IntraProcess:
         """Put ``item`` = (message or None, CDR bytes) into the inbox of each of ``subscriptions``."""
         with self._lock:
             for sub in subscriptions:
-                inbox = sub._inbox
-                inbox.items.append(item)
-                if not inbox.queued:
-                    inbox.queued = True
-                    self.pending.append(sub)
+                sub._inbox.items.append(item)
+                self._queue(sub)
         if threading.get_ident() != self.spinning_thread:
             self._wake()   # an executor may be blocked waiting in another thread
 

@@ -1,0 +1,25 @@
+"""Starting ``scripts/run_formation.sh`` from tests and waiting for its logs."""
+import subprocess
+import time
+from pathlib import Path
+
+RUN = Path(__file__).resolve().parents[1] / 'scripts' / 'run_formation.sh'
+
+
+def start_run(out, domain, *extra):
+    """The run supervisor writing to ``out`` on DDS domain ``domain``, in its own session (so a
+    test can kill the whole tree); stdout and stderr together as text."""
+    return subprocess.Popen([str(RUN), '--out', str(out), '--domain-id', str(domain), *extra],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+
+def wait_for_log(path: Path, needle: str, proc, timeout: float) -> None:
+    """Wait until ``needle`` appears in the log ``path``; fail if ``proc`` ends first or on timeout."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if path.exists() and needle in path.read_text(errors='replace'):
+            return
+        if proc.poll() is not None:
+            raise AssertionError(f'run ended before {needle!r} appeared in {path}:\n{proc.stdout.read()}')
+        time.sleep(0.05)
+    raise AssertionError(f'{needle!r} did not appear in {path} within {timeout} s')
