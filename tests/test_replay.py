@@ -36,19 +36,25 @@ LISTENER = r'''
 import json, sys, time
 import uh_runtime as rt
 from uh_runtime import messages
-topics, expected, out = json.loads(sys.argv[1]), int(sys.argv[2]), sys.argv[3]
+topics, expected, out = json.loads(sys.argv[1]), json.loads(sys.argv[2]), sys.argv[3]
 rt.init(args=['listener'])
 node = rt.Node('replay_listener')
 got = []
+counts = dict.fromkeys(topics, 0)
 def on(topic):
-    return lambda data: got.append((topic, time.monotonic(), bytes(data).hex()))
+    def record(data):
+        counts[topic] += 1
+        got.append((topic, time.monotonic(), bytes(data).hex()))
+    return record
 qos = rt.QoSProfile(depth=100000, reliability=rt.ReliabilityPolicy.RELIABLE,
                     durability=rt.DurabilityPolicy.VOLATILE)
 for name, type_name in topics.items():
     node.create_subscription(messages.get_message(type_name), name, on(name), qos, raw=True)
 print('ready', flush=True)
 deadline = time.monotonic() + 120
-while len(got) < expected and time.monotonic() < deadline:
+# stop once every topic has its expected count: topics are separate writers, so a total count
+# could be reached by a later pass of one topic before the last message of another arrives
+while any(counts[t] < n for t, n in expected.items()) and time.monotonic() < deadline:
     rt.spin_once(node, timeout_sec=0.1)
 with open(out, 'w') as f:
     json.dump(got, f)
@@ -71,7 +77,8 @@ def replay_to_listener(processes, tmp_path, domain, bag, topics, rate, extra=())
     script = tmp_path / 'listener.py'
     script.write_text(LISTENER)
     out = tmp_path / 'received.json'
-    listener = processes.start([sys.executable, str(script), json.dumps(types), str(len(expected)), str(out)],
+    listener = processes.start([sys.executable, str(script), json.dumps(types),
+                                json.dumps({t: sum(1 for m in expected if m[0] == t) for t in types}), str(out)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     assert listener.stdout.readline().strip() == 'ready', listener.stderr.read()
     replay = subprocess.run([str(REPLAY), str(bag), '--rate', str(rate), '--domain-id', str(domain),
@@ -157,7 +164,8 @@ def test_clock_is_synthesised_from_log_times_and_qos_is_the_recorded_one(process
     script.write_text(LISTENER)
     out = tmp_path / 'received.json'
     types = {'/talk': 'std_msgs/msg/String', '/clock': 'rosgraph_msgs/msg/Clock'}
-    listener = processes.start([sys.executable, str(script), json.dumps(types), str(2 * len(times)), str(out)],
+    listener = processes.start([sys.executable, str(script), json.dumps(types),
+                                json.dumps(dict.fromkeys(types, len(times))), str(out)],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     assert listener.stdout.readline().strip() == 'ready'
     # --loop keeps the writer up while its QoS is read from discovery; the listener stops after
