@@ -11,7 +11,7 @@ from textbook_rk4 import rk4
 from numba import njit
 
 from uh_sim_node import plant_kernels as K
-from uh_sim_node.faults import NUM_CHANNELS, ActuatorFault, FaultError, FaultSchedule
+from uh_sim_node.faults import NUM_CHANNELS, ONSET_TOLERANCE, ActuatorFault, FaultError, FaultSchedule
 from uh_sim_node.helicopter import HelicopterPlant, SinusoidalDisturbance, hover_trim, load_helicopter_params
 
 P = load_helicopter_params()
@@ -90,8 +90,8 @@ def test_fault_and_disturbance_tables():
     table = K.fault_table(FaultSchedule([ActuatorFault(3, 0.75, -0.005, 0.01, 0.5, 10.0)]))
     assert table.shape == (NUM_CHANNELS, K.FAULT_FIELDS)
     np.testing.assert_array_equal(table[3, [K.F_PRESENT, K.F_RHO, K.F_BIAS_CONSTANT, K.F_BIAS_AMPLITUDE,
-                                            K.F_BIAS_FREQUENCY, K.F_ONSET_TIME]],
-                                  [1.0, 0.75, -0.005, 0.01, 0.5, 10.0])
+                                            K.F_BIAS_FREQUENCY, K.F_ACTS_FROM]],
+                                  [1.0, 0.75, -0.005, 0.01, 0.5, 10.0 - ONSET_TOLERANCE])
     np.testing.assert_array_equal(table[:3], 0.0)  # channels without fault: not present
     dist = K.disturbance_table(DIST)
     np.testing.assert_array_equal(dist[:, K.D_AMPLITUDE], DIST.amplitude)
@@ -163,6 +163,20 @@ def test_a_fault_switches_on_at_the_first_substep_start_after_its_onset():
     schedule = FaultSchedule([ActuatorFault(0, 0.7, 0.01, onset_time=0.013)])
     np.testing.assert_allclose(mid, _reference_step(X0, U, 0.01, DT, SUBSTEPS, schedule, None),
                                rtol=0, atol=1e-12)
+
+
+def test_kernel_onset_test_is_the_schedules_within_the_tolerance():
+    """An onset a fraction of ONSET_TOLERANCE after the switch time still acts (a k*dt time that
+    rounding put just short of the onset), two tolerances after it does not: the same answer as
+    ActuatorFault.started, whose tolerance the fault table carries into the kernels."""
+    params = K.params_vector(load_helicopter_params())
+    uc, ua = np.zeros(4), np.zeros(4)
+    u = np.full(4, 0.01)
+    for shift, acts in ((0.5 * ONSET_TOLERANCE, True), (2.0 * ONSET_TOLERANCE, False), (0.0, True)):
+        fault = ActuatorFault(0, 0.5, 0.0, onset_time=10.0 + shift)
+        assert fault.started(10.0) is acts
+        K.actual_inputs(u, 10.0, 10.0, params, K.fault_table([fault]), uc, ua)
+        assert bool(ua[0] == 0.5 * uc[0]) is acts and ua[0] != 0.0, shift
 
 
 def test_sampled_disturbance_equals_the_sinusoid_table():

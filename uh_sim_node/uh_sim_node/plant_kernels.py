@@ -33,7 +33,8 @@ Input chain and actuator faults (paper eq. 6), per channel ``i``::
     b_i(t)  = bias_constant_i + bias_amplitude_i sin(bias_frequency_i t)     absolute time t
 
 A fault acts when its switch time ``t_s >= onset_time - ONSET_TOLERANCE``
-(:data:`uh_sim_node.faults.ONSET_TOLERANCE`, 1 ns); stuck actuators are ``rho = 0``.
+(:data:`uh_sim_node.faults.ONSET_TOLERANCE`, 1 ns; the table column ``F_ACTS_FROM``); stuck
+actuators are ``rho = 0``.
 
 Integration: the command is held over ``[t, t + dt)``; classical RK4 with ``substeps`` equal
 substeps of length ``h = dt / substeps``. Substep ``s`` spans ``[t + s h, t + (s + 1) h]``; the
@@ -61,7 +62,9 @@ Arrays describing one plant
 ``faults`` (``NUM_CHANNELS`` = 4, ``FAULT_FIELDS`` = 6) float64, built by :func:`fault_table` from a
 ``FaultSchedule``; row = channel, columns ``F_PRESENT`` (1.0 when the channel has a fault, else
 0.0; the other fields of an absent row are ignored), ``F_RHO``, ``F_BIAS_CONSTANT`` rad,
-``F_BIAS_AMPLITUDE`` rad, ``F_BIAS_FREQUENCY`` rad/s, ``F_ONSET_TIME`` s.
+``F_BIAS_AMPLITUDE`` rad, ``F_BIAS_FREQUENCY`` rad/s, ``F_ACTS_FROM`` s (the onset time less
+:data:`~uh_sim_node.faults.ONSET_TOLERANCE`, subtracted here in Python so that the kernels hold no
+copy of that constant).
 
 ``disturbance`` (3, ``DISTURBANCE_FIELDS`` = 3) float64, built by :func:`disturbance_table` from a
 ``SinusoidalDisturbance`` (or ``None``: all zeros, no force); row = inertial axis x, y, z, columns
@@ -98,9 +101,9 @@ read or write out of bounds.
 Compilation: the first call compiles a kernel (seconds) and stores it in numba's on-disk cache
 (``__pycache__`` next to this file, or ``NUMBA_CACHE_DIR``); later processes load it (milliseconds).
 :func:`compile_plant_kernels` compiles all kernels with the signatures the wrapper uses, for install
-scripts that warm the cache. The kernels read the module constants below and
-:data:`~uh_sim_node.faults.ONSET_TOLERANCE` at compile time: after changing that constant in
-``faults.py`` clear the cache (numba invalidates it only when this file changes).
+scripts that warm the cache. The kernels read only the constants of this file at compile time
+(numba re-validates its cache against this file alone), apart from
+:data:`~uh_sim_node.faults.NUM_CHANNELS`, the model's four inputs.
 """
 from __future__ import annotations
 
@@ -117,7 +120,7 @@ __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
     'P_MASS', 'P_GRAVITY', 'P_D_V', 'P_C_M1', 'P_C_M2', 'P_K_BETA', 'P_H_M', 'P_B_LAT', 'P_A_LON',
     'P_TAU_F', 'P_K_TR', 'P_D_R', 'P_C_Q', 'P_J_X', 'P_J_Y', 'P_J_Z', 'P_LOWER', 'P_UPPER', 'PARAMS_SIZE',
-    'F_PRESENT', 'F_RHO', 'F_BIAS_CONSTANT', 'F_BIAS_AMPLITUDE', 'F_BIAS_FREQUENCY', 'F_ONSET_TIME',
+    'F_PRESENT', 'F_RHO', 'F_BIAS_CONSTANT', 'F_BIAS_AMPLITUDE', 'F_BIAS_FREQUENCY', 'F_ACTS_FROM',
     'FAULT_FIELDS', 'D_AMPLITUDE', 'D_FREQUENCY', 'D_PHASE', 'DISTURBANCE_FIELDS', 'PlantArrays',
     'params_vector', 'fault_table', 'disturbance_table', 'disturbance_sample_times',
     'state_derivative', 'actual_inputs', 'force_disturbance', 'lumped_faults_of_inputs', 'lumped_faults',
@@ -157,7 +160,7 @@ F_RHO = 1             # effectiveness, [0, 1]
 F_BIAS_CONSTANT = 2   # rad
 F_BIAS_AMPLITUDE = 3  # rad
 F_BIAS_FREQUENCY = 4  # rad/s
-F_ONSET_TIME = 5      # s
+F_ACTS_FROM = 5       # s: onset_time - ONSET_TOLERANCE (fault_table computes it)
 FAULT_FIELDS = 6
 
 # -- disturbance table (one row per inertial axis) --------------------------------------------
@@ -222,7 +225,7 @@ def fault_table(faults) -> np.ndarray:
         row[F_BIAS_CONSTANT] = f.bias_constant
         row[F_BIAS_AMPLITUDE] = f.bias_amplitude
         row[F_BIAS_FREQUENCY] = f.bias_frequency
-        row[F_ONSET_TIME] = f.onset_time
+        row[F_ACTS_FROM] = f.onset_time - ONSET_TOLERANCE   # the test of FaultSchedule, in float64
     return out
 
 
@@ -283,7 +286,7 @@ def _actual_channel(params, faults, channel, u, t, t_switch):
     The fault acts when ``t_switch >= onset_time - ONSET_TOLERANCE``; the bias uses ``t``.
     """
     f = faults[channel]
-    if f[F_PRESENT] == 0.0 or t_switch < f[F_ONSET_TIME] - ONSET_TOLERANCE:
+    if f[F_PRESENT] == 0.0 or t_switch < f[F_ACTS_FROM]:
         return u
     # one evaluation order everywhere: (rho u + c) + A sin(w t)
     ua = f[F_RHO] * u + f[F_BIAS_CONSTANT]
@@ -307,7 +310,7 @@ def _actual(params, faults, uc, t, t_switch):
 def _any_fault_acts(faults, t_switch):
     """True when some channel's fault acts at ``t_switch`` s."""
     for ch in range(NUM_CHANNELS):
-        if faults[ch, F_PRESENT] != 0.0 and t_switch >= faults[ch, F_ONSET_TIME] - ONSET_TOLERANCE:
+        if faults[ch, F_PRESENT] != 0.0 and t_switch >= faults[ch, F_ACTS_FROM]:
             return True
     return False
 
