@@ -57,18 +57,25 @@ def _namespaces(tag: str) -> list:
 def _udp_delivery(net, src: str, dst: str, count: int = 2000) -> float:
     """Fraction of ``count`` UDP datagrams sent from host ``src`` that host ``dst`` receives."""
     dst_host = net.hosts[dst]
+    # The receiver must not drop datagrams itself: a default receive buffer (~212 KB, a few
+    # hundred datagrams) overflows while a loaded machine keeps the receiver off the CPU, so it
+    # forces an 8 MB buffer (SO_RCVBUFFORCE = 33: root may exceed net.core.rmem_max). It waits up
+    # to 30 s for the first datagram (the sender is a new process), then stops after `count` or
+    # after 1 s without one.
     receiver = subprocess.Popen(
         ['ip', 'netns', 'exec', dst_host.netns, sys.executable, '-c',
          'import socket, sys\n'
          's = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)\n'
-         f's.bind(("{dst_host.address}", 47000)); s.settimeout(1.0)\n'
+         's.setsockopt(socket.SOL_SOCKET, 33, 8 << 20)\n'
+         f's.bind(("{dst_host.address}", 47000)); s.settimeout(30.0)\n'
          'print("ready", flush=True)\n'
          'n = 0\n'
          'try:\n'
-         '    while True:\n'
-         '        s.recv(64); n += 1\n'
+         f'    while n < {count}:\n'
+         '        s.recv(64); n += 1; s.settimeout(1.0)\n'
          'except socket.timeout:\n'
-         '    print(n, flush=True)\n'],
+         '    pass\n'
+         'print(n, flush=True)\n'],
         stdout=subprocess.PIPE, text=True)
     assert receiver.stdout.readline().strip() == 'ready'
     subprocess.run(['ip', 'netns', 'exec', net.hosts[src].netns, sys.executable, '-c',
@@ -77,7 +84,7 @@ def _udp_delivery(net, src: str, dst: str, count: int = 2000) -> float:
                     f'for i in range({count}):\n'
                     f'    s.sendto(b"x", ("{dst_host.address}", 47000))\n'
                     '    if i % 100 == 0: time.sleep(0.001)\n'], check=True, timeout=60)
-    out, _ = receiver.communicate(timeout=30)
+    out, _ = receiver.communicate(timeout=60)
     return int(out.strip()) / count
 
 
