@@ -33,17 +33,24 @@ def rogue_run(tmp_path_factory):
     try:
         wait_for_log(out / 'logs' / 'clock.log', 'team complete', proc, timeout=120)
         from uh_runtime.network import loopback_environment
-        rogue = subprocess.run([sys.executable, str(ROGUE)], env=loopback_environment(domain),
-                               capture_output=True, text=True, timeout=60)
-        unknown = subprocess.run([str(ROOT / 'scripts' / 'inject_fault.sh'), '--domain-id', str(domain), '--uh', '9',
-                                  '--channel', 'collective', '--rho', '0.5'], capture_output=True, text=True,
-                                 timeout=60)
+        # both at once, so that both are done well within the run on a loaded machine
+        started = [subprocess.Popen([sys.executable, str(ROGUE)], env=loopback_environment(domain),
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True),
+                   subprocess.Popen([str(ROOT / 'scripts' / 'inject_fault.sh'), '--domain-id', str(domain),
+                                     '--uh', '9', '--channel', 'collective', '--rho', '0.5'],
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)]
+        rogue, unknown = (_finished(p) for p in started)
         output, _ = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGINT)
             proc.wait(timeout=60)
     return out, proc.returncode, output, rogue, unknown
+
+
+def _finished(proc: subprocess.Popen) -> subprocess.CompletedProcess:
+    stdout, stderr = proc.communicate(timeout=60)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr)
 
 
 def _log(out: Path, node: str) -> str:

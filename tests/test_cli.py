@@ -91,7 +91,7 @@ def test_echo_of_a_latched_topic_and_node_count(running, capsys):
     text, sep, rest = capsys.readouterr().out.partition('---\n')
     msg = yaml.safe_load(text)
     assert sep and msg['step'] == 12 and msg['position']['z'] == 30.0
-    assert cli.main(['topic', 'hz', '/team/state', '--timeout', '1.5']) == 0
+    assert cli.main(['topic', 'hz', '/team/state', '--timeout', '3']) == 0
     out = capsys.readouterr().out
     assert 'average rate: ' in out and 'window: ' in out
     assert cli.main(['topic', 'info', '/team/reference', '-v']) == 0

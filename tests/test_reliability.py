@@ -104,11 +104,16 @@ def test_neighbours_report_the_dead_simulator_within_the_timeout(sim_killed):
         assert stale_steps, f'uh{uh} never reported uh2 stale'
         first = stale_steps[0]
         print(f'uh{uh} reported uh2 stale at step {first}, {first - last_uh2} steps after its last state')
-        # reported once uh2's newest state is more than the timeout behind the step computed. The
-        # bag's last uh2 state may be a step or two older than the controller's (the dying process's
-        # last samples can reach one reader and not the other): 2 steps below; the margin of 10
-        # steps above (50 ms wall at rate 2) covers the sync wait and the timer period
-        assert STALE_STEPS - 2 < first - last_uh2 <= STALE_STEPS + 10, (uh, first, last_uh2)
+        # Stale means uh2's newest state is more than STALE_STEPS behind the step computed
+        # (steps[uh2] < k - STALE_STEPS). The bag's last uh2 state may be a step or two older than
+        # the controller's (the dying process's last samples can reach one reader and not the
+        # other), so: not reported before last_uh2 + STALE_STEPS - 1, and reported at every step
+        # from last_uh2 + STALE_STEPS + 3 on. The bound is in steps, not wall time: a loaded
+        # controller may skip steps in real time, which delays the first report without changing
+        # the rule, so the first status is not held to a fixed step.
+        assert first - last_uh2 > STALE_STEPS - 2, (uh, first, last_uh2)
+        late = [k for k in sorted(status) if k >= last_uh2 + STALE_STEPS + 3 and 'uh2' not in status[k]]
+        assert not late, f'uh{uh} still counted uh2 at steps {late[:5]} (last uh2 state {last_uh2})'
         # and on every status from then on: the data never came back
         assert stale_steps == [k for k in sorted(status) if k >= first]
         assert max(status) == 2000   # it kept computing to the end of the run (20 s at dt = 0.01)

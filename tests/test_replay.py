@@ -2,7 +2,9 @@
 
 A listener process subscribes (raw CDR) to the replayed topics and writes down, per message, the
 topic, the payload bytes and the monotonic time it arrived; the replay waits until every topic
-has that subscriber (--wait-for-subscribers: an event, not a sleep). What arrives is compared
+has that subscriber (--wait-for-subscribers: an event, not a sleep), then gives the listener's
+side of the match the default --delay (0.5 s) to complete: a keep-last writer may overwrite a
+sample its new reader has not yet acknowledged. What arrives is compared
 with the bag read by rosbags, an independent reader.
 
 Timing tolerance. The replay sends message m at t0 + (log_time(m) - log_time(first)) / rate and
@@ -82,7 +84,7 @@ def replay_to_listener(processes, tmp_path, domain, bag, topics, rate, extra=())
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     assert listener.stdout.readline().strip() == 'ready', listener.stderr.read()
     replay = subprocess.run([str(REPLAY), str(bag), '--rate', str(rate), '--domain-id', str(domain),
-                             '--wait-for-subscribers', '--delay', '0', '--topics', *topics, *extra],
+                             '--wait-for-subscribers', '--topics', *topics, *extra],
                             capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert replay.returncode == 0, replay.stderr
     listener.wait(timeout=120)
@@ -171,7 +173,7 @@ def test_clock_is_synthesised_from_log_times_and_qos_is_the_recorded_one(process
     # --loop keeps the writer up while its QoS is read from discovery; the listener stops after
     # the first pass (12 messages on each topic)
     replay = processes.start([str(REPLAY), str(bag), '--domain-id', str(domain_id), '--wait-for-subscribers',
-                              '--delay', '0', '--loop'],
+                              '--loop'],
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
     graph = Graph(domain_id=domain_id)
     try:
