@@ -7,25 +7,22 @@ from pathlib import Path
 
 import pytest
 
-from uh_runtime.network import loopback_environment
+from uh_runtime.network import loopback_environment, release_domain_id, reserve_domain_id
 
 ROOT = Path(__file__).resolve().parents[1]
-_next_domain = [0]
 
 
 @pytest.fixture
 def domain_id(monkeypatch):
-    """A DDS domain id no other test of this session (or a parallel session) uses, with loopback config.
-
-    Ids are spread over 1..230 from the process id so two pytest sessions on one machine rarely
-    collide; ROS_DOMAIN_ID and CYCLONEDDS_URI are set for this process and its children.
-    """
-    _next_domain[0] += 1
-    dom = 1 + (os.getpid() * 7 + _next_domain[0]) % 230
+    """A DDS domain id no other test, pytest session, benchmark or run on this machine holds
+    (:func:`uh_runtime.network.reserve_domain_id`), with loopback config; ROS_DOMAIN_ID and
+    CYCLONEDDS_URI are set for this process and its children. Released after the test."""
+    dom = reserve_domain_id()
     for key, value in loopback_environment(dom).items():
         if os.environ.get(key) != value:
             monkeypatch.setenv(key, value)
-    return dom
+    yield dom
+    release_domain_id(dom)
 
 
 @pytest.fixture

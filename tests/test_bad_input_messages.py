@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from uh_bringup.bag_metrics import read_team_bag
+from uh_runtime.network import reserve_domain_id
 from uh_topology.scenario import load_scenario
 from team_runs import start_run, wait_for_log
 
@@ -28,7 +29,7 @@ DURATION = 14.0  # s simulated, realtime at rate 1: long enough for the rogue an
 @pytest.fixture(scope='module')
 def rogue_run(tmp_path_factory):
     out = tmp_path_factory.mktemp('rogue') / 'run'
-    domain = 100 + os.getpid() % 20
+    domain = reserve_domain_id()
     proc = start_run(out, domain, '--clock', 'realtime', '--duration', str(DURATION))
     try:
         wait_for_log(out / 'logs' / 'clock.log', 'team complete', proc, timeout=120)

@@ -14,6 +14,7 @@ from rosbags.rosbag2 import Reader
 
 from uh_bringup.bag_metrics import read_team_bag
 from uh_controller_node.team_simulation import run_team_simulation
+from uh_runtime.network import reserve_domain_id
 from uh_topology import topics
 from uh_topology.scenario import load_scenario
 from team_runs import start_run, wait_for_log
@@ -67,7 +68,7 @@ def lockstep_run(tmp_path_factory):
     """One full 60 s lockstep run of the paper scenario; the controllers' subscriptions are read
     from the live DDS graph while it runs."""
     out = tmp_path_factory.mktemp('lockstep') / 'run'
-    domain = 200 + os.getpid() % 20
+    domain = reserve_domain_id()
     proc = start_run(out, domain, '--clock', 'lockstep')
     try:
         wait_for_log(out / 'logs' / 'clock.log', 'run of', proc, timeout=120)
@@ -149,7 +150,7 @@ def test_bag_is_complete_and_decodes_with_rosbags(lockstep_run, paper, reference
 
 def test_ctrl_c_stops_every_process_and_leaves_a_readable_bag(tmp_path):
     out = tmp_path / 'run'
-    proc = start_run(out, 180 + os.getpid() % 20, '--clock', 'lockstep')
+    proc = start_run(out, reserve_domain_id(), '--clock', 'lockstep')
     try:
         # a progress line ('step 600/6000: sim 6.00 s ...'), not the start line: the run is under way
         wait_for_log(out / 'logs' / 'clock.log', ': sim ', proc, timeout=120)
@@ -169,7 +170,7 @@ def test_ctrl_c_stops_every_process_and_leaves_a_readable_bag(tmp_path):
 
 def test_fault_injected_at_run_time_shows_in_truth_and_estimate(tmp_path, paper):
     out = tmp_path / 'run'
-    domain = 160 + os.getpid() % 20
+    domain = reserve_domain_id()
     # UH1 is healthy in the paper scenario; its collective loses 30 % from t = 16 s
     proc = start_run(out, domain, '--clock', 'lockstep', '--duration', '24')
     try:
@@ -220,7 +221,7 @@ def test_realtime_run_meets_the_thresholds(tmp_path, paper, reference_run):
     # All nodes in one process (--processes single): on a 2-core machine 14 node processes make
     # late and missed ticks under any other load (docs/performance.md: p99 4.7 ms and missed steps
     # per node, 2.2 ms and none in one process), and every miss spikes the instantaneous fault truth.
-    proc = start_run(out, 140 + os.getpid() % 20, '--clock', 'realtime', '--rate', '1', '--processes', 'single')
+    proc = start_run(out, reserve_domain_id(), '--clock', 'realtime', '--rate', '1', '--processes', 'single')
     output, _ = proc.communicate(timeout=300)
     assert proc.returncode == 0, output
     metrics = json.loads((out / 'metrics.json').read_text())
@@ -240,7 +241,7 @@ def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layou
     depend on which process a node lives in, so the bag equals the in-process run to the bit; nor
     does leaving out the visualisation (which then records no markers)."""
     out = tmp_path / layout
-    proc = start_run(out, 120 + os.getpid() % 20, '--processes', layout, '--duration', '3', *extra)
+    proc = start_run(out, reserve_domain_id(), '--processes', layout, '--duration', '3', *extra)
     output, _ = proc.communicate(timeout=300)
     assert proc.returncode == 0, output
     info = json.loads((out / 'run.json').read_text())

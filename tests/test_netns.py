@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from uh_bringup import netns
+from uh_runtime.network import reserve_domain_id
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN = ROOT / 'scripts' / 'run_formation.sh'
@@ -138,7 +139,7 @@ def test_team_flies_over_a_lossy_network(tmp_path, nft):
     """The paper team, each UH in its own namespace, 10 % loss on every air link, realtime."""
     out = tmp_path / 'run'
     proc = subprocess.Popen([str(RUN), '--hosts', 'netns', '--loss', '10', '--clock', 'realtime', '--duration', '8',
-                             '--out', str(out), '--domain-id', str(20 + os.getpid() % 20)],
+                             '--out', str(out), '--domain-id', str(reserve_domain_id())],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
         output, _ = proc.communicate(timeout=300)
@@ -168,7 +169,7 @@ def test_team_flies_over_a_lossy_network(tmp_path, nft):
 def test_interrupted_netns_run_removes_its_namespaces(tmp_path):
     out = tmp_path / 'run'
     proc = subprocess.Popen([str(RUN), '--hosts', 'netns', '--clock', 'realtime', '--duration', '60',
-                             '--out', str(out), '--domain-id', str(40 + os.getpid() % 20)],
+                             '--out', str(out), '--domain-id', str(reserve_domain_id())],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
     tag = f'{netns.PREFIX}{proc.pid}'
     try:

@@ -17,6 +17,7 @@ import yaml
 from rosbags.rosbag2 import Reader
 
 from uh_runtime.bag import CHUNK_SIZE, bag_file, read_messages, recover_bag
+from uh_runtime.network import reserve_domain_id
 
 ROOT = Path(__file__).resolve().parents[1]
 TALKER = ROOT / 'tests' / 'data' / 'reliability_talker.py'
@@ -140,7 +141,7 @@ def test_lockstep_bag_holds_exactly_what_was_published(tmp_path):
     """Every node logs what it published when it shuts down; the bag has exactly those counts."""
     out = tmp_path / 'run'
     proc = subprocess.run([str(RUN), '--out', str(out), '--duration', '2', '--domain-id',
-                           str(60 + os.getpid() % 20)], capture_output=True, text=True, timeout=300)
+                           str(reserve_domain_id())], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     published = {}
     for log in (out / 'logs').glob('*.log'):
@@ -161,7 +162,7 @@ def test_lockstep_bag_holds_exactly_what_was_published(tmp_path):
 def test_run_whose_recorder_is_killed_fails_and_recovers_the_bag(tmp_path):
     out = tmp_path / 'run'
     proc = subprocess.Popen([str(RUN), '--out', str(out), '--clock', 'realtime', '--rate', '2', '--duration', '30',
-                             '--domain-id', str(40 + os.getpid() % 20)], stdout=subprocess.PIPE,
+                             '--domain-id', str(reserve_domain_id())], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
         def pid():

@@ -22,6 +22,7 @@ import pytest
 from rosbags.rosbag2 import Reader
 
 from uh_bringup.bag_metrics import _typestore, read_team_bag
+from uh_runtime.network import reserve_domain_id
 from uh_topology.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -73,7 +74,7 @@ def _statuses(bag_dir: Path, uh: int) -> dict:
 @pytest.fixture(scope='module')
 def sim_killed(tmp_path_factory):
     out = tmp_path_factory.mktemp('simkill') / 'run'
-    code, output, pid = _run_and_kill(out, 80 + os.getpid() % 20, 'uh2_sim', 600,
+    code, output, pid = _run_and_kill(out, reserve_domain_id(), 'uh2_sim', 600,
                                       '--rate', '2', '--duration', '20')
     return out, code, output
 
@@ -154,7 +155,7 @@ def test_respawned_controller_rejoins_and_the_team_reconverges(tmp_path):
     # quiet machine, several seconds on a loaded one: 1 to 6 s simulated at rate 2) UH2 flies on
     # with its last command and drifts; the restarted controller starts with empty networks and a
     # zero fault estimate, brings UH2 back and learns UH2's faults (from 10 s) from scratch
-    code, output, pid = _run_and_kill(out, 60 + os.getpid() % 20, 'uh2_controller', 800,
+    code, output, pid = _run_and_kill(out, reserve_domain_id(), 'uh2_controller', 800,
                                       '--rate', '2', '--duration', '40', '--respawn')
     assert code == 3, output
     assert 'node uh2_controller killed by SIGKILL' in output
@@ -190,7 +191,7 @@ def test_respawned_controller_rejoins_and_the_team_reconverges(tmp_path):
 
 def test_a_death_in_lockstep_ends_the_run_naming_the_node(tmp_path):
     out = tmp_path / 'run'
-    proc = subprocess.Popen([str(RUN), '--out', str(out), '--domain-id', str(140 + os.getpid() % 20),
+    proc = subprocess.Popen([str(RUN), '--out', str(out), '--domain-id', str(reserve_domain_id()),
                              '--duration', '30'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
     try:

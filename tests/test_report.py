@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from uh_runtime.network import reserve_domain_id
+
 ROOT = Path(__file__).resolve().parents[1]
 RUN = ROOT / 'scripts' / 'run_formation.sh'
 TEAM_RUN_DURATION = 22.0   # s: past the paper scenario's settle time (20 s), so every metric is defined
@@ -40,7 +42,7 @@ def shared_team_run(tmp_path_factory) -> Path:
         if failed.exists():
             pytest.fail(failed.read_text())
         if not (out / 'metrics.json').exists():
-            domain = 1 + (os.getpid() * 7 + 113) % 230
+            domain = reserve_domain_id()
             proc = subprocess.run([str(RUN), '--duration', str(TEAM_RUN_DURATION), '--out', str(out),
                                    '--force', '--domain-id', str(domain)],
                                   capture_output=True, text=True, timeout=600)

@@ -20,12 +20,13 @@ import threading
 import time
 from pathlib import Path
 
+from uh_runtime.network import reserve_domain_id
+
 __all__ = ['run_team', 'next_domain_id', 'node_kind', 'RunError', 'parse_run_complete']
 
 _COMPLETE = re.compile(r'run complete: (\d+) steps, sim ([\d.]+) s in ([\d.]+) s wall '
                        r'\(real-time factor ([\d.]+)\)')
 _LATE = re.compile(r'\((\d+) late command\(s\) so far\)')
-_counter = [0]
 
 
 class RunError(RuntimeError):
@@ -33,10 +34,9 @@ class RunError(RuntimeError):
 
 
 def next_domain_id() -> int:
-    """A DDS domain id for the next run of this process (200..229, varied by pid and run count),
-    away from the supervisor's default ``1 + pid % 230`` of the usual runs as far as possible."""
-    _counter[0] += 1
-    return 200 + (os.getpid() + 7 * _counter[0]) % 30
+    """A DDS domain id for the next run of this process that no other test session, benchmark or
+    run on this machine holds (:func:`uh_runtime.network.reserve_domain_id`; held until exit)."""
+    return reserve_domain_id()
 
 
 def node_kind(name: str) -> str:

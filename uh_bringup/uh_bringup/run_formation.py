@@ -47,7 +47,7 @@ import sys
 import time
 from pathlib import Path
 
-from uh_runtime.network import loopback_environment
+from uh_runtime.network import loopback_environment, reserve_domain_id
 from uh_topology import topics
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
@@ -79,7 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', default=None, help='output directory (default runs/<timestamp>); must be new or empty')
     p.add_argument('--force', action='store_true', help='write into a non-empty --out (its old content is removed)')
     p.add_argument('--domain-id', type=int, default=None,
-                   help='DDS domain id 0..232 (default: ROS_DOMAIN_ID, else one derived from the process id)')
+                   help='DDS domain id 0..232 (default: ROS_DOMAIN_ID, else a free one that no other run, test or '
+                        'benchmark on this machine holds)')
     p.add_argument('--processes', default='per-node', choices=LAYOUTS,
                    help='process layout: one process per node (default), one per UH, or a single process; '
                         'results are identical')
@@ -395,8 +396,9 @@ def run(args) -> int:
     _prepare_out(out, args.force)
     domain = args.domain_id
     if domain is None:
+        # held by this process for the run, so that runs started at once never share a domain
         domain = int(os.environ['ROS_DOMAIN_ID']) if os.environ.get('ROS_DOMAIN_ID', '').isdigit() \
-            else 1 + os.getpid() % 230
+            else reserve_domain_id()
     env = loopback_environment(domain)
     env['PYTHONUNBUFFERED'] = '1'
     duration = args.duration if args.duration is not None else scenario.duration

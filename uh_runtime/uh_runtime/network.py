@@ -3,10 +3,22 @@
 Every run and every test picks its own DDS domain id, so parallel runs never see each other
 (DESIGN.md section 1, "Isolation"). On a machine without multicast on loopback, discovery uses
 unicast to 127.0.0.1 over a range of participant indices.
-"""
-import os
 
-__all__ = ['loopback_config', 'loopback_environment', 'MAX_PARTICIPANTS']
+:func:`reserve_domain_id` hands out domain ids that no other cooperating process on the machine
+holds (a test session, a benchmark, a run started without ``--domain-id``), so that two of them
+running at once never share a domain.
+"""
+import errno
+import fcntl
+import itertools
+import os
+import tempfile
+
+__all__ = ['loopback_config', 'loopback_environment', 'reserve_domain_id', 'release_domain_id',
+           'MAX_PARTICIPANTS', 'MAX_DOMAIN_ID']
+
+#: Largest DDS domain id ROS 2 allows (Cyclone's default port mapping ends there).
+MAX_DOMAIN_ID = 232
 
 #: Participants one domain can hold on loopback (unicast discovery probes this many port indices).
 MAX_PARTICIPANTS = 120
@@ -41,3 +53,57 @@ def loopback_environment(domain_id: int, base: dict | None = None) -> dict:
     env['ROS_DOMAIN_ID'] = str(int(domain_id))
     env.setdefault('CYCLONEDDS_URI', loopback_config())
     return env
+
+
+_held: dict = {}          # domain id -> open lock file descriptor of this process
+_reservations = itertools.count()
+
+
+def _lock_path(domain_id: int) -> str:
+    return os.path.join(tempfile.gettempdir(), f'uh-dds-domain-{domain_id}.lock')
+
+
+def reserve_domain_id(first: int = 1, last: int = MAX_DOMAIN_ID) -> int:
+    """Claim a DDS domain id in ``first .. last`` that no other process on this machine holds.
+
+    The claim is an exclusive ``flock`` on ``<tmp>/uh-dds-domain-<id>.lock``, kept until
+    :func:`release_domain_id` or the end of this process (the kernel drops it then, also after a
+    crash). The search starts at an offset drawn from the process id, so concurrent processes
+    rarely even try the same id. Only processes that reserve take part: an explicit
+    ``--domain-id`` or ``ROS_DOMAIN_ID`` is used as given.
+
+    Raises
+    ------
+    RuntimeError
+        Every id of the range is held.
+    """
+    if not 0 <= first <= last <= MAX_DOMAIN_ID:
+        raise ValueError(f'domain id range {first}..{last} is not within 0..{MAX_DOMAIN_ID}')
+    size = last - first + 1
+    offset = os.getpid() * 7 + next(_reservations)
+    for i in range(size):
+        domain = first + (offset + i) % size
+        if domain in _held:
+            continue
+        try:
+            fd = os.open(_lock_path(domain), os.O_RDWR | os.O_CREAT, 0o666)
+        except OSError:
+            continue          # e.g. a lock file of another user that this one may not open
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+                continue      # held by another process
+            raise
+        _held[domain] = fd
+        return domain
+    raise RuntimeError(f'every DDS domain id in {first}..{last} is held by another process on this machine '
+                       f'(lock files {_lock_path(first)} ..); stop some runs or pass --domain-id')
+
+
+def release_domain_id(domain_id: int) -> None:
+    """Give back a domain id taken with :func:`reserve_domain_id` (nothing happens for others)."""
+    fd = _held.pop(domain_id, None)
+    if fd is not None:
+        os.close(fd)

@@ -1,0 +1,84 @@
+"""DDS domain reservation (uh_runtime/network.py): runs, test sessions and benchmarks started at
+the same time on one machine never share a domain id."""
+import subprocess
+import sys
+
+import pytest
+
+from uh_runtime import network
+from uh_runtime.network import release_domain_id, reserve_domain_id
+
+# Holds a domain id in another process until its stdin closes.
+HOLDER = r'''
+import sys
+from uh_runtime.network import reserve_domain_id
+print(reserve_domain_id(int(sys.argv[1]), int(sys.argv[2])), flush=True)
+sys.stdin.read()
+'''
+
+
+@pytest.fixture
+def holder():
+    started = []
+
+    def hold(first, last):
+        proc = subprocess.Popen([sys.executable, '-P', '-c', HOLDER, str(first), str(last)],
+                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        started.append(proc)
+        return int(proc.stdout.readline())
+    yield hold
+    for proc in started:
+        proc.stdin.close()
+        proc.wait(timeout=30)
+
+
+def _free_pair():
+    """Two adjacent ids nobody holds right now (another session on the machine may hold some)."""
+    for first in range(1, network.MAX_DOMAIN_ID, 2):
+        a = reserve_domain_id(first, first)
+        try:
+            b = reserve_domain_id(first + 1, first + 1)
+        except RuntimeError:
+            release_domain_id(a)
+            continue
+        release_domain_id(a)
+        release_domain_id(b)
+        return first
+    pytest.skip('no two adjacent free domain ids on this machine')
+
+
+def test_an_id_held_by_another_process_is_skipped_and_free_again_when_it_ends(holder):
+    first = _free_pair()
+    held = holder(first, first + 1)
+    other = first + 1 if held == first else first
+    # the only other id of the range is the one left
+    assert reserve_domain_id(first, first + 1) == other
+    with pytest.raises(RuntimeError, match=rf'every DDS domain id in {first}..{first + 1} is held'):
+        reserve_domain_id(first, first + 1)
+    release_domain_id(other)
+    assert reserve_domain_id(other, other) == other   # released: free for this process again
+    release_domain_id(other)
+
+
+def test_the_holders_exit_frees_its_id():
+    first = _free_pair()
+    proc = subprocess.Popen([sys.executable, '-P', '-c', HOLDER, str(first), str(first)],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert int(proc.stdout.readline()) == first
+    with pytest.raises(RuntimeError):
+        reserve_domain_id(first, first)
+    proc.kill()          # no clean-up of its own: the kernel drops the lock with the process
+    proc.wait(timeout=30)
+    assert reserve_domain_id(first, first) == first
+    release_domain_id(first)
+
+
+def test_ids_of_one_process_are_distinct_and_a_bad_range_is_refused():
+    ids = [reserve_domain_id() for _ in range(5)]
+    try:
+        assert len(set(ids)) == 5 and all(1 <= d <= network.MAX_DOMAIN_ID for d in ids)
+    finally:
+        for d in ids:
+            release_domain_id(d)
+    with pytest.raises(ValueError, match=r'range 5..300 is not within 0..232'):
+        reserve_domain_id(5, 300)
