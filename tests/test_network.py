@@ -22,10 +22,11 @@ def holder():
     started = []
 
     def hold(first, last):
+        """(the id a new process reserved in first..last, that process)"""
         proc = subprocess.Popen([sys.executable, '-P', '-c', HOLDER, str(first), str(last)],
                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         started.append(proc)
-        return int(proc.stdout.readline())
+        return int(proc.stdout.readline()), proc
     yield hold
     for proc in started:
         proc.stdin.close()
@@ -49,7 +50,7 @@ def _free_pair():
 
 def test_an_id_held_by_another_process_is_skipped_and_free_again_when_it_ends(holder):
     first = _free_pair()
-    held = holder(first, first + 1)
+    held, _ = holder(first, first + 1)
     other = first + 1 if held == first else first
     # the only other id of the range is the one left
     assert reserve_domain_id(first, first + 1) == other
@@ -60,11 +61,10 @@ def test_an_id_held_by_another_process_is_skipped_and_free_again_when_it_ends(ho
     release_domain_id(other)
 
 
-def test_the_holders_exit_frees_its_id():
+def test_the_holders_exit_frees_its_id(holder):
     first = _free_pair()
-    proc = subprocess.Popen([sys.executable, '-P', '-c', HOLDER, str(first), str(first)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    assert int(proc.stdout.readline()) == first
+    held, proc = holder(first, first)
+    assert held == first
     with pytest.raises(RuntimeError):
         reserve_domain_id(first, first)
     proc.kill()          # no clean-up of its own: the kernel drops the lock with the process

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from uh_runtime.network import reserve_domain_id
 
-__all__ = ['run_team', 'next_domain_id', 'node_kind', 'RunError', 'parse_run_complete']
+__all__ = ['run_team', 'node_kind', 'RunError', 'parse_run_complete']
 
 _COMPLETE = re.compile(r'run complete: (\d+) steps, sim ([\d.]+) s in ([\d.]+) s wall '
                        r'\(real-time factor ([\d.]+)\)')
@@ -31,12 +31,6 @@ _LATE = re.compile(r'\((\d+) late command\(s\) so far\)')
 
 class RunError(RuntimeError):
     """A benchmark run could not be started or measured."""
-
-
-def next_domain_id() -> int:
-    """A DDS domain id for the next run of this process that no other test session, benchmark or
-    run on this machine holds (:func:`uh_runtime.network.reserve_domain_id`; held until exit)."""
-    return reserve_domain_id()
 
 
 def node_kind(name: str) -> str:
@@ -93,7 +87,7 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
     layout, clock, rate, duration
         ``--processes``, ``--clock``, ``--rate``, ``--duration`` of the run.
     domain_id : int, optional
-        DDS domain (default :func:`next_domain_id`).
+        DDS domain (default: one from :func:`uh_runtime.network.reserve_domain_id`, held until exit).
     timeout : float, optional
         Wall seconds after which the run is interrupted (SIGINT) and reported as failed.
     env : dict, optional
@@ -116,7 +110,7 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     stats_dir = out / 'stats'
-    domain = next_domain_id() if domain_id is None else int(domain_id)
+    domain = reserve_domain_id() if domain_id is None else int(domain_id)
     cmd = [sys.executable, '-P', '-m', 'uh_bringup.run_formation', '--scenario', str(scenario),
            '--out', str(out / 'run'), '--no-metrics', '--processes', layout, '--clock', clock,
            '--rate', repr(float(rate)), '--domain-id', str(domain)]

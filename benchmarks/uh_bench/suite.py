@@ -38,6 +38,8 @@ import sys
 import time
 from pathlib import Path
 
+from uh_runtime.network import reserve_domain_id
+
 from . import inprocess, runs, transport
 
 __all__ = ['MODES', 'GOALS', 'run_suite', 'markdown', 'machine_info', 'evaluate_goals']
@@ -127,7 +129,7 @@ def _paper(cfg, workdir, results):
 
 def _transport(cfg, workdir, results):
     _log('cost of one message: UDP, DDS between processes, in one process')
-    results['transport'] = transport.measure(runs.next_domain_id(), quick=cfg.get('transport_quick', False))
+    results['transport'] = transport.measure(reserve_domain_id(), quick=cfg.get('transport_quick', False))
 
 
 def _components(cfg, workdir, results):
@@ -160,7 +162,7 @@ def _scaling(cfg, workdir, results):
 def _realtime_run(scenario, size, d, workdir, layout='per-node'):
     out = workdir / f'realtime{size}-{layout}'
     out.mkdir(parents=True, exist_ok=True)
-    domain = runs.next_domain_id()
+    domain = reserve_domain_id()
     probe_out, ready = out / 'probe.json', out / 'probe.ready'
     last = int(round(d / 0.01))
     env = dict(os.environ)

@@ -19,6 +19,8 @@ import re
 import sys
 import time
 
+from uh_runtime.network import MAX_DOMAIN_ID, loopback_config
+
 __all__ = ['main', 'CHANNELS']
 
 CHANNELS = {'collective': 0, 'tail_rotor': 1, 'lateral': 2, 'longitudinal': 3}
@@ -70,8 +72,8 @@ def main(argv=None) -> int:
         parser.exit(2, f'{parser.prog}: error: --rho {args.rho}: allowed 0 .. 1 (1 = healthy, 0 = stuck)\n')
     if args.uh < 1:
         parser.exit(2, f'{parser.prog}: error: --uh {args.uh}: helicopter indices start at 1\n')
-    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
-        parser.exit(2, f'{parser.prog}: error: --domain-id {args.domain_id}: allowed 0..232\n')
+    if args.domain_id is not None and not 0 <= args.domain_id <= MAX_DOMAIN_ID:
+        parser.exit(2, f'{parser.prog}: error: --domain-id {args.domain_id}: allowed 0..{MAX_DOMAIN_ID}\n')
     if not 0 < args.timeout <= 3600:
         parser.exit(2, f'{parser.prog}: error: --timeout {args.timeout}: allowed > 0 .. 3600 s\n')
     from uh_sim_node.faults import ActuatorFault, FaultError
@@ -85,7 +87,7 @@ def main(argv=None) -> int:
               'outside what the controller can compensate', file=sys.stderr)
     if args.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
-    os.environ.setdefault('CYCLONEDDS_URI', __import__('uh_runtime.network', fromlist=['x']).loopback_config())
+    os.environ.setdefault('CYCLONEDDS_URI', loopback_config())
 
     import uh_runtime as rt
     from uh_runtime import messages as m

@@ -47,7 +47,7 @@ import sys
 import time
 from pathlib import Path
 
-from uh_runtime.network import loopback_environment, reserve_domain_id
+from uh_runtime.network import MAX_DOMAIN_ID, loopback_environment, reserve_domain_id
 from uh_topology import topics
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
@@ -79,7 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', default=None, help='output directory (default runs/<timestamp>); must be new or empty')
     p.add_argument('--force', action='store_true', help='write into a non-empty --out (its old content is removed)')
     p.add_argument('--domain-id', type=int, default=None,
-                   help='DDS domain id 0..232 (default: ROS_DOMAIN_ID, else a free one that no other run, test or '
+                   help=f'DDS domain id 0..{MAX_DOMAIN_ID} (default: ROS_DOMAIN_ID, else a free one that no other run, test or '
                         'benchmark on this machine holds)')
     p.add_argument('--processes', default='per-node', choices=LAYOUTS,
                    help='process layout: one process per node (default), one per UH, or a single process; '
@@ -107,8 +107,8 @@ def _check_args(args) -> None:
         raise UsageError(f'--rate {args.rate}: allowed 0.01 .. 1000 (simulated seconds per wall second)')
     if args.duration is not None and not 0 < args.duration <= 1e6:
         raise UsageError(f'--duration {args.duration}: allowed > 0 .. 1e6 s')
-    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
-        raise UsageError(f'--domain-id {args.domain_id}: allowed 0..232')
+    if args.domain_id is not None and not 0 <= args.domain_id <= MAX_DOMAIN_ID:
+        raise UsageError(f'--domain-id {args.domain_id}: allowed 0..{MAX_DOMAIN_ID}')
     if not 0 < args.startup_timeout <= 3600:
         raise UsageError(f'--startup-timeout {args.startup_timeout}: allowed > 0 .. 3600 s')
     if not 0 < args.stale_timeout <= 60:

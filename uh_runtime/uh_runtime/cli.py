@@ -17,6 +17,8 @@ import os
 import sys
 import time
 
+from .network import MAX_DOMAIN_ID
+
 __all__ = ['main', 'build_parser']
 
 
@@ -90,8 +92,8 @@ def build_parser():
 def _graph(args):
     from .graph import Graph
     domain = _domain_default() if args.domain_id is None else args.domain_id
-    if not 0 <= domain <= 232:
-        raise CliError(f'--domain-id {domain} is outside 0..232 (the range ROS 2 allows)')
+    if not 0 <= domain <= MAX_DOMAIN_ID:
+        raise CliError(f'--domain-id {domain} is outside 0..{MAX_DOMAIN_ID} (the range ROS 2 allows)')
     return Graph(domain_id=domain)
 
 

@@ -31,6 +31,7 @@ import weakref
 from . import arguments as _args
 from . import intra_process as _intra
 from . import messages as _messages
+from .network import MAX_DOMAIN_ID
 from .parameters import (
     InvalidParameterTypeException, InvalidParameterValueException, Parameter,
     ParameterAlreadyDeclaredException, ParameterDescriptor, ParameterImmutableException,
@@ -424,8 +425,8 @@ class Context:
             env_domain = os.environ.get('ROS_DOMAIN_ID', '').strip()
             if domain_id is None:
                 domain_id = int(env_domain) if env_domain else 0
-            if not 0 <= int(domain_id) <= 232:
-                raise ValueError(f'domain id {domain_id} is outside 0..232')
+            if not 0 <= int(domain_id) <= MAX_DOMAIN_ID:
+                raise ValueError(f'domain id {domain_id} is outside 0..{MAX_DOMAIN_ID}')
             self._domain_id = int(domain_id)
             for logger, level in self._args.log_levels.items():
                 _log_levels[logger] = _SEVERITY['WARN' if level == 'WARNING' else level]

@@ -47,8 +47,8 @@ def loopback_environment(domain_id: int, base: dict | None = None) -> dict:
     ``CYCLONEDDS_URI`` is only set when the caller has not chosen one, so a user's own
     configuration (e.g. a real network interface) wins.
     """
-    if not 0 <= int(domain_id) <= 232:
-        raise ValueError(f'DDS domain id {domain_id} is outside 0..232 (the range ROS 2 allows)')
+    if not 0 <= int(domain_id) <= MAX_DOMAIN_ID:
+        raise ValueError(f'DDS domain id {domain_id} is outside 0..{MAX_DOMAIN_ID} (the range ROS 2 allows)')
     env = dict(os.environ if base is None else base)
     env['ROS_DOMAIN_ID'] = str(int(domain_id))
     env.setdefault('CYCLONEDDS_URI', loopback_config())

@@ -39,6 +39,7 @@ from pathlib import Path
 import uh_runtime as rt
 from uh_runtime import messages
 from uh_runtime.bag import BagError
+from uh_runtime.network import MAX_DOMAIN_ID, loopback_environment
 
 __all__ = ['BagReadError', 'ReplayQoS', 'BagTopic', 'BagInfo', 'MCAP_MAGIC', 'find_bag_files',
            'parse_offered_qos', 'open_bag', 'iter_bag_messages', 'ReplayNode', 'build_parser', 'main']
@@ -568,7 +569,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='replay only these topics (and /clock); default: every topic of the bag')
     p.add_argument('--no-clock', action='store_true', help='do not publish /clock')
     p.add_argument('--domain-id', type=int, default=None,
-                   help='DDS domain id 0..232 (default: ROS_DOMAIN_ID, else 0)')
+                   help=f'DDS domain id 0..{MAX_DOMAIN_ID} (default: ROS_DOMAIN_ID, else 0)')
     p.add_argument('--delay', type=float, default=0.5,
                    help='s to wait after creating the publishers before the first message, so that '
                         'running subscribers discover them (default 0.5)')
@@ -587,7 +588,6 @@ def _fail(message: str, status: int = 2) -> int:
 
 def main(args=None) -> int:
     """Entry point of ``replay_node`` / ``scripts/replay.sh``; returns the exit status."""
-    from uh_runtime.network import loopback_environment
 
     argv = list(sys.argv if args is None else args)
 
@@ -600,8 +600,8 @@ def main(args=None) -> int:
     if domain is None:
         env_domain = os.environ.get('ROS_DOMAIN_ID', '').strip()
         domain = int(env_domain) if env_domain.isdigit() else 0
-    if not 0 <= domain <= 232:
-        return _fail(f'--domain-id {domain}: allowed 0..232')
+    if not 0 <= domain <= MAX_DOMAIN_ID:
+        return _fail(f'--domain-id {domain}: allowed 0..{MAX_DOMAIN_ID}')
     try:
         info = open_bag(opts.bag, check_chunks=not opts.no_check)
     except BagReadError as exc:

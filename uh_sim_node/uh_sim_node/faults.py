@@ -130,9 +130,14 @@ class ActuatorFault:
             return self.bias_constant
         return self.bias_constant + self.bias_amplitude * math.sin(self.bias_frequency * t)
 
+    @property
+    def acts_from(self) -> float:
+        """Earliest time the fault acts, s: ``onset_time - ONSET_TOLERANCE``."""
+        return self.onset_time - ONSET_TOLERANCE
+
     def started(self, t: float) -> bool:
-        """True when the fault acts at time ``t`` s (``t >= onset_time - ONSET_TOLERANCE``)."""
-        return t >= self.onset_time - ONSET_TOLERANCE
+        """True when the fault acts at time ``t`` s (``t >= acts_from``)."""
+        return t >= self.acts_from
 
     def apply(self, u: float, t: float, switch_time: float | None = None) -> float:
         """Actual input of this channel, rad, for command ``u`` rad at time ``t`` s.

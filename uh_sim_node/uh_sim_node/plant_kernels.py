@@ -62,9 +62,10 @@ Arrays describing one plant
 ``faults`` (``NUM_CHANNELS`` = 4, ``FAULT_FIELDS`` = 6) float64, built by :func:`fault_table` from a
 ``FaultSchedule``; row = channel, columns ``F_PRESENT`` (1.0 when the channel has a fault, else
 0.0; the other fields of an absent row are ignored), ``F_RHO``, ``F_BIAS_CONSTANT`` rad,
-``F_BIAS_AMPLITUDE`` rad, ``F_BIAS_FREQUENCY`` rad/s, ``F_ACTS_FROM`` s (the onset time less
-:data:`~uh_sim_node.faults.ONSET_TOLERANCE`, subtracted here in Python so that the kernels hold no
-copy of that constant).
+``F_BIAS_AMPLITUDE`` rad, ``F_BIAS_FREQUENCY`` rad/s, ``F_ACTS_FROM`` s
+(:attr:`~uh_sim_node.faults.ActuatorFault.acts_from`: the onset time less
+:data:`~uh_sim_node.faults.ONSET_TOLERANCE`, computed in Python so that the kernels hold no copy
+of that constant).
 
 ``disturbance`` (3, ``DISTURBANCE_FIELDS`` = 3) float64, built by :func:`disturbance_table` from a
 ``SinusoidalDisturbance`` (or ``None``: all zeros, no force); row = inertial axis x, y, z, columns
@@ -114,7 +115,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .faults import NUM_CHANNELS, ONSET_TOLERANCE
+from .faults import NUM_CHANNELS
 
 __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
@@ -160,7 +161,7 @@ F_RHO = 1             # effectiveness, [0, 1]
 F_BIAS_CONSTANT = 2   # rad
 F_BIAS_AMPLITUDE = 3  # rad
 F_BIAS_FREQUENCY = 4  # rad/s
-F_ACTS_FROM = 5       # s: onset_time - ONSET_TOLERANCE (fault_table computes it)
+F_ACTS_FROM = 5       # s: ActuatorFault.acts_from = onset_time - ONSET_TOLERANCE
 FAULT_FIELDS = 6
 
 # -- disturbance table (one row per inertial axis) --------------------------------------------
@@ -225,7 +226,7 @@ def fault_table(faults) -> np.ndarray:
         row[F_BIAS_CONSTANT] = f.bias_constant
         row[F_BIAS_AMPLITUDE] = f.bias_amplitude
         row[F_BIAS_FREQUENCY] = f.bias_frequency
-        row[F_ACTS_FROM] = f.onset_time - ONSET_TOLERANCE   # the test of FaultSchedule, in float64
+        row[F_ACTS_FROM] = f.acts_from
     return out
 
 
