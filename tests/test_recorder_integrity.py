@@ -16,7 +16,8 @@ import pytest
 import yaml
 from rosbags.rosbag2 import Reader
 
-from uh_runtime.bag import CHUNK_SIZE, bag_file, read_messages, recover_bag
+from uh_runtime.bag import CHUNK_SIZE, recover_bag
+from uh_runtime.bag_reader import bag_file, read_messages
 from uh_runtime.network import reserve_domain_id
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -99,7 +100,7 @@ def test_sigkill_loses_at_most_the_chunk_being_filled(recording):
 
 def _state_msg(k):
     import numpy as np
-    from uh_sim_node.wire import state_to_msg
+    from uh_core.wire import state_to_msg
     return state_to_msg(1, k, k * 0.01, np.zeros(12))
 
 

@@ -152,8 +152,9 @@ def test_clock_is_synthesised_from_log_times_and_qos_is_the_recorded_one(process
     replayed topic offers the QoS of the bag's offered_qos_profiles (here transient-local, depth 5)."""
     from rosbags.typesys import Stores, get_typestore
 
-    from uh_runtime.bag import BagWriter, qos_profile_yaml
+    from uh_runtime.bag import BagWriter
     from uh_runtime.graph import Graph
+    from uh_runtime.qos import qos_profile_yaml
     store = get_typestore(Stores.ROS2_JAZZY)
     String = store.types['std_msgs/msg/String']
     bag = tmp_path / 'noclock'
@@ -231,7 +232,8 @@ def test_a_damaged_chunk_is_named(tmp_path, capsys):
     from rosbags.typesys import Stores, get_typestore
 
     from test_report import damaged_chunk
-    from uh_runtime.bag import BagWriter, qos_profile_yaml
+    from uh_runtime.bag import BagWriter
+    from uh_runtime.qos import qos_profile_yaml
     store = get_typestore(Stores.ROS2_JAZZY)
     String = store.types['std_msgs/msg/String']
     with BagWriter(tmp_path / 'good') as writer:
@@ -273,12 +275,17 @@ def test_not_mcap_missing_and_empty_are_named(tmp_path, capsys):
     assert 'no MCAP bag here' in _replay_error(capsys, tmp_path / 'empty')
 
 
-def test_bad_qos_metadata_is_named():
-    from uh_runtime.replay import BagReadError, parse_offered_qos
-    with pytest.raises(BagReadError, match=r"f.mcap: topic /x: offered_qos_profiles has reliability: 'sometimes'"):
-        parse_offered_qos('- reliability: sometimes\n  durability: volatile\n', 'f.mcap: topic /x')
+def test_bad_qos_metadata_is_named(tmp_path):
+    from uh_runtime.bag import BagWriter
+    from uh_runtime.bag_reader import BagError, open_bag
+    from uh_runtime.qos import parse_offered_qos
+    with BagWriter(tmp_path / 'f') as writer:
+        writer.add_topic('/x', 'std_msgs/msg/String', '- reliability: sometimes\n  durability: volatile\n')
+    with pytest.raises(BagError, match=r"f_0.mcap: topic /x: offered_qos_profiles has reliability: 'sometimes'; "
+                                       'allowed: reliable, best_effort, system_default'):
+        open_bag(tmp_path / 'f')
     mixed = parse_offered_qos('- {reliability: reliable, durability: transient_local, history: keep_last, depth: 5}\n'
                               '- {reliability: best_effort, durability: transient_local, history: keep_last, '
-                              'depth: 20}\n', 'f')
+                              'depth: 20}\n')
     # like ros2 bag play: reliable only if every publisher was; the largest depth
     assert (mixed.reliability, mixed.durability, mixed.depth) == ('best_effort', 'transient_local', 20)

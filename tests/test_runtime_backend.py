@@ -61,7 +61,7 @@ def test_facade_exposes_the_contract_names_on_the_dds_backend(tmp_path):
         print(rt.BACKEND, messages.BACKEND, missing, rt.Node.__module__)
     """, tmp_path, UH_BACKEND='dds')
     assert result.returncode == 0, result.stderr
-    assert result.stdout.split() == ['dds', 'dds', '[]', 'uh_runtime.dds_backend']
+    assert result.stdout.split() == ['dds', 'dds', '[]', 'uh_runtime.dds_backend.node']
 
 
 def test_facade_reexports_rclpy_objects_when_rclpy_is_importable(tmp_path):

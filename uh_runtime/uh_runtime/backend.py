@@ -7,10 +7,25 @@ the Cyclone DDS backend even on a ROS 2 machine.
 import importlib
 import os
 
-__all__ = ['BackendError', 'select_backend', 'BACKENDS']
+__all__ = ['BackendError', 'select_backend', 'BACKENDS', 'FACADE_NAMES']
 
 #: The backends this package knows.
 BACKENDS = ('rclpy', 'dds')
+
+#: The names every backend exports (its ``__all__``) and ``import uh_runtime as rt`` re-exports.
+FACADE_NAMES = (
+    'Clock', 'ClockType', 'Context', 'Duration', 'Executor', 'ExternalShutdownException',
+    'MultiThreadedExecutor', 'Node', 'NotInitializedException', 'Publisher', 'ROSClock',
+    'SingleThreadedExecutor', 'Subscription', 'Time', 'Timer', 'get_default_context',
+    'get_global_executor', 'init', 'ok', 'shutdown', 'spin', 'spin_once',
+    'spin_until_future_complete', 'try_shutdown', 'get_logger', 'FloatingPointRange',
+    'IntegerRange', 'InvalidParameterTypeException', 'InvalidParameterValueException',
+    'Parameter', 'ParameterAlreadyDeclaredException', 'ParameterDescriptor',
+    'ParameterException', 'ParameterNotDeclaredException', 'ParameterType',
+    'ParameterUninitializedException', 'SetParametersResult', 'DurabilityPolicy',
+    'HistoryPolicy', 'LivelinessPolicy', 'QoSProfile', 'ReliabilityPolicy',
+    'qos_profile_sensor_data', 'qos_profile_system_default', 'remove_ros_args',
+)
 
 
 class BackendError(ImportError):

@@ -18,22 +18,28 @@ written), and :meth:`BagWriter.flush` closes the chunk being filled (the recorde
 ``FLUSH_PERIOD_S``). A process killed with SIGKILL therefore loses at most the chunk being filled:
 fewer than ``CHUNK_SIZE`` bytes of messages plus the message that would have completed it, and no
 more than ``FLUSH_PERIOD_S`` seconds of recording. What is on disk is readable up to its last
-complete chunk with :func:`read_messages` (the ``mcap`` stream reader, stopping cleanly at the
-damage), and :func:`recover_bag` turns it into a complete bag again (summary, ``metadata.yaml``) that
-``ros2 bag`` and rosbags open: ``python -m uh_runtime.bag recover BAG_DIR``. A bag closed normally
-(SIGINT/SIGTERM of the recorder) is complete.
+complete chunk with :func:`uh_runtime.bag_reader.read_messages` (the ``mcap`` stream reader,
+stopping cleanly at the damage), and :func:`recover_bag` turns it into a complete bag again
+(summary, ``metadata.yaml``) that ``ros2 bag`` and rosbags open: ``python -m uh_runtime.bag recover
+BAG_DIR``. A bag closed normally (SIGINT/SIGTERM of the recorder) is complete.
+
+Reading bags, and the error type :class:`~uh_runtime.bag_reader.BagError` of both writing and
+reading, are :mod:`uh_runtime.bag_reader`; the ``offered_qos_profiles`` YAML is
+:func:`uh_runtime.qos.qos_profile_yaml`.
 """
 from __future__ import annotations
 
-import functools
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
-__all__ = ['BagWriter', 'BagError', 'TopicInfo', 'qos_profile_yaml', 'message_definition', 'CHUNK_SIZE',
-           'FLUSH_PERIOD_S', 'ReadResult', 'read_messages', 'recover_bag', 'bag_file']
+from .bag_reader import BagError, ReadResult, bag_file, read_messages
+from .messages import typestore, uh_msg_texts
+from .qos import qos_profile_yaml
+
+__all__ = ['BagWriter', 'TopicInfo', 'message_definition', 'CHUNK_SIZE', 'FLUSH_PERIOD_S', 'recover_bag']
 
 #: MCAP chunk size in bytes: a SIGKILL of the recorder loses at most the chunk being filled (fewer
 #: than CHUNK_SIZE bytes of messages, plus the one message that would have completed it).
@@ -42,42 +48,6 @@ CHUNK_SIZE = 64 * 1024
 FLUSH_PERIOD_S = 1.0
 
 _SEPARATOR = '=' * 80
-_INFINITE = {'sec': 9223372036, 'nsec': 854775807}
-
-
-class BagError(RuntimeError):
-    """A bag cannot be written or read; the message names the file and what is wrong."""
-
-
-def qos_profile_yaml(reliability: str, durability: str, history: str, depth: int) -> str:
-    """Return the rosbag2 ``offered_qos_profiles`` YAML for one writer's QoS.
-
-    ``reliability`` is ``reliable``/``best_effort``, ``durability`` ``volatile``/``transient_local``,
-    ``history`` ``keep_last``/``keep_all``; deadline, lifespan and lease are infinite as in ROS 2's
-    defaults. The layout is the one rosbag2 on Jazzy writes (see the module docstring).
-    """
-    inf = f"sec: {_INFINITE['sec']}\n    nsec: {_INFINITE['nsec']}"
-    return (
-        f'- history: {history}\n  depth: {int(depth)}\n  reliability: {reliability}\n'
-        f'  durability: {durability}\n  deadline:\n    {inf}\n  lifespan:\n    {inf}\n'
-        f'  liveliness: automatic\n  liveliness_lease_duration:\n    {inf}\n'
-        '  avoid_ros_namespace_conventions: false'
-    )
-
-
-@functools.lru_cache(maxsize=None)
-def _typestore():
-    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-
-    from uh_runtime.messages import _uh_msgs_dir  # the one lookup of the .msg files
-
-    store = get_typestore(Stores.ROS2_JAZZY)
-    texts = {}
-    for path in sorted(_uh_msgs_dir().glob('*.msg')):
-        name = f'uh_msgs/msg/{path.stem}'
-        texts[name] = path.read_text()
-        store.register(get_types_from_msg(texts[name], name))
-    return store, texts
 
 
 def message_definition(type_name: str) -> tuple[str, str]:
@@ -86,7 +56,7 @@ def message_definition(type_name: str) -> tuple[str, str]:
     The project's own types keep their ``.msg`` text (with the unit comments); dependencies and
     standard types come from rosbags' Jazzy type store.
     """
-    store, texts = _typestore()
+    store, texts = typestore(), uh_msg_texts()
     if type_name not in store.fielddefs:
         raise BagError(f'unknown message type {type_name!r}: not a uh_msgs type nor a ROS 2 Jazzy standard type')
     generated, _ = store.generate_msgdef(type_name, ros_version=2)
@@ -166,7 +136,8 @@ class BagWriter:
         self._writer.add_metadata('rosbag2', {'serialized_metadata': self._metadata_yaml(indent=0)})
 
     def add_topic(self, name: str, type_name: str, offered_qos_profiles: str) -> TopicInfo:
-        """Register topic ``name`` of ``type_name`` with its offered QoS (see :func:`qos_profile_yaml`)."""
+        """Register topic ``name`` of ``type_name`` with its offered QoS (rosbag2 YAML, see
+        :func:`uh_runtime.qos.qos_profile_yaml`)."""
         if name in self.topics:
             return self.topics[name]
         definition, type_hash = message_definition(type_name)
@@ -239,117 +210,7 @@ class BagWriter:
         return '\n'.join(lines)
 
 
-# -- reading what a crashed recorder left -----------------------------------------------------------
-def bag_file(bag_dir) -> Path:
-    """The MCAP file of a bag directory written by :class:`BagWriter` (``<dir>/<dir name>_0.mcap``), or
-    the only ``*.mcap`` in it; ``bag_dir`` may also be an ``.mcap`` file."""
-    path = Path(bag_dir)
-    if path.is_file():
-        return path
-    if not path.is_dir():
-        raise BagError(f'{path}: no such bag directory or MCAP file')
-    own = path / f'{path.name}_0.mcap'
-    if own.is_file():
-        return own
-    found = sorted(path.glob('*.mcap'))
-    if len(found) != 1:
-        raise BagError(f'{path}: expected one .mcap file in the bag directory, found {len(found)}')
-    return found[0]
-
-
-@dataclass
-class ReadResult:
-    """What :func:`read_messages` found: schemas and channels by id, message count per topic, and
-    whether (and where) the file ended early or was damaged."""
-
-    path: Path
-    schemas: dict = field(default_factory=dict)
-    channels: dict = field(default_factory=dict)
-    counts: dict = field(default_factory=dict)
-    complete: bool = False
-    good_bytes: int = 0
-    file_bytes: int = 0
-    problem: str = ''
-
-    @property
-    def lost_bytes(self) -> int:
-        """Bytes after the last complete record (the chunk being written when the writer stopped)."""
-        return self.file_bytes - self.good_bytes
-
-
-def read_messages(path, on_message=None) -> ReadResult:
-    """Read an MCAP file record by record, up to its end or its last complete chunk.
-
-    Complete files are read entirely; a file cut short (a writer killed mid-chunk) or damaged after
-    some point is read up to the last chunk that is complete and passes its CRC, and the result says
-    where it stopped and why. ``on_message(channel, message)`` (mcap ``Channel`` and ``Message``
-    records) is called for every message in file order.
-
-    Raises
-    ------
-    BagError
-        The file does not exist or does not start like an MCAP file.
-    """
-    import zlib
-
-    from mcap.exceptions import McapError
-    from mcap.records import Channel, Chunk, Footer, Message, Schema
-    from mcap.stream_reader import StreamReader, breakup_chunk
-
-    path = Path(path)
-    try:
-        size = path.stat().st_size
-        stream = open(path, 'rb')
-    except OSError as exc:
-        raise BagError(f'cannot open {path}: {exc.strerror}') from None
-    result = ReadResult(path, file_bytes=size)
-    with stream:
-        if stream.read(8) != b'\x89MCAP0\r\n':
-            raise BagError(f'{path} is not an MCAP file (it does not start with the MCAP magic bytes)')
-        stream.seek(0)
-        reader = StreamReader(stream, emit_chunks=True)
-        records = reader.records
-
-        def take(record):
-            if isinstance(record, Schema):
-                result.schemas[record.id] = record
-            elif isinstance(record, Channel):
-                result.channels[record.id] = record
-            elif isinstance(record, Message):
-                channel = result.channels.get(record.channel_id)
-                if channel is None:
-                    raise McapError(f'message on unknown channel {record.channel_id}')
-                result.counts[channel.topic] = result.counts.get(channel.topic, 0) + 1
-                if on_message is not None:
-                    on_message(channel, record)
-
-        try:
-            while True:
-                try:
-                    record = next(records)
-                except StopIteration:
-                    break
-                if isinstance(record, Chunk):
-                    if record.compression == '' and len(record.data) != record.uncompressed_size:
-                        raise McapError(f'chunk cut short ({len(record.data)} of {record.uncompressed_size} bytes)')
-                    if record.uncompressed_crc and record.compression == '' and \
-                            zlib.crc32(record.data) != record.uncompressed_crc:
-                        raise McapError('chunk CRC mismatch')
-                    for inner in breakup_chunk(record, validate_crc=True):
-                        take(inner)
-                else:
-                    take(record)
-                result.good_bytes = reader._stream.count
-                if isinstance(record, Footer):
-                    result.complete = True
-                    result.good_bytes = size
-        except Exception as exc:  # EndOfFile, struct.error, McapError, CRC errors: damage from here on
-            result.problem = f'{type(exc).__name__}: {exc}' if str(exc) else type(exc).__name__
-    if not result.complete and not result.problem:
-        result.problem = 'the file ends without a footer'
-    return result
-
-
+# -- completing what a crashed recorder left --------------------------------------------------------
 def recover_bag(bag_dir) -> ReadResult:
     """Make the bag in ``bag_dir`` complete again after its writer was killed.
 
@@ -360,10 +221,11 @@ def recover_bag(bag_dir) -> ReadResult:
     Raises
     ------
     BagError
-        No MCAP file in ``bag_dir``, or not an MCAP file.
+        No MCAP file in ``bag_dir`` (see :func:`uh_runtime.bag_reader.find_bag_files`), or not an
+        MCAP file.
     """
-    bag_dir = Path(bag_dir)
     source = bag_file(bag_dir)
+    bag_dir = source.parent
     probe = read_messages(source)
     if probe.complete and (bag_dir / 'metadata.yaml').exists():
         return probe

@@ -12,12 +12,14 @@ import uuid
 from dataclasses import dataclass
 
 from . import messages as _messages
-from .qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, from_dds_qos, to_dds_qos
+from .qos import (
+    DDS_INFINITY, DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, from_dds_qos, to_dds_qos,
+)
+from .signals import wake_on_signals
 
 __all__ = ['Graph', 'EndpointInfo', 'BARE_DDS_NODE', 'format_gid', 'user_data_value']
 
 BARE_DDS_NODE = '_CREATED_BY_BARE_DDS_APP_'
-_DDS_INFINITY = 0x7FFFFFFFFFFFFFFF
 
 
 def format_gid(gid: bytes) -> str:
@@ -119,7 +121,6 @@ class Graph:
         self.infos = {}          # participant gid (bytes) -> ParticipantEntitiesInfo
         self.version = 0
         self._topics_cache = None
-        from .dds_backend import wake_on_signals
         wake_on_signals(self)
 
     def close(self):
@@ -188,7 +189,7 @@ class Graph:
             now = time.monotonic()
             if end is not None and now >= end:
                 return False
-            self._waitset.wait(_DDS_INFINITY if end is None else max(0, int((end - now) * 1e9)))
+            self._waitset.wait(DDS_INFINITY if end is None else max(0, int((end - now) * 1e9)))
             self._guard.take()
 
     def complete(self) -> bool:

@@ -23,6 +23,7 @@ Each DDS class carries ``__ros_typename__`` (``'uh_msgs/msg/UHState'``), ``__ros
 type name ``uh_msgs::msg::dds_::UHState_``.
 """
 import dataclasses
+import functools
 import importlib
 import os
 import re
@@ -126,13 +127,18 @@ def typestore():
         if _store is None:
             from rosbags.typesys import Stores, get_types_from_msg, get_typestore
             store = get_typestore(Stores.ROS2_JAZZY)
-            directory = _uh_msgs_dir()
             types = {}
-            for path in sorted(directory.glob('*.msg')):
-                types.update(get_types_from_msg(path.read_text(), f'{_UH_PACKAGE}/msg/{path.stem}'))
+            for name, text in uh_msg_texts().items():
+                types.update(get_types_from_msg(text, name))
             store.register(types)
             _store = store
         return _store
+
+
+@functools.lru_cache(maxsize=None)
+def uh_msg_texts() -> dict:
+    """``{'uh_msgs/msg/Type': .msg text}`` of every ``uh_msgs`` type (with its comments), read once."""
+    return {f'{_UH_PACKAGE}/msg/{path.stem}': path.read_text() for path in sorted(_uh_msgs_dir().glob('*.msg'))}
 
 
 def ros_type_name(msg_or_class) -> str:

@@ -1,19 +1,34 @@
-"""QoS profiles of the Cyclone DDS backend (``rclpy.qos`` subset) and their DDS mapping.
+"""QoS profiles of the Cyclone DDS backend (``rclpy.qos`` subset), their DDS mapping, and the one
+translation from the project's QoS words.
 
-The mapping is the one of rmw_cyclonedds_cpp's ``create_readwrite_qos`` (Jazzy): keep-last depth
-N or keep-all; reliable (max blocking time infinite) or best effort; volatile or transient-local
-(with a durability service of the same history); deadline and lifespan only when given; automatic
-liveliness; auto-dispose of unregistered instances off; XCDR1 data representation; USER_DATA
-``typehash=RIHS01_<hex>;``.
+The DDS mapping is the one of rmw_cyclonedds_cpp's ``create_readwrite_qos`` (Jazzy): keep-last
+depth N or keep-all; reliable (max blocking time infinite) or best effort; volatile or
+transient-local (with a durability service of the same history); deadline and lifespan only when
+given; automatic liveliness; auto-dispose of unregistered instances off; XCDR1 data
+representation; USER_DATA ``typehash=RIHS01_<hex>;``.
+
+The project's QoS words are rosbag2's spelling of a profile in a bag's ``offered_qos_profiles``
+(``reliable``/``best_effort``, ``volatile``/``transient_local``, ``keep_last``/``keep_all``, a
+depth), which the topic registry (``uh_core.topics``) uses too. :class:`QoSWords` holds them;
+:func:`profile_from_words` makes the active backend's ``QoSProfile`` of them, :func:`words_of` reads
+them from a profile, :func:`qos_profile_yaml` writes the ``offered_qos_profiles`` YAML and
+:func:`parse_offered_qos` reads it back.
 """
 import enum
 from dataclasses import dataclass
 
+from .backend import select_backend
+
 __all__ = [
     'QoSProfile', 'ReliabilityPolicy', 'DurabilityPolicy', 'HistoryPolicy', 'LivelinessPolicy',
     'qos_profile_system_default', 'qos_profile_sensor_data', 'QoSPresetProfiles', 'to_dds_qos',
-    'from_dds_qos', 'Duration',
+    'from_dds_qos', 'Duration', 'DDS_INFINITY', 'QoSWords', 'profile_from_words', 'words_of',
+    'merge_offered', 'qos_profile_yaml', 'parse_offered_qos',
 ]
+
+#: Cyclone DDS's ``DDS_INFINITY`` (``dds_duration_t``, ns): an infinite duration or time-out.
+DDS_INFINITY = 0x7FFFFFFFFFFFFFFF
+_BACKEND = select_backend()
 
 
 class HistoryPolicy(enum.IntEnum):
@@ -195,3 +210,140 @@ def from_dds_qos(qos) -> QoSProfile:
         elif policy == Policy.Durability.TransientLocal:
             durability = DurabilityPolicy.TRANSIENT_LOCAL
     return QoSProfile(history=history, depth=depth, reliability=reliability, durability=durability)
+
+
+# ----------------------------------------------------------------------------------------------
+# The project's QoS words (rosbag2's offered_qos_profiles spelling)
+# ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class QoSWords:
+    """A QoS profile in words; the defaults are ROS 2's default profile (what ``system_default``
+    stands for in a bag)."""
+
+    reliability: str = 'reliable'      # reliable | best_effort
+    durability: str = 'volatile'       # volatile | transient_local
+    history: str = 'keep_last'         # keep_last | keep_all
+    depth: int = 10
+
+
+_DEFAULT_WORDS = QoSWords()
+#: Per policy, the word of each value rosbag2 writes.
+_WORDS = {
+    'reliability': {ReliabilityPolicy.RELIABLE: 'reliable', ReliabilityPolicy.BEST_EFFORT: 'best_effort'},
+    'durability': {DurabilityPolicy.TRANSIENT_LOCAL: 'transient_local', DurabilityPolicy.VOLATILE: 'volatile'},
+    'history': {HistoryPolicy.KEEP_LAST: 'keep_last', HistoryPolicy.KEEP_ALL: 'keep_all'},
+}
+#: Per policy, every spelling of a bag's ``offered_qos_profiles`` -> its word: the words,
+#: ``system_default`` and the policy numbers (0 is the system default).
+_SPELLINGS = {
+    policy: {**{word: word for word in words.values()}, 'system_default': getattr(_DEFAULT_WORDS, policy),
+             **{str(int(value)): word for value, word in words.items()}, '0': getattr(_DEFAULT_WORDS, policy)}
+    for policy, words in _WORDS.items()
+}
+
+
+def profile_from_words(words):
+    """The active backend's ``QoSProfile`` (rclpy's on the rclpy backend) of a profile in words.
+
+    ``words`` has ``reliability``, ``durability``, ``history`` and ``depth``: a :class:`QoSWords`
+    (``uh_core.topics.QosSpec`` is this record).
+    """
+    if _BACKEND == 'rclpy':
+        from rclpy import qos
+        profile, reliability, durability, history = (
+            qos.QoSProfile, qos.ReliabilityPolicy, qos.DurabilityPolicy, qos.HistoryPolicy)
+    else:
+        profile, reliability, durability, history = (
+            QoSProfile, ReliabilityPolicy, DurabilityPolicy, HistoryPolicy)
+    return profile(
+        reliability=getattr(reliability, words.reliability.upper()),
+        durability=getattr(durability, words.durability.upper()),
+        history=getattr(history, words.history.upper()),
+        depth=words.depth,
+    )
+
+
+def words_of(profile) -> QoSWords:
+    """The words of a ``QoSProfile`` of either backend (e.g. a discovered publisher's). A policy
+    value without a word (system default, unknown) gets the default profile's word, a depth of 0
+    the default depth."""
+    def word(policy):
+        value = getattr(profile, policy)
+        return _WORDS[policy].get(int(getattr(value, 'value', value)), getattr(_DEFAULT_WORDS, policy))
+
+    return QoSWords(word('reliability'), word('durability'), word('history'),
+                    int(getattr(profile, 'depth', _DEFAULT_WORDS.depth) or _DEFAULT_WORDS.depth))
+
+
+def merge_offered(offered) -> QoSWords:
+    """One profile that serves every publisher of a topic (``offered``: their :class:`QoSWords`),
+    as ``ros2 bag`` chooses it: reliable only if every publisher is, transient-local only if every
+    publisher is, keep-all if any publisher keeps all, the largest depth."""
+    return QoSWords(
+        reliability='reliable' if all(w.reliability == 'reliable' for w in offered) else 'best_effort',
+        durability='transient_local' if all(w.durability == 'transient_local' for w in offered) else 'volatile',
+        history='keep_all' if any(w.history == 'keep_all' for w in offered) else 'keep_last',
+        depth=max(w.depth for w in offered))
+
+
+def qos_profile_yaml(reliability: str, durability: str, history: str, depth: int) -> str:
+    """Return the rosbag2 ``offered_qos_profiles`` YAML for one writer's QoS.
+
+    ``reliability`` is ``reliable``/``best_effort``, ``durability`` ``volatile``/``transient_local``,
+    ``history`` ``keep_last``/``keep_all``; deadline, lifespan and lease are infinite as in ROS 2's
+    defaults. The layout is the one rosbag2 on Jazzy writes (see :mod:`uh_runtime.bag`).
+    """
+    inf = 'sec: {}\n    nsec: {}'.format(*divmod(DDS_INFINITY, 1_000_000_000))
+    return (
+        f'- history: {history}\n  depth: {int(depth)}\n  reliability: {reliability}\n'
+        f'  durability: {durability}\n  deadline:\n    {inf}\n  lifespan:\n    {inf}\n'
+        f'  liveliness: automatic\n  liveliness_lease_duration:\n    {inf}\n'
+        '  avoid_ros_namespace_conventions: false'
+    )
+
+
+def parse_offered_qos(text: str | None) -> QoSWords:
+    """The QoS to replay a topic with, from its rosbag2 ``offered_qos_profiles`` YAML.
+
+    The text is a YAML list with one profile per publisher that was recorded (the layout of
+    :func:`qos_profile_yaml`; rosbag2 writes the same), merged as ``ros2 bag play`` does
+    (:func:`merge_offered`). An empty or missing entry gives the ROS 2 default (reliable,
+    volatile, keep_last 10).
+
+    Raises
+    ------
+    ValueError
+        The text is not YAML, not a list of mappings, or has a policy value rosbag2 does not write
+        (the message names the policy and the allowed values).
+    """
+    import yaml
+    if text is None or not str(text).strip():
+        return QoSWords()
+    try:
+        profiles = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ValueError(f'offered_qos_profiles is not valid YAML ({exc})') from None
+    if profiles in (None, []):
+        return QoSWords()
+    if isinstance(profiles, dict):
+        profiles = [profiles]
+    if not isinstance(profiles, list) or not all(isinstance(p, dict) for p in profiles):
+        raise ValueError(f'offered_qos_profiles must be a list of QoS mappings, got {text[:80]!r}')
+    return merge_offered([_parse_profile(profile) for profile in profiles])
+
+
+def _parse_profile(profile: dict) -> QoSWords:
+    """The words of one publisher's profile of ``offered_qos_profiles``."""
+    words = {}
+    for policy, spellings in _SPELLINGS.items():
+        raw = str(profile.get(policy, 'system_default')).strip().lower()
+        if raw not in spellings:
+            choices = ', '.join(k for k in spellings if not k.isdigit())
+            raise ValueError(f'offered_qos_profiles has {policy}: {raw!r}; allowed: {choices}')
+        words[policy] = spellings[raw]
+    try:
+        depth = int(profile.get('depth', _DEFAULT_WORDS.depth) or 0)
+    except (TypeError, ValueError):
+        raise ValueError(f'offered_qos_profiles has depth {profile.get("depth")!r}; '
+                         'expected a whole number') from None
+    return QoSWords(**words, depth=depth if depth > 0 else _DEFAULT_WORDS.depth)

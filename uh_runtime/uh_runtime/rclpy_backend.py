@@ -5,32 +5,34 @@ returns ``None`` on Jazzy; there is no ``with rclpy.init():`` there). Only impor
 :func:`uh_runtime.backend.select_backend` chose rclpy.
 """
 import rclpy
-from rcl_interfaces.msg import (
+from rcl_interfaces.msg import (  # noqa: F401
     FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult,
 )
-from rclpy.clock import Clock, ClockType, ROSClock
-from rclpy.context import Context
-from rclpy.duration import Duration
-from rclpy.exceptions import (
+from rclpy.clock import Clock, ClockType, ROSClock  # noqa: F401
+from rclpy.context import Context  # noqa: F401
+from rclpy.duration import Duration  # noqa: F401
+from rclpy.exceptions import (  # noqa: F401
     InvalidParameterTypeException, InvalidParameterValueException,
     ParameterAlreadyDeclaredException, ParameterException, ParameterNotDeclaredException,
     ParameterUninitializedException,
 )
-from rclpy.executors import (
+from rclpy.executors import (  # noqa: F401
     Executor, ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor,
 )
-from rclpy.logging import get_logger
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.publisher import Publisher
-from rclpy.qos import (
+from rclpy.logging import get_logger  # noqa: F401
+from rclpy.node import Node  # noqa: F401
+from rclpy.parameter import Parameter  # noqa: F401
+from rclpy.publisher import Publisher  # noqa: F401
+from rclpy.qos import (  # noqa: F401
     DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy,
     qos_profile_sensor_data, qos_profile_system_default,
 )
-from rclpy.subscription import Subscription
-from rclpy.time import Time
-from rclpy.timer import Timer
-from rclpy.utilities import get_default_context, remove_ros_args
+from rclpy.subscription import Subscription  # noqa: F401
+from rclpy.time import Time  # noqa: F401
+from rclpy.timer import Timer  # noqa: F401
+from rclpy.utilities import get_default_context, remove_ros_args  # noqa: F401
+
+from .backend import FACADE_NAMES
 
 init = rclpy.init
 ok = rclpy.ok
@@ -43,16 +45,4 @@ get_global_executor = rclpy.get_global_executor
 ParameterType = Parameter.Type
 NotInitializedException = rclpy.exceptions.NotInitializedException
 
-__all__ = [
-    'Clock', 'ClockType', 'Context', 'Duration', 'Executor', 'ExternalShutdownException',
-    'MultiThreadedExecutor', 'Node', 'NotInitializedException', 'Publisher', 'ROSClock',
-    'SingleThreadedExecutor', 'Subscription', 'Time', 'Timer', 'get_default_context',
-    'get_global_executor', 'init', 'ok', 'shutdown', 'spin', 'spin_once',
-    'spin_until_future_complete', 'try_shutdown', 'get_logger', 'FloatingPointRange',
-    'IntegerRange', 'InvalidParameterTypeException', 'InvalidParameterValueException',
-    'Parameter', 'ParameterAlreadyDeclaredException', 'ParameterDescriptor',
-    'ParameterException', 'ParameterNotDeclaredException', 'ParameterType',
-    'ParameterUninitializedException', 'SetParametersResult', 'DurabilityPolicy',
-    'HistoryPolicy', 'LivelinessPolicy', 'QoSProfile', 'ReliabilityPolicy',
-    'qos_profile_sensor_data', 'qos_profile_system_default', 'remove_ros_args',
-]
+__all__ = list(FACADE_NAMES)

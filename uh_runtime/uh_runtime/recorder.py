@@ -18,27 +18,28 @@ complete chunk, losing less than :data:`uh_runtime.bag.CHUNK_SIZE` bytes and at 
 """
 from __future__ import annotations
 
+import dataclasses
 import struct
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_runtime.bag import FLUSH_PERIOD_S, BagError, BagWriter, qos_profile_yaml
+from uh_runtime.bag import FLUSH_PERIOD_S, BagWriter
+from uh_runtime.bag_reader import BagError
+from uh_runtime.qos import merge_offered, profile_from_words, qos_profile_yaml, words_of
 
 __all__ = ['RecorderNode', 'main', 'stamp_of']
 
 _STAMPED_FIRST = {'rosgraph_msgs/msg/Clock', 'builtin_interfaces/msg/Time'}
 _TIME = struct.Struct('<iI')
-_POLICY_NAMES = {'reliability': {1: 'reliable', 2: 'best_effort'},
-                 'durability': {1: 'transient_local', 2: 'volatile'},
-                 'history': {1: 'keep_last', 2: 'keep_all'}}
+#: Keep-last depth of the recorder's subscriptions.
+_RECORD_DEPTH = 10000
 
 
 def _stamped_first(type_name: str) -> bool:
     """True when the CDR payload of ``type_name`` starts with a Time (own stamp, or a Header's)."""
     if type_name in _STAMPED_FIRST:
         return True
-    from uh_runtime.bag import _typestore
-    store, _ = _typestore()
+    store = m.typestore()
     fields = store.fielddefs.get(type_name, ((), ()))[1]
     return bool(fields) and fields[0][1][0].name == 'NAME' and fields[0][1][1] == 'std_msgs/msg/Header'
 
@@ -47,12 +48,6 @@ def stamp_of(data: bytes) -> int:
     """Nanoseconds of the Time at the start of a little-endian CDR payload (after the 4-byte header)."""
     sec, nanosec = _TIME.unpack_from(data, 4)
     return sec * 1_000_000_000 + nanosec
-
-
-def _policy(profile, name: str) -> str:
-    value = getattr(profile, name)
-    value = getattr(value, 'value', value)
-    return _POLICY_NAMES[name].get(int(value), 'reliable' if name == 'reliability' else 'volatile')
 
 
 class RecorderNode(rt.Node):
@@ -92,18 +87,14 @@ class RecorderNode(rt.Node):
             infos = self.get_publishers_info_by_topic(name)
             if not infos:
                 continue
-            offered = infos[0].qos_profile
-            reliability = 'reliable' if all(_policy(i.qos_profile, 'reliability') == 'reliable' for i in infos) \
-                else 'best_effort'
-            durability = 'transient_local' if all(
-                _policy(i.qos_profile, 'durability') == 'transient_local' for i in infos) else 'volatile'
+            offered = [words_of(info.qos_profile) for info in infos]
+            first = offered[0]
             type_name = types[0]
             self.bag.add_topic(name, type_name, qos_profile_yaml(
-                _policy(offered, 'reliability'), _policy(offered, 'durability'),
-                _policy(offered, 'history'), int(getattr(offered, 'depth', 10) or 10)))
-            qos = rt.QoSProfile(depth=10000, history=rt.HistoryPolicy.KEEP_LAST,
-                                reliability=getattr(rt.ReliabilityPolicy, reliability.upper()),
-                                durability=getattr(rt.DurabilityPolicy, durability.upper()))
+                first.reliability, first.durability, first.history, first.depth))
+            # reliable and transient-local only when every publisher offers it
+            qos = profile_from_words(dataclasses.replace(
+                merge_offered(offered), history='keep_last', depth=_RECORD_DEPTH))
             stamped = _stamped_first(type_name)
             self.subscriptions_by_topic[name] = self.create_subscription(
                 m.get_message(type_name), name,

@@ -14,10 +14,10 @@ monotonic clock; messages are sent in log-time order, ties in the order they are
 file (the order they were recorded in). Log times of this project's bags are simulation times
 (see :mod:`uh_runtime.recorder`); those of ``ros2 bag record`` are receive times.
 
-Bags are checked before anything is published (:func:`open_bag`): a missing or empty directory,
-a file that is not MCAP, a file cut short (no footer: the recorder was killed), a damaged summary
-or chunk (CRC mismatch) and unusable QoS metadata are reported as :class:`BagReadError` naming
-the file and what is wrong.
+Bags are checked before anything is published (:func:`uh_runtime.bag_reader.open_bag`): a missing
+or empty directory, a file that is not MCAP, a file cut short (no footer: the recorder was killed),
+a damaged summary or chunk (CRC mismatch) and unusable QoS metadata are reported as
+:class:`~uh_runtime.bag_reader.BagError` naming the file and what is wrong.
 
 Exit status: 0 done, 1 nobody subscribed in time (``--wait-for-subscribers``), 2 bad arguments or
 an unreadable bag, 130 interrupted (Ctrl-C, SIGTERM).
@@ -25,355 +25,29 @@ an unreadable bag, 130 interrupted (Ctrl-C, SIGTERM).
 from __future__ import annotations
 
 import argparse
-import heapq
-import io
 import math
 import os
 import signal
 import sys
 import time
-import zlib
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import uh_runtime as rt
 from uh_runtime import messages
-from uh_runtime.bag import BagError
+from uh_runtime.bag_reader import BagError, BagInfo, iter_bag_messages, open_bag
 from uh_runtime.network import MAX_DOMAIN_ID, loopback_environment
+from uh_runtime.qos import QoSWords, profile_from_words
 
-__all__ = ['BagReadError', 'ReplayQoS', 'BagTopic', 'BagInfo', 'MCAP_MAGIC', 'find_bag_files',
-           'parse_offered_qos', 'open_bag', 'iter_bag_messages', 'ReplayNode', 'build_parser', 'main']
+__all__ = ['ReplayNode', 'build_parser', 'main']
 
 PROG = 'replay'
-
-#: First and last 8 bytes of every MCAP file.
-MCAP_MAGIC = b'\x89MCAP0\r\n'
-
-#: QoS of a topic whose bag entry has no offered profile: the ROS 2 default (reliable, volatile, keep last 10).
-DEFAULT_DEPTH = 10
 
 #: How long ``--wait-for-subscribers`` waits for every replayed topic to have a subscriber, s.
 WAIT_FOR_SUBSCRIBERS_TIMEOUT = 60.0
 
 
-class BagReadError(BagError):
-    """A bag cannot be replayed or read: the message names the file and what is wrong with it."""
-
-
 # ----------------------------------------------------------------------------------------------
-# Reading and checking a bag
+# Message types the bag defines
 # ----------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ReplayQoS:
-    """QoS to publish a replayed topic with (from the bag's ``offered_qos_profiles``).
-
-    Attributes
-    ----------
-    reliability : str
-        ``'reliable'`` or ``'best_effort'``.
-    durability : str
-        ``'transient_local'`` or ``'volatile'``.
-    history : str
-        ``'keep_last'`` or ``'keep_all'``.
-    depth : int
-        History depth (keep_last).
-    """
-
-    reliability: str = 'reliable'
-    durability: str = 'volatile'
-    history: str = 'keep_last'
-    depth: int = DEFAULT_DEPTH
-
-    def profile(self):
-        """The facade's ``QoSProfile`` (rclpy's on the rclpy backend)."""
-        return rt.QoSProfile(
-            history=getattr(rt.HistoryPolicy, self.history.upper()), depth=max(1, int(self.depth)),
-            reliability=getattr(rt.ReliabilityPolicy, self.reliability.upper()),
-            durability=getattr(rt.DurabilityPolicy, self.durability.upper()))
-
-    def describe(self) -> str:
-        hist = f'keep_last {self.depth}' if self.history == 'keep_last' else 'keep_all'
-        return f'{self.reliability}, {hist}, {self.durability}'
-
-
-@dataclass
-class BagTopic:
-    """One topic (MCAP channel) of a bag."""
-
-    name: str
-    type: str
-    qos: ReplayQoS
-    message_count: int = 0
-    definition: str = ''
-
-
-@dataclass
-class BagInfo:
-    """A checked bag: its MCAP files, topics and time span (log times, ns)."""
-
-    directory: Path
-    files: list
-    topics: dict = field(default_factory=dict)
-    start_ns: int = 0
-    end_ns: int = 0
-    message_count: int = 0
-
-    @property
-    def duration_s(self) -> float:
-        return max(0, self.end_ns - self.start_ns) * 1e-9
-
-
-_POLICY_VALUES = {
-    'reliability': {'reliable': 'reliable', 'best_effort': 'best_effort', 'system_default': 'reliable',
-                    '1': 'reliable', '2': 'best_effort', '0': 'reliable'},
-    'durability': {'transient_local': 'transient_local', 'volatile': 'volatile', 'system_default': 'volatile',
-                   '1': 'transient_local', '2': 'volatile', '0': 'volatile'},
-    'history': {'keep_last': 'keep_last', 'keep_all': 'keep_all', 'system_default': 'keep_last',
-                '1': 'keep_last', '2': 'keep_all', '0': 'keep_last'},
-}
-
-
-def parse_offered_qos(text: str | None, where: str) -> ReplayQoS:
-    """The QoS to replay a topic with, from its rosbag2 ``offered_qos_profiles`` YAML.
-
-    The text is a YAML list with one profile per publisher that was recorded (the layout of
-    :func:`uh_runtime.bag.qos_profile_yaml`; rosbag2 writes the same). As ``ros2 bag play`` does,
-    the replay is reliable only if every publisher was, transient-local only if every publisher
-    was, and keeps the largest depth. An empty or missing entry gives the ROS 2 default
-    (reliable, volatile, keep_last 10).
-
-    Raises
-    ------
-    BagReadError
-        The text is not YAML, not a list of mappings, or has a policy value rosbag2 does not write;
-        ``where`` (file and topic) is in the message.
-    """
-    import yaml
-    if text is None or not str(text).strip():
-        return ReplayQoS()
-    try:
-        profiles = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise BagReadError(f'{where}: offered_qos_profiles is not valid YAML ({exc})') from None
-    if profiles in (None, []):
-        return ReplayQoS()
-    if isinstance(profiles, dict):
-        profiles = [profiles]
-    if not isinstance(profiles, list) or not all(isinstance(p, dict) for p in profiles):
-        raise BagReadError(f'{where}: offered_qos_profiles must be a list of QoS mappings, got {text[:80]!r}')
-    values = {key: [] for key in _POLICY_VALUES}
-    depths = []
-    for profile in profiles:
-        for key, allowed in _POLICY_VALUES.items():
-            raw = str(profile.get(key, 'system_default')).strip().lower()
-            if raw not in allowed:
-                choices = ', '.join(k for k in allowed if not k.isdigit())
-                raise BagReadError(f'{where}: offered_qos_profiles has {key}: {raw!r}; allowed: {choices}')
-            values[key].append(allowed[raw])
-        try:
-            depth = int(profile.get('depth', DEFAULT_DEPTH) or 0)
-        except (TypeError, ValueError):
-            raise BagReadError(f'{where}: offered_qos_profiles has depth {profile.get("depth")!r}; '
-                               'expected a whole number') from None
-        depths.append(depth if depth > 0 else DEFAULT_DEPTH)
-    return ReplayQoS(
-        reliability='reliable' if all(v == 'reliable' for v in values['reliability']) else 'best_effort',
-        durability='transient_local' if all(v == 'transient_local' for v in values['durability']) else 'volatile',
-        history='keep_all' if any(v == 'keep_all' for v in values['history']) else 'keep_last',
-        depth=max(depths))
-
-
-def find_bag_files(path) -> tuple[Path, list]:
-    """``(bag directory, [MCAP files])`` of a run directory, a bag directory or one ``.mcap`` file.
-
-    A run directory of ``scripts/run_formation.sh`` holds the bag in ``bag/``. In a bag directory
-    the files are those listed in ``metadata.yaml`` (``relative_file_paths``), else every
-    ``*.mcap`` in it.
-
-    Raises
-    ------
-    BagReadError
-        The path does not exist, holds no bag, or ``metadata.yaml`` is unreadable or names a
-        missing file.
-    """
-    import yaml
-    path = Path(path)
-    if not path.exists():
-        raise BagReadError(f'{path}: no such file or directory')
-    if path.is_file():
-        return path.parent, [path]
-    if (path / 'bag').is_dir() and not (path / 'metadata.yaml').exists() and not any(path.glob('*.mcap')):
-        path = path / 'bag'
-    metadata = path / 'metadata.yaml'
-    if metadata.exists():
-        try:
-            info = yaml.safe_load(metadata.read_text(errors='replace'))
-            info = info['rosbag2_bagfile_information']
-            names = list(info.get('relative_file_paths') or [])
-            storage = info.get('storage_identifier', 'mcap')
-        except (yaml.YAMLError, TypeError, KeyError, AttributeError) as exc:
-            raise BagReadError(f'{metadata}: not a rosbag2 metadata file ({type(exc).__name__}: {exc})') from None
-        if storage not in ('mcap', None):
-            raise BagReadError(f'{metadata}: storage is {storage!r}; only MCAP bags can be replayed '
-                               '(record with "ros2 bag record -s mcap")')
-        files = [path / name for name in names]
-        missing = [str(f) for f in files if not f.exists()]
-        if missing:
-            raise BagReadError(f'{metadata}: lists {", ".join(missing)}, which does not exist')
-        if files:
-            return path, files
-    files = sorted(path.glob('*.mcap'))
-    if not files:
-        contents = sorted(p.name for p in path.iterdir())
-        raise BagReadError(f'{path}: no MCAP bag here (no *.mcap file, no bag/ directory); '
-                           f'it holds {contents if contents else "nothing"}')
-    return path, files
-
-
-def _check_mcap_file(path: Path, check_chunks: bool):
-    """Summary of one MCAP file after checking its magic, footer, summary and chunk CRCs."""
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-    from mcap.records import Chunk, Message
-    from mcap.stream_reader import breakup_chunk
-    from mcap.data_stream import ReadDataStream
-
-    size = path.stat().st_size
-    if size == 0:
-        raise BagReadError(f'{path}: empty file (0 bytes), not an MCAP bag file')
-    with open(path, 'rb') as f:
-        head = f.read(len(MCAP_MAGIC))
-        if head != MCAP_MAGIC:
-            raise BagReadError(f'{path}: not an MCAP file (it starts with {head!r}; an MCAP file starts '
-                               f'with {MCAP_MAGIC!r})')
-        f.seek(max(0, size - len(MCAP_MAGIC)))
-        if size < 2 * len(MCAP_MAGIC) or f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
-            raise BagReadError(f'{path}: truncated: the file ({size} bytes) does not end with the MCAP '
-                               'footer and magic, so it was not closed (the recorder was killed or the '
-                               'copy is incomplete)')
-        f.seek(0)
-        try:
-            reader = make_reader(f)
-            summary = reader.get_summary()
-        except (McapError, ValueError, EOFError, OSError, UnicodeDecodeError, IndexError) as exc:
-            raise BagReadError(f'{path}: corrupted MCAP summary section ({type(exc).__name__}: {exc})') from None
-        if summary is None:
-            raise BagReadError(f'{path}: the MCAP file has no summary section (no channel list); '
-                               'rosbag2 and the recorder always write one')
-        if not check_chunks:
-            return summary
-        for index in summary.chunk_indexes:
-            where = f'{path}: chunk at byte {index.chunk_start_offset}'
-            if index.chunk_start_offset + index.chunk_length > size:
-                raise BagReadError(f'{where} runs past the end of the file ({size} bytes): truncated')
-            try:
-                f.seek(index.chunk_start_offset + 1 + 8, io.SEEK_SET)
-                chunk = Chunk.read(ReadDataStream(f))
-                if chunk.compression == '' and chunk.uncompressed_crc:
-                    # the writer stored a CRC: one C-speed pass over the bytes checks everything
-                    if zlib.crc32(chunk.data) != chunk.uncompressed_crc:
-                        raise BagReadError(f'{where} is corrupted (CRC mismatch)')
-                    continue
-                # no CRC (rosbag2 on Jazzy writes none) or compressed: check the record structure
-                for record in breakup_chunk(chunk, validate_crc=True):
-                    if isinstance(record, Message):
-                        if record.channel_id not in summary.channels:
-                            raise BagReadError(f'{where} is corrupted (a message of unknown channel '
-                                               f'{record.channel_id})')
-                        if not chunk.message_start_time <= record.log_time <= chunk.message_end_time:
-                            raise BagReadError(f'{where} is corrupted (a message log time outside the '
-                                               "chunk's time range)")
-            except BagReadError:
-                raise
-            except Exception as exc:  # CRCValidationError, EndOfFile, struct.error, decompression errors
-                raise BagReadError(f'{where} is corrupted ({type(exc).__name__}: {exc})') from None
-        return summary
-
-
-def open_bag(path, check_chunks: bool = True) -> BagInfo:
-    """Find and check a bag (see :func:`find_bag_files`) and list its topics.
-
-    Parameters
-    ----------
-    path : path-like
-        Run directory, bag directory or ``.mcap`` file.
-    check_chunks : bool
-        Also check every chunk: its CRC when the writer stored one (this project's bags; about
-        10 ms per MB), otherwise its record structure (channel ids, log times in the chunk's range).
-        Damage inside a payload of a chunk without CRC cannot be seen by any reader.
-
-    Raises
-    ------
-    BagReadError
-        Named file and what is wrong with it (see module docstring).
-    """
-    directory, files = find_bag_files(path)
-    info = BagInfo(directory=directory, files=files)
-    starts, ends = [], []
-    for file in files:
-        summary = _check_mcap_file(file, check_chunks)
-        for channel in summary.channels.values():
-            schema = summary.schemas.get(channel.schema_id)
-            if channel.message_encoding != 'cdr':
-                raise BagReadError(f'{file}: topic {channel.topic} is encoded as {channel.message_encoding!r}; '
-                                   'only ROS 2 CDR messages can be replayed')
-            if schema is None or not schema.name:
-                raise BagReadError(f'{file}: topic {channel.topic} has no message type (schema)')
-            count = (summary.statistics.channel_message_counts.get(channel.id, 0)
-                     if summary.statistics else 0)
-            topic = info.topics.get(channel.topic)
-            if topic is None:
-                qos = parse_offered_qos(channel.metadata.get('offered_qos_profiles'),
-                                        f'{file}: topic {channel.topic}')
-                info.topics[channel.topic] = BagTopic(
-                    channel.topic, schema.name, qos, count,
-                    schema.data.decode(errors='replace') if schema.data else '')
-            elif topic.type != schema.name:
-                raise BagReadError(f'{file}: topic {channel.topic} has type {schema.name} here and '
-                                   f'{topic.type} in another file of the bag')
-            else:
-                topic.message_count += count
-        if summary.statistics and summary.statistics.message_count:
-            starts.append(summary.statistics.message_start_time)
-            ends.append(summary.statistics.message_end_time)
-            info.message_count += summary.statistics.message_count
-    info.start_ns = min(starts) if starts else 0
-    info.end_ns = max(ends) if ends else 0
-    return info
-
-
-def iter_bag_messages(info: BagInfo, topics=None):
-    """``(topic, log_time_ns, payload bytes)`` of the bag in log-time order (ties: file order).
-
-    Raises
-    ------
-    BagReadError
-        A chunk cannot be read (named file and the error).
-    """
-    from mcap.reader import make_reader
-
-    def one_file(rank, file):
-        with open(file, 'rb') as f:
-            reader = make_reader(f, validate_crcs=True)
-            messages = reader.iter_messages(topics=None if topics is None else list(topics), log_time_order=True)
-            seq = 0
-            while True:
-                try:
-                    item = next(messages)
-                except StopIteration:
-                    return
-                except Exception as exc:  # a chunk damaged after open_bag checked it
-                    raise BagReadError(f'{file}: cannot read message {seq + 1} '
-                                       f'({type(exc).__name__}: {exc})') from None
-                _, channel, message = item
-                yield message.log_time, rank, seq, channel.topic, message.data
-                seq += 1
-
-    streams = [one_file(rank, file) for rank, file in enumerate(info.files)]
-    for log_time, _rank, _seq, topic, data in heapq.merge(*streams):
-        yield topic, log_time, data
-
-
 def _register_types_from_bag(info: BagInfo, names) -> None:
     """Make types the runtime does not know (not uh_msgs, not a Jazzy standard type) known from the
     bag's own ``ros2msg`` schemas (Cyclone DDS backend only; rclpy imports installed types)."""
@@ -385,14 +59,14 @@ def _register_types_from_bag(info: BagInfo, names) -> None:
         if topic.type in store.fielddefs:
             continue
         if not topic.definition.strip():
-            raise BagReadError(f'{info.files[0]}: topic {name} has type {topic.type}, which this runtime '
-                               'does not know, and the bag holds no definition of it')
+            raise BagError(f'{info.files[0]}: topic {name} has type {topic.type}, which this runtime '
+                           'does not know, and the bag holds no definition of it')
         try:
             types = get_types_from_msg(topic.definition, topic.type)
             store.register({k: v for k, v in types.items() if k not in store.fielddefs})
         except Exception as exc:  # rosbags raises its own parse errors
-            raise BagReadError(f'{info.files[0]}: the definition of {topic.type} (topic {name}) in the bag '
-                               f'cannot be parsed ({type(exc).__name__}: {exc})') from None
+            raise BagError(f'{info.files[0]}: the definition of {topic.type} (topic {name}) in the bag '
+                           f'cannot be parsed ({type(exc).__name__}: {exc})') from None
 
 
 # ----------------------------------------------------------------------------------------------
@@ -440,7 +114,7 @@ class ReplayNode(rt.Node):
 
     Raises
     ------
-    BagReadError
+    BagError
         A requested topic is not in the bag, or a type cannot be built.
     """
 
@@ -448,8 +122,8 @@ class ReplayNode(rt.Node):
         wanted = list(info.topics) if not topics else list(dict.fromkeys(topics))
         unknown = [t for t in wanted if t not in info.topics]
         if unknown:
-            raise BagReadError(f'{info.directory}: topic(s) {", ".join(unknown)} not in the bag; it has '
-                               f'{", ".join(sorted(info.topics))}')
+            raise BagError(f'{info.directory}: topic(s) {", ".join(unknown)} not in the bag; it has '
+                           f'{", ".join(sorted(info.topics))}')
         if clock and '/clock' in info.topics and '/clock' not in wanted:
             wanted.append('/clock')
         if rt.BACKEND != 'rclpy':
@@ -463,12 +137,13 @@ class ReplayNode(rt.Node):
             try:
                 msg_type = messages.get_message(topic.type)
             except messages.MessageError as exc:
-                raise BagReadError(f'{info.files[0]}: topic {name}: {exc}') from None
-            self.publishers_by_topic[name] = self.create_publisher(msg_type, name, topic.qos.profile())
+                raise BagError(f'{info.files[0]}: topic {name}: {exc}') from None
+            self.publishers_by_topic[name] = self.create_publisher(
+                msg_type, name, profile_from_words(topic.qos))
         self.synth_clock = None
         if clock and '/clock' not in info.topics:
             self.synth_clock = self.create_publisher(messages.get_message('rosgraph_msgs/msg/Clock'), '/clock',
-                                                     ReplayQoS().profile())
+                                                     profile_from_words(QoSWords()))
         self.sent = 0
 
     # -- waiting ------------------------------------------------------------------------
@@ -604,7 +279,7 @@ def main(args=None) -> int:
         return _fail(f'--domain-id {domain}: allowed 0..{MAX_DOMAIN_ID}')
     try:
         info = open_bag(opts.bag, check_chunks=not opts.no_check)
-    except BagReadError as exc:
+    except BagError as exc:
         return _fail(str(exc))
     if info.message_count == 0:
         return _fail(f'{info.files[0]}: the bag holds no messages')
@@ -649,7 +324,7 @@ def main(args=None) -> int:
         else:
             print(f'[replay] stopped after {node.sent} messages', file=sys.stderr, flush=True)
             status = 130
-    except BagReadError as exc:
+    except BagError as exc:
         if progress:
             progress.close()
         status = _fail(str(exc))

@@ -4,6 +4,8 @@ import fnmatch
 import os
 import sys
 
+from . import facade as rt
+
 __all__ = ['check_parameter_overrides', 'run_node', 'declared_parameter_names', 'override_names']
 
 # Parameters every rclpy node declares by itself (not the application's).
@@ -103,8 +105,6 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
     status ends the process with ``SystemExit(status)``. Use as
     ``def main(args=None): rt.run_node(MyNode, args)``.
     """
-    import uh_runtime as rt
-
     from . import procstats
     procstats.install_from_env()
     if not faulthandler.is_enabled():

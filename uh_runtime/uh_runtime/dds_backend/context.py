@@ -1,0 +1,254 @@
+"""The context of the Cyclone DDS backend: init/shutdown state, arguments, the process's DDS participant.
+
+Mirrors ``rclpy.context`` (``Context``) and the module functions of ``rclpy`` and
+``rclpy.utilities`` that act on a context (``init``, ``ok``, ``shutdown``, ``try_shutdown``,
+``get_default_context``). One DDS participant per context (process), USER_DATA ``enclave=/;``, as
+rmw_cyclonedds_cpp creates it; the context publishes ``ros_discovery_info``
+(``rmw_dds_common/msg/ParticipantEntitiesInfo``; reliable, transient-local, keep-last 1): each
+node's name and namespace with the GIDs of its readers and writers, a GID being the 16-byte DDS
+GUID of the entity (``dds_get_guid``), which is what rmw_cyclonedds_cpp's ``convert_guid_to_gid``
+copies.
+"""
+import os
+import sys
+import threading
+import weakref
+
+from .. import arguments as _args
+from .. import intra_process as _intra
+from .. import messages as _messages
+from ..network import MAX_DOMAIN_ID
+from ..qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
+from ..signals import restore_sigterm, shut_down_on_sigterm
+from .logger import set_logger_level
+
+__all__ = ['Context', 'NotInitializedException', 'get_default_context', 'init', 'ok', 'shutdown',
+           'try_shutdown', 'typehash_user_data', 'DISCOVERY_TOPIC', 'ROS_TOPIC_PREFIX']
+
+#: DDS topic of the ROS graph information (rmw_dds_common).
+DISCOVERY_TOPIC = 'ros_discovery_info'
+#: Prefix rmw puts in front of a ROS topic name to get the DDS topic name.
+ROS_TOPIC_PREFIX = 'rt'
+
+
+class NotInitializedException(Exception):
+    """A node is created before ``init()`` or after shutdown."""
+
+    def __init__(self, what='cannot create node'):
+        super().__init__(f'{what}: init() has not been called or the context was shut down')
+
+
+class Context:
+    """``rclpy.context.Context``: init/shutdown state, arguments, and the process's DDS participant."""
+
+    def __init__(self):
+        self._lock = threading.RLock()
+        self._ok = False
+        self._args = _args.ParsedArguments()
+        self._raw_args = []
+        self._domain_id = 0
+        self._dp = None
+        self._pub = None
+        self._sub = None
+        self._guard = None
+        self._topics = {}
+        self._nodes = []
+        self._discovery_writer = None
+        self._executors = weakref.WeakSet()
+        self._on_shutdown = []
+        self._initialised = False
+        self._torn_down = False
+        # in-process delivery between the nodes of this process (uh_runtime.intra_process)
+        self._intra = _intra.IntraProcess(self.wake) if _intra.enabled() else None
+
+    # -- lifecycle --------------------------------------------------------------------------
+    def init(self, args=None, *, domain_id=None):
+        with self._lock:
+            if self._ok:
+                raise RuntimeError('Context.init() must only be called once')
+            argv = list(sys.argv if args is None else args)
+            self._raw_args = argv
+            self._args = _args.parse_ros_args(argv)
+            env_domain = os.environ.get('ROS_DOMAIN_ID', '').strip()
+            if domain_id is None:
+                domain_id = int(env_domain) if env_domain else 0
+            if not 0 <= int(domain_id) <= MAX_DOMAIN_ID:
+                raise ValueError(f'domain id {domain_id} is outside 0..{MAX_DOMAIN_ID}')
+            self._domain_id = int(domain_id)
+            for logger, level in self._args.log_levels.items():
+                set_logger_level(logger, level)
+            self._ok = True
+            self._initialised = True
+        shut_down_on_sigterm(self)
+
+    def ok(self) -> bool:
+        return self._ok
+
+    def shutdown(self):
+        with self._lock:
+            if not self._ok:
+                raise RuntimeError('Context must be initialized before it can be shutdown')
+            self._shutdown()
+
+    def try_shutdown(self):
+        """Shut down unless already done (also completes a shutdown a SIGTERM requested)."""
+        with self._lock:
+            if self._initialised and not self._torn_down:
+                self._shutdown()
+
+    def _request_shutdown(self):
+        self._ok = False
+        restore_sigterm()
+        self.wake()
+
+    def _shutdown(self):
+        self._ok = False
+        self._torn_down = True
+        restore_sigterm()
+        for callback in self._on_shutdown:
+            callback()
+        for node in list(self._nodes):
+            node.destroy_node()
+        self.wake()
+        dp, self._dp = self._dp, None
+        self._topics.clear()
+        self._discovery_writer = None
+        if dp is not None:
+            dp.__del__()  # delete the participant now, so peers see it leave
+
+    def on_shutdown(self, callback):
+        self._on_shutdown.append(callback)
+
+    def get_domain_id(self) -> int:
+        return self._domain_id
+
+    @property
+    def arguments(self) -> _args.ParsedArguments:
+        return self._args
+
+    # -- DDS entities -----------------------------------------------------------------------
+    @property
+    def participant(self):
+        with self._lock:
+            if self._dp is None:
+                if not self._ok:
+                    raise NotInitializedException('cannot use DDS')
+                from cyclonedds.core import GuardCondition
+                from cyclonedds.domain import DomainParticipant
+                from cyclonedds.pub import Publisher as DdsPublisher
+                from cyclonedds.qos import Policy, Qos
+                from cyclonedds.sub import Subscriber as DdsSubscriber
+                enclave = self._args.enclave or '/'
+                self._dp = DomainParticipant(
+                    self._domain_id, qos=Qos(Policy.Userdata(f'enclave={enclave};'.encode())))
+                self._pub = DdsPublisher(self._dp)
+                self._sub = DdsSubscriber(self._dp)
+                self._guard = GuardCondition(self._dp)
+                self._gid = self._dp.get_guid().bytes
+                self._create_discovery_writer()
+            return self._dp
+
+    def _create_discovery_writer(self):
+        from cyclonedds.pub import DataWriter
+        cls = _messages.dds_message('rmw_dds_common/msg/ParticipantEntitiesInfo')
+        profile = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        topic = self.topic(DISCOVERY_TOPIC, cls)
+        self._discovery_writer = DataWriter(
+            self._pub, topic, qos=to_dds_qos(profile, typehash_user_data(cls)))
+
+    def topic(self, dds_name, cls):
+        """The (cached) DDS topic ``dds_name`` of type ``cls`` in this participant."""
+        from cyclonedds.topic import Topic
+        with self._lock:
+            known = self._topics.get(dds_name)
+            if known is not None:
+                if known.data_type is not cls:
+                    raise TypeError(
+                        f'topic {dds_name!r} is already used with type '
+                        f'{_messages.ros_type_name(known.data_type)} in this process; '
+                        f'cannot use it with {_messages.ros_type_name(cls)}')
+                return known
+            topic = Topic(self.participant, dds_name, cls)
+            self._topics[dds_name] = topic
+            return topic
+
+    @property
+    def gid(self) -> bytes:
+        self.participant
+        return self._gid
+
+    @property
+    def guard(self):
+        self.participant
+        return self._guard
+
+    def wake(self):
+        guard = self._guard
+        if guard is not None:
+            try:
+                guard.set(True)
+            except Exception:  # participant already deleted
+                pass
+
+    def _add_node(self, node):
+        with self._lock:
+            self._nodes.append(node)
+        self.publish_discovery_info()
+
+    def _remove_node(self, node):
+        with self._lock:
+            if node in self._nodes:
+                self._nodes.remove(node)
+        if self._ok:
+            self.publish_discovery_info()
+
+    def discovery_info(self):
+        """The ``ParticipantEntitiesInfo`` message describing this process's nodes."""
+        info_cls = _messages.dds_message('rmw_dds_common/msg/ParticipantEntitiesInfo')
+        node_cls = _messages.dds_message('rmw_dds_common/msg/NodeEntitiesInfo')
+        gid_cls = _messages.dds_message('rmw_dds_common/msg/Gid')
+        info = info_cls()
+        info.gid = gid_cls(data=list(self.gid))
+        for node in list(self._nodes):
+            entry = node_cls()
+            entry.node_namespace = node.get_namespace()
+            entry.node_name = node.get_name()
+            entry.reader_gid_seq = [gid_cls(data=list(s.gid)) for s in node.subscriptions]
+            entry.writer_gid_seq = [gid_cls(data=list(p.gid)) for p in node.publishers]
+            info.node_entities_info_seq.append(entry)
+        return info
+
+    def publish_discovery_info(self):
+        with self._lock:
+            if self._ok and self._discovery_writer is not None:
+                self._discovery_writer.write(self.discovery_info())
+
+
+def typehash_user_data(cls) -> bytes:
+    """USER_DATA of a reader or writer of type ``cls``: ``typehash=RIHS01_<hex>;`` (REP-2011)."""
+    return f'typehash={_messages.type_hash(cls)};'.encode()
+
+
+_default_context = Context()
+
+
+def get_default_context() -> Context:
+    return _default_context
+
+
+def init(*, args=None, context=None, domain_id=None, signal_handler_options=None):
+    """``rclpy.init``: initialise the context (returns ``None`` as on Jazzy)."""
+    (context or _default_context).init(args, domain_id=domain_id)
+
+
+def ok(*, context=None) -> bool:
+    return (context or _default_context).ok()
+
+
+def shutdown(*, context=None):
+    (context or _default_context).shutdown()
+
+
+def try_shutdown(*, context=None):
+    (context or _default_context).try_shutdown()

@@ -1,0 +1,98 @@
+"""Logging on the Cyclone DDS backend: rcutils' console format on stderr.
+
+Mirrors ``rclpy.logging`` (``get_logger``, ``set_logger_level``) and
+``rclpy.impl.rcutils_logger.RcutilsLogger``: ``[LEVEL] [<unix time>] [<name>]: message``, with
+``once``, ``throttle_duration_sec`` and ``skip_first``; levels per logger name (dotted names
+inherit their parent's), set by ``--log-level`` through the context and the nodes.
+"""
+import inspect
+import sys
+import threading
+import time
+
+__all__ = ['RcutilsLogger', 'get_logger', 'set_logger_level']
+
+_SEVERITY = {'DEBUG': 10, 'INFO': 20, 'WARN': 30, 'ERROR': 40, 'FATAL': 50}
+_log_levels = {'': 20}
+_log_lock = threading.Lock()
+
+
+class RcutilsLogger:
+    """``rclpy.impl.rcutils_logger.RcutilsLogger`` subset: ``[LEVEL] [t] [name]: message`` on stderr."""
+
+    def __init__(self, name=''):
+        self.name = name
+        self._once = set()
+        self._last = {}
+
+    def get_child(self, name):
+        return RcutilsLogger(f'{self.name}.{name}' if self.name else name)
+
+    def set_level(self, level):
+        name = level if isinstance(level, str) else {10: 'DEBUG', 20: 'INFO', 30: 'WARN',
+                                                      40: 'ERROR', 50: 'FATAL'}[int(level)]
+        _log_levels[self.name] = _SEVERITY[name.upper()]
+
+    def get_effective_level(self):
+        name = self.name
+        while True:
+            if name in _log_levels:
+                return _log_levels[name]
+            if '.' not in name:
+                return _log_levels['']
+            name = name.rsplit('.', 1)[0]
+
+    def is_enabled_for(self, severity):
+        return _SEVERITY[severity] >= self.get_effective_level()
+
+    def log(self, message, severity, *, once=False, throttle_duration_sec=None, skip_first=False, **_):
+        severity = 'WARN' if severity == 'WARNING' else severity
+        if not self.is_enabled_for(severity):
+            return False
+        key = inspect.currentframe().f_back.f_back
+        key = (key.f_code, key.f_lineno) if key else None
+        if once:
+            if key in self._once:
+                return False
+            self._once.add(key)
+        if skip_first and key not in self._last:
+            self._last[key] = time.monotonic()
+            return False
+        if throttle_duration_sec:
+            now = time.monotonic()
+            if key in self._last and now - self._last[key] < throttle_duration_sec:
+                return False
+            self._last[key] = now
+        stamp = time.time()
+        with _log_lock:
+            sys.stderr.write(f'[{severity}] [{stamp:.9f}] [{self.name}]: {message}\n')
+            sys.stderr.flush()
+        return True
+
+    def debug(self, message, **kw):
+        return self.log(message, 'DEBUG', **kw)
+
+    def info(self, message, **kw):
+        return self.log(message, 'INFO', **kw)
+
+    def warning(self, message, **kw):
+        return self.log(message, 'WARN', **kw)
+
+    warn = warning
+
+    def error(self, message, **kw):
+        return self.log(message, 'ERROR', **kw)
+
+    def fatal(self, message, **kw):
+        return self.log(message, 'FATAL', **kw)
+
+
+def get_logger(name):
+    """``rclpy.logging.get_logger``."""
+    return RcutilsLogger(name)
+
+
+def set_logger_level(name, level):
+    """``rclpy.logging.set_logger_level`` for a level name as ``--log-level`` gives it
+    (``DEBUG``, ``INFO``, ``WARN`` or ``WARNING``, ``ERROR``, ``FATAL``)."""
+    _log_levels[name] = _SEVERITY['WARN' if level == 'WARNING' else level]

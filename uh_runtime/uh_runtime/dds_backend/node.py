@@ -1,0 +1,466 @@
+"""``Node`` of the Cyclone DDS backend: names, parameters, publishers/subscriptions/timers, graph
+queries and sim time, with rclpy's (Jazzy) semantics for the subset listed in docs/runtime.md.
+
+Mirrors ``rclpy.node``. ROS topic ``/uh1/state`` is DDS topic ``rt/uh1/state`` with type
+``uh_msgs::msg::dds_::UHState_``; readers and writers get the QoS mapping of rmw_cyclonedds (see
+:mod:`uh_runtime.qos`) and USER_DATA ``typehash=RIHS01_<hex>;``. Graph queries
+(``count_subscribers`` ...) read DDS discovery through :class:`uh_runtime.graph.Graph`. With
+``use_sim_time`` the node subscribes to ``/clock`` like rclpy's TimeSource.
+"""
+import weakref
+
+from .. import arguments as _args
+from .. import messages as _messages
+from ..graph import Graph
+from ..parameters import (
+    InvalidParameterTypeException, InvalidParameterValueException, Parameter,
+    ParameterAlreadyDeclaredException, ParameterDescriptor, ParameterImmutableException,
+    ParameterNotDeclaredException, ParameterType, ParameterUninitializedException,
+    SetParametersResult, check_value,
+)
+from ..qos import as_profile, qos_profile_clock, to_dds_qos
+from .clock import ROSClock
+from .context import (
+    DISCOVERY_TOPIC, ROS_TOPIC_PREFIX, NotInitializedException, get_default_context,
+    typehash_user_data,
+)
+from .endpoints import Publisher, Subscription, Timer
+from .logger import RcutilsLogger, set_logger_level
+
+__all__ = ['Node']
+
+
+class Node:
+    """``rclpy.node.Node`` on Cyclone DDS (the subset listed in docs/runtime.md)."""
+
+    PARAM_REL_TOL = 1e-6
+
+    def __init__(self, node_name, *, context=None, cli_args=None, namespace=None,
+                 use_global_arguments=True, enable_rosout=True, start_parameter_services=True,
+                 parameter_overrides=None, allow_undeclared_parameters=False,
+                 automatically_declare_parameters_from_overrides=False,
+                 enable_logger_service=False):
+        self._context = context or get_default_context()
+        if not self._context.ok():
+            raise NotInitializedException('cannot create node')
+        self.publishers = []
+        self.subscriptions = []
+        self.timers = []
+        self._executors = weakref.WeakSet()
+        self._destroyed = False
+
+        local = _args.parse_ros_args(['--ros-args', *cli_args] if cli_args and '--ros-args' not in cli_args
+                                     else (cli_args or []))
+        parsed = _args.ParsedArguments()
+        parsed.extend(local)
+        if use_global_arguments:
+            glob = self._context.arguments
+            parsed.remaps += glob.remaps
+            parsed.parameters = glob.parameters + parsed.parameters
+            for logger, level in glob.log_levels.items():
+                parsed.log_levels.setdefault(logger, level)
+        self._arguments = parsed
+
+        _args.validate_node_name(node_name)
+        name, ns_override = _args.apply_name_remaps(parsed.remaps, node_name)
+        self._name = name
+        self._namespace = ns_override or _args.normalise_namespace(namespace)
+        logger_name = '.'.join([*filter(None, self._namespace.split('/')), self._name])
+        self._logger = RcutilsLogger(logger_name)
+        for logger, level in local.log_levels.items():
+            set_logger_level(logger or logger_name, level)
+
+        # parameters
+        self._parameters = {}
+        self._descriptors = {}
+        self._on_set_callbacks = []
+        self._pre_set_callbacks = []
+        self._post_set_callbacks = []
+        self._allow_undeclared = allow_undeclared_parameters
+        fq = self.get_fully_qualified_name()
+        overrides = {}
+        for pattern, params in parsed.parameters:
+            if _args.node_pattern_matches(pattern, fq) or pattern in (name, node_name):
+                for pname, value in params.items():
+                    overrides[pname] = Parameter(pname, value=value)
+        for param in parameter_overrides or []:
+            overrides[param.name] = param
+        self._parameter_overrides = overrides
+
+        # clock and sim time (rclpy's TimeSource)
+        self._clock = ROSClock()
+        self._clock_sub = None
+        self._context.participant  # create the participant before any entity
+        self._context._add_node(self)
+        self.declare_parameter('use_sim_time', False)
+        self._apply_use_sim_time(self.get_parameter('use_sim_time').value)
+        if automatically_declare_parameters_from_overrides:
+            for pname, param in overrides.items():
+                if pname not in self._parameters:
+                    self.declare_parameter(pname, param.value)
+
+    # -- names ------------------------------------------------------------------------------
+    @property
+    def context(self):
+        return self._context
+
+    @property
+    def executor(self):
+        return next(iter(self._executors), None)
+
+    def get_name(self) -> str:
+        return self._name
+
+    def get_namespace(self) -> str:
+        return self._namespace
+
+    def get_fully_qualified_name(self) -> str:
+        return f"{self._namespace.rstrip('/')}/{self._name}"
+
+    def get_logger(self):
+        return self._logger
+
+    def get_clock(self):
+        return self._clock
+
+    def resolve_topic_name(self, topic, *, only_expand=False) -> str:
+        """Fully qualified ROS name of ``topic`` for this node, after remapping."""
+        fq = _args.expand_topic_name(topic, self._name, self._namespace)
+        if only_expand:
+            return fq
+        return _args.remap_topic(self._arguments.remaps, fq, self._name, self._namespace)
+
+    def _changed(self):
+        for executor in list(self._executors):
+            executor._entities_changed()
+
+    # -- publishers and subscriptions -------------------------------------------------------
+    def _check_type(self, msg_type):
+        if not hasattr(msg_type, '__ros_typename__'):
+            raise TypeError(
+                f'{msg_type!r} is not a message class of this backend; use '
+                'uh_runtime.messages.get_message("pkg/msg/Type")')
+
+    def create_publisher(self, msg_type, topic, qos_profile, *, callback_group=None,
+                         event_callbacks=None, qos_overriding_options=None, publisher_class=None):
+        from cyclonedds.pub import DataWriter
+        self._check_type(msg_type)
+        profile = as_profile(qos_profile)
+        name = self.resolve_topic_name(topic)
+        dds_topic = self._context.topic(ROS_TOPIC_PREFIX + name, msg_type)
+        intra = self._context._intra
+        writer = DataWriter(self._context._pub, dds_topic,
+                            qos=to_dds_qos(profile, typehash_user_data(msg_type), ignore_local=intra is not None))
+        pub = Publisher(self, msg_type, name, profile, writer)
+        self.publishers.append(pub)
+        if intra is not None:
+            intra.add_publisher(pub)
+        self._context.publish_discovery_info()
+        return pub
+
+    def create_subscription(self, msg_type, topic, callback, qos_profile, *, callback_group=None,
+                            event_callbacks=None, qos_overriding_options=None, raw=False):
+        from cyclonedds.sub import DataReader
+        self._check_type(msg_type)
+        profile = as_profile(qos_profile)
+        name = self.resolve_topic_name(topic)
+        dds_topic = self._context.topic(ROS_TOPIC_PREFIX + name, msg_type)
+        intra = self._context._intra
+        reader = DataReader(self._context._sub, dds_topic,
+                            qos=to_dds_qos(profile, typehash_user_data(msg_type), ignore_local=intra is not None))
+        sub = Subscription(self, msg_type, name, callback, profile, reader, raw=raw)
+        self.subscriptions.append(sub)
+        if intra is not None:
+            intra.add_subscription(sub)
+        self._context.publish_discovery_info()
+        self._changed()
+        return sub
+
+    def create_timer(self, timer_period_sec, callback, callback_group=None, clock=None,
+                     autostart=True):
+        timer = Timer(self, callback, int(round(float(timer_period_sec) * 1e9)),
+                      clock or self._clock, autostart)
+        self.timers.append(timer)
+        self._changed()
+        return timer
+
+    def destroy_publisher(self, publisher) -> bool:
+        if publisher not in self.publishers:
+            return False
+        self.publishers.remove(publisher)
+        if self._context._intra is not None:
+            self._context._intra.remove_publisher(publisher)
+        publisher._writer.__del__()
+        self._context.publish_discovery_info()
+        return True
+
+    def destroy_subscription(self, subscription) -> bool:
+        if subscription not in self.subscriptions:
+            return False
+        self.subscriptions.remove(subscription)
+        if self._context._intra is not None:
+            self._context._intra.remove_subscription(subscription)
+        self._changed()
+        for executor in list(self._executors):
+            executor._detach(subscription)
+        subscription._condition.__del__()
+        subscription._reader.__del__()
+        self._context.publish_discovery_info()
+        return True
+
+    def destroy_timer(self, timer) -> bool:
+        if timer not in self.timers:
+            return False
+        self.timers.remove(timer)
+        timer.cancel()
+        self._changed()
+        return True
+
+    def destroy_node(self):
+        """Delete every entity of the node and remove it from ``ros_discovery_info``."""
+        if self._destroyed:
+            return True
+        self._destroyed = True
+        for timer in list(self.timers):
+            self.destroy_timer(timer)
+        if self._context._dp is not None:
+            for sub in list(self.subscriptions):
+                self.destroy_subscription(sub)
+            for pub in list(self.publishers):
+                self.destroy_publisher(pub)
+        else:
+            self.subscriptions.clear()
+            self.publishers.clear()
+        for executor in list(self._executors):
+            executor.remove_node(self)
+        self._context._remove_node(self)
+        return True
+
+    # -- graph ------------------------------------------------------------------------------
+    def _graph(self):
+        if getattr(self, '_graph_cache', None) is None:
+            self._graph_cache = Graph(
+                participant=self._context.participant,
+                info_topic=self._context.topic(
+                    DISCOVERY_TOPIC,
+                    _messages.dds_message('rmw_dds_common/msg/ParticipantEntitiesInfo')))
+        self._graph_cache.update()
+        return self._graph_cache
+
+    def count_publishers(self, topic_name) -> int:
+        """Writers of the topic in the domain (this process's included), from DDS discovery."""
+        return self._graph().count(self.resolve_topic_name(topic_name), writers=True)
+
+    def count_subscribers(self, topic_name) -> int:
+        """Readers of the topic in the domain (this process's included), from DDS discovery."""
+        return self._graph().count(self.resolve_topic_name(topic_name), writers=False)
+
+    def get_publishers_info_by_topic(self, topic_name, no_mangle=False):
+        """``rclpy``'s list of endpoint infos (node_name, node_namespace, topic_type,
+        endpoint_type, endpoint_gid, qos_profile) of the topic's writers."""
+        name = topic_name if no_mangle else self.resolve_topic_name(topic_name)
+        return self._graph().endpoints(name, writers=True)
+
+    def get_subscriptions_info_by_topic(self, topic_name, no_mangle=False):
+        name = topic_name if no_mangle else self.resolve_topic_name(topic_name)
+        return self._graph().endpoints(name, writers=False)
+
+    def get_topic_names_and_types(self, no_demangle=False):
+        return self._graph().topic_names_and_types()
+
+    def get_node_names(self):
+        return [name for name, _ in self._graph().node_names_and_namespaces()]
+
+    def get_node_names_and_namespaces(self):
+        return self._graph().node_names_and_namespaces()
+
+    # -- parameters ------------------------------------------------------------------------
+    def declare_parameter(self, name, value=None, descriptor=None, ignore_override=False):
+        """Declare one parameter, as rclpy (Jazzy) does.
+
+        ``value`` may be a default value or a ``Parameter.Type`` (statically typed, no default).
+        The override from the command line or ``parameter_overrides`` wins over the default unless
+        ``ignore_override``; it must have the declared type (or be an int for a double) and pass
+        the descriptor's range, else :class:`InvalidParameterTypeException` /
+        :class:`InvalidParameterValueException` name the parameter and what is allowed.
+        """
+        return self.declare_parameters('', [(name, value, descriptor or ParameterDescriptor())],
+                                       ignore_override)[0]
+
+    def declare_parameters(self, namespace, parameters, ignore_override=False):
+        declared = []
+        for entry in parameters:
+            entry = tuple(entry) if isinstance(entry, (tuple, list)) else (entry,)
+            name = f'{namespace}.{entry[0]}' if namespace else entry[0]
+            value = entry[1] if len(entry) > 1 else None
+            descriptor = entry[2] if len(entry) > 2 and entry[2] is not None else ParameterDescriptor()
+            if not isinstance(name, str) or not name:
+                raise TypeError(f'parameter name must be a non-empty str, got {name!r}')
+            if name in self._parameters:
+                raise ParameterAlreadyDeclaredException(name)
+            if isinstance(value, ParameterType):
+                if value == ParameterType.NOT_SET:
+                    raise ValueError(
+                        f'Cannot declare parameter {{{name}}} as statically typed of type NOT_SET')
+                ptype, value = value, None
+            elif value is None:
+                if not descriptor.dynamic_typing:
+                    raise ValueError(
+                        f"parameter '{name}': cannot declare a statically typed parameter without "
+                        'a default value; give a default, a Parameter.Type, or '
+                        'ParameterDescriptor(dynamic_typing=True)')
+                ptype = ParameterType.NOT_SET
+            else:
+                try:
+                    ptype = ParameterType.from_parameter_value(value)
+                except TypeError as exc:
+                    raise TypeError(f"parameter '{name}': {exc}") from None
+            descriptor.name = name
+            if not descriptor.dynamic_typing:
+                descriptor.type = int(ptype)
+            if not ignore_override and name in self._parameter_overrides:
+                value = self._parameter_overrides[name].value
+            value = self._coerce(name, value, descriptor)
+            reason = check_value(name, value, descriptor) if value is not None else None
+            if reason:
+                raise InvalidParameterValueException(name, value, reason)
+            param = Parameter(name, value=value)
+            result = self._run_set_callbacks([param])
+            if not result.successful:
+                raise InvalidParameterValueException(name, value, result.reason)
+            self._descriptors[name] = descriptor
+            self._parameters[name] = param
+            self._run_post_callbacks([param])
+            declared.append(param)
+        return declared
+
+    def _coerce(self, name, value, descriptor):
+        """Type check against a statically typed descriptor.
+
+        As in rclpy, an integer is *not* accepted for a double parameter (``-p rate:=20`` for a
+        double fails; write ``20.0``), so a command line that works here works on ROS 2 too.
+        """
+        if value is None or descriptor.dynamic_typing or not descriptor.type:
+            return value
+        expected = ParameterType(descriptor.type)
+        if not expected.check(value):
+            raise InvalidParameterTypeException(name, value, expected)
+        return value
+
+    def undeclare_parameter(self, name):
+        if name not in self._parameters:
+            raise ParameterNotDeclaredException(name, self._parameters)
+        if self._descriptors[name].read_only:
+            raise ParameterImmutableException(name)
+        del self._parameters[name]
+        del self._descriptors[name]
+
+    def has_parameter(self, name) -> bool:
+        return name in self._parameters
+
+    def get_parameter(self, name) -> Parameter:
+        if name in self._parameters:
+            param = self._parameters[name]
+            if param.type_ == ParameterType.NOT_SET and self._descriptors[name].type and \
+                    not self._descriptors[name].dynamic_typing:
+                raise ParameterUninitializedException(name)
+            return param
+        if self._allow_undeclared:
+            return Parameter(name)
+        raise ParameterNotDeclaredException(name, self._parameters)
+
+    def get_parameters(self, names):
+        return [self.get_parameter(n) for n in names]
+
+    def get_parameter_or(self, name, alternative_value=None):
+        if name not in self._parameters:
+            return Parameter(name, value=None) if alternative_value is None else alternative_value
+        return self._parameters[name]
+
+    def get_parameters_by_prefix(self, prefix):
+        prefix = prefix + '.' if prefix else ''
+        return {n[len(prefix):]: p for n, p in self._parameters.items() if n.startswith(prefix)}
+
+    def describe_parameter(self, name):
+        if name not in self._descriptors:
+            raise ParameterNotDeclaredException(name, self._parameters)
+        return self._descriptors[name]
+
+    def describe_parameters(self, names):
+        return [self.describe_parameter(n) for n in names]
+
+    def set_parameters(self, parameter_list):
+        return [self.set_parameters_atomically([p]) for p in parameter_list]
+
+    def set_parameters_atomically(self, parameter_list):
+        for param in parameter_list:
+            if param.name not in self._parameters:
+                if not self._allow_undeclared:
+                    raise ParameterNotDeclaredException(param.name, self._parameters)
+        checked = []
+        for param in parameter_list:
+            desc = self._descriptors.get(param.name, ParameterDescriptor(dynamic_typing=True))
+            if desc.read_only:
+                return SetParametersResult(successful=False,
+                                           reason=f"parameter '{param.name}' is read-only")
+            try:
+                value = self._coerce(param.name, param.value, desc)
+            except InvalidParameterTypeException as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+            reason = check_value(param.name, value, desc) if value is not None else None
+            if reason:
+                return SetParametersResult(successful=False, reason=f"parameter '{param.name}': {reason}")
+            checked.append(Parameter(param.name, value=value))
+        result = self._run_set_callbacks(checked)
+        if result.successful:
+            for param in checked:
+                self._parameters[param.name] = param
+                self._descriptors.setdefault(param.name, ParameterDescriptor(name=param.name))
+            self._run_post_callbacks(checked)
+        return result
+
+    def add_on_set_parameters_callback(self, callback):
+        self._on_set_callbacks.insert(0, callback)
+
+    def remove_on_set_parameters_callback(self, callback):
+        self._on_set_callbacks.remove(callback)
+
+    def add_pre_set_parameters_callback(self, callback):
+        self._pre_set_callbacks.insert(0, callback)
+
+    def add_post_set_parameters_callback(self, callback):
+        self._post_set_callbacks.insert(0, callback)
+
+    def _run_set_callbacks(self, params):
+        for callback in self._on_set_callbacks:
+            result = callback(params)
+            if not result.successful:
+                return result
+        return SetParametersResult(successful=True)
+
+    def _run_post_callbacks(self, params):
+        for param in params:
+            if param.name == 'use_sim_time' and hasattr(self, '_clock'):
+                self._apply_use_sim_time(param.value)
+        for callback in self._post_set_callbacks:
+            callback(params)
+
+    # -- sim time --------------------------------------------------------------------------
+    def _apply_use_sim_time(self, enabled):
+        enabled = bool(enabled)
+        if enabled and self._clock_sub is None:
+            clock_cls = _messages.dds_message('rosgraph_msgs/msg/Clock')
+            self._clock_sub = self.create_subscription(
+                clock_cls, '/clock', self._on_clock, qos_profile_clock)
+            self._clock._set_ros_time_is_active(True)
+        elif not enabled and self._clock_sub is not None:
+            self.destroy_subscription(self._clock_sub)
+            self._clock_sub = None
+            self._clock._set_ros_time_is_active(False)
+
+    def _on_clock(self, msg):
+        now = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        if now < self._clock._override_ns:
+            for timer in self.timers:
+                timer._sim_jump(now)
+        self._clock._set_ros_time(now)
