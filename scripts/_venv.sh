@@ -16,7 +16,8 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$VENV/.uh_stamp" 2>/dev/null)" != "$
   # the Python packages are editable so a change in the tree takes effect without reinstalling.
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps "$REPO_ROOT/uh_msgs"
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
-    -e "$REPO_ROOT/uh_runtime" -e "$REPO_ROOT/uh_topology" -e "$REPO_ROOT/uh_sim_node" -e "$REPO_ROOT/uh_controller_node" -e "$REPO_ROOT/uh_bringup"
+    -e "$REPO_ROOT/uh_runtime" -e "$REPO_ROOT/uh_core" -e "$REPO_ROOT/uh_topology" -e "$REPO_ROOT/uh_sim_node" \
+    -e "$REPO_ROOT/uh_controller_node" -e "$REPO_ROOT/uh_team" -e "$REPO_ROOT/uh_bringup"
   stamp_src > "$VENV/.uh_stamp"
 fi
 # shellcheck disable=SC1091
@@ -25,11 +26,12 @@ source "$VENV/bin/activate"
 # sources (__pycache__). Warm that cache here, once per change of the kernel packages, so node
 # processes started together load compiled kernels instead of each compiling them.
 kernels_stamp() {
-  find "$REPO_ROOT/uh_sim_node/uh_sim_node" "$REPO_ROOT/uh_controller_node/uh_controller_node" \
+  find "$REPO_ROOT/uh_core/uh_core" "$REPO_ROOT/uh_sim_node/uh_sim_node" "$REPO_ROOT/uh_controller_node/uh_controller_node" \
+    "$REPO_ROOT/uh_team/uh_team" \
     -maxdepth 1 -name '*.py' -printf '%p %T@ %s\n' | sort | sha256sum | cut -d' ' -f1
 }
 if [ "$(cat "$VENV/.uh_kernels_stamp" 2>/dev/null)" != "$(kernels_stamp)" ]; then
   echo "[setup] compiling the numba kernels of the model and the control law (cached afterwards)" >&2
-  python -P -m uh_controller_node.compile_kernels >&2
+  python -P -m uh_team.compile_kernels >&2
   kernels_stamp > "$VENV/.uh_kernels_stamp"
 fi

@@ -20,15 +20,14 @@ import yaml
 from uh_controller_node.control_kernels import (FLAG_STARTED, M_FLAGS, MEMORY_ROWS, control_parameters,
                                                 outer_advance, outer_law)
 from uh_controller_node.gains import ControllerGains
-from uh_controller_node.nominal_model import NominalModel
 
 GAINS_FILE = Path(__file__).resolve().parents[1] / 'uh_topology' / 'uh_topology' / 'config' / 'paper_gains.yaml'
 
 # unit-mass toy: no drag in the nominal model, so the network sees all of f
-TOY = NominalModel.from_params(SimpleNamespace(
+TOY = SimpleNamespace(
     mass=1.0, inertia=(1.0, 1.0, 1.0), gravity=9.81, c_M1=1.0, c_M2=0.0, K_beta=0.0, h_M=0.0, B_lat=1.0,
     A_lon=1.0, tau_f=0.0, K_tr=1.0, D_r=0.0, c_Q=0.0, D_v=0.0, input_lower=(-1.0,) * 4,
-    input_upper=(1.0,) * 4))
+    input_upper=(1.0,) * 4)
 
 
 def unknown(v):

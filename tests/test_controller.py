@@ -15,17 +15,15 @@ from uh_controller_node.control_kernels import (CP_MIN_VERTICAL_ACCEL, CP_TILT_L
                                                 wrap_angle)
 from uh_controller_node.controller import ControllerError, UHController
 from uh_controller_node.gains import CASES, ControllerGains, GainsError
-from uh_controller_node.nominal_model import NominalModel
+from uh_controller_node.nominal_model import nominal_model
+from uh_core.airframe import load_helicopter_params
 
 ROOT = Path(__file__).resolve().parents[1]
 GAINS_FILE = ROOT / 'uh_topology' / 'uh_topology' / 'config' / 'paper_gains.yaml'
 
-# airframe of DESIGN.md 2.1 (a stand-in with the HelicopterParams attributes)
-PARAMS = SimpleNamespace(mass=8.2, inertia=(0.18, 0.34, 0.28), gravity=9.81, c_M1=700.0, c_M2=10.0,
-                         K_beta=54.0, h_M=0.235, B_lat=1.0, A_lon=1.0, tau_f=0.1, K_tr=30.0, D_r=0.5,
-                         c_Q=0.02, D_v=0.5, input_lower=(-0.1, -0.5, -0.3, -0.3),
-                         input_upper=(0.3, 0.5, 0.3, 0.3))
-MODEL = NominalModel.from_params(PARAMS, 0.9)
+# the bundled airframe (docs/model.md#parameters)
+PARAMS = load_helicopter_params()
+MODEL = nominal_model(PARAMS, 0.9)
 
 
 def paper_gains():

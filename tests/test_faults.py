@@ -1,12 +1,14 @@
-"""Actuator faults of paper eq. 6 and the true lumped faults of DESIGN.md 2.2."""
+"""Actuator faults of paper eq. 6 (docs/faults.md) and the true lumped faults (docs/model.md,
+"Lumped faults"); the plant is checked against the closed-form numpy model of ``model_oracle``."""
 import math
 
 import numpy as np
 import pytest
+from model_oracle import clip_inputs, lumped_faults, state_derivative
 
+from uh_core.airframe import load_helicopter_params
 from uh_sim_node.faults import ONSET_TOLERANCE, ActuatorFault, FaultError, FaultSchedule
-from uh_sim_node.helicopter import (HelicopterPlant, clip_inputs, hover_trim, load_helicopter_params,
-                                    rotation_matrix, state_derivative)
+from uh_sim_node.helicopter import HelicopterPlant, hover_trim
 
 P = load_helicopter_params()
 X = np.concatenate([[1.0, 2.0, 12.0], [0.8, -0.4, 0.3], [0.12, -0.08, 0.9], [0.3, -0.25, 0.4]])
@@ -167,7 +169,7 @@ def test_injected_fault_acts_on_an_existing_plant():
 
 
 # ------------------------------------------------------------------------------------------------
-# Lumped faults (DESIGN.md 2.2)
+# Lumped faults (docs/model.md, "Lumped faults")
 
 
 def test_lumped_faults_are_zero_without_faults_and_before_onset():
@@ -201,9 +203,10 @@ def test_lumped_faults_equal_the_difference_of_the_dynamics(faults):
     np.testing.assert_allclose(f_w, diff[9:12], atol=1e-12)
     np.testing.assert_array_equal(diff[0:3], 0.0)
     np.testing.assert_array_equal(diff[6:9], 0.0)
-    # closed form of F_p: thrust change along the rotor axis
-    dT = P.c_M1 * (u_act[0] - u_cmd[0])
-    np.testing.assert_allclose(f_p, dT / P.mass * rotation_matrix(X[6:9])[:, 2], atol=1e-12)
+    # the written-out closed form: F_p the thrust change along the rotor axis, F_w term by term
+    closed_p, closed_w = lumped_faults(P, X, u_cmd, u_act)
+    np.testing.assert_allclose(f_p, closed_p, atol=1e-12)
+    np.testing.assert_allclose(f_w, closed_w, atol=1e-12)
     assert np.linalg.norm(f_p) + np.linalg.norm(f_w) > 1e-3  # the fault does something
 
 

@@ -1,15 +1,21 @@
-"""Helicopter model of DESIGN.md 2.1: parameters, kinematics, trim, free fall, RK4 integration."""
+"""Helicopter model of docs/model.md: parameters, kinematics, trim, free fall, RK4 integration.
+
+The plant (:class:`uh_sim_node.helicopter.HelicopterPlant` and its kernels) is checked against the
+closed-form numpy model of ``model_oracle``; the kinematics tests check that oracle itself.
+"""
 import math
 
 import numpy as np
 import pytest
-from textbook_rk4 import rk4
+from model_oracle import (clip_inputs, euler_rate_matrix, reference_step, rotation_matrix, rotor_moments,
+                          state_derivative, thrust)
 
+from uh_controller_node.nominal_model import nominal_model
+from uh_core.airframe import HelicopterParams, HelicopterParamsError, default_params_path, load_helicopter_params
+from uh_core.layout import INPUT_NAMES
+from uh_sim_node import plant_kernels as K
 from uh_sim_node.faults import ActuatorFault, FaultSchedule
-from uh_sim_node.helicopter import (INPUT_NAMES, HelicopterParams, HelicopterParamsError, HelicopterPlant,
-                                    SinusoidalDisturbance, clip_inputs, default_params_path,
-                                    euler_rate_matrix, hover_trim, load_helicopter_params,
-                                    rotation_matrix, rotor_moments, state_derivative, thrust)
+from uh_sim_node.helicopter import HelicopterPlant, SinusoidalDisturbance, hover_trim
 
 P = load_helicopter_params()
 RNG_SEED = 20250603
@@ -38,6 +44,14 @@ def _skew(w):
     return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
 
 
+def _kernel_derivative(x, u_actual, d_p=(0.0, 0.0, 0.0)):
+    """The kernel's state derivative (12,) for the inputs ``u_actual`` (not limited) and force ``d_p``."""
+    out = np.empty(12)
+    K.state_derivative(np.asarray(x, dtype=float), np.asarray(u_actual, dtype=float),
+                       np.asarray(d_p, dtype=float), K.params_vector(P), out)
+    return out
+
+
 # ------------------------------------------------------------------------------------------------
 # Parameters
 
@@ -61,16 +75,13 @@ def test_parameters_are_read_only():
         P.mass = 1.0
 
 
-def test_scaled_and_nominal_change_only_the_named_fields():
-    nom = P.nominal(0.9)
+def test_nominal_model_mismatch_changes_only_drag_and_torque_reaction():
+    nom = nominal_model(P, 0.9)
     assert nom.D_v == pytest.approx(0.45, rel=1e-15) and nom.c_Q == pytest.approx(0.018, rel=1e-15)
     for name, value in P.as_dict().items():
         if name not in ('D_v', 'c_Q'):
-            assert nom.as_dict()[name] == value
+            np.testing.assert_array_equal(getattr(nom, name), value, err_msg=name)
     assert P.D_v == 0.5  # original untouched
-    np.testing.assert_allclose(P.scaled(inertia=2.0).inertia, 2.0 * P.inertia)
-    with pytest.raises(HelicopterParamsError, match="unknown helicopter parameter 'D_x'"):
-        P.scaled(D_x=0.9)
 
 
 def _write_params(tmp_path, **changes):
@@ -115,7 +126,7 @@ def test_parameter_file_errors_name_file_and_line(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------------
-# Kinematics
+# Kinematics (the oracle's matrices against their definitions, the kernel against the oracle)
 
 
 def test_rotation_matrix_is_zyx_and_orthonormal():
@@ -153,34 +164,34 @@ def test_euler_rate_matrix_closed_form_inverse():
 
 def test_state_derivative_kinematic_rows():
     x = _state(p=(1, 2, 3), v=(0.5, -1.0, 2.0), euler=(0.2, -0.3, 0.9), omega=(0.4, -0.7, 0.25))
-    xdot = state_derivative(P, x, hover_trim(P))
+    xdot = HelicopterPlant(P, None, x).derivative(hover_trim(P), 0.0)
     np.testing.assert_array_equal(xdot[0:3], x[3:6])                       # p' = v
     np.testing.assert_allclose(xdot[6:9], euler_rate_matrix(x[6:9]) @ x[9:12], atol=1e-15)
 
 
-def test_state_derivative_matches_vector_form_of_design_2_1():
-    """Independent matrix implementation of m v' and J omega' at a generic state and input."""
+def test_rotor_moments_are_the_flapping_and_tail_rotor_moments_of_docs_model():
+    """The oracle's Gamma written term by term (docs/model.md, "Helicopter dynamics")."""
+    w, u = np.array([0.4, -0.7, 0.25]), np.array([0.12, 0.05, -0.02, 0.03])
+    T = P.c_M1 * 0.12 + P.c_M2
+    assert thrust(P, u[0]) == T
+    np.testing.assert_allclose(rotor_moments(P, w, u),
+                               [(P.K_beta + T * P.h_M) * (P.B_lat * -0.02 - P.tau_f * 0.4),
+                                (P.K_beta + T * P.h_M) * (P.A_lon * 0.03 - P.tau_f * -0.7),
+                                P.K_tr * 0.05 - P.D_r * 0.25 - P.c_Q * T], rtol=0, atol=1e-13)
+
+
+def test_plant_derivative_matches_the_vector_form_of_docs_model():
+    """The plant's derivative (input chain, disturbance and rates in the kernels) against the
+    oracle's matrix form of m v' and J omega' at generic states, inputs and times."""
     rng = np.random.default_rng(RNG_SEED + 2)
+    dist = SinusoidalDisturbance([0.3, 0.3, 0.2], [0.5, 4.0, 3.0], [0.0, 1.0, 2.0])
     for _ in range(10):
         x = _state(p=rng.normal(size=3), v=rng.normal(size=3), euler=rng.uniform(-0.8, 0.8, 3),
                    omega=rng.normal(size=3))
         u = rng.uniform(P.input_lower, P.input_upper)
-        d = rng.normal(size=3)
-        T = P.c_M1 * u[0] + P.c_M2
-        vdot = (-P.mass * P.gravity * np.array([0, 0, 1.0]) + T * rotation_matrix(x[6:9]) @ [0, 0, 1.0]
-                - P.D_v * x[3:6] + d) / P.mass
-        J = np.diag(P.inertia)
-        w = x[9:12]
-        b1s = P.B_lat * u[2] - P.tau_f * w[0]
-        a1s = P.A_lon * u[3] - P.tau_f * w[1]
-        gamma = np.array([(P.K_beta + T * P.h_M) * b1s, (P.K_beta + T * P.h_M) * a1s,
-                          P.K_tr * u[1] - P.D_r * w[2] - P.c_Q * T])
-        wdot = np.linalg.solve(J, -np.cross(w, J @ w) + gamma)
-        xdot = state_derivative(P, x, u, d)
-        np.testing.assert_allclose(xdot[3:6], vdot, atol=1e-12)
-        np.testing.assert_allclose(xdot[9:12], wdot, atol=1e-12)
-        np.testing.assert_allclose(rotor_moments(P, w, u), gamma, atol=1e-12)
-        assert thrust(P, u[0]) == pytest.approx(T, abs=1e-12)
+        t = rng.uniform(0.0, 20.0)
+        xdot = HelicopterPlant(P, None, x, disturbance=dist).derivative(u, t)
+        np.testing.assert_allclose(xdot, state_derivative(P, x, u, dist(t)), rtol=0, atol=1e-12)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -189,13 +200,14 @@ def test_state_derivative_matches_vector_form_of_design_2_1():
 
 @pytest.mark.parametrize('yaw', [0.0, 0.7, -2.5])
 def test_hover_trim_is_an_equilibrium(yaw):
-    u = hover_trim(P, yaw=yaw)
+    """One trim holds at every heading: the model is symmetric in yaw."""
+    u = hover_trim(P)
     np.testing.assert_array_equal(clip_inputs(P, u), u)  # inside the limits
     assert thrust(P, u[0]) == pytest.approx(P.mass * P.gravity, rel=1e-14)
     x0 = _state(p=(1.0, -2.0, 10.0), euler=(0.0, 0.0, yaw))
     # exact equilibrium up to the rounding of (m g - c_M2) / c_M1 (relative 1e-16 of 80 N)
-    np.testing.assert_allclose(state_derivative(P, x0, u), np.zeros(12), atol=1e-13)
     plant = HelicopterPlant(P, None, x0, substeps=5)
+    np.testing.assert_allclose(plant.derivative(u, 0.0), np.zeros(12), atol=1e-13)
     for k in range(1000):  # 10 s at dt = 0.01
         plant.step(u, k * 0.01, 0.01)
     # a residual acceleration of 1e-14 m/s^2 moves the helicopter 5e-13 m in 10 s; 1e-9 m leaves
@@ -210,7 +222,7 @@ def test_free_fall_with_zero_thrust():
     v = np.array([1.0, -2.0, 3.0])
     d = np.array([0.2, -0.1, 0.3])
     x = _state(p=(0, 0, 50), v=v, euler=(0.3, -0.2, 1.0))  # attitude irrelevant without thrust
-    xdot = state_derivative(P, x, [u0, 0.0, 0.0, 0.0], d)
+    xdot = _kernel_derivative(x, [u0, 0.0, 0.0, 0.0], d)
     np.testing.assert_allclose(xdot[3:6], -P.gravity * np.array([0, 0, 1.0]) - P.D_v / P.mass * v + d / P.mass,
                                atol=1e-14)
     np.testing.assert_allclose(xdot[9:12], 0.0, atol=1e-15)  # K_beta b_1s = 0 at zero rates and cyclics
@@ -253,18 +265,6 @@ def test_commands_are_limited_before_they_act():
 # Integration
 
 
-def _textbook_rk4(params, x, u_cmd, t, dt, substeps, faults, dist):
-    """Plain numpy RK4 with state_derivative; faults and disturbance at the stage times."""
-    lo, hi = params.input_lower, params.input_upper
-    uc = np.clip(u_cmd, lo, hi)
-
-    def f(tt, xx, ts):
-        ua = np.clip(faults.apply(uc, tt, switch_time=ts), lo, hi)
-        return state_derivative(params, xx, ua, dist(tt))
-
-    return rk4(f, x, t, dt, substeps)
-
-
 def _maneuver():
     faults = FaultSchedule([ActuatorFault(0, 0.8, 0.0, 0.01, 0.5, 0.05),
                             ActuatorFault(2, 0.85, 0.002, 0.003, 7.0, 0.0)])
@@ -280,7 +280,7 @@ def test_step_equals_textbook_rk4_with_faults_and_disturbance():
     x = x0.copy()
     for k in range(20):  # across the onset at 0.05 s
         t = k * 0.01
-        x = _textbook_rk4(P, x, u, t, 0.01, 5, faults, dist)
+        x = reference_step(P, x, u, t, 0.01, 5, faults, dist)
         plant.step(u, t, 0.01)
         # same arithmetic in a different order: agreement to rounding of O(10) numbers
         np.testing.assert_allclose(plant.x, x, rtol=0, atol=1e-12)
@@ -316,6 +316,20 @@ def test_step_rejects_bad_construction():
         HelicopterPlant(P, None, np.full(12, np.nan))
 
 
+@pytest.mark.parametrize('disturbance', [lambda t: (0.0, 0.0, 0.1), (0.3, 0.2, 0.1), 0.3])
+def test_a_disturbance_must_be_a_sinusoid_or_none(disturbance):
+    """The kernels evaluate the sinusoid themselves; they cannot call a Python function."""
+    kind = type(disturbance).__name__
+    with pytest.raises(ValueError, match=f'disturbance must be a SinusoidalDisturbance or None, got {kind}'):
+        HelicopterPlant(P, None, None, disturbance=disturbance)
+    plant = HelicopterPlant(P, None, None, disturbance=SinusoidalDisturbance([0.1] * 3, [1.0] * 3))
+    with pytest.raises(ValueError, match='disturbance must be a SinusoidalDisturbance or None'):
+        plant.disturbance = disturbance
+    assert isinstance(plant.disturbance, SinusoidalDisturbance)   # the old one is kept
+    plant.disturbance = None
+    np.testing.assert_array_equal(plant.kernel_arrays().disturbance, 0.0)
+
+
 def test_state_property_is_a_copy():
     plant = HelicopterPlant(P, None, _state(p=(0, 0, 5)))
     x = plant.x
@@ -328,21 +342,15 @@ def test_state_property_is_a_copy():
 # Disturbance and construction from a scenario
 
 
-def test_any_disturbance_callable_is_accepted():
-    """The plant takes any t -> (3,) callable; a numpy-returning lambda equals the built-in sinusoid."""
-    amp, freq, phase = [0.3, 0.2, 0.1], [0.5, 0.4, 0.3], [0.0, 1.0, 2.0]
-    sinus = SinusoidalDisturbance(amp, freq, phase)
+def test_sinusoidal_disturbance_moves_the_helicopter():
+    """At the hover trim (an equilibrium without force) the sinusoid alone moves the helicopter."""
+    sinus = SinusoidalDisturbance([0.3, 0.2, 0.1], [0.5, 0.4, 0.3], [0.0, 1.0, 2.0])
     x0 = _state(p=(0, 0, 10))
     a = HelicopterPlant(P, None, x0, disturbance=sinus)
-    b = HelicopterPlant(P, None, x0,
-                        disturbance=lambda t: np.array(amp) * np.sin(np.array(freq) * t + np.array(phase)))
     u = hover_trim(P)
     for k in range(100):
         a.step(u, k * 0.01, 0.01)
-        b.step(u, k * 0.01, 0.01)
-    # numpy's and math's sin may differ in the last ulp: 1e-14 N -> far below 1e-12 m
-    np.testing.assert_allclose(a.x, b.x, atol=1e-12)
-    # and the disturbance moves the helicopter: d/m t^2 / 2 ~ 0.3 / 8.2 / 2 ~ 0.02 m in 1 s
+    # the disturbance moves the helicopter: d/m t^2 / 2 ~ 0.3 / 8.2 / 2 ~ 0.02 m in 1 s
     assert np.linalg.norm(a.x[0:3] - x0[0:3]) > 1e-3
     np.testing.assert_allclose(sinus(2.0), [0.3 * math.sin(1.0), 0.2 * math.sin(1.8), 0.1 * math.sin(2.6)],
                                atol=1e-16)

@@ -21,10 +21,11 @@ NAMESPACES = {'uh', 'label', 'trail', 'formation', 'hull', 'target', 'virtual_le
 
 @pytest.fixture(scope='module')
 def recorded(tmp_path_factory):
-    from uh_bringup.bag_metrics import _typestore, read_team_bag
+    from uh_bringup.bag_metrics import read_team_bag
+    from uh_runtime.messages import typestore
     from uh_topology.scenario import load_scenario
     run = shared_team_run(tmp_path_factory)
-    store = _typestore()
+    store = typestore()
     with Reader(run / 'bag') as reader:
         conns = [c for c in reader.connections if c.topic == '/markers']
         arrays = [store.deserialize_cdr(raw, c.msgtype) for c, _, raw in reader.messages(connections=conns)]

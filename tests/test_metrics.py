@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from uh_controller_node.metrics import (METRIC_KEYS, FaultedUH, MetricsError, compute_metrics,
+from uh_team.metrics import (METRIC_KEYS, FaultedUH, MetricsError, compute_metrics,
                                         containment_errors, faulted_uhs, hull_distance,
                                         point_segment_distance, point_triangle_distance)
 

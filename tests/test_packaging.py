@@ -1,4 +1,6 @@
-"""The repository is a set of real ROS 2 Jazzy packages (DESIGN.md section 1)."""
+"""The repository is a set of real ROS 2 Jazzy packages whose dependencies run one way
+(docs/architecture.md)."""
+import ast
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -7,7 +9,7 @@ import pytest
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 ROOT = Path(__file__).resolve().parents[1]
-PYTHON_PACKAGES = ['uh_runtime', 'uh_topology', 'uh_sim_node', 'uh_controller_node', 'uh_bringup']
+PYTHON_PACKAGES = ['uh_runtime', 'uh_core', 'uh_topology', 'uh_sim_node', 'uh_controller_node', 'uh_team', 'uh_bringup']
 ALL_PACKAGES = ['uh_msgs', *PYTHON_PACKAGES]
 
 
@@ -45,3 +47,53 @@ def test_every_msg_is_generated_and_parses():
         types = get_types_from_msg(text, f'uh_msgs/msg/{name}')
         store.register(types)
         assert store.hash_rihs01(f'uh_msgs/msg/{name}').startswith('RIHS01_')
+
+
+#: the layers of docs/architecture.md, lowest first: a package may depend only on lower layers
+LAYERS = [['uh_msgs'], ['uh_runtime'], ['uh_core'], ['uh_topology'], ['uh_sim_node', 'uh_controller_node'],
+          ['uh_team'], ['uh_bringup']]
+LAYER_OF = {pkg: n for n, layer in enumerate(LAYERS) for pkg in layer}
+
+
+def _first_party_depends(pkg):
+    root = ET.parse(ROOT / pkg / 'package.xml').getroot()
+    return {e.text for e in root.iter() if e.tag.endswith('depend') and e.text in LAYER_OF}
+
+
+def _imported_packages(pkg):
+    """First-party packages imported anywhere in ``pkg``'s modules (module level or in functions)."""
+    found = {}
+    for path in sorted((ROOT / pkg / pkg).rglob('*.py')):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module]
+            for name in names:
+                top = name.split('.')[0]
+                if top in LAYER_OF and top != pkg:
+                    found.setdefault(top, f'{path.relative_to(ROOT)}:{node.lineno}')
+    return found
+
+
+def test_every_package_is_in_a_layer():
+    assert set(ALL_PACKAGES) == set(LAYER_OF)
+
+
+@pytest.mark.parametrize('pkg', PYTHON_PACKAGES)
+def test_dependencies_run_one_way(pkg):
+    """package.xml names only lower layers, and the code imports only what package.xml names:
+    the simulator and the controller never import each other, nothing imports uh_bringup."""
+    depends = _first_party_depends(pkg)
+    upward = sorted(d for d in depends if LAYER_OF[d] >= LAYER_OF[pkg])
+    assert not upward, f'{pkg}/package.xml depends on {upward}, which are not below it'
+    undeclared = {top: where for top, where in _imported_packages(pkg).items() if top not in depends}
+    assert not undeclared, f'{pkg} imports packages its package.xml does not declare: {undeclared}'
+
+
+@pytest.mark.parametrize('pkg', PYTHON_PACKAGES)
+def test_setup_py_declares_the_package_xml_dependencies(pkg):
+    setup = (ROOT / pkg / 'setup.py').read_text()
+    required = set(re.findall(r"'(uh_\w+)'", setup[setup.index('install_requires'):]))
+    assert _first_party_depends(pkg) - {'uh_msgs'} <= required

@@ -1,18 +1,24 @@
-"""Compiled kernels of the helicopter model (uh_sim_node.plant_kernels, DESIGN.md 2.1, 2.2).
+"""Compiled kernels of the helicopter model (uh_sim_node.plant_kernels; docs/model.md, docs/faults.md)
+and the guard of their on-disk cache (uh_core.kernel_cache).
 
-The reference here is independent of the kernels: a numpy matrix form of the dynamics, textbook RK4
-on whole vectors, and eq. 6 evaluated by ``ActuatorFault.apply`` in Python.
+The reference here is independent of the kernels: the numpy matrix form of the dynamics and its
+written-out lumped faults (``model_oracle``), textbook RK4 on whole vectors, and eq. 6 evaluated by
+``ActuatorFault.apply`` in Python.
 """
-import math
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from textbook_rk4 import rk4
+from model_oracle import lumped_faults, reference_step, state_derivative
 from numba import njit
 
+from uh_core import kernel_cache, layout
+from uh_core.airframe import load_helicopter_params
+from uh_core.layout import NUM_CHANNELS
 from uh_sim_node import plant_kernels as K
-from uh_sim_node.faults import NUM_CHANNELS, ONSET_TOLERANCE, ActuatorFault, FaultError, FaultSchedule
-from uh_sim_node.helicopter import HelicopterPlant, SinusoidalDisturbance, hover_trim, load_helicopter_params
+from uh_sim_node.faults import ONSET_TOLERANCE, ActuatorFault, FaultError, FaultSchedule
+from uh_sim_node.helicopter import HelicopterPlant, SinusoidalDisturbance, hover_trim
 
 P = load_helicopter_params()
 DT = 0.01
@@ -20,47 +26,6 @@ SUBSTEPS = 5
 X0 = np.concatenate([[1.0, 2.0, 12.0], [0.8, -0.4, 0.3], [0.12, -0.08, 0.9], [0.3, -0.25, 0.4]])
 U = hover_trim(P) + np.array([0.02, -0.01, 0.01, -0.015])  # inside the limits
 DIST = SinusoidalDisturbance([0.3, 0.3, 0.2], [0.5, 4.0, 3.0], [0.0, 1.0, 2.0])
-
-
-# ------------------------------------------------------------------------------------------------
-# Independent reference
-
-
-def _rotation(phi, th, psi):
-    rx = np.array([[1, 0, 0], [0, math.cos(phi), -math.sin(phi)], [0, math.sin(phi), math.cos(phi)]])
-    ry = np.array([[math.cos(th), 0, math.sin(th)], [0, 1, 0], [-math.sin(th), 0, math.cos(th)]])
-    rz = np.array([[math.cos(psi), -math.sin(psi), 0], [math.sin(psi), math.cos(psi), 0], [0, 0, 1]])
-    return rz @ ry @ rx
-
-
-def _derivative(x, u, d):
-    """DESIGN.md 2.1 in matrix form, (12,)."""
-    v, euler, w = x[3:6], x[6:9], x[9:12]
-    phi, th, _ = euler
-    T = P.c_M1 * u[0] + P.c_M2
-    e3 = np.array([0.0, 0.0, 1.0])
-    vdot = (-P.mass * P.gravity * e3 + T * _rotation(*euler) @ e3 - P.D_v * v + d) / P.mass
-    H = np.array([[1, math.sin(phi) * math.tan(th), math.cos(phi) * math.tan(th)],
-                  [0, math.cos(phi), -math.sin(phi)],
-                  [0, math.sin(phi) / math.cos(th), math.cos(phi) / math.cos(th)]])
-    J = np.diag(P.inertia)
-    k = P.K_beta + T * P.h_M
-    gamma = np.array([k * (P.B_lat * u[2] - P.tau_f * w[0]), k * (P.A_lon * u[3] - P.tau_f * w[1]),
-                      P.K_tr * u[1] - P.D_r * w[2] - P.c_Q * T])
-    wdot = np.linalg.solve(J, -np.cross(w, J @ w) + gamma)
-    return np.concatenate([v, vdot, H @ w, wdot])
-
-
-def _reference_step(x, u_cmd, t, dt, substeps, schedule, dist):
-    """Textbook RK4; eq. 6 with the activity decided at each substep start, limits before and after."""
-    lo, hi = P.input_lower, P.input_upper
-    uc = np.clip(u_cmd, lo, hi)
-    zero = (lambda tt: np.zeros(3)) if dist is None else (lambda tt: np.array(dist(tt)))
-
-    def f(tt, xx, ts):
-        return _derivative(xx, np.clip(schedule.apply(uc, tt, switch_time=ts), lo, hi), zero(tt))
-
-    return rk4(f, x, t, dt, substeps)
 
 
 def _arrays(faults=(), dist=None):
@@ -117,7 +82,7 @@ def test_state_derivative_kernel_equals_matrix_form():
         d = rng.normal(size=3)
         K.state_derivative(x, u, d, params, out)
         # differences of O(100) terms in another order: a few ulps of 100
-        np.testing.assert_allclose(out, _derivative(x, u, d), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(out, state_derivative(P, x, u, d), rtol=0, atol=1e-12)
 
 
 def test_plant_step_equals_textbook_rk4_with_faults_disturbance_and_onset():
@@ -130,7 +95,7 @@ def test_plant_step_equals_textbook_rk4_with_faults_disturbance_and_onset():
     for k in range(12):  # across both onsets
         t = k * DT
         K.plant_step(x, U, t, DT, SUBSTEPS, params, faults, dist)
-        ref = _reference_step(ref, U, t, DT, SUBSTEPS, schedule, DIST)
+        ref = reference_step(P, ref, U, t, DT, SUBSTEPS, schedule, DIST)
         # same arithmetic in another order on O(10) numbers, propagated over 12 steps
         np.testing.assert_allclose(x, ref, rtol=0, atol=1e-12)
 
@@ -161,7 +126,7 @@ def test_a_fault_switches_on_at_the_first_substep_start_after_its_onset():
     assert np.max(np.abs(mid - step(0.012))) > 1e-7          # one more substep of fault: 2 ms x ~10 m/s^2
     assert np.max(np.abs(mid - step(0.05))) > 1e-7           # and the fault does act within the step
     schedule = FaultSchedule([ActuatorFault(0, 0.7, 0.01, onset_time=0.013)])
-    np.testing.assert_allclose(mid, _reference_step(X0, U, 0.01, DT, SUBSTEPS, schedule, None),
+    np.testing.assert_allclose(mid, reference_step(P, X0, U, 0.01, DT, SUBSTEPS, schedule),
                                rtol=0, atol=1e-12)
 
 
@@ -179,17 +144,6 @@ def test_kernel_onset_test_is_the_schedules_within_the_tolerance():
         assert bool(ua[0] == 0.5 * uc[0]) is acts and ua[0] != 0.0, shift
 
 
-def test_sampled_disturbance_equals_the_sinusoid_table():
-    params, faults, dist = _arrays([ActuatorFault(3, 0.75, -0.005)], DIST)
-    times = K.disturbance_sample_times(0.3, DT, SUBSTEPS)
-    assert len(times) == 2 * SUBSTEPS + 1 and times[0] == 0.3 and times[-1] == pytest.approx(0.31, abs=1e-15)
-    samples = np.array([DIST(t) for t in times])
-    a, b = X0.copy(), X0.copy()
-    K.plant_step(a, U, 0.3, DT, SUBSTEPS, params, faults, dist)
-    K.plant_step_sampled(b, U, 0.3, DT, SUBSTEPS, params, faults, samples)
-    np.testing.assert_array_equal(a, b)  # the same floats reach the same arithmetic
-
-
 def test_input_chain_limits_before_and_after_the_fault():
     params = K.params_vector(P)
     faults = K.fault_table([ActuatorFault(2, 1.0, 0.2), ActuatorFault(1, 0.5, -0.4), ActuatorFault(0, 0.0, 0.11)])
@@ -203,7 +157,7 @@ def test_input_chain_limits_before_and_after_the_fault():
 # Lumped faults
 
 
-def test_lumped_faults_kernel_equals_difference_of_the_dynamics():
+def test_lumped_faults_kernel_equals_the_written_out_closed_form():
     schedule = FaultSchedule([ActuatorFault(0, 0.85, -0.01, onset_time=1.0),
                               ActuatorFault(2, 0.8, 0.0, 0.005, 0.3, onset_time=1.0)])
     params, faults, _ = _arrays(schedule.faults)
@@ -214,10 +168,10 @@ def test_lumped_faults_kernel_equals_difference_of_the_dynamics():
     K.lumped_faults(X0, U, t, params, faults, f_p, f_w)
     u_cmd = np.clip(U, P.input_lower, P.input_upper)
     u_act = np.clip(schedule.apply(u_cmd, t), P.input_lower, P.input_upper)
-    diff = _derivative(X0, u_act, np.zeros(3)) - _derivative(X0, u_cmd, np.zeros(3))
+    closed_p, closed_w = lumped_faults(P, X0, u_cmd, u_act)
     # differences of O(10) quantities computed in another order
-    np.testing.assert_allclose(f_p, diff[3:6], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(f_w, diff[9:12], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(f_p, closed_p, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(f_w, closed_w, rtol=0, atol=1e-12)
     assert np.linalg.norm(f_p) > 1e-2 and np.linalg.norm(f_w) > 1e-2
 
 
@@ -270,16 +224,15 @@ def test_replacing_the_schedule_object_is_followed_too():
 def test_plant_rejects_bad_faults_disturbance_and_commands():
     with pytest.raises(FaultError, match='faults must be a FaultSchedule or None, got list'):
         HelicopterPlant(P, [ActuatorFault(0, 0.5)], X0)
-    with pytest.raises(ValueError, match='disturbance must be a SinusoidalDisturbance, a callable .* got float'):
+    with pytest.raises(ValueError, match='disturbance must be a SinusoidalDisturbance or None, got float'):
         HelicopterPlant(P, None, X0, disturbance=0.3)
     plant = HelicopterPlant(P, None, X0)
     with pytest.raises(ValueError, match=r'command u_cmd must have 4 elements .* got shape \(3,\)'):
         plant.step([0.1, 0.0, 0.0], 0.0, DT)
     with pytest.raises(ValueError, match=r'command u_cmd must have 4 elements .* got shape \(5,\)'):
         plant.lumped_faults(np.zeros(5), 0.0)
-    callable_plant = HelicopterPlant(P, None, X0, disturbance=lambda t: (0.0, 0.0, 0.1))
-    with pytest.raises(ValueError, match='is a Python callable, not a SinusoidalDisturbance'):
-        callable_plant.kernel_arrays()
+    with pytest.raises(ValueError, match='disturbance must be a SinusoidalDisturbance or None, got function'):
+        HelicopterPlant(P, None, X0, disturbance=lambda t: (0.0, 0.0, 0.1))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -321,7 +274,7 @@ def test_kernels_called_from_njit_code_equal_the_plants():
 
 def test_compile_plant_kernels_compiles_every_public_kernel():
     assert K.compile_plant_kernels() >= 0.0
-    for name in ('plant_step', 'plant_step_sampled', 'lumped_faults', 'lumped_faults_of_inputs',
+    for name in ('plant_step', 'lumped_faults', 'lumped_faults_of_inputs',
                  'state_derivative', 'actual_inputs', 'force_disturbance'):
         assert getattr(K, name).signatures, name
 
@@ -337,3 +290,69 @@ def test_commands_of_any_array_kind_give_the_same_step():
     # no read-only or non-contiguous specialisation was compiled
     for sig in K.plant_step.signatures:
         assert all(arg.mutable and arg.layout == 'C' for arg in sig if hasattr(arg, 'layout')), sig
+
+
+# ------------------------------------------------------------------------------------------------
+# The cache guard: numba re-validates a kernel against its own file only
+
+
+class _FakeCache:
+    """What :func:`uh_core.kernel_cache.refresh_cache` uses of a numba dispatcher's ``_cache``."""
+
+    def __init__(self, path):
+        self.cache_path = str(path)
+        self.flushes = 0
+
+    def flush(self):
+        self.flushes += 1
+
+
+def _fake_dispatcher(path, module='uh_fake.kernels'):
+    return SimpleNamespace(_cache=_FakeCache(path), py_func=SimpleNamespace(__module__=module))
+
+
+def test_cache_is_flushed_when_a_dependency_changes_and_only_then(tmp_path):
+    cache_dir = tmp_path / '__pycache__'
+    cache_dir.mkdir()
+    deps = [tmp_path / 'layout.py', tmp_path / 'faults.py']
+    deps[0].write_text('STATE_SIZE = 12\n')
+    deps[1].write_text('ONSET_TOLERANCE = 1e-9\n')
+    a, b = _fake_dispatcher(cache_dir), _fake_dispatcher(cache_dir)
+
+    def refresh():
+        return kernel_cache.refresh_cache([a, b], deps)   # marker named after the module: kernels.*
+
+    def flushes():
+        return a._cache.flushes, b._cache.flushes
+
+    assert refresh() and flushes() == (1, 1)           # no marker yet: whatever is cached is suspect
+    marker = cache_dir / 'kernels.dependencies.sha256'
+    assert marker.read_text().strip() == kernel_cache.dependency_digest(deps)
+    assert not refresh() and flushes() == (1, 1)       # unchanged: the cache is kept
+    deps[0].write_text('STATE_SIZE = 12\n')           # rewritten with the same content (new mtime)
+    assert not refresh() and flushes() == (1, 1)
+    deps[0].write_text('STATE_SIZE = 13\n')           # an edit of a dependency
+    assert refresh() and flushes() == (2, 2)
+    assert not refresh() and flushes() == (2, 2)
+    deps[1].write_text('ONSET_TOLERANCE = 2e-9\n')    # any of them
+    assert refresh() and flushes() == (3, 3)
+    assert not refresh() and flushes() == (3, 3)
+
+
+def test_cache_guard_leaves_what_it_cannot_read_or_use_alone(tmp_path):
+    dispatcher = _fake_dispatcher(tmp_path)
+    assert not kernel_cache.refresh_cache([dispatcher], [tmp_path / 'missing.py'], 'm.sha256')
+    assert not kernel_cache.refresh_cache([SimpleNamespace(_cache=object())], [], 'm.sha256')  # caching off
+    assert not kernel_cache.refresh_cache([], [], 'm.sha256')
+    assert dispatcher._cache.flushes == 0
+
+
+def test_module_dispatchers_are_the_cached_kernels_defined_in_the_module(tmp_path):
+    own, imported = _fake_dispatcher(tmp_path, 'uh_fake.kernels'), _fake_dispatcher(tmp_path, 'uh_fake.other')
+    namespace = {'__name__': 'uh_fake.kernels', 'own': own, 'imported': imported, 'constant': 12, 'np': np}
+    assert kernel_cache.module_dispatchers(namespace) == [own]
+    found = kernel_cache.module_dispatchers(vars(K))
+    assert K.plant_step in found and K._rates in found and K._clip in found
+    # plant_kernels registered the digest of uh_core/layout.py on import: nothing to flush now
+    assert not kernel_cache.refresh_cache(found, [layout.__file__])
+    assert (Path(K.plant_step._cache.cache_path) / 'plant_kernels.dependencies.sha256').is_file()

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 import yaml
 
-from uh_controller_node.metrics import METRIC_KEYS, metrics_from_arrays
-from uh_controller_node.simulate_cli import _Progress, main
-from uh_controller_node.team_simulation import SimulationError, run_team_simulation
+from uh_team.metrics import METRIC_KEYS, metrics_from_arrays
+from uh_team.simulate_cli import _Progress, main
+from uh_team.team_simulation import SimulationError, run_team_simulation
 from uh_topology.scenario import load_scenario
 
 GAINS_FILE = Path(__file__).resolve().parents[1] / 'uh_topology' / 'uh_topology' / 'config' / 'paper_gains.yaml'
@@ -93,24 +93,6 @@ def test_team_kernel_equals_the_per_uh_objects_bit_for_bit(full_run, paper):
     assert np.abs(kernel.fault_true_p[rows - 1]).max() > 0.0   # the faults acted in the compared span
 
 
-def test_a_python_callable_disturbance_runs_on_the_object_loop(full_run, paper, monkeypatch):
-    """njit code cannot call a Python function: a plant with one makes the run fall back to the
-    object loop (same kernels, the force sampled in Python), with the same result."""
-    from uh_sim_node import helicopter
-
-    real = helicopter.disturbance_from_spec
-    calls = []
-
-    def as_callable(spec, uh_id):
-        sinusoid = real(spec, uh_id)
-        return lambda t: calls.append(t) or sinusoid(t)
-
-    monkeypatch.setattr(helicopter, 'disturbance_from_spec', as_callable)
-    fallback = run_team_simulation(paper, 'proposed', duration=0.5)
-    assert calls   # the Python function was called: the object loop ran
-    assert np.array_equal(fallback.states, full_run[0].states[:fallback.time.size])
-
-
 def test_simulation_rejects_bad_requests(paper):
     with pytest.raises(SimulationError, match="unknown engine 'fortran'; allowed: kernel, objects"):
         run_team_simulation(paper, 'proposed', engine='fortran')
@@ -156,7 +138,7 @@ def test_cli_refuses_a_non_empty_output_directory_unless_forced(tmp_path, capsys
     (['--scenario', 'paper', '--case', 'case3'], 2, "invalid choice: 'case3'"),
 ])
 def test_cli_bad_input_exits_non_zero_without_traceback(tmp_path, args, status, message):
-    proc = subprocess.run([sys.executable, '-m', 'uh_controller_node.simulate_cli', *args,
+    proc = subprocess.run([sys.executable, '-m', 'uh_team.simulate_cli', *args,
                            '--out', str(tmp_path / 'o')], capture_output=True, text=True, timeout=120)
     assert proc.returncode == status
     assert message in proc.stderr
@@ -173,7 +155,7 @@ def test_cli_reports_an_invalid_scenario_file(tmp_path, capsys):
 
 
 def test_cli_help_names_every_option():
-    proc = subprocess.run([sys.executable, '-m', 'uh_controller_node.simulate_cli', '--help'],
+    proc = subprocess.run([sys.executable, '-m', 'uh_team.simulate_cli', '--help'],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0
     for option in ('--scenario', '--case', '--out', '--duration', '--force'):
@@ -198,7 +180,7 @@ def test_cli_reports_invalid_gains_without_traceback(tmp_path):
     text = paper_yaml.read_text()
     assert 'gains: paper_gains.yaml' in text
     (tmp_path / 'scenario.yaml').write_text(text.replace('gains: paper_gains.yaml', 'gains: bad_gains.yaml'))
-    proc = subprocess.run([sys.executable, '-m', 'uh_controller_node.simulate_cli', '--scenario',
+    proc = subprocess.run([sys.executable, '-m', 'uh_team.simulate_cli', '--scenario',
                            str(tmp_path / 'scenario.yaml'), '--out', str(tmp_path / 'o')],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
@@ -208,7 +190,7 @@ def test_cli_reports_invalid_gains_without_traceback(tmp_path):
 
 def test_cli_survives_a_closed_stdout(tmp_path):
     # e.g. `uh-simulate ... | head -1`: the files are written and nothing is reported as an error
-    proc = subprocess.Popen([sys.executable, '-m', 'uh_controller_node.simulate_cli', '--scenario', 'paper',
+    proc = subprocess.Popen([sys.executable, '-m', 'uh_team.simulate_cli', '--scenario', 'paper',
                              '--out', str(tmp_path / 'o'), '--duration', '0.2'],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     proc.stdout.close()
@@ -220,11 +202,14 @@ def test_cli_survives_a_closed_stdout(tmp_path):
 
 def test_team_kernel_cache_is_emptied_when_the_kernels_it_calls_change():
     """numba checks a cached kernel against its own file only; the team kernel's cache index is
-    emptied when control_kernels.py, plant_kernels.py or faults.py no longer match its digest."""
+    emptied when control_kernels.py, plant_kernels.py, faults.py or uh_core/layout.py no longer
+    match its digest."""
     from pathlib import Path
 
-    from uh_controller_node import team_kernel
+    from uh_team import team_kernel
 
+    assert sorted(p.name for p in team_kernel._DEPENDENCIES) == [
+        'control_kernels.py', 'faults.py', 'layout.py', 'plant_kernels.py']
     marker = Path(team_kernel.run_team_steps._cache.cache_path) / 'team_kernel.dependencies.sha256'
     team_kernel.refresh_cache()
     assert marker.is_file() and not team_kernel.refresh_cache()   # up to date: left alone

@@ -13,7 +13,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
-    install_requires=['numpy', 'PyYAML', 'rosbags', 'uh_runtime', 'uh_topology', 'uh_sim_node', 'uh_controller_node'],
+    install_requires=['numpy', 'PyYAML', 'rosbags', 'uh_runtime', 'uh_core', 'uh_topology', 'uh_sim_node', 'uh_controller_node', 'uh_team'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',

@@ -14,16 +14,15 @@ setup(
         ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
     ],
     package_data={package_name: ['config/*.yaml']},
-    install_requires=['numpy', 'numba', 'PyYAML', 'uh_topology', 'uh_sim_node', 'uh_runtime'],
+    install_requires=['numpy', 'numba', 'PyYAML', 'uh_core', 'uh_topology', 'uh_runtime'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',
-    description='Composite-learning inverse-optimal fault-tolerant formation-containment controller (per UH), its node, the in-process reference simulation and the metrics.',
+    description='Composite-learning inverse-optimal fault-tolerant formation-containment controller (per UH), its node.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
             'controller_node = uh_controller_node.controller_node:main',
-            'uh-simulate = uh_controller_node.simulate_cli:main',
         ],
     },
 )

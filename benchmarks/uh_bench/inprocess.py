@@ -1,6 +1,6 @@
 """In-process measurements: the reference simulation's real-time factor and per-step costs.
 
-:func:`reference_rtf` times :func:`uh_controller_node.team_simulation.run_team_simulation` (its own
+:func:`reference_rtf` times :func:`uh_team.team_simulation.run_team_simulation` (its own
 ``wall_time``: the stepping loop, without loading). :func:`component_costs` repeats that loop
 with a timer around each call, giving the cost of one UH-step of the controller
 (``UHController.step``), of the helicopter model (``HelicopterPlant.step``: RK4 over one control
@@ -17,7 +17,7 @@ __all__ = ['reference_rtf', 'component_costs']
 
 def reference_rtf(scenario, duration: float | None = None, case: str = 'proposed') -> dict:
     """Real-time factor of the in-process reference run of ``scenario`` (a Scenario or path/name)."""
-    from uh_controller_node.team_simulation import run_team_simulation
+    from uh_team.team_simulation import run_team_simulation
     from uh_topology.scenario import load_scenario
 
     sc = load_scenario(scenario)
@@ -35,7 +35,8 @@ def component_costs(scenario, steps: int = 1000, case: str = 'proposed') -> dict
     call. The first 50 steps (start-up transients, first-call caches) are left out.
     """
     from uh_controller_node.controller import UHController
-    from uh_sim_node.helicopter import load_helicopter_params, plant_from_scenario
+    from uh_core.airframe import load_helicopter_params
+    from uh_sim_node.helicopter import plant_from_scenario
     from uh_sim_node.reference import VirtualLeaderReference
     from uh_topology.scenario import load_scenario
 

@@ -1,38 +1,47 @@
-"""ROS 2 launch file of a team (ROS 2 Jazzy machines): the same nodes scripts/run_formation.sh starts.
+"""ROS 2 launch file of a team (ROS 2 Jazzy machines): the nodes ``scripts/run_formation.sh`` starts.
 
     ros2 launch uh_bringup formation.launch.py scenario:=paper case:=proposed clock_mode:=lockstep
 
-Recording on a ROS 2 machine: start ``ros2 run uh_runtime recorder_node --ros-args -p output:=bag``
-(lockstep waits for it with ``expect_recorder:=true``) or use ``ros2 bag record -s mcap -a`` in
-real-time mode.
+The node list comes from :func:`uh_bringup.team_nodes.node_specs`, the same function the run script
+uses: a recorder (bag in ``out``), one simulator and one controller per helicopter, the
+visualisation node (``visualization:=false`` leaves it out), the virtual leader and the clock.
+The launch ends when the clock ends (run complete), and in lockstep also when any node dies (every
+step needs every node).
 """
+import datetime
+
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 
 def _team(context):
-    from uh_topology import topics
+    from uh_bringup.team_nodes import NODES, node_specs
     from uh_topology.scenario import load_scenario
 
-    scenario_arg = LaunchConfiguration('scenario').perform(context)
-    scenario = load_scenario(scenario_arg)
-    common = {'scenario': scenario_arg, 'clock_mode': LaunchConfiguration('clock_mode').perform(context)}
-    nodes = []
-    for i in scenario.ids:
-        ns = topics.uh_namespace(i).lstrip('/')
-        nodes.append(Node(package='uh_sim_node', executable='sim_node', name='sim', namespace=ns,
-                          parameters=[{**common, 'uh_id': i}], output='screen'))
-        nodes.append(Node(package='uh_controller_node', executable='controller_node', name='controller',
-                          namespace=ns, output='screen',
-                          parameters=[{**common, 'uh_id': i, 'case': LaunchConfiguration('case').perform(context)}]))
-    nodes.append(Node(package='uh_sim_node', executable='virtual_leader_node', name='virtual_leader',
-                      parameters=[common], output='screen'))
-    nodes.append(Node(package='uh_sim_node', executable='lockstep_clock_node', name='clock', output='screen',
-                      parameters=[{**common, 'rate': float(LaunchConfiguration('rate').perform(context)),
-                                   'expect_recorder': LaunchConfiguration('expect_recorder').perform(context) == 'true'}]))
-    return nodes
+    def arg(name):
+        return LaunchConfiguration(name).perform(context)
+
+    scenario_arg, clock_mode = arg('scenario'), arg('clock_mode')
+    out = arg('out') or f'runs/launch_{datetime.datetime.now():%Y%m%d_%H%M%S}'
+    duration = float(arg('duration')) if arg('duration') else None
+    specs = node_specs(load_scenario(scenario_arg), scenario_arg, arg('case'), clock_mode, float(arg('rate')),
+                       duration, f'{out}/bag', float(arg('startup_timeout')), float(arg('stale_timeout')),
+                       visualization=arg('visualization') == 'true')
+    actions = []
+    for name, kind, ros_args in specs:
+        # the namespace and parameters are in ros_args (--ros-args ...), as the run script passes them
+        node = Node(package=NODES[kind].package, executable=NODES[kind].executable, arguments=ros_args,
+                    output='screen')
+        actions.append(node)
+        if kind == 'clock' or clock_mode == 'lockstep':
+            reason = 'run complete' if kind == 'clock' else f'{name} exited (lockstep needs every node)'
+            actions.append(RegisterEventHandler(OnProcessExit(
+                target_action=node, on_exit=[EmitEvent(event=Shutdown(reason=reason))])))
+    return actions
 
 
 def generate_launch_description():
@@ -41,7 +50,12 @@ def generate_launch_description():
         DeclareLaunchArgument('case', default_value='proposed', description='proposed | case1 | case2'),
         DeclareLaunchArgument('clock_mode', default_value='realtime', description='lockstep | realtime'),
         DeclareLaunchArgument('rate', default_value='1.0', description='realtime factor'),
-        DeclareLaunchArgument('expect_recorder', default_value='false',
-                              description='lockstep: wait for the recorder node'),
+        DeclareLaunchArgument('duration', default_value='', description="simulated s (default: the scenario's)"),
+        DeclareLaunchArgument('out', default_value='', description='run directory; the bag goes to OUT/bag '
+                              '(default runs/launch_<timestamp>)'),
+        DeclareLaunchArgument('visualization', default_value='true', description='start the visualisation node'),
+        DeclareLaunchArgument('startup_timeout', default_value='60.0', description='s to wait for all nodes'),
+        DeclareLaunchArgument('stale_timeout', default_value='0.25',
+                              description='realtime: simulated s after which a neighbour is stale'),
         OpaqueFunction(function=_team),
     ])

@@ -3,7 +3,7 @@
 :func:`read_team_bag` turns the per-step topics of a bag into arrays indexed by step and UH (in
 ``scenario.ids`` order), the same layout as the in-process reference simulation's
 ``timeseries.npz``; :func:`write_metrics_from_bag` computes ``metrics.json`` from them with the one
-metrics module (:mod:`uh_controller_node.metrics`).
+metrics module (:mod:`uh_team.metrics`).
 
 A bag that cannot be read raises :class:`BagContentError` saying which file and why: no such
 directory, a file instead of a bag directory, no ``metadata.yaml``, a file that is not MCAP, an MCAP
@@ -26,12 +26,6 @@ class BagContentError(ValueError):
     """The bag is unreadable or lacks data the metrics need; the message names the file and topic."""
 
 
-def _typestore():
-    """rosbags' Jazzy type store with the uh_msgs types (the bag writer's, built once per process)."""
-    from uh_runtime.bag import _typestore as bag_typestore
-    return bag_typestore()[0]
-
-
 def _vec(v) -> list:
     return [v.x, v.y, v.z]
 
@@ -47,12 +41,13 @@ def read_team_bag(bag_dir, scenario) -> dict:
     from rosbags.rosbag2 import Reader
     from rosbags.rosbag2.errors import ReaderError
 
-    from uh_topology import topics
+    from uh_core import topics
+    from uh_runtime.messages import typestore
 
     bag_dir = Path(bag_dir)
     ids = list(scenario.ids)
     col = {i: c for c, i in enumerate(ids)}
-    store = _typestore()
+    store = typestore()
     _check_bag_dir(bag_dir)
     try:
         reader = Reader(bag_dir)
@@ -144,7 +139,7 @@ def _check_bag_dir(bag_dir: Path) -> None:
 
 def _diagnose_mcap(bag_dir: Path) -> str:
     """What is wrong with the bag's MCAP file, as a sentence to append to an error (or '')."""
-    from uh_runtime.bag import BagError, bag_file, read_messages
+    from uh_runtime.bag_reader import BagError, bag_file, read_messages
     try:
         result = read_messages(bag_file(bag_dir))
     except BagError as exc:
@@ -158,7 +153,7 @@ def _diagnose_mcap(bag_dir: Path) -> str:
 
 def write_metrics_from_bag(bag_dir, scenario, case: str, out_path, wall_time_s: float | None = None) -> dict:
     """Compute the metrics of DESIGN.md 2.8 from a team bag and write them to ``out_path`` (JSON)."""
-    from uh_controller_node.metrics import metrics_from_arrays
+    from uh_team.metrics import metrics_from_arrays
 
     arrays = read_team_bag(bag_dir, scenario)
     metrics = metrics_from_arrays(arrays, scenario, case, wall_time_s=wall_time_s)

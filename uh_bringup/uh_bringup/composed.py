@@ -1,6 +1,7 @@
 """Several nodes in one process, spun by one executor (ROS 2 composition, manual style).
 
-``python -m uh_bringup.composed SPEC.json`` builds every node listed in the JSON file::
+``python -m uh_bringup.composed SPEC.json`` builds every node listed in the JSON file (node kinds of
+:data:`uh_bringup.team_nodes.NODES`)::
 
     [{"node": "sim", "cli_args": ["--ros-args", "-r", "__ns:=/uh1", "-p", "uh_id:=1", ...]}, ...]
 
@@ -11,31 +12,13 @@ per node: the lockstep data flow does not depend on which process a node lives i
 """
 from __future__ import annotations
 
-import importlib
 import json
 import sys
 
 import uh_runtime as rt
+from uh_bringup.team_nodes import node_class
 
-__all__ = ['NODE_CLASSES', 'main']
-
-#: node kind -> "module:Class" of its node class (the same classes the entry points run)
-NODE_CLASSES = {
-    'sim': 'uh_sim_node.sim_node:SimNode',
-    'controller': 'uh_controller_node.controller_node:ControllerNode',
-    'virtual_leader': 'uh_sim_node.virtual_leader_node:VirtualLeaderNode',
-    'visualization': 'uh_sim_node.visualization_node:VisualizationNode',
-    'clock': 'uh_sim_node.clock_node:ClockNode',
-    'recorder': 'uh_runtime.recorder:RecorderNode',
-}
-
-
-def _node_class(kind: str):
-    try:
-        module, cls = NODE_CLASSES[kind].split(':')
-    except KeyError:
-        raise ValueError(f'unknown node kind {kind!r}; allowed: {", ".join(NODE_CLASSES)}') from None
-    return getattr(importlib.import_module(module), cls)
+__all__ = ['main']
 
 
 def main(argv=None) -> int:
@@ -53,7 +36,7 @@ def main(argv=None) -> int:
 
     def build():
         for spec in specs:
-            nodes.append(_node_class(spec['node'])(cli_args=list(spec.get('cli_args', []))))
+            nodes.append(node_class(spec['node'])(cli_args=list(spec.get('cli_args', []))))
         return nodes
 
     def finished(_first):

@@ -19,17 +19,16 @@ import re
 import sys
 import time
 
+from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
 from uh_runtime.network import MAX_DOMAIN_ID, loopback_config
 
-__all__ = ['main', 'CHANNELS']
-
-CHANNELS = {'collective': 0, 'tail_rotor': 1, 'lateral': 2, 'longitudinal': 3}
+__all__ = ['main']
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog='inject_fault.sh', description=__doc__.split('\n\n')[0])
     p.add_argument('--uh', type=int, required=True, help='helicopter index N (topic /uhN/fault)')
-    p.add_argument('--channel', required=True, choices=sorted(CHANNELS), help='actuator channel')
+    p.add_argument('--channel', required=True, choices=sorted(CHANNEL_NAMES), help='actuator channel')
     p.add_argument('--rho', type=float, default=1.0, help='loss-of-effectiveness factor in [0, 1] (0 = stuck)')
     p.add_argument('--bias', type=float, default=0.0, help='constant bias, rad')
     p.add_argument('--amplitude', type=float, default=0.0, help='sinusoidal bias amplitude, rad')
@@ -78,7 +77,7 @@ def main(argv=None) -> int:
         parser.exit(2, f'{parser.prog}: error: --timeout {args.timeout}: allowed > 0 .. 3600 s\n')
     from uh_sim_node.faults import ActuatorFault, FaultError
     try:
-        fault = ActuatorFault(channel=CHANNELS[args.channel], rho=args.rho, bias_constant=args.bias,
+        fault = ActuatorFault(channel=CHANNEL_ALIASES[args.channel], rho=args.rho, bias_constant=args.bias,
                               bias_amplitude=args.amplitude, bias_frequency=args.frequency, onset_time=args.onset)
     except FaultError as exc:
         parser.exit(2, f'{parser.prog}: error: {exc}\n')
@@ -91,7 +90,7 @@ def main(argv=None) -> int:
 
     import uh_runtime as rt
     from uh_runtime import messages as m
-    from uh_topology import topics
+    from uh_core import topics
 
     rt.init(args=[sys.argv[0]])
     node = rt.Node('inject_fault')
@@ -116,7 +115,7 @@ def main(argv=None) -> int:
                 return 1
             rt.spin_once(node, timeout_sec=0.05)
         msg = m.ActuatorFault()
-        msg.uh_id, msg.channel, msg.rho = args.uh, CHANNELS[args.channel], args.rho
+        msg.uh_id, msg.channel, msg.rho = args.uh, CHANNEL_ALIASES[args.channel], args.rho
         msg.bias_constant, msg.bias_amplitude = args.bias, args.amplitude
         msg.bias_frequency, msg.onset_time = args.frequency, args.onset
         pub.publish(msg)

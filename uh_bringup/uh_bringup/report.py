@@ -16,7 +16,7 @@ A run is a directory written by ``scripts/run_formation.sh`` (``bag/``, ``run.js
 a bare rosbag2 bag directory of such a run, or a directory written by ``uh-simulate``
 (``timeseries.npz``, ``metrics.json``). The scenario comes from ``run.json``; for the other kinds
 it is ``--scenario`` (default ``paper``). Without ``metrics.json`` the metrics are computed from
-the arrays with :func:`uh_controller_node.metrics.metrics_from_arrays` (and the table says so).
+the arrays with :func:`uh_team.metrics.metrics_from_arrays` (and the table says so).
 
 Exit status: 0 written, 2 bad input (a missing or empty run directory, a bag that is not MCAP,
 truncated or damaged, arrays that do not fit the scenario, an unwritable output directory); the
@@ -150,8 +150,8 @@ def load_run(run_dir, scenario_name: str = 'paper', check_chunks: bool = True) -
         problem named), arrays that do not fit the scenario, a bad ``run.json``/``metrics.json``.
     """
     from uh_bringup.bag_metrics import BagContentError, read_team_bag
-    from uh_controller_node.metrics import MetricsError, metrics_from_arrays
-    from uh_runtime.replay import BagReadError, open_bag
+    from uh_team.metrics import MetricsError, metrics_from_arrays
+    from uh_runtime.bag_reader import BagError, open_bag
 
     run_dir = Path(run_dir)
     if not run_dir.exists():
@@ -172,7 +172,7 @@ def load_run(run_dir, scenario_name: str = 'paper', check_chunks: bool = True) -
         try:
             open_bag(bag, check_chunks=check_chunks)
             arrays = read_team_bag(bag, scenario)
-        except (BagReadError, BagContentError) as exc:
+        except (BagError, BagContentError) as exc:
             raise ReportError(str(exc)) from None
         source = 'bag'
     elif npz.is_file():
@@ -369,7 +369,7 @@ def _figure_text(key: str) -> str:
 
 def write_figures(runs, out: Path) -> dict:
     """Draw every figure; returns ``{'errors': path, ..., run.name: {kind: path}}``."""
-    from uh_controller_node.metrics import faulted_uhs
+    from uh_team.metrics import faulted_uhs
 
     from . import report_figures as F
 

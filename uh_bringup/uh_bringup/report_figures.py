@@ -4,7 +4,7 @@ Each function takes :class:`uh_bringup.report.RunData` objects (the arrays of
 ``uh_bringup.bag_metrics.read_team_bag`` or of ``timeseries.npz``, UH axis in ``scenario.ids``
 order) and writes one PNG of a fixed pixel size (:data:`FIGURE_SIZES` at :data:`DPI`), so a test
 can check what was drawn. Errors are computed with the one metrics module
-(:mod:`uh_controller_node.metrics`, DESIGN.md 2.8).
+(:mod:`uh_team.metrics`, DESIGN.md 2.8).
 
 =====================  ==========================================================================
 figure                 content (paper figure)
@@ -105,7 +105,7 @@ def _vline(ax, t: float, text: str) -> None:
 
 def _mark_faults(ax, run, uh=None) -> None:
     """Labelled dotted vertical line at the fault onset(s) (of ``uh`` only if given)."""
-    from uh_controller_node.metrics import faulted_uhs
+    from uh_team.metrics import faulted_uhs
     onsets = sorted({f.onset for i, f in faulted_uhs(run.scenario).items() if uh is None or i == uh})
     t_end = float(run.arrays['time'][-1])
     for onset in onsets:
@@ -298,7 +298,7 @@ def _convex_hull_2d(points: np.ndarray) -> np.ndarray:
 def plot_faults(run, uh: int, path: Path) -> Path:
     """Estimated (dashed) vs true (solid) lumped faults of UH ``uh``: F_p (m/s^2, inertial x, y, z)
     left, F_w (rad/s^2, body roll, pitch, yaw) right, one row per axis; dotted line at the onset."""
-    from uh_controller_node.metrics import faulted_uhs
+    from uh_team.metrics import faulted_uhs
 
     t = run.arrays['time']
     c = run.scenario.ids.index(uh)
@@ -352,7 +352,7 @@ def _robust_ylim(ax, t, true, est, skip: float) -> None:
 def uh_errors(run) -> np.ndarray:
     """(K+1, n) formation error ``|p_i - h_i - p_0|`` of each leader and containment error
     ``|p_k - sum_j w_kj p_j|`` of each follower, m (DESIGN.md 2.8), UH axis in ``scenario.ids`` order."""
-    from uh_controller_node.metrics import containment_errors, formation_errors
+    from uh_team.metrics import containment_errors, formation_errors
 
     sc = run.scenario
     pos = np.asarray(run.arrays['states'], dtype=float)[..., 0:3]

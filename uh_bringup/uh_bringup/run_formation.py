@@ -48,12 +48,12 @@ import time
 from pathlib import Path
 
 from uh_runtime.network import MAX_DOMAIN_ID, loopback_environment, reserve_domain_id
-from uh_topology import topics
+from uh_controller_node.gains import CASES
+from uh_bringup.team_nodes import NODES, node_specs
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
            'EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED']
 
-CASES = ('proposed', 'case1', 'case2')
 CLOCKS = ('lockstep', 'realtime')
 HOSTS = ('local', 'netns')
 #: how often --respawn restarts one controller before giving up on it
@@ -129,15 +129,14 @@ def _check_args(args) -> None:
                          'network namespaces)')
 
 
-#: errors of a team's configuration (scenario, gains, airframe, faults, reference): exit status 2
+#: errors of a team's configuration (scenario and gains, airframe, faults, reference): exit status 2
 def _config_errors() -> tuple:
     from uh_controller_node.controller import ControllerError
-    from uh_controller_node.gains import GainsError
     from uh_sim_node.faults import FaultError
-    from uh_sim_node.helicopter import HelicopterParamsError
+    from uh_core.airframe import HelicopterParamsError
     from uh_sim_node.reference import ReferenceParameterError
     from uh_topology.errors import ScenarioError
-    return (ScenarioError, GainsError, ControllerError, HelicopterParamsError, FaultError, ReferenceParameterError)
+    return (ScenarioError, ControllerError, HelicopterParamsError, FaultError, ReferenceParameterError)
 
 
 def validate_team(scenario, case: str) -> None:
@@ -145,7 +144,8 @@ def validate_team(scenario, case: str) -> None:
     gains or airframe file is reported before any process starts; raises the node's own error."""
     from uh_controller_node.controller import UHController
     from uh_controller_node.gains import ControllerGains
-    from uh_sim_node.helicopter import load_helicopter_params, plant_from_scenario
+    from uh_core.airframe import load_helicopter_params
+    from uh_sim_node.helicopter import plant_from_scenario
     from uh_sim_node.reference import VirtualLeaderReference
 
     # the gains first, named by their file (the controllers would name the scenario)
@@ -184,38 +184,7 @@ def _entry(package: str, executable: str) -> list:
     return [str(script)] if script.exists() else [executable]
 
 
-#: node kind -> (package, entry point) of its console script
-ENTRY_POINTS = {
-    'recorder': ('uh_runtime', 'recorder_node'), 'sim': ('uh_sim_node', 'sim_node'),
-    'controller': ('uh_controller_node', 'controller_node'),
-    'visualization': ('uh_sim_node', 'visualization_node'),
-    'virtual_leader': ('uh_sim_node', 'virtual_leader_node'), 'clock': ('uh_sim_node', 'lockstep_clock_node'),
-}
 LAYOUTS = ('per-node', 'per-uh', 'single')
-
-
-def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, duration: float | None,
-               bag_dir: Path, startup_timeout: float, stale_timeout: float | None = None,
-               visualization: bool = True) -> list[tuple[str, str, list]]:
-    """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last
-    (the visualisation node only if ``visualization``)."""
-    common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
-    stale = ['-p', f'stale_timeout:={float(stale_timeout)}'] if stale_timeout is not None else []
-    if duration is not None:
-        common += ['-p', f'duration:={float(duration)}']
-    per_step = [name for name, spec in topics.team_topics(scenario.ids) if spec.per_step]
-    specs = [('recorder', 'recorder', ['--ros-args', '-p', f'output:={bag_dir}',
-                                       '-p', f'progress_topics:=[{",".join(per_step)}]'])]
-    for i in scenario.ids:
-        ns = ['-r', f'__ns:={topics.uh_namespace(i)}', '-p', f'uh_id:={i}']
-        specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *stale]))
-        specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, *stale, '-p', f'case:={case}']))
-    if visualization:
-        specs.append(('visualization', 'visualization', ['--ros-args', *common]))
-    specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common]))
-    specs.append(('clock', 'clock', ['--ros-args', *common, '-p', f'rate:={float(rate)}',
-                                     '-p', 'expect_recorder:=true', '-p', f'startup_timeout:={float(startup_timeout)}']))
-    return specs
 
 
 def process_commands(specs, layout: str, spec_dir: Path) -> list[tuple[str, list]]:
@@ -234,7 +203,7 @@ def _processes(specs, layout: str, spec_dir: Path) -> list[tuple[str, str, list]
     """As :func:`process_commands`, with the node kind of each process (for composed ones,
     :func:`_group_kind`)."""
     if layout == 'per-node':
-        return [(name, kind, _entry(*ENTRY_POINTS[kind]) + args) for name, kind, args in specs]
+        return [(name, kind, _entry(NODES[kind].package, NODES[kind].executable) + args) for name, kind, args in specs]
     groups: dict[str, list] = {}
     for name, kind, args in specs:
         if layout == 'single':
@@ -362,7 +331,8 @@ class _Run:
 
 def _recover_bag_if_needed(bag_dir: Path) -> dict | None:
     """Complete a bag the recorder did not finalise (it was killed); report what was kept."""
-    from uh_runtime.bag import BagError, recover_bag
+    from uh_runtime.bag import recover_bag
+    from uh_runtime.bag_reader import BagError
     if (bag_dir / 'metadata.yaml').exists() or not bag_dir.is_dir():
         return None
     try:

@@ -54,8 +54,8 @@ Calling the per-UH kernel from njit code
 ``memory`` of one controller (its live arrays: copy them to stack them). For a team of ``n`` UHs,
 stack them (``np.stack``; the neighbour arrays padded to the largest in-degree) and pass row
 views, gathering each UH's neighbour states in ascending id order, as :meth:`UHController.step`
-does. :func:`uh_controller_node.team_kernel.team_arrays` does that stacking and
-:func:`uh_controller_node.team_kernel.run_team_steps` is such a loop (with the plants), bit-identical
+does. :func:`uh_team.team_kernel.team_arrays` does that stacking and
+:func:`uh_team.team_kernel.run_team_steps` is such a loop (with the plants), bit-identical
 to the controllers (``tests/test_reference_simulation.py``; ``tests/test_control_kernels.py`` checks
 a control-only loop, status vectors included).
 The degraded steps of :meth:`UHController.step_degraded` are the same call on fewer neighbours
@@ -86,6 +86,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from uh_core import kernel_cache as _kernel_cache
+from uh_core import layout as _layout
+from uh_core.layout import (INPUT_SIZE, R_P, R_V, R_YAW, REFERENCE_SIZE, STATE_SIZE, U_COL, U_LAT, U_LON, U_TR,
+                            X_OMEGA, X_P, X_THETA, X_V, YAW)
+
 __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'YAW', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
     'CP_MASS', 'CP_GRAVITY', 'CP_J_X', 'CP_J_Y', 'CP_J_Z', 'CP_C_M1', 'CP_C_M2', 'CP_K_BETA', 'CP_H_M',
@@ -107,15 +112,8 @@ __all__ = [
     'uh_control_step', 'compile_control_kernels',
 ]
 
-# -- state, input and reference layout ---------------------------------------------------------
-STATE_SIZE = 12
-INPUT_SIZE = 4
-X_P, X_V, X_THETA, X_OMEGA = 0, 3, 6, 9          # first index of p, v, Theta, omega in x
-U_COL, U_TR, U_LAT, U_LON = 0, 1, 2, 3            # theta_col, theta_tr, delta_lat, delta_lon
+# -- state, input and reference layout: uh_core.layout ------------------------------------------
 _MOMENT_CHANNELS = (U_LAT, U_LON, U_TR)         # command channels of u_m = (delta_lat, delta_lon, theta_tr)
-YAW = 2                                           # yaw in an Euler-angle 3-vector (phi, theta, psi)
-R_P, R_V, R_YAW = 0, 3, 6                         # p_0 (3) m, v_0 (3) m/s, psi_0 rad
-REFERENCE_SIZE = 7
 
 # -- control parameters: nominal model (DESIGN.md 2.1 "What the controller knows") --------------
 CP_MASS = 0                 # m, kg
@@ -259,7 +257,7 @@ def control_parameters(gains, model) -> np.ndarray:
     Parameters
     ----------
     gains : uh_controller_node.gains.ControllerGains
-    model : uh_controller_node.nominal_model.NominalModel
+    model : uh_core.airframe.HelicopterParams
     """
     out = np.zeros(CONTROL_PARAMS_SIZE)
     out[CP_MASS] = model.mass
@@ -1103,3 +1101,7 @@ def compile_control_kernels() -> float:
                     np.zeros(REFERENCE_SIZE), 0.01, np.zeros((3, 3)), np.zeros((3, 3)),
                     np.zeros((MEMORY_ROWS, 3)), np.zeros(INPUT_SIZE), np.zeros(STATUS_SIZE))
     return time.perf_counter() - start
+
+
+# numba caches each kernel by this file only: empty the cache when the layout it reads changes
+_kernel_cache.refresh_cache(_kernel_cache.module_dispatchers(globals()), [_layout.__file__])

@@ -25,14 +25,12 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+from uh_topology.errors import GainsError
+
 __all__ = ['CASES', 'GainsError', 'RBFSpec', 'LoopGains', 'ControllerGains']
 
 #: The comparison cases of DESIGN.md 2.6, in report order.
 CASES = ('proposed', 'case1', 'case2')
-
-
-class GainsError(ValueError):
-    """A gains mapping with an unknown, missing or invalid entry, or an unknown case."""
 
 
 @dataclass(frozen=True)

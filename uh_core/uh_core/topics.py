@@ -16,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from uh_runtime.qos import QoSWords, profile_from_words
+
 __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
     'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK', 'MARKERS',
@@ -28,14 +30,8 @@ STEP_DEPTH = 100
 RECORDER_LAG_STEPS = 40
 
 
-@dataclass(frozen=True)
-class QosSpec:
-    """A ROS 2 QoS profile as plain data (policy names as in rosbag2's metadata)."""
-
-    reliability: str = 'reliable'      # reliable | best_effort
-    durability: str = 'volatile'       # volatile | transient_local
-    history: str = 'keep_last'         # keep_last | keep_all
-    depth: int = 10
+#: A ROS 2 QoS profile as plain data (policy names as in rosbag2's metadata): the runtime's record.
+QosSpec = QoSWords
 
 
 @dataclass(frozen=True)
@@ -102,12 +98,6 @@ def team_topics(uh_ids) -> list[tuple[str, TopicSpec]]:
 
 
 def qos_profile(spec: QosSpec):
-    """Build the node runtime's ``QoSProfile`` (rclpy's on a ROS 2 machine) from ``spec``."""
-    import uh_runtime as rt
-
-    return rt.QoSProfile(
-        reliability=getattr(rt.ReliabilityPolicy, spec.reliability.upper()),
-        durability=getattr(rt.DurabilityPolicy, spec.durability.upper()),
-        history=getattr(rt.HistoryPolicy, spec.history.upper()),
-        depth=spec.depth,
-    )
+    """Build the node runtime's ``QoSProfile`` (rclpy's on a ROS 2 machine) from ``spec``
+    (:func:`uh_runtime.qos.profile_from_words`)."""
+    return profile_from_words(spec)

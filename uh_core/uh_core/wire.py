@@ -13,8 +13,10 @@ import numpy as np
 
 from uh_runtime import messages as m
 
+from .records import Reference
+
 __all__ = [
-    'WireError', 'stamp', 'stamp_seconds', 'step_of', 'state_to_msg', 'msg_to_state',
+    'WireError', 'stamp', 'stamp_seconds', 'state_to_msg', 'msg_to_state',
     'command_to_msg', 'msg_to_command', 'reference_to_msg', 'msg_to_reference', 'fault_truth_to_msg',
     'status_to_msg', 'vector3', 'clock_msg', 'clock_step',
 ]
@@ -48,10 +50,6 @@ def clock_msg(t: float):
 def clock_step(msg, dt: float) -> int:
     """Step index k of a ``/clock`` message (t_k = k dt, stamps rounded to the nanosecond)."""
     return int(round(stamp_seconds(msg.clock) / dt))
-
-
-def step_of(msg) -> int:
-    return int(msg.step)
 
 
 def _header(t: float):
@@ -130,8 +128,6 @@ def reference_to_msg(k: int, t: float, ref):
 
 def msg_to_reference(msg):
     """Core reference sample of a ``Reference`` message; raises :class:`WireError` if unusable."""
-    from uh_sim_node.reference import Reference
-
     p, v, a = _array(msg.position), _array(msg.velocity), _array(msg.acceleration)
     _check_finite(np.concatenate([p, v, a, [msg.yaw, msg.yaw_rate]]), f'reference at step {msg.step}')
     return Reference(position=p, velocity=v, acceleration=a, yaw=float(msg.yaw), yaw_rate=float(msg.yaw_rate))

@@ -1,7 +1,7 @@
-"""Actuator fault model of the unmanned helicopter (paper eq. 6, DESIGN.md 2.1).
+"""Actuator fault model of the unmanned helicopter (paper eq. 6; docs/faults.md, "Fault model").
 
 Each of the four input channels ``(theta_col, theta_tr, delta_lat, delta_lon)`` (indices 0..3,
-the order of :data:`uh_sim_node.helicopter.INPUT_NAMES` and of the ``CHANNEL_*`` constants of
+the order of :mod:`uh_core.layout`, also that of the ``CHANNEL_*`` constants of
 ``uh_msgs/ActuatorFault``) may carry one fault::
 
     u_actual(t) = rho * u(t) + b(t),   b(t) = bias_constant + bias_amplitude * sin(bias_frequency * t)
@@ -37,12 +37,11 @@ from typing import Iterable
 
 import numpy as np
 
-__all__ = ['FaultError', 'ActuatorFault', 'FaultSchedule', 'NUM_CHANNELS', 'CHANNEL_NAMES', 'ONSET_TOLERANCE']
+from uh_core.layout import INPUT_NAMES, NUM_CHANNELS
+from uh_core.records import FaultSpec
 
-#: Number of actuator channels.
-NUM_CHANNELS = 4
-#: Channel names in index order (same order as ``INPUT_NAMES`` of the helicopter model).
-CHANNEL_NAMES = ('theta_col', 'theta_tr', 'delta_lat', 'delta_lon')
+__all__ = ['FaultError', 'ActuatorFault', 'FaultSchedule', 'ONSET_TOLERANCE']
+
 #: A time this close before the onset counts as past it, s (absorbs the rounding of ``k * dt``).
 ONSET_TOLERANCE = 1e-9
 
@@ -62,8 +61,9 @@ def _finite(name: str, value) -> float:
 
 
 @dataclass(frozen=True)
-class ActuatorFault:
-    """One actuator fault on one channel (paper eq. 6).
+class ActuatorFault(FaultSpec):
+    """One actuator fault on one channel (paper eq. 6): a :class:`~uh_core.records.FaultSpec`,
+    validated, with the arithmetic of the fault model.
 
     Parameters
     ----------
@@ -86,13 +86,6 @@ class ActuatorFault:
         negative or any number is not finite.
     """
 
-    channel: int
-    rho: float
-    bias_constant: float = 0.0
-    bias_amplitude: float = 0.0
-    bias_frequency: float = 0.0
-    onset_time: float = 0.0
-
     def __post_init__(self):
         ch = self.channel
         if isinstance(ch, bool) or not isinstance(ch, (int, np.integer)) or not 0 <= ch < NUM_CHANNELS:
@@ -103,14 +96,14 @@ class ActuatorFault:
             object.__setattr__(self, name, _finite(name, getattr(self, name)))
         if not 0.0 <= self.rho <= 1.0:
             raise FaultError(f'fault rho (effectiveness) must be in [0, 1], got {self.rho!r} '
-                             f'on channel {self.channel} ({CHANNEL_NAMES[self.channel]})')
+                             f'on channel {self.channel} ({INPUT_NAMES[self.channel]})')
         if self.onset_time < 0.0:
             raise FaultError(f'fault onset_time must be >= 0 s, got {self.onset_time!r} '
-                             f'on channel {self.channel} ({CHANNEL_NAMES[self.channel]})')
+                             f'on channel {self.channel} ({INPUT_NAMES[self.channel]})')
 
     @classmethod
     def from_spec(cls, spec) -> 'ActuatorFault':
-        """Build from any object with the six fault attributes (e.g. ``uh_topology`` ``FaultSpec``)."""
+        """Build from any object with the six fault attributes (e.g. a scenario's ``FaultSpec``)."""
         return cls(spec.channel, spec.rho, spec.bias_constant, spec.bias_amplitude,
                    spec.bias_frequency, spec.onset_time)
 

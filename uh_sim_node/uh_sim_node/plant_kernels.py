@@ -1,4 +1,7 @@
-"""Native kernels of the helicopter model: dynamics, RK4, actuator faults, lumped faults (DESIGN.md 2.1, 2.2).
+"""Native kernels of the helicopter model: dynamics, RK4, actuator faults, lumped faults.
+
+The model is that of docs/model.md ("Helicopter dynamics", "Inputs and limits", "Integration",
+"Lumped faults"), the actuator faults those of docs/faults.md ("Fault model", "Onset").
 
 These functions *are* the simulator's model. They are compiled with numba (``@njit(cache=True)``, no
 fastmath, no parallelism, so results are deterministic and follow IEEE double arithmetic), take
@@ -16,7 +19,7 @@ Inertial frame z-up; ZYX Euler angles ``Theta = (phi, theta, psi)`` rad with
 * inputs ``u`` (4,) float64 rad = ``(theta_col, theta_tr, delta_lat, delta_lon)``
   (``U_COL``, ``U_TR``, ``U_LAT``, ``U_LON``), also the fault channels 0..3.
 
-Model (DESIGN.md 2.1)::
+Model (docs/model.md, "Helicopter dynamics")::
 
     p' = v
     m v' = -m g e3 + T_M R e3 - D_v v + d_p(t)
@@ -26,7 +29,7 @@ Model (DESIGN.md 2.1)::
     b_1s = B_lat delta_lat - tau_f p ,  a_1s = A_lon delta_lon - tau_f q
     Gamma = [(K_beta + T_M h_M) b_1s, (K_beta + T_M h_M) a_1s, K_tr theta_tr - D_r r - c_Q T_M]
 
-Input chain and actuator faults (paper eq. 6), per channel ``i``::
+Input chain and actuator faults (paper eq. 6; docs/faults.md, "Fault model"), per channel ``i``::
 
     u_cmd_i = clip_i(u_i)                                                    position limits
     u_act_i = clip_i(rho_i u_cmd_i + b_i(t))   if the fault of channel i acts, else u_cmd_i
@@ -43,8 +46,8 @@ substep boundary, so the inputs are smooth inside every substep and RK4 keeps it
 the bias sinusoids and the force disturbance are evaluated at the RK4 stage times ``t + s h``,
 ``t + (s + 1/2) h`` (stages 2 and 3) and ``t + (s + 1) h``.
 
-True lumped faults (DESIGN.md 2.2), the dynamics with the actual inputs minus those with the
-commanded inputs at the same state::
+True lumped faults (docs/model.md, "Lumped faults"), the dynamics with the actual inputs minus
+those with the commanded inputs at the same state::
 
     F_p = (T_M(u_act) - T_M(u_cmd)) / m  R e3                       m/s^2, inertial   (3,)
     F_w = J^-1 (Gamma(omega, u_act) - Gamma(omega, u_cmd))          rad/s^2, body     (3,)
@@ -92,9 +95,7 @@ team of ``n`` UHs stack the per-plant arrays (``np.stack``) and pass row views::
             plant_step(states[c], commands[c], t, dt, substeps, params[c], faults[c], disturbance[c])
 
 ``plant_step`` advances ``states[c]`` in place; ``lumped_faults`` evaluated before the step gives the
-faults at the start of the control period (the simulator's order). An arbitrary Python disturbance
-callable cannot run inside njit code: such a plant uses :func:`plant_step_sampled` with the force
-sampled in Python at the stage times, and ``kernel_arrays()`` refuses it.
+faults at the start of the control period (the simulator's order).
 
 The kernels do not check shapes or values (that is done once by the Python wrapper); wrong shapes
 read or write out of bounds.
@@ -102,9 +103,10 @@ read or write out of bounds.
 Compilation: the first call compiles a kernel (seconds) and stores it in numba's on-disk cache
 (``__pycache__`` next to this file, or ``NUMBA_CACHE_DIR``); later processes load it (milliseconds).
 :func:`compile_plant_kernels` compiles all kernels with the signatures the wrapper uses, for install
-scripts that warm the cache. The kernels read only the constants of this file at compile time
-(numba re-validates its cache against this file alone), apart from
-:data:`~uh_sim_node.faults.NUM_CHANNELS`, the model's four inputs.
+scripts that warm the cache. Besides the constants of this file the kernels read the index
+constants of :mod:`uh_core.layout` at compile time; numba re-validates its cache against this file
+alone, so :func:`uh_core.kernel_cache.refresh_cache` (run on import) flushes the cache of every
+kernel here when ``uh_core/layout.py`` changed.
 """
 from __future__ import annotations
 
@@ -115,7 +117,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .faults import NUM_CHANNELS
+from uh_core import kernel_cache as _kernel_cache
+from uh_core import layout as _layout
+from uh_core.layout import (INPUT_SIZE, NUM_CHANNELS, STATE_SIZE, U_COL, U_LAT, U_LON, U_TR, X_OMEGA, X_P,
+                            X_THETA, X_V)
 
 __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
@@ -123,16 +128,11 @@ __all__ = [
     'P_TAU_F', 'P_K_TR', 'P_D_R', 'P_C_Q', 'P_J_X', 'P_J_Y', 'P_J_Z', 'P_LOWER', 'P_UPPER', 'PARAMS_SIZE',
     'F_PRESENT', 'F_RHO', 'F_BIAS_CONSTANT', 'F_BIAS_AMPLITUDE', 'F_BIAS_FREQUENCY', 'F_ACTS_FROM',
     'FAULT_FIELDS', 'D_AMPLITUDE', 'D_FREQUENCY', 'D_PHASE', 'DISTURBANCE_FIELDS', 'PlantArrays',
-    'params_vector', 'fault_table', 'disturbance_table', 'disturbance_sample_times',
+    'params_vector', 'fault_table', 'disturbance_table',
     'state_derivative', 'actual_inputs', 'force_disturbance', 'lumped_faults_of_inputs', 'lumped_faults',
-    'plant_step', 'plant_step_sampled', 'compile_plant_kernels',
+    'plant_step', 'compile_plant_kernels',
 ]
 
-# -- state and input layout -------------------------------------------------------------------
-STATE_SIZE = 12
-INPUT_SIZE = 4
-X_P, X_V, X_THETA, X_OMEGA = 0, 3, 6, 9          # first index of p, v, Theta, omega in x
-U_COL, U_TR, U_LAT, U_LON = 0, 1, 2, 3            # theta_col, theta_tr, delta_lat, delta_lon
 
 # -- params vector ----------------------------------------------------------------------------
 P_MASS = 0          # m, kg
@@ -241,22 +241,6 @@ def disturbance_table(disturbance) -> np.ndarray:
     return out
 
 
-def disturbance_sample_times(t: float, dt: float, substeps: int) -> list:
-    """The ``2 substeps + 1`` times, s, at which :func:`plant_step_sampled` needs the force.
-
-    Row ``2 s`` is the substep boundary ``t + s h`` (``s = 0..substeps``), row ``2 s + 1`` the
-    midpoint ``t + (s + 1/2) h``, with ``h = dt / substeps``; the same float arithmetic as the
-    kernel, so a sampled sinusoid reproduces :func:`plant_step` exactly.
-    """
-    h = dt / substeps
-    times = []
-    for s in range(substeps):
-        times.append(t + s * h)
-        times.append(t + (s + 0.5) * h)
-    times.append(t + substeps * h)
-    return times
-
-
 # =============================================================================================
 # Model pieces (inlined by LLVM into the public kernels; tuples keep everything in registers)
 
@@ -326,17 +310,14 @@ def _sinusoid(disturbance, axis, t):
 
 
 @njit(cache=True)
-def _force(disturbance, samples, sampled, row, t):
-    """Force ``d_p`` (tuple of 3, N, inertial) at time ``t``: row ``row`` of ``samples`` when
-    ``sampled``, else the sinusoid table ``disturbance``."""
-    if sampled:
-        return (samples[row, 0], samples[row, 1], samples[row, 2])
+def _force(disturbance, t):
+    """Force ``d_p`` (tuple of 3, N, inertial) at time ``t`` s from the sinusoid table ``disturbance``."""
     return (_sinusoid(disturbance, 0, t), _sinusoid(disturbance, 1, t), _sinusoid(disturbance, 2, t))
 
 
 @njit(cache=True)
 def _rates(params, y, u, d):
-    """Derivatives ``(v', Theta', omega')`` (tuple of 9) of DESIGN.md 2.1.
+    """Derivatives ``(v', Theta', omega')`` (tuple of 9) of docs/model.md ("Helicopter dynamics").
 
     ``y`` = ``(v (3) m/s, Theta (3) rad, omega (3) rad/s)`` tuple of 9, ``u`` the 4 actual inputs
     rad, ``d`` the force disturbance (3) N inertial. ``p' = v`` is left to the caller.
@@ -414,30 +395,6 @@ def _rk4_substep(params, x, h, u_start, u_mid, u_end, d_start, d_mid, d_end):
     )
 
 
-@njit(cache=True)
-def _integrate(x, u_cmd, t, dt, substeps, params, faults, disturbance, samples, sampled):
-    """Shared body of :func:`plant_step` (``sampled`` False, ``samples`` unused) and
-    :func:`plant_step_sampled` (``sampled`` True, ``disturbance`` unused)."""
-    uc = _clip_command(params, u_cmd)
-    h = dt / substeps
-    xs = (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9], x[10], x[11])
-    d_start = _force(disturbance, samples, sampled, 0, t)
-    for s in range(substeps):
-        t_start = t + s * h
-        t_mid = t + (s + 0.5) * h
-        t_end = t + (s + 1) * h
-        # the faults' activity is decided at the substep start; biases at the stage times
-        u_start = _actual(params, faults, uc, t_start, t_start)
-        u_mid = _actual(params, faults, uc, t_mid, t_start)
-        u_end = _actual(params, faults, uc, t_end, t_start)
-        d_mid = _force(disturbance, samples, sampled, 2 * s + 1, t_mid)
-        d_end = _force(disturbance, samples, sampled, 2 * s + 2, t_end)
-        xs = _rk4_substep(params, xs, h, u_start, u_mid, u_end, d_start, d_mid, d_end)
-        d_start = d_end
-    for i in range(STATE_SIZE):
-        x[i] = xs[i]
-
-
 # =============================================================================================
 # Public kernels
 
@@ -463,23 +420,29 @@ def plant_step(x, u_cmd, t, dt, substeps, params, faults, disturbance):
     disturbance : ndarray (3, DISTURBANCE_FIELDS)
         Sinusoidal force ``d_p(t)`` N, inertial, evaluated at the stage times.
     """
-    _integrate(x, u_cmd, t, dt, substeps, params, faults, disturbance, disturbance, False)
-
-
-@njit(cache=True)
-def plant_step_sampled(x, u_cmd, t, dt, substeps, params, faults, disturbance_samples):
-    """:func:`plant_step` with the force given as samples instead of a sinusoid table.
-
-    ``disturbance_samples`` (2 substeps + 1, 3) float64: ``d_p`` N, inertial, at the times of
-    :func:`disturbance_sample_times` (row ``2 s`` at ``t + s h``, row ``2 s + 1`` at
-    ``t + (s + 1/2) h``, ``h = dt / substeps``). For disturbances given as arbitrary Python callables.
-    """
-    _integrate(x, u_cmd, t, dt, substeps, params, faults, disturbance_samples, disturbance_samples, True)
+    uc = _clip_command(params, u_cmd)
+    h = dt / substeps
+    xs = (x[0], x[1], x[2], x[3], x[4], x[5], x[6], x[7], x[8], x[9], x[10], x[11])
+    d_start = _force(disturbance, t)
+    for s in range(substeps):
+        t_start = t + s * h
+        t_mid = t + (s + 0.5) * h
+        t_end = t + (s + 1) * h
+        # the faults' activity is decided at the substep start; biases at the stage times
+        u_start = _actual(params, faults, uc, t_start, t_start)
+        u_mid = _actual(params, faults, uc, t_mid, t_start)
+        u_end = _actual(params, faults, uc, t_end, t_start)
+        d_mid = _force(disturbance, t_mid)
+        d_end = _force(disturbance, t_end)
+        xs = _rk4_substep(params, xs, h, u_start, u_mid, u_end, d_start, d_mid, d_end)
+        d_start = d_end
+    for i in range(STATE_SIZE):
+        x[i] = xs[i]
 
 
 @njit(cache=True)
 def state_derivative(x, u_actual, d_p, params, out):
-    """State derivative ``x'`` (12,) of DESIGN.md 2.1 written into ``out``.
+    """State derivative ``x'`` (12,) of docs/model.md ("Helicopter dynamics") written into ``out``.
 
     ``x`` (12,) state, ``u_actual`` (4,) inputs acting on the airframe (rad, not limited here),
     ``d_p`` (3,) force disturbance N inertial. ``out`` = ``[v, v', Theta', omega']`` in m/s, m/s^2,
@@ -514,7 +477,7 @@ def force_disturbance(disturbance, t, out):
 
 @njit(cache=True)
 def _lumped(params, x, uc, ua, out_p, out_w):
-    """F_p, F_w of DESIGN.md 2.2 for the tuples ``uc`` (limited command) and ``ua`` (actual)."""
+    """F_p, F_w of docs/model.md ("Lumped faults") for the tuples ``uc`` (limited command) and ``ua`` (actual)."""
     phi, th, psi = x[6], x[7], x[8]
     p, q, r = x[9], x[10], x[11]
     cf, sf, ct, st = math.cos(phi), math.sin(phi), math.cos(th), math.sin(th)
@@ -547,7 +510,8 @@ def lumped_faults_of_inputs(x, u_cmd_limited, u_actual, params, out_p, out_w):
 
 @njit(cache=True)
 def lumped_faults(x, u_cmd, t, params, faults, out_p, out_w):
-    """True lumped faults ``F_p``, ``F_w`` (DESIGN.md 2.2) of one plant at state ``x`` and time ``t``.
+    """True lumped faults ``F_p``, ``F_w`` of one plant at state ``x`` and time ``t``
+    (docs/model.md, "Lumped faults").
 
     Parameters
     ----------
@@ -599,10 +563,13 @@ def compile_plant_kernels() -> float:
     out = np.zeros(STATE_SIZE)
     substeps = 1
     plant_step(x, u, 0.0, 0.01, substeps, params, faults, disturbance)
-    plant_step_sampled(x, u, 0.0, 0.01, substeps, params, faults, np.zeros((2 * substeps + 1, 3)))
     lumped_faults(x, u, 0.0, params, faults, v3, w3)
     lumped_faults_of_inputs(x, u, u2, params, v3, w3)
     state_derivative(x, u, v3, params, out)
     actual_inputs(u, 0.0, 0.0, params, faults, u2, u)
     force_disturbance(disturbance, 0.0, v3)
     return time.perf_counter() - start
+
+
+# numba checks this file only; the layout constants compiled into the kernels live in uh_core/layout.py
+_kernel_cache.refresh_cache(_kernel_cache.module_dispatchers(globals()), [_layout.__file__])

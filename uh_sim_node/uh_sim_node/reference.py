@@ -14,38 +14,17 @@ The derivatives are analytic. ``psi0`` is not wrapped (it grows with t); consume
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
 import numpy as np
 
-__all__ = ['Reference', 'ReferenceParameterError', 'VirtualLeaderReference']
+from uh_core.records import Reference
+
+__all__ = ['ReferenceParameterError', 'VirtualLeaderReference']
 
 _FIELDS = ('radius', 'angular_rate', 'center', 'climb_rate', 'yaw_rate', 'initial_yaw')
 
 
 class ReferenceParameterError(ValueError):
     """Invalid virtual-leader trajectory parameters."""
-
-
-@dataclass(frozen=True, eq=False)
-class Reference:
-    """Virtual-leader sample at one time.
-
-    Attributes
-    ----------
-    position, velocity, acceleration : ndarray (3,)
-        m, m/s, m/s^2 in the inertial frame (z up).
-    yaw : float
-        psi0, rad (not wrapped).
-    yaw_rate : float
-        psi0', rad/s.
-    """
-
-    position: np.ndarray
-    velocity: np.ndarray
-    acceleration: np.ndarray
-    yaw: float
-    yaw_rate: float
 
 
 def _get(spec, name):

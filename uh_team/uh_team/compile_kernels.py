@@ -1,6 +1,6 @@
 """Compile the numba kernels of the model and the control law and fill numba's on-disk cache.
 
-``python -m uh_controller_node.compile_kernels`` (run by ``scripts/_venv.sh`` whenever the kernel
+``python -m uh_team.compile_kernels`` (run by ``scripts/_venv.sh`` whenever the kernel
 sources change): without it, the first processes to need a kernel compile it, each on its own (a
 distributed run starts about a dozen node processes at once).
 """
@@ -16,7 +16,7 @@ def compile_all() -> dict:
     """Compile (or load from the cache) every kernel; seconds spent per group of kernels."""
     from uh_sim_node.plant_kernels import compile_plant_kernels
 
-    from .control_kernels import compile_control_kernels
+    from uh_controller_node.control_kernels import compile_control_kernels
     from .team_kernel import compile_team_kernel
     return {'model': compile_plant_kernels(), 'control law': compile_control_kernels(),
             'team loop': compile_team_kernel()}
@@ -24,7 +24,7 @@ def compile_all() -> dict:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(
-        prog='python -m uh_controller_node.compile_kernels',
+        prog='python -m uh_team.compile_kernels',
         description='Compile the numba kernels of the helicopter model, the control law and the in-process '
                     'team loop, and store them in numba\'s cache (__pycache__ next to the sources, or '
                     'NUMBA_CACHE_DIR).')

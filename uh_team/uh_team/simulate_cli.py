@@ -4,7 +4,7 @@ Runs every UH's plant and controller in one process (the same controller objects
 nodes use) and writes ``DIR/metrics.json`` (DESIGN.md 2.8) and ``DIR/timeseries.npz`` (time,
 states, commands, reference, true and estimated lumped faults, designed accelerations, consensus
 errors, saturation flags and formation/containment errors per UH; see
-:class:`uh_controller_node.team_simulation.TeamRun`).
+:class:`uh_team.team_simulation.TeamRun`).
 
 Exit status: 0 success, 1 the simulation diverged, 2 bad input (scenario, gains, arguments, output
 directory), 130 interrupted.
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .gains import CASES
+from uh_controller_node.gains import CASES
 
 __all__ = ['main', 'build_parser']
 

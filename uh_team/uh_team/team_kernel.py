@@ -1,6 +1,6 @@
 """The whole team's step loop as one native kernel, for the in-process reference simulation.
 
-:func:`run_team_steps` runs steps ``k0 .. k1-1`` of :mod:`uh_controller_node.team_simulation` in
+:func:`run_team_steps` runs steps ``k0 .. k1-1`` of :mod:`uh_team.team_simulation` in
 numba: per step it records the states, calls :func:`~uh_controller_node.control_kernels.uh_control_step`
 for every UH (neighbours in ascending id order), computes the true lumped faults
 (:func:`~uh_sim_node.plant_kernels.lumped_faults`) and integrates every plant
@@ -16,13 +16,13 @@ the in-process run cost ~12 us per UH-step on top of ~5 us of arithmetic.
 padded to the largest in-degree.
 
 numba re-validates a cached kernel against its own source file only, so a cached
-:func:`run_team_steps` would keep an old control law or model after ``control_kernels.py``,
-``plant_kernels.py`` or ``faults.py`` changed. :func:`refresh_cache` (run on import) keeps a digest
-of those files next to the cache and empties this kernel's cache index when they differ.
+:func:`run_team_steps` would keep an old control law, model or layout after ``control_kernels.py``,
+``plant_kernels.py``, ``faults.py`` or ``uh_core/layout.py`` changed. :func:`refresh_cache` (run on
+import, through :func:`uh_core.kernel_cache.refresh_cache`) keeps a digest of those files next to
+the cache and empties this kernel's cache index when they differ.
 """
 from __future__ import annotations
 
-import hashlib
 import time
 from pathlib import Path
 from typing import NamedTuple
@@ -30,12 +30,14 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
+from uh_core import kernel_cache as _kernel_cache
+from uh_core import layout as _layout
 from uh_sim_node import faults as _faults
 from uh_sim_node import plant_kernels as _plant
 from uh_sim_node.plant_kernels import lumped_faults, plant_step
 
-from . import control_kernels as _ctl
-from .control_kernels import (
+from uh_controller_node import control_kernels as _ctl
+from uh_controller_node.control_kernels import (
     S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_U_P, S_Z1, STATE_SIZE,
     STATUS_SIZE, STEP_DONE, uh_control_step,
 )
@@ -94,8 +96,7 @@ def team_arrays(ids, controllers, plants) -> TeamArrays:
     Raises
     ------
     ValueError
-        Plants with different substeps, or a plant whose disturbance is a Python callable
-        (``HelicopterPlant.kernel_arrays`` explains).
+        Plants with different substeps.
     """
     n = len(ids)
     row = {int(i): c for c, i in enumerate(ids)}
@@ -131,7 +132,7 @@ def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control
                    nb_weights, nb_offsets, weights_p, weights_w, memory, plant_params, faults,
                    disturbance, substeps, states, commands, fault_true_p, fault_true_w, fault_est_p,
                    fault_est_w, u_p, z1, saturated):
-    """Steps ``k0 .. k1-1`` of the team (see :mod:`uh_controller_node.team_simulation` for the order).
+    """Steps ``k0 .. k1-1`` of the team (see :mod:`uh_team.team_simulation` for the order).
 
     Parameters
     ----------
@@ -148,7 +149,7 @@ def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control
         The :class:`TeamArrays` fields; ``x``, ``weights_p``, ``weights_w`` and ``memory`` are
         updated in place.
     states ... saturated
-        Output rows of :class:`~uh_controller_node.team_simulation.TeamRun`, written for the steps run:
+        Output rows of :class:`~uh_team.team_simulation.TeamRun`, written for the steps run:
         (K+1, n, 12), (K+1, n, 4), five (K+1, n, 3) and (K+1, n) bool.
 
     Returns
@@ -204,26 +205,17 @@ def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control
     return TEAM_DONE
 
 
-_DEPENDENCIES = (Path(_ctl.__file__), Path(_plant.__file__), Path(_faults.__file__))
+#: Files whose contents are compiled into :func:`run_team_steps` besides this one.
+_DEPENDENCIES = (Path(_ctl.__file__), Path(_plant.__file__), Path(_faults.__file__), Path(_layout.__file__))
 
 
 def refresh_cache() -> bool:
-    """Empty :func:`run_team_steps`' numba cache index if the kernels it calls changed since it was
-    cached (digest of ``control_kernels.py``, ``plant_kernels.py``, ``faults.py`` kept next to the
-    cache). Returns True when the cache was emptied. A cache that cannot be written is left alone
-    (numba does not cache there either)."""
-    try:
-        digest = hashlib.sha256(b''.join(p.read_bytes() for p in _DEPENDENCIES)).hexdigest()
-        cache = run_team_steps._cache
-        marker = Path(cache.cache_path) / 'team_kernel.dependencies.sha256'
-        if marker.is_file() and marker.read_text().strip() == digest:
-            return False
-        cache.flush()
-        marker.parent.mkdir(parents=True, exist_ok=True)
-        marker.write_text(digest + '\n')
-        return True
-    except (OSError, AttributeError):
-        return False
+    """Empty :func:`run_team_steps`' numba cache index if the files it depends on
+    (:data:`_DEPENDENCIES`: ``control_kernels.py``, ``plant_kernels.py``, ``faults.py``,
+    ``uh_core/layout.py``) changed since it was cached; the digest is kept next to the cache in
+    ``team_kernel.dependencies.sha256``. Returns True when the cache was emptied
+    (:func:`uh_core.kernel_cache.refresh_cache`)."""
+    return _kernel_cache.refresh_cache([run_team_steps], _DEPENDENCIES, 'team_kernel.dependencies.sha256')
 
 
 refresh_cache()

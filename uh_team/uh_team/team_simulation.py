@@ -12,7 +12,7 @@ Step ``k`` (``t_k = k * dt``):
 After the last step the controllers run once more at ``t_K`` so the per-step arrays have a row for
 every state sample (that last command is not applied). The arrays follow the layout of
 ``uh_bringup.bag_metrics.read_team_bag`` so the reference run and a recorded distributed run are
-compared and scored by the same code (:func:`uh_controller_node.metrics.metrics_from_arrays`).
+compared and scored by the same code (:func:`uh_team.metrics.metrics_from_arrays`).
 """
 from __future__ import annotations
 
@@ -23,8 +23,8 @@ from typing import Callable
 
 import numpy as np
 
-from .controller import UHController
-from .gains import CASES, GainsError
+from uh_controller_node.controller import UHController
+from uh_controller_node.gains import CASES, GainsError
 
 __all__ = ['SimulationError', 'TeamRun', 'run_team_simulation', 'ENGINES']
 
@@ -134,10 +134,9 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         ``progress(k, K)`` called now and then (about every 1 % of the steps and at the end).
     engine : str
         ``'kernel'`` (default): the whole step loop in one native kernel
-        (:func:`uh_controller_node.team_kernel.run_team_steps`); ``'objects'``: a Python loop calling
+        (:func:`uh_team.team_kernel.run_team_steps`); ``'objects'``: a Python loop calling
         ``UHController.step`` and ``HelicopterPlant.step`` per UH, as the distributed nodes do. Both
-        call the same kernels and give bit-identical results; ``'kernel'`` falls back to
-        ``'objects'`` for a plant whose disturbance is a Python callable.
+        call the same kernels and give bit-identical results.
 
     Returns
     -------
@@ -149,7 +148,8 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         Unknown case, a duration that is not a positive finite number of at least one step, or a
         state that became non-finite (the step and UH are named).
     """
-    from uh_sim_node.helicopter import load_helicopter_params, plant_from_scenario
+    from uh_core.airframe import load_helicopter_params
+    from uh_sim_node.helicopter import plant_from_scenario
     from uh_sim_node.reference import VirtualLeaderReference
 
     if case not in CASES:
@@ -178,10 +178,7 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     arrays = None
     if engine == 'kernel':
         from .team_kernel import team_arrays
-        try:
-            arrays = team_arrays(ids, controllers, plants)
-        except ValueError:
-            engine = 'objects'   # e.g. a Python-callable disturbance: njit code cannot evaluate it
+        arrays = team_arrays(ids, controllers, plants)
 
     out = {key: np.empty((K + 1, n, size)) for key, size in (
         ('states', 12), ('commands', 4), ('fault_true_p', 3), ('fault_true_w', 3), ('fault_est_p', 3),
@@ -221,7 +218,7 @@ def _non_finite(K, dt, ids, states, k):
 
 
 def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False):
-    """The step loop in :func:`~uh_controller_node.team_kernel.run_team_steps` on the stacked arrays
+    """The step loop in :func:`~uh_team.team_kernel.run_team_steps` on the stacked arrays
     ``a``, in chunks of about 1 % of the steps so ``progress`` is called as often as by the object
     loop (``load_only``: one call that runs no step, which loads or compiles the kernel)."""
     from .team_kernel import TEAM_DONE, run_team_steps

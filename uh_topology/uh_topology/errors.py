@@ -90,7 +90,9 @@ class DuplicateKeyError(SchemaError):
 
 
 class GainsError(ScenarioError):
-    """The gains file named by the scenario cannot be read or is not a mapping."""
+    """Controller gains that cannot be used: the gains file named by the scenario cannot be read or
+    is not a mapping, or an entry is unknown, missing or invalid, or the controller case is unknown
+    (raised by ``uh_controller_node.gains`` too)."""
 
 
 class TopologyError(ScenarioError):

@@ -40,6 +40,9 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
+from uh_core.layout import CHANNEL_ALIASES, NUM_CHANNELS
+from uh_core.records import FaultSpec
+
 from . import errors as E
 from .graph import (check_lemma1, containment_pattern, laplacian, laplacian_blocks,
                     leader_tracking_matrix, unreachable_follower_message, unreachable_followers,
@@ -52,34 +55,10 @@ __all__ = [
 
 _CONFIG_DIR = Path(__file__).resolve().parent / 'config'
 
-#: Accepted names of the actuator channels (index order of the input vector).
-CHANNEL_ALIASES = {
-    'collective': 0, 'theta_col': 0,
-    'tail_rotor': 1, 'theta_tr': 1,
-    'lateral': 2, 'delta_lat': 2,
-    'longitudinal': 3, 'delta_lon': 3,
-}
 
 
 # ------------------------------------------------------------------------------------------------
 # Plain validated data
-
-
-@dataclass(frozen=True)
-class FaultSpec:
-    """One actuator fault (paper eq. 6) as plain data; see ``uh_sim_node.faults.ActuatorFault``.
-
-    ``channel`` 0..3 (theta_col, theta_tr, delta_lat, delta_lon); ``rho`` in [0, 1]; bias
-    ``b(t) = bias_constant + bias_amplitude sin(bias_frequency t)`` rad (frequency rad/s);
-    ``onset_time`` s.
-    """
-
-    channel: int
-    rho: float
-    bias_constant: float = 0.0
-    bias_amplitude: float = 0.0
-    bias_frequency: float = 0.0
-    onset_time: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)

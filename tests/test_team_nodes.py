@@ -1,0 +1,108 @@
+"""One table of nodes (uh_bringup.team_nodes) behind the entry points, the composition, the run script
+and the launch file, so they cannot drift apart."""
+import ast
+import importlib
+import runpy
+import sys
+import types
+from pathlib import Path
+
+import pytest
+
+from uh_bringup import run_formation
+from uh_bringup.team_nodes import NODES, node_class, node_specs
+from uh_topology.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _console_scripts(pkg: str) -> dict:
+    """``{executable: 'module:function'}`` of a package's setup.py."""
+    tree = ast.parse((ROOT / pkg / 'setup.py').read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Dict):
+            for key, value in zip(node.keys, node.values):
+                if isinstance(key, ast.Constant) and key.value == 'console_scripts':
+                    entries = [ast.literal_eval(e) for e in value.elts]
+                    return dict((part.strip() for part in e.split('=')) for e in entries)
+    return {}
+
+
+@pytest.mark.parametrize('kind', sorted(NODES))
+def test_every_node_kind_has_its_entry_point_and_class(kind):
+    spec = NODES[kind]
+    assert _console_scripts(spec.package).get(spec.executable) == f'{spec.module}:main'
+    cls = node_class(kind)
+    assert isinstance(cls, type) and callable(importlib.import_module(spec.module).main)
+
+
+def test_unknown_node_kind_is_refused_with_the_allowed_ones():
+    with pytest.raises(ValueError, match="unknown node kind 'radar'; allowed: recorder, sim, controller"):
+        node_class('radar')
+
+
+def test_per_node_processes_start_the_entry_points_of_the_table(tmp_path):
+    scenario = load_scenario('paper')
+    specs = node_specs(scenario, 'paper', 'proposed', 'lockstep', 1.0, None, tmp_path / 'bag', 60.0)
+    commands = run_formation.process_commands(specs, 'per-node', tmp_path)
+    for (name, kind, args), (proc_name, cmd) in zip(specs, commands):
+        assert proc_name == name
+        assert Path(cmd[0]).name == NODES[kind].executable and cmd[1:] == args
+    kinds = [kind for _, kind, _ in specs]
+    assert kinds[0] == 'recorder' and kinds[-1] == 'clock'
+    assert kinds.count('sim') == kinds.count('controller') == len(scenario.ids)
+    assert 'visualization' in kinds
+
+
+class _Recorder:
+    """Stands in for a launch class: keeps its constructor arguments."""
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+
+
+def _fake_launch_modules(monkeypatch):
+    """Minimal ``launch`` and ``launch_ros`` (ROS 2 is not installed here): each class records how it
+    was built, so the launch file's own logic runs."""
+    mods = {name: types.ModuleType(name) for name in
+            ('launch', 'launch.actions', 'launch.event_handlers', 'launch.events', 'launch.substitutions',
+             'launch_ros', 'launch_ros.actions')}
+    classes = {'launch': ['LaunchDescription'],
+               'launch.actions': ['DeclareLaunchArgument', 'EmitEvent', 'OpaqueFunction', 'RegisterEventHandler'],
+               'launch.event_handlers': ['OnProcessExit'], 'launch.events': ['Shutdown'],
+               'launch.substitutions': ['LaunchConfiguration'], 'launch_ros.actions': ['Node']}
+    for mod, names in classes.items():
+        for name in names:
+            setattr(mods[mod], name, type(name, (_Recorder,), {}))
+    for name, mod in mods.items():
+        monkeypatch.setitem(sys.modules, name, mod)
+    return mods
+
+
+def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkeypatch, tmp_path):
+    mods = _fake_launch_modules(monkeypatch)
+    launch_file = runpy.run_path(str(ROOT / 'uh_bringup' / 'launch' / 'formation.launch.py'))
+    description = launch_file['generate_launch_description']()
+    arguments = {a.args[0]: a.kwargs['default_value'] for a in description.args[0]
+                 if isinstance(a, mods['launch.actions'].DeclareLaunchArgument)}
+    arguments.update(clock_mode='lockstep', out=str(tmp_path))
+    opaque = description.args[0][-1]
+    mods['launch.substitutions'].LaunchConfiguration.perform = lambda self, context: arguments[self.args[0]]
+    actions = opaque.kwargs['function'](None)
+
+    nodes = [a for a in actions if isinstance(a, mods['launch_ros.actions'].Node)]
+    expected = node_specs(load_scenario('paper'), 'paper', arguments['case'], 'lockstep', 1.0, None,
+                          f'{tmp_path}/bag', 60.0, 0.25)
+    assert [(n.kwargs['package'], n.kwargs['executable'], n.kwargs['arguments']) for n in nodes] == \
+        [(NODES[kind].package, NODES[kind].executable, args) for _, kind, args in expected]
+    handlers = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
+    # lockstep: the death of any node ends the launch, the clock's with 'run complete'
+    assert [h.kwargs['target_action'] for h in handlers] == nodes
+    reasons = [h.kwargs['on_exit'][0].kwargs['event'].kwargs['reason'] for h in handlers]
+    assert reasons[-1] == 'run complete' and all('lockstep needs every node' in r for r in reasons[:-1])
+
+    arguments.update(clock_mode='realtime', visualization='false')
+    actions = opaque.kwargs['function'](None)
+    handlers = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
+    assert len(handlers) == 1 and handlers[0].kwargs['target_action'].kwargs['executable'] == 'lockstep_clock_node'
+    assert 'visualization_node' not in [a.kwargs.get('executable') for a in actions]

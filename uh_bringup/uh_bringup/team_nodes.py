@@ -1,0 +1,95 @@
+"""The one table of a team's nodes, and the node list of a run built from it (docs/architecture.md).
+
+Every way of starting a team reads this module, so they cannot drift apart:
+
+* ``scripts/run_formation.sh`` (:mod:`uh_bringup.run_formation`) starts each node through its
+  entry point (``ros2 run PACKAGE EXECUTABLE`` on a ROS 2 machine), or several in one process;
+* :mod:`uh_bringup.composed` builds the node classes of one process from ``NODES[kind].node_class``;
+* ``ros2 launch uh_bringup formation.launch.py`` starts the same node list as the run script;
+* a test checks that every package's ``setup.py`` declares the entry point named here.
+
+ROS-free: no launch or rclpy import.
+"""
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from pathlib import Path
+
+from uh_core import topics
+
+__all__ = ['NodeKind', 'NODES', 'node_class', 'node_specs']
+
+
+@dataclass(frozen=True)
+class NodeKind:
+    """One kind of node of a team.
+
+    Attributes
+    ----------
+    package : str
+        ROS 2 package that installs it.
+    executable : str
+        Its console-script entry point (``ros2 run PACKAGE EXECUTABLE``).
+    node_class : str
+        ``module:Class`` of its node class, for composition in one process.
+    per_uh : bool
+        One per helicopter (in namespace ``/uhN``) rather than one per team.
+    """
+
+    package: str
+    executable: str
+    node_class: str
+    per_uh: bool = False
+
+    @property
+    def module(self) -> str:
+        """The module whose ``main()`` the entry point runs."""
+        return self.node_class.split(':')[0]
+
+
+#: node kind -> how it is packaged, started and composed
+NODES = {
+    'recorder': NodeKind('uh_runtime', 'recorder_node', 'uh_runtime.recorder:RecorderNode'),
+    'sim': NodeKind('uh_sim_node', 'sim_node', 'uh_sim_node.sim_node:SimNode', per_uh=True),
+    'controller': NodeKind('uh_controller_node', 'controller_node',
+                           'uh_controller_node.controller_node:ControllerNode', per_uh=True),
+    'visualization': NodeKind('uh_sim_node', 'visualization_node',
+                              'uh_sim_node.visualization_node:VisualizationNode'),
+    'virtual_leader': NodeKind('uh_sim_node', 'virtual_leader_node',
+                               'uh_sim_node.virtual_leader_node:VirtualLeaderNode'),
+    'clock': NodeKind('uh_sim_node', 'lockstep_clock_node', 'uh_sim_node.clock_node:ClockNode'),
+}
+
+
+def node_class(kind: str):
+    """The node class of a node kind (imported on demand)."""
+    try:
+        module, cls = NODES[kind].node_class.split(':')
+    except KeyError:
+        raise ValueError(f'unknown node kind {kind!r}; allowed: {", ".join(NODES)}') from None
+    return getattr(importlib.import_module(module), cls)
+
+
+def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, duration: float | None,
+               bag_dir: Path, startup_timeout: float, stale_timeout: float | None = None,
+               visualization: bool = True) -> list[tuple[str, str, list]]:
+    """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last
+    (the visualisation node only if ``visualization``)."""
+    common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
+    stale = ['-p', f'stale_timeout:={float(stale_timeout)}'] if stale_timeout is not None else []
+    if duration is not None:
+        common += ['-p', f'duration:={float(duration)}']
+    per_step = [name for name, spec in topics.team_topics(scenario.ids) if spec.per_step]
+    specs = [('recorder', 'recorder', ['--ros-args', '-p', f'output:={bag_dir}',
+                                       '-p', f'progress_topics:=[{",".join(per_step)}]'])]
+    for i in scenario.ids:
+        ns = ['-r', f'__ns:={topics.uh_namespace(i)}', '-p', f'uh_id:={i}']
+        specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *stale]))
+        specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, *stale, '-p', f'case:={case}']))
+    if visualization:
+        specs.append(('visualization', 'visualization', ['--ros-args', *common]))
+    specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common]))
+    specs.append(('clock', 'clock', ['--ros-args', *common, '-p', f'rate:={float(rate)}',
+                                     '-p', 'expect_recorder:=true', '-p', f'startup_timeout:={float(startup_timeout)}']))
+    return specs

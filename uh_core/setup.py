@@ -1,0 +1,27 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = 'uh_core'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
+    ],
+    package_data={package_name: ['config/*.yaml']},
+    install_requires=['numpy', 'PyYAML', 'uh_runtime'],
+    zip_safe=True,
+    maintainer='UH formation maintainers',
+    maintainer_email='maintainers@uh-formation.invalid',
+    description='Interfaces shared by the simulator and the controller of the UH formation-containment stack: state, input and reference layouts, airframe parameters, the registry of topic names and QoS, and the wire conversions.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+        ],
+    },
+)
