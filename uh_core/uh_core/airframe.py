@@ -7,13 +7,13 @@ nominal model from the same record (``uh_controller_node.nominal_model``). The b
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from .checks import finite_real
 from .layout import INPUT_NAMES, INPUT_SIZE
 
 __all__ = ['HelicopterParamsError', 'HelicopterParams', 'load_helicopter_params', 'default_params_path']
@@ -95,13 +95,7 @@ class HelicopterParams:
 
     def __post_init__(self):
         for name in _SCALAR_FIELDS:
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-                raise HelicopterParamsError(f'helicopter parameter {name!r} must be a real number, '
-                                            f'got {value!r}')
-            value = float(value)
-            if not math.isfinite(value):
-                raise HelicopterParamsError(f'helicopter parameter {name!r} must be finite, got {value!r}')
+            value = finite_real(getattr(self, name), f'helicopter parameter {name!r}', HelicopterParamsError)
             if name in _POSITIVE_FIELDS and value <= 0.0:
                 raise HelicopterParamsError(f'helicopter parameter {name!r} must be > 0, got {value!r}')
             if name in _NONNEGATIVE_FIELDS and value < 0.0:

@@ -37,6 +37,7 @@ from typing import Iterable
 
 import numpy as np
 
+from uh_core.checks import finite_real
 from uh_core.layout import INPUT_NAMES, NUM_CHANNELS
 from uh_core.records import FaultSpec
 
@@ -48,16 +49,6 @@ ONSET_TOLERANCE = 1e-9
 
 class FaultError(ValueError):
     """An actuator fault with an invalid channel or parameter."""
-
-
-def _finite(name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise FaultError(f'fault parameter {name!r} must be a real number, got {value!r} '
-                         f'of type {type(value).__name__}')
-    value = float(value)
-    if not math.isfinite(value):
-        raise FaultError(f'fault parameter {name!r} must be finite, got {value!r}')
-    return value
 
 
 @dataclass(frozen=True)
@@ -93,7 +84,7 @@ class ActuatorFault(FaultSpec):
                              f'(0 theta_col, 1 theta_tr, 2 delta_lat, 3 delta_lon), got {ch!r}')
         object.__setattr__(self, 'channel', int(ch))
         for name in ('rho', 'bias_constant', 'bias_amplitude', 'bias_frequency', 'onset_time'):
-            object.__setattr__(self, name, _finite(name, getattr(self, name)))
+            object.__setattr__(self, name, finite_real(getattr(self, name), f'fault parameter {name!r}', FaultError))
         if not 0.0 <= self.rho <= 1.0:
             raise FaultError(f'fault rho (effectiveness) must be in [0, 1], got {self.rho!r} '
                              f'on channel {self.channel} ({INPUT_NAMES[self.channel]})')
