@@ -85,6 +85,11 @@ def test_simulator_rejects_with_the_reason(rogue_run, message):
     assert re.search(message, _log(out, 'uh1_sim')), _log(out, 'uh1_sim')[-3000:]
 
 
+def test_clock_counts_a_command_by_its_topic_never_as_another_uhs(rogue_run):
+    out = rogue_run[0]
+    assert 'ignored a command carrying uh_id 9 on the command topic of uh1' in _log(out, 'clock')
+
+
 @pytest.mark.parametrize('node, message', [
     ('uh2_controller', r'rejected own state: state of uh2 at step 100 carries a non-finite value'),
     ('uh3_controller', r'rejected state of uh2: state of uh2 at step 100 carries a non-finite value'),
@@ -114,7 +119,7 @@ def test_plant_kept_running_and_the_bag_is_complete(rogue_run):
     assert meta['message_count'] > 0   # finalised by the recorder on SIGINT
     bag = read_team_bag(out / 'bag', paper)
     # the recorder keeps what was on the wire; the reader leaves out what the receivers rejected
-    assert bag['rejected'] == {'/uh2/state': 2, '/uh1/command': 1}
+    assert bag['rejected'] == {'/uh2/state': 2, '/uh1/command': 2}
     last = int(round(DURATION / paper.dt))
     # UH1 (whose simulator got every bad injection and the bad command) flew to the end with
     # finite states, and its faults are the scenario's: it is healthy, so its true fault stays 0

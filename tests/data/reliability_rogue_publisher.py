@@ -8,7 +8,7 @@ Sent, in order, each once:
 - on /uh1/fault: rho 1.5; a NaN constant bias; channel 7; a fault naming uh3; rho 0 with its onset
   after the end of the run (valid: a stuck actuator, accepted with a warning, never acting);
 - on /uh2/state: a state with NaN position; a finite state carrying uh_id 9;
-- on /uh1/command: a command with an infinite collective.
+- on /uh1/command: a command with an infinite collective; a finite command carrying uh_id 9.
 
 Prints ``sent`` when every message has been acknowledged by every matched reader.
 """
@@ -63,6 +63,7 @@ def main() -> int:
     state_pub.publish(bad_state)
     state_pub.publish(state_to_msg(9, 100, 1.0, np.zeros(12)))
     command_pub.publish(command_to_msg(1, 100, 1.0, [math.inf, 0.0, 0.0, 0.0]))
+    command_pub.publish(command_to_msg(9, 100, 1.0, [0.0, 0.0, 0.0, 0.0]))
     for pub in (fault_pub, state_pub, command_pub):
         pub.wait_for_all_acked(timeout_sec=10.0)
     print('sent', flush=True)

@@ -1,11 +1,11 @@
-"""The controller of one UH: consensus errors from neighbours' data, outer and inner loops (DESIGN.md 2.3-2.5).
+"""The controller of one UH: consensus errors from neighbours' data, outer and inner loops (docs/graph.md, docs/control_law.md).
 
 One :class:`UHController` per helicopter, built from the scenario only (its neighbours, weights,
 virtual-leader link and formation offsets come from the communication graph). Each control step
 it takes its own state, the states of its graph neighbours, and the virtual leader's reference if
 it hears the virtual leader, and returns the four physical inputs and a status record.
 
-Consensus errors (DESIGN.md 2.3), with ``h_j`` the formation offsets (leaders) or zero (followers)::
+Consensus errors (docs/graph.md), with ``h_j`` the formation offsets (leaders) or zero (followers)::
 
     leader i:    z1 = sum_{j in N_i} a_ij [(p_i - h_i) - (p_j - h_j)] + a_i0 [(p_i - h_i) - p_0]
     follower k:  z1 = sum_{j in N_k} a_kj (p_k - p_j)
@@ -33,13 +33,15 @@ from typing import NamedTuple
 
 import numpy as np
 
+from uh_topology.graph import reachable_from
+
 from .control_kernels import (
     INPUT_SIZE, M_ALPHA_F, M_ALPHA_WF, M_F_HAT_P, M_F_HAT_W, M_OMEGA_HAT, M_V_HAT, MEMORY_ROWS,
     R_P, R_V, R_YAW, REFERENCE_SIZE, S_COST_RATE, S_EULER_D, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE,
     S_SAT_CYCLIC, S_SAT_TILT, S_THRUST, S_U_P, S_W_NORM_P, S_W_NORM_W, S_Z1, S_Z2, S_Z3, S_Z4, S_ZN_P, S_ZN_W,
     STATE_SIZE, STATUS_SIZE, STEP_DONE, ControlArrays, control_parameters, uh_control_step)
 from .gains import ControllerGains
-from .nominal_model import NominalModel
+from .nominal_model import nominal_model
 
 __all__ = ['ControllerError', 'ControllerStatusData', 'LoopState', 'UHController']
 
@@ -90,7 +92,7 @@ class ControllerStatusData:
     saturated_tilt, saturated_collective, saturated_cyclic : bool
         Tilt (or minimum vertical thrust), collective, and cyclic/tail-rotor limits active.
     cost_rate : float
-        ``|z1|^2 + |u_p|^2``, the integrand of the CPI (DESIGN.md 2.8).
+        ``|z1|^2 + |u_p|^2``, the integrand of the CPI (docs/metrics.md).
     stale_neighbours : tuple of str
         Filled by the node when a neighbour's data is older than its timeout; empty here.
     """
@@ -194,7 +196,7 @@ def _check_dt(dt) -> float:
 
 
 class UHController:
-    """Composite-learning inverse-optimal fault-tolerant controller of one UH (DESIGN.md 2.3-2.6).
+    """Composite-learning inverse-optimal fault-tolerant controller of one UH (docs/graph.md, docs/control_law.md).
 
     Parameters
     ----------
@@ -204,7 +206,7 @@ class UHController:
         Supplies ``ids``, ``leaders``, ``neighbours(i)``, ``weight(i, j)``, ``leader_link(i)``,
         ``offsets``, ``gains`` (raw mapping), ``model_mismatch`` and ``helicopter``.
     case : str
-        ``'proposed'``, ``'case1'`` or ``'case2'`` (DESIGN.md 2.6).
+        ``'proposed'``, ``'case1'`` or ``'case2'`` (docs/control_law.md#comparison-cases).
     helicopter_params : HelicopterParams, optional
         Airframe parameters; default: loaded from ``scenario.helicopter``. The controller's nominal
         model scales their ``D_v`` and ``c_Q`` by ``scenario.model_mismatch``.
@@ -225,7 +227,7 @@ class UHController:
         Own formation offset h_i, m (zero for followers).
     case : str
     gains : ControllerGains
-    model : NominalModel
+    model : HelicopterParams
     outer, inner : LoopState
         Live views of the loops' learning states.
 
@@ -259,7 +261,7 @@ class UHController:
             for j in needed:
                 if j not in leaders:
                     raise ControllerError(f'leader UH {i} hears follower UH {j}; leaders may hear only '
-                                          'leaders and the virtual leader (DESIGN.md 2.3)')
+                                          'leaders and the virtual leader (docs/graph.md)')
                 if j not in offsets:
                     raise ControllerError(f'no formation offset for leader UH {j} (needed by UH {i})')
             self.offset = _vector3(offsets[i], f'formation offset of leader UH {i}')
@@ -269,16 +271,20 @@ class UHController:
             self.offset = zero
             neighbour_offsets = tuple(zero for _ in self.neighbours)
         self._neighbour_set = frozenset(self.neighbours)
-        # the whole graph, for the reachability check of a degraded step (Assumption 1)
-        self._hears = {int(j): tuple(int(n) for n in scenario.neighbours(j)) for j in ids}
-        self._linked = frozenset(int(j) for j in ids if float(scenario.leader_link(j)) > 0.0)
+        # the whole graph (who hears whom, column 0 = the virtual leader), for the reachability
+        # check of a degraded step (Assumption 1, docs/graph.md)
+        self._ids = frozenset(ids)
+        self._graph = np.zeros((max(ids) + 1, max(ids) + 1))
+        for j in ids:
+            self._graph[j, list(scenario.neighbours(j))] = 1.0
+            self._graph[j, 0] = float(scenario.leader_link(j))
         self.case = case
         self.gains = ControllerGains.from_mapping(scenario.gains, case, source=f'gains of scenario '
                                                   f'{getattr(scenario, "name", "?")!r}')
         if helicopter_params is None:
-            from uh_sim_node.helicopter import load_helicopter_params
+            from uh_core.airframe import load_helicopter_params
             helicopter_params = load_helicopter_params(scenario.helicopter)
-        self.model = NominalModel.from_params(helicopter_params, float(scenario.model_mismatch))
+        self.model = nominal_model(helicopter_params, float(scenario.model_mismatch))
 
         # the kernel's arrays (control_kernels module doc): constants of this UH ...
         n_nb = len(self.neighbours)
@@ -340,7 +346,7 @@ class UHController:
         return _check_dt(dt)
 
     def step(self, k: int, own_state, neighbour_states: dict, reference, dt: float):
-        """One control step at ``t_k = k dt`` (DESIGN.md 2.3-2.5).
+        """One control step at ``t_k = k dt`` (docs/graph.md, docs/control_law.md).
 
         Parameters
         ----------
@@ -378,20 +384,11 @@ class UHController:
     def reachable_without(self, lost) -> bool:
         """Whether this UH still has a directed path from the virtual leader when the UHs in ``lost``
         (ids; ``0`` = the virtual leader's reference) are gone: Assumption 1 for this UH on the
-        remaining graph. Leaders never hear followers, so a follower reached from the virtual leader
-        is reached through a leader."""
+        remaining graph (docs/graph.md). Leaders never hear followers, so a follower reached from the
+        virtual leader is reached through a leader."""
         lost = {int(j) for j in lost}
-        reached = set() if 0 in lost else {0}
-        grown = True
-        while grown:
-            grown = False
-            for j, hears in self._hears.items():
-                if j in reached or j in lost:
-                    continue
-                if (j in self._linked and 0 in reached) or any(n in reached for n in hears):
-                    reached.add(j)
-                    grown = True
-        return self.uh_id in reached
+        sources = () if 0 in lost else (0,)
+        return self.uh_id in reachable_from(self._graph, sources, allowed=self._ids - lost)
 
     def step_degraded(self, k: int, own_state, neighbour_states: dict, reference, dt: float, *,
                       hold=None):

@@ -11,6 +11,9 @@
   ``REALTIME_START_WAIT_S``), then a wall-clock timer publishes step k+1 every dt / rate seconds.
   Without that wait the first steps of a team whose processes are still finishing their start-up
   would count as missed.
+
+The node discovers the team and publishes; which step comes next, and when, is decided by
+:class:`uh_sim_node.clock_advance.ClockAdvancer` (no ROS, injectable wall clock).
 """
 from __future__ import annotations
 
@@ -18,16 +21,12 @@ import time
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_sim_node.run_config import declare_run_parameters
-from uh_sim_node.wire import clock_msg, clock_step, stamp_seconds
-from uh_topology import topics
+from uh_sim_node.clock_advance import REALTIME_FINAL_WAIT_S, REALTIME_START_WAIT_S, ClockAdvancer
+from uh_topology.run_config import declare_run_parameters
+from uh_core.wire import clock_msg, stamp_seconds
+from uh_core import topics
 
-__all__ = ['ClockNode', 'expected_endpoints', 'main']
-
-#: realtime: how long after the last tick the clock waits for the recorder to confirm the last step
-REALTIME_FINAL_WAIT_S = 5.0
-#: realtime: how long the clock waits at step 0 for every UH's first command before ticking anyway
-REALTIME_START_WAIT_S = 10.0
+__all__ = ['ClockNode', 'expected_endpoints', 'main', 'REALTIME_FINAL_WAIT_S', 'REALTIME_START_WAIT_S']
 
 
 def expected_endpoints(scenario, recorder: bool) -> dict[str, tuple[int, int]]:
@@ -46,6 +45,8 @@ def expected_endpoints(scenario, recorder: bool) -> dict[str, tuple[int, int]]:
 
 
 class ClockNode(rt.Node):
+    """The run's clock; see the module docstring for the behaviour."""
+
     def __init__(self, **kwargs):
         super().__init__('clock', **kwargs)
         run = declare_run_parameters(self, per_uh=False)
@@ -58,27 +59,28 @@ class ClockNode(rt.Node):
         self.declare_parameter('startup_timeout', 60.0, rt.ParameterDescriptor(
             description='s to wait for every node of the team to be discovered', read_only=True,
             floating_point_range=[rt.FloatingPointRange(from_value=1.0, to_value=3600.0, step=0.0)]))
-        self.scenario, self.mode = run.scenario, run.clock_mode
-        self.dt, self.last_step = run.dt, run.last_step
-        self.rate = float(self.get_parameter('rate').value)
-        self.expect_recorder = bool(self.get_parameter('expect_recorder').value)
+        self.scenario, self.mode, self.dt = run.scenario, run.clock_mode, run.dt
+        expect_recorder = bool(self.get_parameter('expect_recorder').value)
         self.startup_deadline = time.monotonic() + float(self.get_parameter('startup_timeout').value)
-        self.expected = expected_endpoints(self.scenario, self.expect_recorder)
-        self.step = -1
-        self.commands: dict[int, set[int]] = {}
-        self.recorded_step = -1
-        self.done = False
+        self.expected = expected_endpoints(self.scenario, expect_recorder)
+        self.clock = ClockAdvancer(self.scenario.ids, mode=self.mode, dt=run.dt, last_step=run.last_step,
+                                   rate=float(self.get_parameter('rate').value), expect_recorder=expect_recorder,
+                                   logger=self.get_logger())
         self.failed = None
-        self.started_wall = None
         self.tick_timer = None
         qos = topics.qos_profile(topics.STEP_QOS)
         self.pub = self.create_publisher(m.Clock, topics.CLOCK.name, qos)
         for i in self.scenario.ids:
             self.create_subscription(m.ActuatorCommand, topics.uh_topic(i, topics.COMMAND),
-                                     self.on_command, qos)
+                                     lambda msg, i=i: self.on_command(i, msg), qos)
         self.create_subscription(m.Time, topics.RECORDER_PROGRESS.name, self.on_progress,
                                  topics.qos_profile(topics.RECORDER_PROGRESS.qos))
         self.startup_timer = self.create_timer(0.05, self.check_startup)
+
+    @property
+    def done(self) -> bool:
+        """The run is complete, or the team never came up (``failed``)."""
+        return self.clock.done
 
     # -- start -------------------------------------------------------------------------------------
     def missing_endpoints(self) -> list[str]:
@@ -95,98 +97,57 @@ class ClockNode(rt.Node):
             if time.monotonic() > self.startup_deadline:
                 self.failed = 'team not complete after the startup timeout; missing: ' + '; '.join(missing)
                 self.get_logger().error(self.failed)
-                self.done = True
+                self.clock.stop()
                 self.startup_timer.cancel()
             return
         self.startup_timer.cancel()
-        self.started_wall = time.monotonic()
         self.get_logger().info(f'team complete ({len(self.scenario.ids)} UHs); {self.mode} run of '
-                               f'{self.last_step} steps starts')
-        self.publish_step(0)
+                               f'{self.clock.last_step} steps starts')
+        self.publish(self.clock.start())
         if self.mode == 'realtime':
-            self.live_deadline = time.monotonic() + REALTIME_START_WAIT_S
             self.live_timer = self.create_timer(0.05, self.start_ticking)
             self.start_ticking()
 
     def start_ticking(self) -> None:
         """realtime: start the wall-clock ticks once every UH commanded step 0 (or the wait is over)."""
-        if self.tick_timer is not None or self.done:
-            return
-        answered = self.commands.get(0, set())
-        if len(answered) < len(self.scenario.ids):
-            if time.monotonic() < self.live_deadline:
-                return
-            missing = sorted(set(self.scenario.ids) - answered)
-            self.get_logger().warn(f'no command of step 0 from uh{", uh".join(map(str, missing))} after '
-                                   f'{REALTIME_START_WAIT_S:g} s: starting the realtime ticks anyway')
-        self.live_timer.cancel()
-        self.commands.pop(0, None)
-        self.started_wall = time.monotonic()   # the real-time factor counts the ticking loop
-        self.tick_timer = self.create_timer(self.dt / self.rate, self.on_tick)
+        if self.tick_timer is None and self.clock.start_ticking():
+            self.live_timer.cancel()
+            self.tick_timer = self.create_timer(self.clock.tick_period, self.on_tick)
 
     # -- stepping ----------------------------------------------------------------------------------
-    def publish_step(self, k: int) -> None:
-        self.step = k
-        self.pub.publish(clock_msg(k * self.dt))
-        if k and k % max(1, self.last_step // 10) == 0:
-            wall = time.monotonic() - self.started_wall
-            self.get_logger().info(f'step {k}/{self.last_step}: sim {k * self.dt:.2f} s, wall {wall:.2f} s, '
-                                   f'real-time factor {k * self.dt / max(wall, 1e-9):.2f}')
+    def publish(self, steps) -> None:
+        for k in steps:
+            self.pub.publish(clock_msg(k * self.dt))
 
     def on_tick(self) -> None:
-        if self.step < self.last_step:
-            self.publish_step(self.step + 1)
+        k = self.clock.tick()
+        if k is not None:
+            self.publish((k,))
             return
         self.tick_timer.cancel()
-        self.finish_when_recorded()
         # realtime has latest-value semantics: do not wait for ever for a last message that was lost
         self.final_timer = self.create_timer(REALTIME_FINAL_WAIT_S, self.give_up_waiting)
 
     def give_up_waiting(self) -> None:
         self.final_timer.cancel()
-        if not self.done:
-            self.get_logger().warn(f'the recorder did not confirm the last step within {REALTIME_FINAL_WAIT_S} s '
-                                   f'(recorded up to step {self.recorded_step}); ending the run')
-            self.finish_when_recorded(force=True)
+        self.clock.give_up(REALTIME_FINAL_WAIT_S)
 
-    def on_command(self, msg) -> None:
-        if self.mode == 'lockstep':  # realtime ticks do not wait for commands (but start on step 0's)
-            self.commands.setdefault(int(msg.step), set()).add(int(msg.uh_id))
-            self.try_advance()
-        elif self.tick_timer is None and int(msg.step) == 0:
-            self.commands.setdefault(0, set()).add(int(msg.uh_id))
+    def on_command(self, uh_id: int, msg) -> None:
+        if int(msg.uh_id) != uh_id:   # counted by the topic it came on, never as another UH's command
+            self.get_logger().warning(f'ignored a command carrying uh_id {msg.uh_id} on the command topic '
+                                      f'of uh{uh_id}', once=True)
+            return
+        self.publish(self.clock.on_command(uh_id, int(msg.step)))
+        if self.mode == 'realtime':
             self.start_ticking()
 
     def on_progress(self, msg) -> None:
-        self.recorded_step = int(round(stamp_seconds(msg) / self.dt))
-        if self.mode == 'lockstep':
-            self.try_advance()
-        elif self.step >= self.last_step:
-            self.finish_when_recorded()
-
-    def try_advance(self) -> None:
-        n = len(self.scenario.ids)
-        while self.step >= 0 and not self.done and len(self.commands.get(self.step, ())) == n:
-            if self.step == self.last_step:
-                self.finish_when_recorded()
-                return
-            if self.expect_recorder and self.recorded_step < self.step - topics.RECORDER_LAG_STEPS:
-                return  # the recorder is behind; on_progress retries
-            self.commands.pop(self.step, None)
-            self.publish_step(self.step + 1)
+        self.publish(self.clock.on_progress(int(round(stamp_seconds(msg) / self.dt))))
 
     def destroy_node(self):
-        if hasattr(self, 'step'):  # not when the constructor failed half-way
-            self.get_logger().info(f'published: {topics.CLOCK.name} {self.step + 1}')
+        if hasattr(self, 'clock'):  # not when the constructor failed half-way
+            self.get_logger().info(f'published: {topics.CLOCK.name} {self.clock.step + 1}')
         return super().destroy_node()
-
-    def finish_when_recorded(self, force: bool = False) -> None:
-        if self.done or (self.expect_recorder and self.recorded_step < self.last_step and not force):
-            return
-        wall = time.monotonic() - self.started_wall
-        self.get_logger().info(f'run complete: {self.last_step} steps, sim {self.last_step * self.dt:.2f} s '
-                               f'in {wall:.2f} s wall (real-time factor {self.last_step * self.dt / wall:.2f})')
-        self.done = True
 
 
 def main(args=None):
