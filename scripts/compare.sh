@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Run the proposed law, Case I and Case II (DESIGN.md 2.6) on the paper scenario and write one
+# Run the proposed law, Case I and Case II (docs/control_law.md#comparison-cases) on the paper scenario and write one
 # report comparing them (the paper's Figures 10-12 and the metrics table side by side).
 #   scripts/compare.sh [--out DIR] [--duration S] [--simulate] [--scenario FILE|paper]
 # Default: the distributed stack (scripts/run_formation.sh, lockstep clock, one process per node,

@@ -1,12 +1,12 @@
 """Composite learning identifies an unknown function faster than tracking-error-only learning.
 
-The reason for the serial-parallel estimation model (DESIGN.md 2.4 steps 4-5): the tracking-error
+The reason for the serial-parallel estimation model (docs/control_law.md#outer-loop steps 4-5): the tracking-error
 law ``W' = Gamma S z2`` learns only as fast as the tracking error grows, and a well-tuned controller
 keeps that error small; the prediction error ``z_n = v - vhat`` of the SPEM is driven by the
 approximation error directly, whatever the feedback gain. Both runs below use the real outer-loop
 kernels (``outer_law`` then ``outer_advance``, as ``uh_control_step`` calls them) on a toy plant
 ``p' = v, v' = f(v) + u_p`` with the same gains, learning rate and trajectory; the only difference
-is the DESIGN.md 2.6 ``case2`` change (``gamma = gamma_F = kappa = 0``). The fault observer is off
+is the docs/control_law.md#comparison-cases ``case2`` change (``gamma = gamma_F = kappa = 0``). The fault observer is off
 so the network has to learn all of ``f``.
 """
 import math

@@ -1,4 +1,4 @@
-"""The control-law kernels and their Python wrapper (DESIGN.md 2.3-2.6): array layouts, the
+"""The control-law kernels and their Python wrapper (docs/graph.md, docs/control_law.md): array layouts, the
 parameter vector, the documented way of calling the per-UH kernel from njit code, the degraded
 step, input checks that leave the controller unchanged, and the signatures the cache is warmed for."""
 import dataclasses

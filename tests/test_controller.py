@@ -1,5 +1,5 @@
 """Per-UH controller: gains and cases, filters, thrust/attitude extraction, consensus errors,
-input checks, equilibrium and determinism (DESIGN.md 2.3-2.6)."""
+input checks, equilibrium and determinism (docs/graph.md, docs/control_law.md)."""
 import copy
 import dataclasses
 import math
@@ -164,7 +164,7 @@ def test_angle_axis_takes_the_short_way_and_stays_continuous():
 
 
 # ---------------------------------------------------------------------------------------------
-# thrust and attitude extraction (DESIGN.md 2.4 step 8)
+# thrust and attitude extraction (docs/control_law.md#thrust-and-attitude)
 
 def _rotation_e3(phi, theta, psi):
     cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),

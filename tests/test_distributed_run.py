@@ -13,9 +13,9 @@ import yaml
 from rosbags.rosbag2 import Reader
 
 from uh_bringup.bag_metrics import read_team_bag
-from uh_controller_node.team_simulation import run_team_simulation
+from uh_team.team_simulation import run_team_simulation
 from uh_runtime.network import reserve_domain_id
-from uh_topology import topics
+from uh_core import topics
 from uh_topology.scenario import load_scenario
 from team_runs import start_run, wait_for_log
 
@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
-# Who hears whom in the paper scenario, written out from DESIGN.md 2.7 (1<-0, 2<-1, 3<-2, 1<-3;
+# Who hears whom in the paper scenario, written out from docs/scenario.md (1<-0, 2<-1, 3<-2, 1<-3;
 # 4<-1, 4<-2, 4<-5; 5<-3, 5<-4), independently of the scenario file the nodes read.
 PAPER_READS = {
     1: {'/uh1/state', '/uh3/state', '/reference'},
@@ -136,8 +136,8 @@ def test_bag_is_complete_and_decodes_with_rosbags(lockstep_run, paper, reference
         counts = {c.topic: c.msgcount for c in reader.connections}
         assert all(counts[name] == steps for name in expected)
         # decode a few messages field by field against what the reference run published
-        from uh_bringup.bag_metrics import _typestore
-        store = _typestore()
+        from uh_runtime.messages import typestore
+        store = typestore()
         conn = [c for c in reader.connections if c.topic == '/uh4/state']
         for i, (c, _t, raw) in enumerate(reader.messages(connections=conn)):
             msg = store.deserialize_cdr(raw, c.msgtype)

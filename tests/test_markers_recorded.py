@@ -13,7 +13,7 @@ from test_report import shared_team_run
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
-# DESIGN.md 2.7: followers 4, 5 aim at w = -L1^-1 L2 = [[0.4, 0.4, 0.2], [0.2, 0.2, 0.6]] of the
+# docs/scenario.md: followers 4, 5 aim at w = -L1^-1 L2 = [[0.4, 0.4, 0.2], [0.2, 0.2, 0.6]] of the
 # leaders 1, 2, 3 (written out here, independently of the scenario code)
 CONTAINMENT_WEIGHTS = {4: (0.4, 0.4, 0.2), 5: (0.2, 0.2, 0.6)}
 NAMESPACES = {'uh', 'label', 'trail', 'formation', 'hull', 'target', 'virtual_leader'}

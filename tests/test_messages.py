@@ -2,7 +2,7 @@
 
 For every uh_msgs type and the standard types the stack uses, the IdlStruct class must serialise
 to exactly the bytes rosbags' ``serialize_cdr`` produces for the same non-trivial values, and
-read them back unchanged (DESIGN.md section 1: the payload is ROS 2 CDR).
+read them back unchanged (docs/runtime.md: the payload is ROS 2 CDR).
 """
 import dataclasses
 from pathlib import Path

@@ -1,4 +1,4 @@
-"""Metrics of DESIGN.md 2.8 against closed-form cases."""
+"""Metrics of docs/metrics.md against closed-form cases."""
 import math
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Virtual-leader reference of DESIGN.md 2.7: paper trajectory and analytic derivatives."""
+"""Virtual-leader reference of docs/scenario.md: paper trajectory and analytic derivatives."""
 import math
 
 import numpy as np

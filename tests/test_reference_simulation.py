@@ -1,6 +1,6 @@
 """In-process reference simulation of the paper scenario and the ``uh-simulate`` command (issue 3).
 
-The full 60 s paper scenario with the faults of DESIGN.md 2.7 runs once per session (a few
+The full 60 s paper scenario with the faults of docs/scenario.md runs once per session (a few
 seconds) and is checked against the acceptance thresholds.
 """
 import io
@@ -40,7 +40,7 @@ def test_paper_scenario_meets_the_acceptance_thresholds(full_run):
     assert m['formation_rms_m'] < 0.10
     assert m['containment_rms_m'] < 0.10
     assert m['hull_distance_max_m'] < 0.05
-    # every faulted UH and lumped-fault vector of DESIGN.md 2.7 is scored and tracked
+    # every faulted UH and lumped-fault vector of docs/scenario.md is scored and tracked
     assert m['fault_nrmse'].keys() == {'uh2', 'uh3', 'uh5'}
     assert m['fault_nrmse']['uh2'].keys() == {'F_p', 'F_w'}
     assert m['fault_nrmse']['uh3'].keys() == {'F_w'}       # no collective fault on UH3

@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
 
-from uh_bringup.bag_metrics import _typestore, read_team_bag
+from uh_bringup.bag_metrics import read_team_bag
+from uh_runtime.messages import typestore
 from uh_runtime.network import reserve_domain_id
 from uh_topology.scenario import load_scenario
 
@@ -61,7 +62,7 @@ def _run_and_kill(out: Path, domain: int, victim: str, at_step: int, *extra, tim
 
 def _statuses(bag_dir: Path, uh: int) -> dict:
     """step -> stale_neighbours of /uhN/status in the bag."""
-    store = _typestore()
+    store = typestore()
     out = {}
     with Reader(bag_dir) as reader:
         conns = [c for c in reader.connections if c.topic == f'/uh{uh}/status']

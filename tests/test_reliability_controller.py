@@ -1,4 +1,4 @@
-"""The controller core with part of its inputs (a neighbour or the reference stale, DESIGN.md 2.3):
+"""The controller core with part of its inputs (a neighbour or the reference stale, docs/graph.md):
 the remaining-graph check of Assumption 1, the degraded step on a subgraph and the position hold."""
 import numpy as np
 import pytest
@@ -62,7 +62,7 @@ def test_reachability_without_lost_uhs(paper, uh, lost, reachable):
 
 
 def test_degraded_step_with_every_input_is_the_normal_step(paper):
-    """Same inputs, same internal states: bit-identical commands and status (DESIGN.md 2.3-2.5)."""
+    """Same inputs, same internal states: bit-identical commands and status (docs/graph.md, docs/control_law.md)."""
     a, b = UHController(1, paper), UHController(1, paper)
     for k in range(50):
         states, ref = _inputs(paper, k)

@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RUN = ROOT / 'scripts' / 'run_formation.sh'
 TEAM_RUN_DURATION = 22.0   # s: past the paper scenario's settle time (20 s), so every metric is defined
 
-# The paper scenario (DESIGN.md 2.7) has faults in UH2, UH3 and UH5: one fault figure each.
+# The paper scenario (docs/scenario.md) has faults in UH2, UH3 and UH5: one fault figure each.
 FAULTED = (2, 3, 5)
 PER_RUN_FIGURES = ['states', 'trajectory_3d', 'xy_snapshots'] + [f'faults_uh{i}' for i in FAULTED]
 
@@ -111,7 +111,7 @@ def team_run(tmp_path_factory):
 @pytest.fixture(scope='module')
 def simulated_runs(tmp_path_factory):
     """Case I and Case II from the in-process reference simulation, as long as the team run."""
-    from uh_controller_node import simulate_cli
+    from uh_team import simulate_cli
     base = tmp_path_factory.mktemp('sim')
     for case in ('case1', 'case2'):
         assert simulate_cli.main(['--scenario', 'paper', '--case', case, '--duration', str(TEAM_RUN_DURATION),
@@ -167,7 +167,7 @@ def test_table_has_one_column_per_run_with_the_numbers_of_metrics_json(report):
                 # the table shows 4 significant digits: relative rounding error at most 5e-4
                 assert float(text) == pytest.approx(value, rel=5e-4, abs=0), (key, run, text, value)
                 checked += 1
-    # every scalar of DESIGN.md 2.8 and the five scored fault vectors, for each run
+    # every scalar of docs/metrics.md and the five scored fault vectors, for each run
     assert checked >= 3 * (10 + 5)
     # the CSV holds the same numbers at full precision: equal to metrics.json to the bit
     with open(out / 'metrics_table.csv') as f:
@@ -195,7 +195,7 @@ def test_report_of_a_short_simulation_marks_undefined_metrics(tmp_path):
     """A 5 s run ends before the 20 s settle time: its after-settle metrics are null in
     metrics.json and 'n/a' in the table; the default output directory is RUN_DIR/report."""
     from uh_bringup.report import main
-    from uh_controller_node import simulate_cli
+    from uh_team import simulate_cli
     run = tmp_path / 'short'
     assert simulate_cli.main(['--scenario', 'paper', '--out', str(run), '--duration', '5']) == 0
     assert main([str(run)]) == 0

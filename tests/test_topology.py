@@ -1,4 +1,4 @@
-"""Scenario loading and topology validation (DESIGN.md 2.3, 2.7; paper Assumption 1, Lemma 1)."""
+"""Scenario loading and topology validation (docs/graph.md, docs/scenario.md; paper Assumption 1, Lemma 1)."""
 import copy
 import math
 from pathlib import Path

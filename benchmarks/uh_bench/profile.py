@@ -34,10 +34,11 @@ CATEGORIES = (
         x in f for x in ('recorder.py', 'bag.py'))),
     ('recorder and bag writer', lambda f, fn: 'recorder.py' in f or 'bag.py' in f or '/mcap/' in f),
     ('message conversions (wire.py)', lambda f, fn: 'uh_core/wire.py' in f),
-    ('controller node', lambda f, fn: 'controller_node.py' in f),
+    ('controller node', lambda f, fn: any(x in f for x in ('controller_node.py', 'input_sync.py'))),
     ('simulator node', lambda f, fn: 'uh_sim_node/sim_node.py' in f),
     ('clock, virtual leader, visualisation', lambda f, fn: any(
-        x in f for x in ('clock_node.py', 'virtual_leader_node.py', 'visualization_node.py', 'reference.py'))),
+        x in f for x in ('clock_node.py', 'clock_advance.py', 'virtual_leader_node.py', 'visualization_node.py',
+                         'reference.py'))),
     # the numba kernels are not Python functions: cProfile books their time to the wrapper calling them
     ('control law', lambda f, fn: any(x in f for x in ('uh_controller_node/controller.py', 'control_kernels.py',
                                                        'team_kernel.py', 'nominal_model.py'))),

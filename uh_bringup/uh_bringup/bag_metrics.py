@@ -152,7 +152,7 @@ def _diagnose_mcap(bag_dir: Path) -> str:
 
 
 def write_metrics_from_bag(bag_dir, scenario, case: str, out_path, wall_time_s: float | None = None) -> dict:
-    """Compute the metrics of DESIGN.md 2.8 from a team bag and write them to ``out_path`` (JSON)."""
+    """Compute the metrics of docs/metrics.md from a team bag and write them to ``out_path`` (JSON)."""
     from uh_team.metrics import metrics_from_arrays
 
     arrays = read_team_bag(bag_dir, scenario)

@@ -3,7 +3,7 @@
 ``uh-report RUN_DIR [RUN_DIR ...] [--out DIR]`` reads each run and writes into ``DIR``:
 
 - ``report.md`` and ``index.html``: the metrics table of all runs side by side (one column per
-  run, the numbers of each run's ``metrics.json``, DESIGN.md 2.8) and every figure;
+  run, the numbers of each run's ``metrics.json``, docs/metrics.md) and every figure;
 - ``metrics_table.csv``: the same table at full precision;
 - ``errors.png``, ``errors_per_uh.png``: formation and containment errors, the runs overlaid
   (Figures 10-12 when the runs are proposed, Case I and Case II);
@@ -42,7 +42,7 @@ __all__ = ['ReportError', 'RunData', 'load_run', 'table_rows', 'format_value', '
 
 PROG = 'uh-report'
 
-#: Display names of the controller cases (DESIGN.md 2.6).
+#: Display names of the controller cases (docs/control_law.md#comparison-cases).
 CASE_LABELS = {'proposed': 'proposed', 'case1': 'Case I (β = 1)', 'case2': 'Case II (no SPEM)'}
 
 # (metrics.json key, what, unit, lower is better); fault NRMSE rows are added per UH and vector
@@ -263,7 +263,7 @@ def _lookup(metrics: dict, key: str):
 def table_rows(runs) -> list[tuple[str, str, str, bool]]:
     """``[(metrics.json key, what, unit, lower is better), ...]`` of the table for ``runs``.
 
-    The fixed rows of DESIGN.md 2.8 and, for every UH and vector any run scores, a fault NRMSE row
+    The fixed rows of docs/metrics.md and, for every UH and vector any run scores, a fault NRMSE row
     ``fault_nrmse.uh<i>.F_p`` / ``F_w``.
     """
     rows = list(_ROWS[:9])
@@ -395,7 +395,7 @@ def _notes(runs) -> list[str]:
     settle = sorted({r.metrics.get('settle_time_s') for r in runs if r.metrics.get('settle_time_s') is not None})
     settle_text = ', '.join(f'{s:g}' for s in settle) or 'the settle time'
     return [
-        'Metrics of DESIGN.md 2.8 (`uh_controller_node/metrics.py`), copied from each run\'s `metrics.json` '
+        'Metrics of docs/metrics.md (`uh_team/metrics.py`), copied from each run\'s `metrics.json` '
         '(4 significant digits; full precision in `metrics_table.csv`). Bold: the lowest value of a row.',
         f'MSE and CPI cover the whole run; RMS errors and the hull distance the samples after t = {settle_text} s; '
         'fault NRMSE = RMS |F̂ − F| / RMS |F| from the fault onset + 5 s to the end, `F_p` only for a '

@@ -4,7 +4,7 @@ Each function takes :class:`uh_bringup.report.RunData` objects (the arrays of
 ``uh_bringup.bag_metrics.read_team_bag`` or of ``timeseries.npz``, UH axis in ``scenario.ids``
 order) and writes one PNG of a fixed pixel size (:data:`FIGURE_SIZES` at :data:`DPI`), so a test
 can check what was drawn. Errors are computed with the one metrics module
-(:mod:`uh_team.metrics`, DESIGN.md 2.8).
+(:mod:`uh_team.metrics`, docs/metrics.md).
 
 =====================  ==========================================================================
 figure                 content (paper figure)
@@ -351,7 +351,7 @@ def _robust_ylim(ax, t, true, est, skip: float) -> None:
 # ----------------------------------------------------------------------------------------------
 def uh_errors(run) -> np.ndarray:
     """(K+1, n) formation error ``|p_i - h_i - p_0|`` of each leader and containment error
-    ``|p_k - sum_j w_kj p_j|`` of each follower, m (DESIGN.md 2.8), UH axis in ``scenario.ids`` order."""
+    ``|p_k - sum_j w_kj p_j|`` of each follower, m (docs/metrics.md), UH axis in ``scenario.ids`` order."""
     from uh_team.metrics import containment_errors, formation_errors
 
     sc = run.scenario

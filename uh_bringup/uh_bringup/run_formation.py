@@ -32,7 +32,7 @@ Output directory::
 
     DIR/bag/            rosbag2 MCAP bag of every topic
     DIR/logs/*.log      one log per node
-    DIR/metrics.json    the metrics of DESIGN.md 2.8, computed from the bag
+    DIR/metrics.json    the metrics of docs/metrics.md, computed from the bag
     DIR/run.json        what was run (command, scenario, case, clock, domain id, wall time, exit codes)
 """
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Native kernels of the control law of one UH: consensus errors, outer and inner loops, learning
-and fault observers (DESIGN.md 2.3-2.6, with the anti-windup and projections of 2.5a).
+and fault observers (docs/graph.md, docs/control_law.md, with its anti-windup and projections).
 
 These functions *are* the controller. They are compiled with numba (``@njit(cache=True)``, no
 fastmath, no parallelism, so results are deterministic and follow IEEE double arithmetic), take
@@ -115,7 +115,7 @@ __all__ = [
 # -- state, input and reference layout: uh_core.layout ------------------------------------------
 _MOMENT_CHANNELS = (U_LAT, U_LON, U_TR)         # command channels of u_m = (delta_lat, delta_lon, theta_tr)
 
-# -- control parameters: nominal model (DESIGN.md 2.1 "What the controller knows") --------------
+# -- control parameters: nominal model (docs/model.md#what-the-controller-knows) --------------
 CP_MASS = 0                 # m, kg
 CP_GRAVITY = 1              # g, m/s^2
 CP_J_X = 2                  # principal moments of inertia, kg m^2
@@ -134,7 +134,7 @@ CP_C_Q = 14                 # torque reaction per thrust (after the model mismat
 CP_D_V = 15                 # translational drag (after the model mismatch), N s/m
 CP_LOWER = 16               # input_lower[0..3] in command order (U_*), rad
 CP_UPPER = 20               # input_upper[0..3], rad
-# -- control parameters: gains (DESIGN.md 2.4-2.6) ----------------------------------------------
+# -- control parameters: gains (docs/control_law.md) ----------------------------------------------
 CP_BETA = 24                # inverse-optimal factor beta (-)
 CP_TILT_LIMIT = 25          # largest thrust tilt from vertical, rad
 CP_MIN_VERTICAL_ACCEL = 26  # smallest vertical specific thrust, m/s^2
@@ -190,7 +190,7 @@ S_W_NORM_W = 32             # Frobenius norm of W_w after the update
 S_SAT_TILT = 33             # 1.0: tilt limit or minimum vertical acceleration active
 S_SAT_COLLECTIVE = 34       # 1.0: collective limit active
 S_SAT_CYCLIC = 35           # 1.0: a cyclic or the tail-rotor limit active
-S_COST_RATE = 36            # |z1|^2 + |u_p|^2, integrand of the CPI (DESIGN.md 2.8)
+S_COST_RATE = 36            # |z1|^2 + |u_p|^2, integrand of the CPI (docs/metrics.md)
 STATUS_SIZE = 37
 
 #: Return value of :func:`uh_control_step` when the step was taken.
@@ -300,7 +300,7 @@ def control_parameters(gains, model) -> np.ndarray:
 
 
 # =============================================================================================
-# Angles and command filters (DESIGN.md 2.4 step 1, 2.5 steps 1-2)
+# Angles and command filters (docs/control_law.md#outer-loop step 1 and #inner-loop steps 1-2)
 
 
 @njit(cache=True)
@@ -369,7 +369,7 @@ def filter_advance(u, y, gain, wrap_last):
 
 
 # =============================================================================================
-# Gaussian RBF networks, composite learning, fault observers (DESIGN.md 2.4 steps 3-6, 2.5a)
+# Gaussian RBF networks, composite learning, fault observers (docs/control_law.md#learning-and-estimation and #anti-windup-and-projection)
 
 
 @njit(cache=True)
@@ -427,7 +427,7 @@ def rbf_output(weights, activations, out):
 def project_columns(weights, bound):
     """Scale in place every column of ``weights`` (mu, 3) whose Euclidean norm exceeds ``bound``.
 
-    The discrete counterpart of the projection operator (DESIGN.md 2.5a): each column is projected
+    The discrete counterpart of the projection operator (docs/control_law.md#anti-windup-and-projection): each column is projected
     onto the ball of radius ``bound``, its direction kept. Returns True if any column was scaled.
     Columns within ``bound (1 + PROJECTION_TOLERANCE)`` are left unchanged.
     """
@@ -447,7 +447,7 @@ def project_columns(weights, bound):
 
 @njit(cache=True)
 def composite_weight_update(weights, activations, z, zn, learning_rate, gamma, sigma, dt, bound):
-    """One explicit-Euler step of the composite learning law, in place (DESIGN.md 2.4 step 5)::
+    """One explicit-Euler step of the composite learning law, in place (docs/control_law.md#outer-loop step 5)::
 
         W' = Gamma [ S (z + gamma z_n)^T - sigma W ]        then the column projection
 
@@ -484,7 +484,7 @@ def composite_weight_update(weights, activations, z, zn, learning_rate, gamma, s
 
 @njit(cache=True)
 def fault_observer_update(fhat, z, zn, lambda_, gamma_f, sigma_f, dt, bound):
-    """One explicit-Euler step of the fault estimation observer, in place (DESIGN.md 2.4 step 6)::
+    """One explicit-Euler step of the fault estimation observer, in place (docs/control_law.md#outer-loop step 6)::
 
         Fhat' = lambda [ z + gamma_F z_n - sigma_F Fhat ]     then |Fhat_a| <= bound per component
 
@@ -498,14 +498,14 @@ def fault_observer_update(fhat, z, zn, lambda_, gamma_f, sigma_f, dt, bound):
 
 @njit(cache=True)
 def estimator_advance(params, base, dt, drift, net, applied, z, zn, activations, estimate, weights, fhat):
-    """Advance the learning states of one loop from t_k to t_{k+1} (explicit Euler, DESIGN.md 2.4
+    """Advance the learning states of one loop from t_k to t_{k+1} (explicit Euler, docs/control_law.md#outer-loop
     steps 4-6 and 2.5 step 3), all right-hand sides at t_k::
 
         xhat' = f_nom + W^T S + a_applied + Fhat + kappa z_n      serial-parallel estimation model
         W'    = Gamma [ S (z + gamma z_n)^T - sigma W ]            composite learning, projection
         Fhat' = lambda [ z + gamma_F z_n - sigma_F Fhat ]          fault observer, projection
 
-    ``a_applied`` is what the limits let through (anti-windup, DESIGN.md 2.5a): the SPEM never
+    ``a_applied`` is what the limits let through (anti-windup, docs/control_law.md#anti-windup-and-projection): the SPEM never
     learns an acceleration that was demanded but not delivered.
 
     Parameters
@@ -535,7 +535,7 @@ def estimator_advance(params, base, dt, drift, net, applied, z, zn, activations,
 
 
 # =============================================================================================
-# Consensus errors (DESIGN.md 2.3)
+# Consensus errors (docs/graph.md)
 
 
 @njit(cache=True)
@@ -605,13 +605,13 @@ def consensus_errors(own_state, offset, nb_states, nb_weights, nb_offsets, leade
 
 
 # =============================================================================================
-# Outer (position) loop (DESIGN.md 2.4)
+# Outer (position) loop (docs/control_law.md#outer-loop)
 
 
 @njit(cache=True)
 def outer_law(params, degree, z1, feedforward, v, started, memory, weights, activations,
               alpha_v, alpha_rate, net, drift, z2, zn, u_p):
-    """Designed acceleration of the outer loop at t_k (DESIGN.md 2.4 steps 1-7)::
+    """Designed acceleration of the outer loop at t_k (docs/control_law.md#outer-loop steps 1-7)::
 
         alpha_v = (f - k1 z1) / d                                   virtual velocity, m/s
         tau_1 alpha_f' = alpha_v - alpha_f                          command filter
@@ -665,7 +665,7 @@ def outer_law(params, degree, z1, feedforward, v, started, memory, weights, acti
 
 @njit(cache=True)
 def thrust_and_attitude(params, u_p, psi_d):
-    """Thrust and roll/pitch that realise the designed acceleration ``u_p`` (DESIGN.md 2.4 step 8,
+    """Thrust and roll/pitch that realise the designed acceleration ``u_p`` (docs/control_law.md#thrust-and-attitude,
     Remark 4).
 
     ``a = u_p + g e3`` (specific thrust, m/s^2, inertial). Its vertical part is kept at least
@@ -728,7 +728,7 @@ def thrust_and_attitude(params, u_p, psi_d):
 @njit(cache=True)
 def achieved_acceleration(params, euler, thrust, out):
     """``(T / m) R(Theta) e3 - g e3`` (3,) m/s^2: the acceleration the limited thrust ``T`` (N)
-    gives at the measured attitude ``euler`` (rad), the outer SPEM's input (anti-windup, 2.5a)."""
+    gives at the measured attitude ``euler`` (rad), the outer SPEM's input (anti-windup, docs/control_law.md#anti-windup-and-projection)."""
     cf, sf = math.cos(euler[0]), math.sin(euler[0])
     ct, st = math.cos(euler[1]), math.sin(euler[1])
     cp, sp = math.cos(euler[2]), math.sin(euler[2])
@@ -771,7 +771,7 @@ def outer_advance(params, dt, memory, weights, activations, alpha_v, net, drift,
 
 
 # =============================================================================================
-# Inner (attitude) loop (DESIGN.md 2.5) and the nominal model's known parts (DESIGN.md 2.2)
+# Inner (attitude) loop (docs/control_law.md#inner-loop) and the nominal model's known parts (docs/model.md#control-oriented-model)
 
 
 @njit(cache=True)
@@ -804,7 +804,7 @@ def euler_rate_transpose(euler, e, out):
 
 @njit(cache=True)
 def inner_drift(params, omega, thrust, out):
-    """Known rate dynamics ``f_w,nom(omega, T)`` (3,) rad/s^2 of the nominal model (DESIGN.md 2.2)::
+    """Known rate dynamics ``f_w,nom(omega, T)`` (3,) rad/s^2 of the nominal model (docs/model.md#control-oriented-model)::
 
         f_w,nom = J^-1 ( -omega x J omega + [-(K_beta + T h_M) tau_f p, -(K_beta + T h_M) tau_f q,
                                               -D_r r - c_Q T] )
@@ -833,7 +833,7 @@ def control_effectiveness(params, thrust, out):
 @njit(cache=True)
 def inner_law(params, euler, omega, euler_d, thrust, started, memory, weights, activations,
               theta_rate, alpha_w, alpha_rate, net, drift, effectiveness, z3, z4, zn, u_m, applied):
-    """Limited moment inputs of the inner loop at t_k (DESIGN.md 2.5)::
+    """Limited moment inputs of the inner loop at t_k (docs/control_law.md#inner-loop)::
 
         tau_2 Theta_df' = Theta_d - Theta_df                       command filter (yaw difference wrapped)
         z3 = Theta - Theta_df   (yaw wrapped to (-pi, pi])         attitude error, rad
@@ -979,7 +979,7 @@ def first_non_finite_state(own_state, nb_states):
 @njit(cache=True)
 def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset, leader_link,
                     reference, dt, weights_p, weights_w, memory, u, status):
-    """One control step of one UH at t_k (DESIGN.md 2.3-2.5): command ``u`` and ``status`` out,
+    """One control step of one UH at t_k (docs/graph.md, docs/control_law.md): command ``u`` and ``status`` out,
     internal states advanced to t_{k+1}.
 
     Order: :func:`consensus_errors` -> :func:`outer_law` -> :func:`thrust_and_attitude` ->

@@ -1,4 +1,4 @@
-"""Gains of the composite-learning inverse-optimal fault-tolerant controller (DESIGN.md 2.4-2.6).
+"""Gains of the composite-learning inverse-optimal fault-tolerant controller (docs/control_law.md).
 
 The gains of one scenario live in one YAML file (``uh_topology/config/paper_gains.yaml`` for the
 paper scenario), either as a plain mapping or keyed ``/**: ros__parameters:`` like a ROS 2
@@ -12,7 +12,7 @@ parameter file::
         outer: {k: ..., r: ..., tau_command: ..., kappa: ..., ...}
         inner: {k: ..., r: ..., tau_command: ..., tau_rate: ..., kappa: ..., ...}
 
-The comparison cases of DESIGN.md 2.6 are the same gains with exactly these changes:
+The comparison cases of docs/control_law.md#comparison-cases are the same gains with exactly these changes:
 
 * ``proposed``: as written;
 * ``case1`` (non-optimal law): ``beta = 1`` (violates Lemma 2's ``beta >= 2``);
@@ -29,7 +29,7 @@ from uh_topology.errors import GainsError
 
 __all__ = ['CASES', 'GainsError', 'RBFSpec', 'LoopGains', 'ControllerGains']
 
-#: The comparison cases of DESIGN.md 2.6, in report order.
+#: The comparison cases of docs/control_law.md#comparison-cases, in report order.
 CASES = ('proposed', 'case1', 'case2')
 
 
@@ -55,7 +55,7 @@ class RBFSpec:
 
 @dataclass(frozen=True)
 class LoopGains:
-    """Gains of one loop (outer: position/velocity, DESIGN.md 2.4; inner: attitude/rate, 2.5).
+    """Gains of one loop (outer: position/velocity, docs/control_law.md#outer-loop; inner: attitude/rate, 2.5).
 
     Attributes
     ----------
@@ -107,7 +107,7 @@ class LoopGains:
 
 @dataclass(frozen=True)
 class ControllerGains:
-    """All gains of one UH controller for one comparison case (DESIGN.md 2.4-2.6).
+    """All gains of one UH controller for one comparison case (docs/control_law.md).
 
     Attributes
     ----------
@@ -139,7 +139,7 @@ class ControllerGains:
         mapping : dict
             Plain mapping or ``{'/**': {'ros__parameters': {...}}}``.
         case : str
-            ``'proposed'``, ``'case1'`` or ``'case2'`` (DESIGN.md 2.6).
+            ``'proposed'``, ``'case1'`` or ``'case2'`` (docs/control_law.md#comparison-cases).
         source : str
             Where the mapping came from, used in error messages.
 
@@ -168,7 +168,7 @@ class ControllerGains:
         return gains.for_case(case)
 
     def for_case(self, case: str) -> 'ControllerGains':
-        """These gains with the changes of comparison case ``case`` (DESIGN.md 2.6) applied.
+        """These gains with the changes of comparison case ``case`` (docs/control_law.md#comparison-cases) applied.
 
         ``case1``: ``beta = 1``. ``case2``: ``gamma = gamma_F = kappa = 0`` in both loops.
         Nothing else differs. Applied to the proposed gains only (a case is not stacked on another).

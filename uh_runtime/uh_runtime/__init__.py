@@ -1,4 +1,4 @@
-"""Node runtime of the UH stack: one rclpy-shaped facade, two backends (DESIGN.md section 1).
+"""Node runtime of the UH stack: one rclpy-shaped facade, two backends (docs/runtime.md).
 
 ``import uh_runtime as rt`` and write node code as with rclpy::
 

@@ -1,4 +1,4 @@
-"""Choice of the node backend: real ``rclpy`` or the Cyclone DDS backend (DESIGN.md section 1).
+"""Choice of the node backend: real ``rclpy`` or the Cyclone DDS backend (docs/runtime.md).
 
 ``rclpy`` is used when it is importable and ``UH_BACKEND`` is not ``dds``. ``UH_BACKEND=rclpy``
 demands rclpy and fails with :class:`BackendError` when it is missing; ``UH_BACKEND=dds`` forces

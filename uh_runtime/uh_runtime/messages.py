@@ -1,4 +1,4 @@
-"""Message classes for both backends, built from the ``.msg`` files (DESIGN.md section 1).
+"""Message classes for both backends, built from the ``.msg`` files (docs/runtime.md).
 
 On the rclpy backend, :func:`get_message` returns the rosidl-generated classes
 (``uh_msgs.msg.UHState`` ...). On the Cyclone DDS backend it returns

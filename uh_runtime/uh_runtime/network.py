@@ -1,7 +1,7 @@
 """Cyclone DDS network configuration for runs and tests on one machine.
 
 Every run and every test picks its own DDS domain id, so parallel runs never see each other
-(DESIGN.md section 1, "Isolation"). On a machine without multicast on loopback, discovery uses
+(docs/architecture.md#isolation-of-runs). On a machine without multicast on loopback, discovery uses
 unicast to 127.0.0.1 over a range of participant indices.
 
 :func:`reserve_domain_id` hands out domain ids that no other cooperating process on the machine

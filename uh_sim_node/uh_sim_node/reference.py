@@ -1,4 +1,4 @@
-"""Virtual-leader reference trajectory (index 0) of the paper scenario (DESIGN.md 2.7).
+"""Virtual-leader reference trajectory (index 0) of the paper scenario (docs/scenario.md).
 
 A climbing circle with a constant yaw rate, in the inertial frame (z up)::
 

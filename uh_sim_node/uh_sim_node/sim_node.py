@@ -2,9 +2,9 @@
 
 Integrates the helicopter model (:mod:`uh_sim_node.helicopter`) from the commands it receives,
 applies the scenario's fault schedule and faults injected at run time on ``fault``, and publishes
-``state`` and ``fault_truth`` (topic registry: :mod:`uh_topology.topics`).
+``state`` and ``fault_truth`` (topic registry: :mod:`uh_core.topics`).
 
-Clock modes (DESIGN.md section 1):
+Clock modes (docs/architecture.md#clock-modes):
 
 - ``lockstep``: state 0 is published on ``/clock`` 0; every command k is integrated at once to
   state k+1 (the step's only input), and the fault truth of step k (state k, command k) is
@@ -30,9 +30,9 @@ from uh_runtime import messages as m
 from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
-from uh_sim_node.wire import (WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg)
-from uh_topology import topics
-from uh_sim_node.run_config import declare_run_parameters
+from uh_core.wire import (WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg)
+from uh_core import topics
+from uh_topology.run_config import declare_run_parameters
 
 __all__ = ['SimNode', 'main']
 
@@ -49,7 +49,7 @@ class SimNode(rt.Node):
         # load the model's numba kernels now (0.2 s from the cache, seconds if they must be compiled),
         # before the endpoints exist and the clock can start: a realtime run would lose those steps
         compile_plant_kernels()
-        self.command = hover_trim(self.plant.params, yaw=float(self.plant.x[8]))
+        self.command = hover_trim(self.plant.params)
         self.command_step = -1        # step the held command was computed for
         self.late_commands = 0        # realtime: steps integrated with an older command
         self.step = 0                 # index of the state the plant holds

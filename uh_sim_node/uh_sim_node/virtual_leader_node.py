@@ -1,13 +1,13 @@
-"""Virtual-leader node (``virtual_leader``): publishes the reference of DESIGN.md 2.7 on
+"""Virtual-leader node (``virtual_leader``): publishes the reference of docs/scenario.md on
 ``/reference``, one message per ``/clock`` step, computed analytically at t_k = k dt."""
 from __future__ import annotations
 
 import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_sim_node.reference import VirtualLeaderReference
-from uh_sim_node.run_config import declare_run_parameters
-from uh_sim_node.wire import clock_step, reference_to_msg
-from uh_topology import topics
+from uh_topology.run_config import declare_run_parameters
+from uh_core.wire import clock_step, reference_to_msg
+from uh_core import topics
 
 __all__ = ['VirtualLeaderNode', 'main']
 

@@ -8,7 +8,7 @@ For RViz2 or Foxglove, live or from the bag, in the fixed frame ``world`` (z up)
 - ``formation``: the leaders' polygon (closed line strip, leader order);
 - ``hull``: the leaders' convex hull as a translucent triangle fan (exact for three leaders, the
   paper's case: the hull of three points is their triangle);
-- ``target``: each follower's containment target sum_j w_kj p_j (DESIGN.md 2.3);
+- ``target``: each follower's containment target sum_j w_kj p_j (docs/graph.md);
 - ``virtual_leader``: the reference position p0.
 
 It publishes every ``period_steps`` steps, once the states of every UH (and the reference) of
@@ -22,9 +22,9 @@ import numpy as np
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_sim_node.run_config import declare_run_parameters
-from uh_sim_node.wire import WireError, msg_to_state, stamp
-from uh_topology import topics
+from uh_topology.run_config import declare_run_parameters
+from uh_core.wire import WireError, msg_to_state, stamp
+from uh_core import topics
 
 __all__ = ['VisualizationNode', 'main']
 

@@ -1,4 +1,4 @@
-"""Performance metrics of a formation-containment run: one definition for every consumer (DESIGN.md 2.8).
+"""Performance metrics of a formation-containment run: one definition for every consumer (docs/metrics.md).
 
 The in-process reference simulation, the distributed run (arrays read back from the MCAP bag),
 the tests and the benchmarks all call :func:`compute_metrics`. Keys of the result (the content of
@@ -44,7 +44,7 @@ __all__ = ['MetricsError', 'FaultedUH', 'FAULT_WINDOW_DELAY', 'METRIC_KEYS', 'fo
            'point_triangle_distance', 'hull_distance', 'faulted_uhs', 'compute_metrics',
            'metrics_from_arrays']
 
-#: Delay after a UH's fault onset before its fault estimate is scored, s (DESIGN.md 2.8).
+#: Delay after a UH's fault onset before its fault estimate is scored, s (docs/metrics.md).
 FAULT_WINDOW_DELAY = 5.0
 
 #: Keys of :func:`compute_metrics`' result, in order.
@@ -59,7 +59,7 @@ class MetricsError(ValueError):
 
 @dataclass(frozen=True)
 class FaultedUH:
-    """Which lumped faults of one UH are scored (DESIGN.md 2.8).
+    """Which lumped faults of one UH are scored (docs/metrics.md).
 
     Attributes
     ----------
@@ -180,7 +180,7 @@ def containment_errors(follower_positions, leader_positions, weights) -> np.ndar
 
 
 def consensus_errors(positions, reference_positions, scenario) -> np.ndarray:
-    """Consensus errors z1 (K, n, 3) of DESIGN.md 2.3 from positions (K, n, 3) in ``scenario.ids`` order.
+    """Consensus errors z1 (K, n, 3) of docs/graph.md from positions (K, n, 3) in ``scenario.ids`` order.
 
     ``z1_i = sum_j a_ij [(p_i - h_i) - (p_j - h_j)] + a_i0 [(p_i - h_i) - p_0]`` with the formation
     offsets ``h`` for a leader's errors and ``h = 0`` for a follower's: the same quantity the
@@ -250,7 +250,7 @@ def compute_metrics(*, case: str, time, positions, reference_positions, leaders,
                     containment_weights, z1, u_p, saturated, fault_true_p=None, fault_true_w=None,
                     fault_est_p=None, fault_est_w=None, faulted=None, settle_time: float = 20.0,
                     wall_time: float | None = None) -> dict:
-    """Metrics of DESIGN.md 2.8 from the arrays of one run (see the module docstring for the keys).
+    """Metrics of docs/metrics.md from the arrays of one run (see the module docstring for the keys).
 
     Parameters
     ----------

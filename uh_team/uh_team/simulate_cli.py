@@ -1,7 +1,7 @@
-"""``uh-simulate``: the in-process reference simulation of a team (DESIGN.md 2.7, 2.8).
+"""``uh-simulate``: the in-process reference simulation of a team (docs/scenario.md, docs/metrics.md).
 
 Runs every UH's plant and controller in one process (the same controller objects the distributed
-nodes use) and writes ``DIR/metrics.json`` (DESIGN.md 2.8) and ``DIR/timeseries.npz`` (time,
+nodes use) and writes ``DIR/metrics.json`` (docs/metrics.md) and ``DIR/timeseries.npz`` (time,
 states, commands, reference, true and estimated lumped faults, designed accelerations, consensus
 errors, saturation flags and formation/containment errors per UH; see
 :class:`uh_team.team_simulation.TeamRun`).
@@ -37,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--scenario', required=True, metavar='FILE|NAME',
                    help="scenario YAML file, or the name of a bundled scenario ('paper')")
     p.add_argument('--case', default='proposed', choices=CASES,
-                   help='controller case of DESIGN.md 2.6 (default: proposed)')
+                   help='controller case of docs/control_law.md#comparison-cases (default: proposed)')
     p.add_argument('--out', required=True, type=Path, metavar='DIR',
                    help='output directory (created; must be empty unless --force)')
     p.add_argument('--duration', type=float, metavar='S',

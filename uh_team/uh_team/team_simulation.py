@@ -1,4 +1,4 @@
-"""In-process reference simulation of a whole team (DESIGN.md 1 "pure core", 2.7; contract time stepping).
+"""In-process reference simulation of a whole team (docs/architecture.md, docs/scenario.md).
 
 Every UH gets a :class:`~uh_sim_node.helicopter.HelicopterPlant` and a
 :class:`~uh_controller_node.controller.UHController` — the very objects the distributed nodes use.
@@ -127,7 +127,7 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     ----------
     scenario : uh_topology.scenario.Scenario
     case : str
-        ``'proposed'``, ``'case1'`` or ``'case2'`` (DESIGN.md 2.6).
+        ``'proposed'``, ``'case1'`` or ``'case2'`` (docs/control_law.md#comparison-cases).
     duration : float, optional
         Simulated time, s (default ``scenario.duration``); rounded to whole control periods.
     progress : callable, optional

@@ -1,4 +1,4 @@
-"""Exception types of scenario loading and topology validation (DESIGN.md 2.3, 2.7).
+"""Exception types of scenario loading and topology validation (docs/graph.md, docs/scenario.md).
 
 Every error is a :class:`ScenarioError` (a ``ValueError``) and carries where it happened:
 

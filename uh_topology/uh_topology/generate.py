@@ -1,4 +1,4 @@
-"""Generated team scenarios of any size, for scaling benchmarks (DESIGN.md 2.3, 2.7).
+"""Generated team scenarios of any size, for scaling benchmarks (docs/graph.md, docs/scenario.md).
 
 :func:`team_mapping` builds the mapping of a valid scenario (the form :mod:`uh_topology.scenario`
 reads from YAML) with N leaders and M followers:
@@ -13,7 +13,7 @@ reads from YAML) with N leaders and M followers:
   (two leaders; one when N = 1) and the previous follower (cyclically; none when M = 1);
 * initial states at rest, level, a few metres from the formation slot (deterministic
   perturbations), the paper's reference, disturbance and gains;
-* the paper's actuator faults (DESIGN.md 2.7) from t = 10 s, repeated over the team: the faults of
+* the paper's actuator faults (docs/scenario.md) from t = 10 s, repeated over the team: the faults of
   UH 2 on leaders 2, 5, 8, ..., those of UH 3 on leaders 3, 6, 9, ..., those of UH 5 on every
   second follower.
 
@@ -41,7 +41,7 @@ FOLLOWERS_PER_LEADER = 1.5
 
 _CONFIG_DIR = Path(__file__).resolve().parent / 'config'
 
-# The paper's faults (DESIGN.md 2.7) as patterns: UH 2's, UH 3's and UH 5's.
+# The paper's faults (docs/scenario.md) as patterns: UH 2's, UH 3's and UH 5's.
 _FAULTS_A = ({'channel': 'collective', 'rho': 0.8, 'bias_amplitude': 0.01, 'bias_frequency': 0.5},
              {'channel': 'lateral', 'rho': 0.85, 'bias_constant': 0.005})
 _FAULTS_B = ({'channel': 'longitudinal', 'rho': 0.75, 'bias_constant': -0.005},

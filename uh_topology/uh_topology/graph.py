@@ -1,6 +1,6 @@
 """Communication-graph maths: adjacency, Laplacian blocks, reachability, containment weights.
 
-DESIGN.md 2.3 and the paper's Assumption 1 / Lemma 1. Conventions:
+docs/graph.md and the paper's Assumption 1 / Lemma 1. Conventions:
 
 * nodes ``0..n``: 0 is the virtual leader, ``1..N`` the leaders, ``N+1..N+M`` the followers;
 * ``A`` (n+1, n+1) with ``A[i, j] = a_ij`` = weight with which UH ``i`` hears ``j`` (row = receiver);
@@ -64,7 +64,7 @@ def leader_tracking_matrix(adjacency, leaders) -> np.ndarray:
 
 
 def containment_weights(l1, l2) -> np.ndarray:
-    """``-L1^-1 L2`` (M, N): follower k's target is ``sum_j W[k, j] p_j`` (DESIGN.md 2.3)."""
+    """``-L1^-1 L2`` (M, N): follower k's target is ``sum_j W[k, j] p_j`` (docs/graph.md)."""
     l1 = np.asarray(l1, dtype=float)
     l2 = np.asarray(l2, dtype=float)
     if l1.size == 0:

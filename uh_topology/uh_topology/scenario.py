@@ -1,4 +1,4 @@
-"""Scenario loading and validation: team, communication graph, faults, reference (DESIGN.md 2.3, 2.7).
+"""Scenario loading and validation: team, communication graph, faults, reference (docs/graph.md, docs/scenario.md).
 
 A scenario is one YAML file (see ``uh_topology/config/paper.yaml`` for a commented example)::
 
@@ -103,7 +103,7 @@ def _ro(arr) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Scenario:
-    """A validated scenario (DESIGN.md 2.3, 2.7). Build it with :func:`load_scenario`.
+    """A validated scenario (docs/graph.md, docs/scenario.md). Build it with :func:`load_scenario`.
 
     Attributes
     ----------
@@ -206,7 +206,7 @@ class Scenario:
         return float(self.adjacency[self._check_id(i), 0])
 
     def degree(self, i: int) -> float:
-        """``d_i = sum_j a_ij + a_i0`` (DESIGN.md 2.3)."""
+        """``d_i = sum_j a_ij + a_i0`` (docs/graph.md)."""
         return float(self.adjacency[self._check_id(i)].sum())
 
     @property

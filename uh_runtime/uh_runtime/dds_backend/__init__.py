@@ -1,4 +1,4 @@
-"""Cyclone DDS backend of the node facade: the rclpy (Jazzy) subset the UH nodes use (DESIGN.md 1).
+"""Cyclone DDS backend of the node facade: the rclpy (Jazzy) subset the UH nodes use (docs/runtime.md).
 
 Wire conventions are those of ROS 2 Jazzy with rmw_cyclonedds_cpp, so ROS 2 tools and nodes on the
 same DDS domain interoperate:
