@@ -6,8 +6,8 @@ keeps that error small; the prediction error ``z_n = v - vhat`` of the SPEM is d
 approximation error directly, whatever the feedback gain. Both runs below use the real outer-loop
 kernels (``outer_law`` then ``outer_advance``, as ``uh_control_step`` calls them) on a toy plant
 ``p' = v, v' = f(v) + u_p`` with the same gains, learning rate and trajectory; the only difference
-is the docs/control_law.md#comparison-cases ``case2`` change (``gamma = gamma_F = kappa = 0``). The fault observer is off
-so the network has to learn all of ``f``.
+is the ``case2`` change of docs/control_law.md#comparison-cases (``gamma = gamma_F = kappa = 0``).
+The fault observer is off so the network has to learn all of ``f``.
 """
 import math
 from pathlib import Path

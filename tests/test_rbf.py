@@ -1,5 +1,6 @@
 """Gaussian RBF networks, composite learning step, projection and fault observer of the control
-kernels (docs/control_law.md#learning-and-estimation and #anti-windup-and-projection), against direct numpy evaluations of the formulas."""
+kernels (docs/control_law.md#learning-and-estimation and #anti-windup-and-projection), against
+direct numpy evaluations of the formulas."""
 import math
 
 import numpy as np

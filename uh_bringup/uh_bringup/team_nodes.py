@@ -90,6 +90,6 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
     if visualization:
         specs.append(('visualization', 'visualization', ['--ros-args', *common]))
     specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common]))
-    specs.append(('clock', 'clock', ['--ros-args', *common, '-p', f'rate:={float(rate)}',
-                                     '-p', 'expect_recorder:=true', '-p', f'startup_timeout:={float(startup_timeout)}']))
+    specs.append(('clock', 'clock', ['--ros-args', *common, '-p', f'rate:={float(rate)}', '-p', 'expect_recorder:=true',
+                                     '-p', f'startup_timeout:={float(startup_timeout)}']))
     return specs

@@ -369,7 +369,8 @@ def filter_advance(u, y, gain, wrap_last):
 
 
 # =============================================================================================
-# Gaussian RBF networks, composite learning, fault observers (docs/control_law.md#learning-and-estimation and #anti-windup-and-projection)
+# Gaussian RBF networks, composite learning, fault observers
+# (docs/control_law.md#learning-and-estimation and #anti-windup-and-projection)
 
 
 @njit(cache=True)
@@ -427,8 +428,9 @@ def rbf_output(weights, activations, out):
 def project_columns(weights, bound):
     """Scale in place every column of ``weights`` (mu, 3) whose Euclidean norm exceeds ``bound``.
 
-    The discrete counterpart of the projection operator (docs/control_law.md#anti-windup-and-projection): each column is projected
-    onto the ball of radius ``bound``, its direction kept. Returns True if any column was scaled.
+    The discrete counterpart of the projection operator (docs/control_law.md#anti-windup-and-projection):
+    each column is projected onto the ball of radius ``bound``, its direction kept. Returns True if any
+    column was scaled.
     Columns within ``bound (1 + PROJECTION_TOLERANCE)`` are left unchanged.
     """
     limit = bound * bound * (1.0 + PROJECTION_TOLERANCE)
@@ -505,8 +507,9 @@ def estimator_advance(params, base, dt, drift, net, applied, z, zn, activations,
         W'    = Gamma [ S (z + gamma z_n)^T - sigma W ]            composite learning, projection
         Fhat' = lambda [ z + gamma_F z_n - sigma_F Fhat ]          fault observer, projection
 
-    ``a_applied`` is what the limits let through (anti-windup, docs/control_law.md#anti-windup-and-projection): the SPEM never
-    learns an acceleration that was demanded but not delivered.
+    ``a_applied`` is what the limits let through (anti-windup,
+    docs/control_law.md#anti-windup-and-projection): the SPEM never learns an acceleration that was
+    demanded but not delivered.
 
     Parameters
     ----------
@@ -728,7 +731,8 @@ def thrust_and_attitude(params, u_p, psi_d):
 @njit(cache=True)
 def achieved_acceleration(params, euler, thrust, out):
     """``(T / m) R(Theta) e3 - g e3`` (3,) m/s^2: the acceleration the limited thrust ``T`` (N)
-    gives at the measured attitude ``euler`` (rad), the outer SPEM's input (anti-windup, docs/control_law.md#anti-windup-and-projection)."""
+    gives at the measured attitude ``euler`` (rad), the outer SPEM's input (anti-windup,
+    docs/control_law.md#anti-windup-and-projection)."""
     cf, sf = math.cos(euler[0]), math.sin(euler[0])
     ct, st = math.cos(euler[1]), math.sin(euler[1])
     cp, sp = math.cos(euler[2]), math.sin(euler[2])
@@ -771,7 +775,8 @@ def outer_advance(params, dt, memory, weights, activations, alpha_v, net, drift,
 
 
 # =============================================================================================
-# Inner (attitude) loop (docs/control_law.md#inner-loop) and the nominal model's known parts (docs/model.md#control-oriented-model)
+# Inner (attitude) loop (docs/control_law.md#inner-loop) and the nominal model's known parts
+# (docs/model.md#control-oriented-model)
 
 
 @njit(cache=True)
@@ -804,7 +809,8 @@ def euler_rate_transpose(euler, e, out):
 
 @njit(cache=True)
 def inner_drift(params, omega, thrust, out):
-    """Known rate dynamics ``f_w,nom(omega, T)`` (3,) rad/s^2 of the nominal model (docs/model.md#control-oriented-model)::
+    """Known rate dynamics ``f_w,nom(omega, T)`` (3,) rad/s^2 of the nominal model
+    (docs/model.md#control-oriented-model)::
 
         f_w,nom = J^-1 ( -omega x J omega + [-(K_beta + T h_M) tau_f p, -(K_beta + T h_M) tau_f q,
                                               -D_r r - c_Q T] )

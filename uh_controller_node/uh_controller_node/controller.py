@@ -1,4 +1,5 @@
-"""The controller of one UH: consensus errors from neighbours' data, outer and inner loops (docs/graph.md, docs/control_law.md).
+"""The controller of one UH: consensus errors from neighbours' data, outer and inner loops
+(docs/graph.md, docs/control_law.md).
 
 One :class:`UHController` per helicopter, built from the scenario only (its neighbours, weights,
 virtual-leader link and formation offsets come from the communication graph). Each control step

@@ -141,17 +141,22 @@ class Node:
                 f'{msg_type!r} is not a message class of this backend; use '
                 'uh_runtime.messages.get_message("pkg/msg/Type")')
 
-    def create_publisher(self, msg_type, topic, qos_profile, *, callback_group=None,
-                         event_callbacks=None, qos_overriding_options=None, publisher_class=None):
-        from cyclonedds.pub import DataWriter
+    def _endpoint(self, msg_type, topic, qos_profile):
+        """What a writer or reader of ``topic`` needs: resolved name, profile, the intra-process
+        registry (None when off), the DDS topic and the DDS QoS (type hash in USER_DATA; local
+        endpoints ignored when intra-process delivery serves them)."""
         self._check_type(msg_type)
         profile = as_profile(qos_profile)
         name = self.resolve_topic_name(topic)
-        dds_topic = self._context.topic(ROS_TOPIC_PREFIX + name, msg_type)
         intra = self._context._intra
-        writer = DataWriter(self._context._pub, dds_topic,
-                            qos=to_dds_qos(profile, typehash_user_data(msg_type), ignore_local=intra is not None))
-        pub = Publisher(self, msg_type, name, profile, writer)
+        dds_qos = to_dds_qos(profile, typehash_user_data(msg_type), ignore_local=intra is not None)
+        return name, profile, intra, self._context.topic(ROS_TOPIC_PREFIX + name, msg_type), dds_qos
+
+    def create_publisher(self, msg_type, topic, qos_profile, *, callback_group=None,
+                         event_callbacks=None, qos_overriding_options=None, publisher_class=None):
+        from cyclonedds.pub import DataWriter
+        name, profile, intra, dds_topic, dds_qos = self._endpoint(msg_type, topic, qos_profile)
+        pub = Publisher(self, msg_type, name, profile, DataWriter(self._context._pub, dds_topic, qos=dds_qos))
         self.publishers.append(pub)
         if intra is not None:
             intra.add_publisher(pub)
@@ -161,13 +166,8 @@ class Node:
     def create_subscription(self, msg_type, topic, callback, qos_profile, *, callback_group=None,
                             event_callbacks=None, qos_overriding_options=None, raw=False):
         from cyclonedds.sub import DataReader
-        self._check_type(msg_type)
-        profile = as_profile(qos_profile)
-        name = self.resolve_topic_name(topic)
-        dds_topic = self._context.topic(ROS_TOPIC_PREFIX + name, msg_type)
-        intra = self._context._intra
-        reader = DataReader(self._context._sub, dds_topic,
-                            qos=to_dds_qos(profile, typehash_user_data(msg_type), ignore_local=intra is not None))
+        name, profile, intra, dds_topic, dds_qos = self._endpoint(msg_type, topic, qos_profile)
+        reader = DataReader(self._context._sub, dds_topic, qos=dds_qos)
         sub = Subscription(self, msg_type, name, callback, profile, reader, raw=raw)
         self.subscriptions.append(sub)
         if intra is not None:
