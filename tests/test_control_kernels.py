@@ -93,7 +93,8 @@ def test_control_parameters_hold_every_model_constant_and_gain(paper):
                   if f.name not in ('rbf',)}
         rbf = dataclasses.replace(loop.rbf, low=-3.0 - n, high=2.0 + n, width=0.7 + n)
         loops[name] = dataclasses.replace(loop, rbf=rbf, **values)
-    gains = dataclasses.replace(mapping, beta=2.5, tilt_limit=0.4, min_vertical_accel=1.5, **loops)
+    gains = dataclasses.replace(mapping, beta=2.5, tilt_limit=0.4, min_vertical_accel=1.5, learning_phase=4.5,
+                                **loops)
     params = ck.control_parameters(gains, ctl.model)
     assert params.shape == (ck.CONTROL_PARAMS_SIZE,) and params.dtype == np.float64
     m = ctl.model
@@ -102,14 +103,15 @@ def test_control_parameters_hold_every_model_constant_and_gain(paper):
                 ck.CP_K_BETA: m.K_beta, ck.CP_H_M: m.h_M, ck.CP_B_LAT: m.B_lat, ck.CP_A_LON: m.A_lon,
                 ck.CP_TAU_F: m.tau_f,
                 ck.CP_K_TR: m.K_tr, ck.CP_D_R: m.D_r, ck.CP_C_Q: m.c_Q, ck.CP_D_V: m.D_v,
-                ck.CP_BETA: 2.5, ck.CP_TILT_LIMIT: 0.4, ck.CP_MIN_VERTICAL_ACCEL: 1.5}
+                ck.CP_BETA: 2.5, ck.CP_TILT_LIMIT: 0.4, ck.CP_MIN_VERTICAL_ACCEL: 1.5, ck.CP_LEARNING_PHASE: 4.5}
     for c in range(ck.INPUT_SIZE):
         expected[ck.CP_LOWER + c] = m.input_lower[c]
         expected[ck.CP_UPPER + c] = m.input_upper[c]
     offsets = {'k': ck.L_K, 'r': ck.L_R, 'tau_command': ck.L_TAU_COMMAND, 'tau_rate': ck.L_TAU_RATE,
                'kappa': ck.L_KAPPA, 'learning_rate': ck.L_LEARNING_RATE, 'gamma': ck.L_GAMMA,
                'gamma_F': ck.L_GAMMA_F, 'sigma': ck.L_SIGMA, 'lambda_': ck.L_LAMBDA, 'sigma_F': ck.L_SIGMA_F,
-               'fault_bound': ck.L_FAULT_BOUND, 'weight_bound': ck.L_WEIGHT_BOUND}
+               'fault_bound': ck.L_FAULT_BOUND, 'weight_bound': ck.L_WEIGHT_BOUND,
+               'late_learning_rate': ck.L_LATE_LEARNING_RATE, 'late_sigma': ck.L_LATE_SIGMA}
     for base, loop in ((ck.CP_OUTER, gains.outer), (ck.CP_INNER, gains.inner)):
         for name, offset in offsets.items():
             expected[base + offset] = getattr(loop, name)
@@ -162,7 +164,8 @@ def test_team_kernel_built_from_kernel_arrays_reproduces_the_controllers_bit_for
     memory = np.stack([a.memory for a in arrays])
     u, status = np.empty((n, ck.INPUT_SIZE)), np.empty((n, ck.STATUS_SIZE))
     saturated = False
-    for k in range(300):
+    steps = int(round(ck.control_parameters(ctls[0].gains, ctls[0].model)[ck.CP_LEARNING_PHASE] / paper.dt)) + 100
+    for k in range(steps):   # past the learning phase, so the fault observers run too
         states, ref = _inputs(paper, k)
         x = np.stack([states[i] for i in ids])
         first_bad = _team_control_step(x, _reference_vector(ref), paper.dt, hears, count, params, offsets,

@@ -120,12 +120,31 @@ def test_plain_mapping_equals_ros_parameter_layout():
     (lambda g: g['inner'].update(tau_rate=0.0), 'inner: tau_rate must be > 0, got 0.0'),
     (lambda g: g['outer'].update(rbf_width=0.0), 'outer: rbf_width must be > 0, got 0.0'),
     (lambda g: g['outer'].update(rbf_low=4.0), 'outer: rbf_low must be < rbf_high, got 4.0 and 4.0'),
+    (lambda g: g.update(learning_phase=-1.0), 'learning_phase must be >= 0, got -1.0'),
+    (lambda g: g['inner'].update(late_sigma=math.nan), 'inner: late_sigma must be finite, got nan'),
+    (lambda g: g['outer'].update(late_learning_rate=-0.1), 'outer: late_learning_rate must be >= 0, got -0.1'),
 ])
 def test_invalid_gains_are_rejected_with_the_offending_key(edit, match):
     gains = copy.deepcopy(paper_gains()['/**']['ros__parameters'])
     edit(gains)
     with pytest.raises(GainsError, match=match):
         ControllerGains.from_mapping(gains, source='gains.yaml')
+
+
+def test_learning_phase_keys_are_optional_and_default_to_no_phase():
+    """Without the keys the law is the one of before the learning phase existed: no phase, the
+    network's gains unchanged afterwards."""
+    gains = copy.deepcopy(paper_gains()['/**']['ros__parameters'])
+    del gains['learning_phase']
+    for loop in ('outer', 'inner'):
+        gains[loop].pop('late_learning_rate', None)
+        gains[loop].pop('late_sigma', None)
+    parsed = ControllerGains.from_mapping(gains)
+    assert parsed.learning_phase == 0.0
+    for loop in (parsed.outer, parsed.inner):
+        assert (loop.late_learning_rate, loop.late_sigma) == (loop.learning_rate, loop.sigma)
+    paper = ControllerGains.from_mapping(paper_gains())
+    assert paper.learning_phase > 0 and paper.inner.late_sigma == 0.0 < paper.inner.late_learning_rate
 
 
 def test_unknown_case_is_rejected():
@@ -302,8 +321,9 @@ def _drive(ctl, uh, scn, steps, order=1):
 
 def test_controller_is_deterministic_and_independent_of_neighbour_order():
     scn = paper_like()
-    a = _drive(UHController(4, scn, helicopter_params=PARAMS), 4, scn, 300)
-    b = _drive(UHController(4, scn, helicopter_params=PARAMS), 4, scn, 300, order=-1)
+    # past the learning phase (8 s), so the fault observers run too
+    a = _drive(UHController(4, scn, helicopter_params=PARAMS), 4, scn, 1000)
+    b = _drive(UHController(4, scn, helicopter_params=PARAMS), 4, scn, 1000, order=-1)
     for (ua, sa), (ub, sb) in zip(a, b):
         assert np.array_equal(ua, ub)      # bit-identical, not merely close
         assert np.array_equal(sa.fault_estimate_attitude, sb.fault_estimate_attitude)

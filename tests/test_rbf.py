@@ -128,3 +128,40 @@ def test_fault_observer_is_one_euler_step_then_clipped():
     fault_observer_update(fhat, z, zn, lam, gamma_f, sigma_f, dt, bound)
     assert np.allclose(fhat, expected, rtol=1e-15, atol=1e-15)
     assert fhat[1] == -bound and fhat[2] == bound and abs(fhat[0]) < bound
+
+
+def test_learning_phase_trains_the_network_and_holds_the_observer():
+    """estimator_advance: in the learning phase W takes one Euler step with (learning_rate, sigma)
+    and Fhat does not move; afterwards W uses (late_learning_rate, late_sigma) and Fhat its law."""
+    from uh_controller_node import control_kernels as ck
+    params = np.zeros(ck.CONTROL_PARAMS_SIZE)
+    base = ck.CP_INNER
+    for offset, value in ((ck.L_KAPPA, 5.0), (ck.L_LEARNING_RATE, 2.0), (ck.L_GAMMA, 1.5),
+                          (ck.L_SIGMA, 0.1), (ck.L_LATE_LEARNING_RATE, 0.02), (ck.L_LATE_SIGMA, 0.0),
+                          (ck.L_LAMBDA, 10.0), (ck.L_GAMMA_F, 4.0), (ck.L_SIGMA_F, 0.01),
+                          (ck.L_FAULT_BOUND, 30.0), (ck.L_WEIGHT_BOUND, 100.0)):
+        params[base + offset] = value
+    s = activations([0.1, -0.4, 0.9], 4, -1.0, 1.0, 0.8)
+    z, zn, dt = np.array([0.3, -0.2, 0.05]), np.array([0.1, 0.4, -0.3]), 0.01
+    zero = np.zeros(3)
+    for learning, rate, sigma in ((True, 2.0, 0.1), (False, 0.02, 0.0)):
+        w, fhat, xhat = np.full((4, 3), 0.2), np.array([0.5, -0.5, 0.1]), np.zeros(3)
+        expected_w = w + dt * rate * (s * (z + 1.5 * zn) - sigma * w)
+        expected_f = fhat if learning else fhat + dt * 10.0 * (z + 4.0 * zn - 0.01 * fhat)
+        ck.estimator_advance(params, base, dt, learning, zero, zero, zero, z, zn, s, xhat, w, fhat)
+        assert np.allclose(w, expected_w, rtol=1e-14, atol=1e-16), learning
+        assert np.allclose(fhat, expected_f, rtol=1e-15, atol=1e-15), learning
+
+
+def test_the_learning_phase_ends_after_its_duration_of_steps():
+    """uh_control_step counts simulated time in memory; the phase ends once it reaches learning_phase."""
+    from uh_controller_node import control_kernels as ck
+    params = np.zeros(ck.CONTROL_PARAMS_SIZE)
+    params[ck.CP_LEARNING_PHASE] = 0.05
+    memory = np.zeros((ck.MEMORY_ROWS, 3))
+    flags = []
+    for _ in range(7):
+        flags.append(bool(ck._learning(params, memory)))
+        memory[ck.M_FLAGS, ck.FLAG_ELAPSED] += 0.01
+    # 0.00 .. 0.04 inside; 0.05 (five additions of 0.01, which rounds just above 0.05) and later out
+    assert flags == [True] * 5 + [False] * 2

@@ -100,7 +100,8 @@ __all__ = [
     'L_SIGMA', 'L_LAMBDA', 'L_SIGMA_F', 'L_FAULT_BOUND', 'L_WEIGHT_BOUND', 'L_RBF_LOW', 'L_RBF_HIGH',
     'L_RBF_WIDTH', 'LOOP_GAINS_SIZE', 'R_P', 'R_V', 'R_YAW', 'REFERENCE_SIZE',
     'M_ALPHA_F', 'M_V_HAT', 'M_F_HAT_P', 'M_THETA_DF', 'M_ALPHA_WF', 'M_OMEGA_HAT', 'M_F_HAT_W',
-    'M_FLAGS', 'FLAG_STARTED', 'MEMORY_ROWS',
+    'M_FLAGS', 'FLAG_STARTED', 'FLAG_ELAPSED', 'MEMORY_ROWS', 'CP_LEARNING_PHASE', 'L_LATE_LEARNING_RATE',
+    'L_LATE_SIGMA',
     'S_Z1', 'S_Z2', 'S_Z3', 'S_Z4', 'S_F_HAT_P', 'S_F_HAT_W', 'S_ZN_P', 'S_ZN_W', 'S_U_P', 'S_EULER_D',
     'S_THRUST', 'S_W_NORM_P', 'S_W_NORM_W', 'S_SAT_TILT', 'S_SAT_COLLECTIVE', 'S_SAT_CYCLIC',
     'S_COST_RATE', 'STATUS_SIZE', 'STATUS_VECTORS', 'STEP_DONE', 'PROJECTION_TOLERANCE',
@@ -138,7 +139,8 @@ CP_UPPER = 20               # input_upper[0..3], rad
 CP_BETA = 24                # inverse-optimal factor beta (-)
 CP_TILT_LIMIT = 25          # largest thrust tilt from vertical, rad
 CP_MIN_VERTICAL_ACCEL = 26  # smallest vertical specific thrust, m/s^2
-CP_OUTER = 27               # first entry of the outer loop's gains block
+CP_LEARNING_PHASE = 27      # learning phase after the first step, s (docs/control_law.md#learning-phase)
+CP_OUTER = 28               # first entry of the outer loop's gains block
 # offsets inside one loop's block (outer units / inner units)
 L_K = 0                     # k1 / k3, 1/s
 L_R = 1                     # r_p / r_w, s
@@ -156,7 +158,9 @@ L_WEIGHT_BOUND = 12         # projection bound of each column norm of W, m/s^2 /
 L_RBF_LOW = 13              # first RBF centre, m/s / rad/s
 L_RBF_HIGH = 14             # last RBF centre
 L_RBF_WIDTH = 15            # Gaussian width b
-LOOP_GAINS_SIZE = 16
+L_LATE_LEARNING_RATE = 16   # Gamma after the learning phase, 1/s
+L_LATE_SIGMA = 17           # weight leakage after the learning phase (-)
+LOOP_GAINS_SIZE = 18
 CP_INNER = CP_OUTER + LOOP_GAINS_SIZE
 CONTROL_PARAMS_SIZE = CP_INNER + LOOP_GAINS_SIZE
 
@@ -168,8 +172,9 @@ M_THETA_DF = 3              # filtered attitude command Theta_df, rad (continuou
 M_ALPHA_WF = 4              # filtered virtual body rate alpha_wf, rad/s
 M_OMEGA_HAT = 5             # inner SPEM state omegahat, rad/s
 M_F_HAT_W = 6               # inner fault estimate Fhat_w, rad/s^2, body
-M_FLAGS = 7                 # flags, column FLAG_STARTED
+M_FLAGS = 7                 # flags and clocks: columns FLAG_STARTED, FLAG_ELAPSED
 FLAG_STARTED = 0            # 1.0 after the first step
+FLAG_ELAPSED = 1            # simulated time since the first step, s (ends the learning phase)
 MEMORY_ROWS = 8
 
 # -- status vector ------------------------------------------------------------------------------
@@ -279,6 +284,7 @@ def control_parameters(gains, model) -> np.ndarray:
     out[CP_BETA] = gains.beta
     out[CP_TILT_LIMIT] = gains.tilt_limit
     out[CP_MIN_VERTICAL_ACCEL] = gains.min_vertical_accel
+    out[CP_LEARNING_PHASE] = gains.learning_phase
     for base, loop in ((CP_OUTER, gains.outer), (CP_INNER, gains.inner)):
         out[base + L_K] = loop.k
         out[base + L_R] = loop.r
@@ -296,6 +302,8 @@ def control_parameters(gains, model) -> np.ndarray:
         out[base + L_RBF_LOW] = loop.rbf.low
         out[base + L_RBF_HIGH] = loop.rbf.high
         out[base + L_RBF_WIDTH] = loop.rbf.width
+        out[base + L_LATE_LEARNING_RATE] = loop.late_learning_rate
+        out[base + L_LATE_SIGMA] = loop.late_sigma
     return out
 
 
@@ -499,7 +507,13 @@ def fault_observer_update(fhat, z, zn, lambda_, gamma_f, sigma_f, dt, bound):
 
 
 @njit(cache=True)
-def estimator_advance(params, base, dt, drift, net, applied, z, zn, activations, estimate, weights, fhat):
+def _learning(params, memory):
+    """True while the controller is in its learning phase (``FLAG_ELAPSED`` below ``CP_LEARNING_PHASE``)."""
+    return memory[M_FLAGS, FLAG_ELAPSED] < params[CP_LEARNING_PHASE]
+
+
+@njit(cache=True)
+def estimator_advance(params, base, dt, learning, drift, net, applied, z, zn, activations, estimate, weights, fhat):
     """Advance the learning states of one loop from t_k to t_{k+1} (explicit Euler, docs/control_law.md#outer-loop
     steps 4-6 and 2.5 step 3), all right-hand sides at t_k::
 
@@ -511,6 +525,11 @@ def estimator_advance(params, base, dt, drift, net, applied, z, zn, activations,
     docs/control_law.md#anti-windup-and-projection): the SPEM never learns an acceleration that was
     demanded but not delivered.
 
+    During the learning phase (``learning``) the network learns with Gamma and sigma and the fault
+    observer holds Fhat (zero from the start): what the nominal model misses goes into W. After it,
+    the network goes on with the late Gamma and sigma, and the observer runs
+    (docs/control_law.md#learning-phase).
+
     Parameters
     ----------
     params : ndarray (CONTROL_PARAMS_SIZE,)
@@ -518,6 +537,8 @@ def estimator_advance(params, base, dt, drift, net, applied, z, zn, activations,
         ``CP_OUTER`` (xhat = vhat, z = z2) or ``CP_INNER`` (xhat = omegahat, z = z4).
     dt : float
         s.
+    learning : bool
+        True during the learning phase.
     drift, net, applied : ndarray (3,)
         f_nom, W^T S and a_applied at t_k (m/s^2 or rad/s^2).
     z, zn : ndarray (3,)
@@ -530,8 +551,13 @@ def estimator_advance(params, base, dt, drift, net, applied, z, zn, activations,
     kappa = params[base + L_KAPPA]
     for a in range(3):
         estimate[a] = estimate[a] + dt * (drift[a] + net[a] + applied[a] + fhat[a] + kappa * zn[a])
-    composite_weight_update(weights, activations, z, zn, params[base + L_LEARNING_RATE],
-                            params[base + L_GAMMA], params[base + L_SIGMA], dt,
+    if learning:
+        composite_weight_update(weights, activations, z, zn, params[base + L_LEARNING_RATE],
+                                params[base + L_GAMMA], params[base + L_SIGMA], dt,
+                                params[base + L_WEIGHT_BOUND])
+        return
+    composite_weight_update(weights, activations, z, zn, params[base + L_LATE_LEARNING_RATE],
+                            params[base + L_GAMMA], params[base + L_LATE_SIGMA], dt,
                             params[base + L_WEIGHT_BOUND])
     fault_observer_update(fhat, z, zn, params[base + L_LAMBDA], params[base + L_GAMMA_F],
                           params[base + L_SIGMA_F], dt, params[base + L_FAULT_BOUND])
@@ -769,8 +795,8 @@ def outer_advance(params, dt, memory, weights, activations, alpha_v, net, drift,
     alpha_v, net, drift, accel, z2, zn : ndarray (3,)
         At t_k, from :func:`outer_law` and :func:`achieved_acceleration`.
     """
-    estimator_advance(params, CP_OUTER, dt, drift, net, accel, z2, zn, activations, memory[M_V_HAT], weights,
-                      memory[M_F_HAT_P])
+    estimator_advance(params, CP_OUTER, dt, _learning(params, memory), drift, net, accel, z2, zn, activations,
+                      memory[M_V_HAT], weights, memory[M_F_HAT_P])
     filter_advance(alpha_v, memory[M_ALPHA_F], filter_gain(params[CP_OUTER + L_TAU_COMMAND], dt), False)
 
 
@@ -948,8 +974,8 @@ def inner_advance(params, dt, memory, weights, activations, euler_d, alpha_w, ne
     euler_d, alpha_w, net, drift, applied, z4, zn : ndarray (3,)
         At t_k, from :func:`inner_law` (``applied`` = G u_m after the limits).
     """
-    estimator_advance(params, CP_INNER, dt, drift, net, applied, z4, zn, activations, memory[M_OMEGA_HAT],
-                      weights, memory[M_F_HAT_W])
+    estimator_advance(params, CP_INNER, dt, _learning(params, memory), drift, net, applied, z4, zn, activations,
+                      memory[M_OMEGA_HAT], weights, memory[M_F_HAT_W])
     filter_advance(euler_d, memory[M_THETA_DF], filter_gain(params[CP_INNER + L_TAU_COMMAND], dt), True)
     filter_advance(alpha_w, memory[M_ALPHA_WF], filter_gain(params[CP_INNER + L_TAU_RATE], dt), False)
 
@@ -1068,6 +1094,7 @@ def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset
     inner_advance(params, dt, memory, weights_w, act_w, euler_d, work[_W_ALPHA_W], work[_W_NET_W],
                   work[_W_DRIFT_W], work[_W_APPLIED], z4, zn_w)
     memory[M_FLAGS, FLAG_STARTED] = 1.0
+    memory[M_FLAGS, FLAG_ELAPSED] += dt
 
     u_m = work[_W_U_M]
     u[U_COL] = theta_col

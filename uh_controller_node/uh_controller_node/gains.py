@@ -87,6 +87,10 @@ class LoopGains:
         Projection radius of each column (axis) of W, Euclidean norm (m/s^2 or rad/s^2).
     rbf : RBFSpec
         Centres and width of the Gaussian basis.
+    late_learning_rate, late_sigma : float
+        Gamma (1/s) and sigma (-) of the weights after the learning phase
+        (docs/control_law.md#learning-phase); YAML keys optional, default ``learning_rate`` and
+        ``sigma`` (no change at the end of the phase).
     """
 
     k: float
@@ -103,6 +107,8 @@ class LoopGains:
     fault_bound: float
     weight_bound: float
     rbf: RBFSpec
+    late_learning_rate: float
+    late_sigma: float
 
 
 @dataclass(frozen=True)
@@ -121,6 +127,10 @@ class ControllerGains:
         Smallest vertical specific thrust demanded, m/s^2 (keeps the thrust pointing up).
     outer, inner : LoopGains
         Gains of the position and attitude loops.
+    learning_phase : float
+        Simulated seconds after the first step during which the networks learn what the nominal
+        model misses and the fault observers hold their estimates at zero
+        (docs/control_law.md#learning-phase); YAML key optional, default 0 (no phase).
     """
 
     case: str
@@ -129,6 +139,7 @@ class ControllerGains:
     min_vertical_accel: float
     outer: LoopGains
     inner: LoopGains
+    learning_phase: float = 0.0
 
     @classmethod
     def from_mapping(cls, mapping, case: str = 'proposed', source: str = 'gains') -> 'ControllerGains':
@@ -152,7 +163,7 @@ class ControllerGains:
         if case not in CASES:
             raise GainsError(f'unknown controller case {case!r}; allowed: {", ".join(CASES)}')
         data = _unwrap(mapping, source)
-        _check_keys(data, _TOP_KEYS, source)
+        _check_keys(data, _TOP_KEYS, source, optional=('learning_phase',))
         beta = _number(data, 'beta', source, minimum=0.0, strict=True)
         tilt_deg = _number(data, 'tilt_limit_deg', source, minimum=0.0, strict=True)
         if tilt_deg >= 90.0:
@@ -164,6 +175,8 @@ class ControllerGains:
             min_vertical_accel=_number(data, 'min_vertical_accel', source, minimum=0.0, strict=True),
             outer=_loop(data, 'outer', source),
             inner=_loop(data, 'inner', source),
+            learning_phase=(_number(data, 'learning_phase', source, minimum=0.0)
+                            if 'learning_phase' in data else 0.0),
         )
         return gains.for_case(case)
 
@@ -195,7 +208,9 @@ _LOOP_KEYS = ('k', 'r', 'tau_command', 'kappa', 'learning_rate', 'gamma', 'gamma
 _LOOP_POSITIVE = {'k': True, 'r': True, 'tau_command': True, 'tau_rate': True, 'kappa': False,
                   'learning_rate': False, 'gamma': False, 'gamma_F': False, 'sigma': False,
                   'lambda': False, 'sigma_F': False, 'fault_bound': True, 'weight_bound': True,
-                  'rbf_width': True}
+                  'rbf_width': True, 'late_learning_rate': False, 'late_sigma': False}
+#: optional loop keys: the weights' law after the learning phase (default: unchanged)
+_LOOP_LATE = ('late_learning_rate', 'late_sigma')
 
 
 def _unwrap(mapping, source):
@@ -212,11 +227,12 @@ def _unwrap(mapping, source):
     return mapping
 
 
-def _check_keys(data, allowed, where):
+def _check_keys(data, required, where, optional=()):
+    allowed = tuple(required) + tuple(optional)
     unknown = sorted(str(k) for k in data if k not in allowed)
     if unknown:
         raise GainsError(f'{where}: unknown key(s) {unknown}; allowed: {", ".join(allowed)}')
-    missing = [k for k in allowed if k not in data]
+    missing = [k for k in required if k not in data]
     if missing:
         raise GainsError(f'{where}: missing key(s) {missing}')
 
@@ -240,9 +256,9 @@ def _loop(data, name, source):
     if not isinstance(loop, dict):
         raise GainsError(f'{where} must be a mapping of loop gains, got {type(loop).__name__}')
     keys = _LOOP_KEYS + (('tau_rate',) if name == 'inner' else ())
-    _check_keys(loop, keys, where)
+    _check_keys(loop, keys, where, optional=_LOOP_LATE)
     values = {key: _number(loop, key, where, minimum=0.0, strict=strict)
-              for key, strict in _LOOP_POSITIVE.items() if key in keys}
+              for key, strict in _LOOP_POSITIVE.items() if key in keys or key in loop}
     nodes = loop['rbf_nodes']
     if isinstance(nodes, bool) or not isinstance(nodes, int) or nodes < 1:
         raise GainsError(f'{where}: rbf_nodes must be an integer >= 1, got {nodes!r}')
@@ -256,4 +272,6 @@ def _loop(data, name, source):
         gamma_F=values['gamma_F'], sigma=values['sigma'], lambda_=values['lambda'],
         sigma_F=values['sigma_F'], fault_bound=values['fault_bound'],
         weight_bound=values['weight_bound'],
-        rbf=RBFSpec(nodes=nodes, low=low, high=high, width=values['rbf_width']))
+        rbf=RBFSpec(nodes=nodes, low=low, high=high, width=values['rbf_width']),
+        late_learning_rate=values.get('late_learning_rate', values['learning_rate']),
+        late_sigma=values.get('late_sigma', values['sigma']))
