@@ -4,9 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from uh_team.metrics import (METRIC_KEYS, FaultedUH, MetricsError, compute_metrics,
-                                        containment_errors, faulted_uhs, hull_distance,
-                                        point_segment_distance, point_triangle_distance)
+from uh_team.metrics import (FALSE_ESTIMATE_START, FALSE_ESTIMATE_THRESHOLD_P, FALSE_ESTIMATE_THRESHOLD_W,
+                             FAULT_WINDOW_DELAY, METRIC_KEYS, NRMSE_FLOOR_P, NRMSE_FLOOR_W, NRMSE_TARGET,
+                             FaultedUH, MetricsError, compute_metrics, containment_errors, faulted_uhs,
+                             hull_distance, nrmse_below_floor, point_segment_distance,
+                             point_triangle_distance)
 
 A, B, C = np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
 
@@ -158,6 +160,8 @@ def test_fault_nrmse_skips_f_p_without_a_collective_fault_and_reports_undefined_
                         z1=zeros, u_p=zeros, saturated=np.zeros((K, 4), bool),
                         fault_true_w=zeros, fault_est_w=zeros, faulted={3: FaultedUH(10.0, False)})
     assert m['fault_nrmse'] == {'uh3': {'F_w': None}}    # a zero true fault has no NRMSE
+    assert m['fault_estimation']['uh3'].keys() == {'window', 'w'}
+    assert nrmse_below_floor(m['fault_estimation']['uh3']['w'])
 
 
 def test_shape_errors_name_the_array():
@@ -179,3 +183,117 @@ def test_hull_distance_is_zero_for_every_convex_combination():
     verts = rng.normal(size=(3, 3))
     for wts in rng.dirichlet(np.ones(3), size=20):
         assert hull_distance(wts @ verts, verts) < 1e-12
+
+
+# ----------------------------------------------------------------------------------------------
+# fault estimation metrics against hand-computed series (docs/metrics.md)
+# ----------------------------------------------------------------------------------------------
+K_FAULT, DT_FAULT = 400, 0.1        # 40 s run: steps t_k = 0.0 .. 39.9 s
+STEP_TIME = np.arange(K_FAULT) * DT_FAULT
+
+
+def _fault_metrics(faulted, est_p=None, est_w=None, true_p=None, true_w=None):
+    """compute_metrics of the 4-UH team of :func:`_team_run` (UHs 1, 2, 3 leaders, 4 follower) with
+    the given lumped-fault arrays (K, 4, 3); the ones not given are zero."""
+    time, p0, offsets, pos, w = _team_run(K_FAULT, DT_FAULT)
+    arrays = [np.zeros((K_FAULT, 4, 3)) if a is None else a for a in (est_p, est_w, true_p, true_w)]
+    zeros = np.zeros((K_FAULT, 4, 3))
+    return compute_metrics(case='proposed', time=time, positions=pos, reference_positions=p0,
+                           leaders=(1, 2, 3), followers=(4,), offsets=offsets, containment_weights=w,
+                           z1=zeros, u_p=zeros, saturated=np.zeros((K_FAULT, 4), bool),
+                           fault_est_p=arrays[0], fault_est_w=arrays[1], fault_true_p=arrays[2],
+                           fault_true_w=arrays[3], faulted=faulted)
+
+
+def test_floors_follow_from_the_false_estimate_thresholds_and_the_nrmse_target():
+    assert (FALSE_ESTIMATE_THRESHOLD_P, FALSE_ESTIMATE_THRESHOLD_W, NRMSE_TARGET) == (0.05, 0.1, 0.25)
+    assert NRMSE_FLOOR_P == pytest.approx(0.2) and NRMSE_FLOOR_W == pytest.approx(0.4)
+    assert FALSE_ESTIMATE_START == 5.0 and FAULT_WINDOW_DELAY == 5.0
+
+
+def test_false_fault_estimate_of_a_constant_estimate_on_a_healthy_uh():
+    est_p, est_w = np.zeros((K_FAULT, 4, 3)), np.zeros((K_FAULT, 4, 3))
+    est_p[:, 0] = [0.3, 0.0, 0.0]            # UH1: |Fhat_p| = 0.3 m/s^2 at every step
+    est_w[:, 0] = [0.0, 0.6, 0.8]            # UH1: |Fhat_w| = 1.0 rad/s^2
+    est_p[:, 3, 2] = np.where(np.arange(K_FAULT) % 2, 0.4, 0.3)   # UH4 alternates 0.3 / 0.4 m/s^2
+    m = _fault_metrics({}, est_p=est_p, est_w=est_w)
+    false = m['false_fault_estimate']
+    assert false['uh1'] == {'p': pytest.approx(0.3), 'w': pytest.approx(1.0), 'window': [5.0, 39.9]}
+    assert false['uh4']['p'] == pytest.approx(math.sqrt((0.3 ** 2 + 0.4 ** 2) / 2))   # RMS, not the mean
+    assert false['uh2'] == {'p': 0.0, 'w': 0.0, 'window': [5.0, 39.9]}
+    assert false['max'] == {'p': pytest.approx(math.sqrt(0.125)), 'w': pytest.approx(1.0)}
+    assert false['threshold'] == {'p': 0.05, 'w': 0.1}
+    assert m['fault_estimation'] == {} and m['fault_nrmse'] == {}
+
+
+def test_false_fault_estimate_window_leaves_out_the_start_up_and_everything_from_the_onset():
+    est_p, est_w = np.full((K_FAULT, 4, 3), 99.0), np.full((K_FAULT, 4, 3), 99.0)
+    in_window = (STEP_TIME >= 5.0) & (STEP_TIME < 10.0)          # UH2 faulted from 10 s
+    est_p[in_window, 1] = [0.0, 0.2, 0.0]
+    est_w[in_window, 1] = [0.0, 0.0, -0.05]
+    est_p[STEP_TIME >= 5.0, 0] = [0.1, 0.0, 0.0]                 # UH1 healthy: 99 only before 5 s
+    est_w[STEP_TIME >= 5.0, 0] = [0.0, 0.02, 0.0]
+    est_w[200, 0] = np.nan                                       # a step a real-time run lost
+    faulted = {2: FaultedUH(10.0, True), 3: FaultedUH(3.0, False), 4: FaultedUH(5.0, False)}
+    m = _fault_metrics(faulted, est_p=est_p, est_w=est_w)
+    false = m['false_fault_estimate']
+    assert false['uh2'] == {'p': pytest.approx(0.2), 'w': pytest.approx(0.05), 'window': [5.0, 9.9]}
+    assert false['uh1'] == {'p': pytest.approx(0.1), 'w': pytest.approx(0.02), 'window': [5.0, 39.9]}
+    # UH3 (onset 3 s) and UH4 (onset 5 s) have no step in [5 s, onset): left out
+    assert set(false) == {'uh1', 'uh2', 'max', 'threshold'}
+    assert false['max'] == {'p': pytest.approx(0.2), 'w': pytest.approx(0.05)}
+
+
+def test_false_fault_estimate_of_a_run_shorter_than_the_start_up_is_null():
+    time, p0, offsets, pos, w = _team_run(40, 0.1)           # 4 s
+    zeros = np.zeros((40, 4, 3))
+    m = compute_metrics(case='x', time=time, positions=pos, reference_positions=p0, leaders=(1, 2, 3),
+                        followers=(4,), offsets=offsets, containment_weights=w, z1=zeros, u_p=zeros,
+                        saturated=np.zeros((40, 4), bool), fault_est_p=zeros, fault_est_w=zeros)
+    assert m['false_fault_estimate'] == {'max': {'p': None, 'w': None}, 'threshold': {'p': 0.05, 'w': 0.1}}
+
+
+def test_fault_estimation_absolute_error_of_a_known_offset_and_its_window():
+    true_p, true_w = np.zeros((K_FAULT, 4, 3)), np.zeros((K_FAULT, 4, 3))
+    after_onset = STEP_TIME >= 10.0
+    true_p[after_onset, 1] = [2.0, 0.0, 0.0]                     # |F_p| = 2 m/s^2 from the onset
+    true_w[after_onset, 1] = [0.0, 0.0, 4.0]                     # |F_w| = 4 rad/s^2
+    est_p = true_p + [0.0, 0.3, 0.4]                             # offset of norm 0.5 m/s^2
+    est_w = true_w + [1.0, 0.0, 0.0]                             # offset of norm 1 rad/s^2
+    est_p[STEP_TIME < 15.0, 1] = 50.0                            # before onset + 5 s: not scored
+    m = _fault_metrics({2: FaultedUH(10.0, True)}, est_p=est_p, est_w=est_w, true_p=true_p, true_w=true_w)
+    entry = m['fault_estimation']['uh2']
+    assert entry['window'] == [15.0, 39.9]
+    assert entry['p'] == {'rms_error': pytest.approx(0.5), 'truth_rms': pytest.approx(2.0),
+                          'nrmse': pytest.approx(0.25), 'nrmse_note': None}
+    assert entry['w'] == {'rms_error': pytest.approx(1.0), 'truth_rms': pytest.approx(4.0),
+                          'nrmse': pytest.approx(0.25), 'nrmse_note': None}
+    assert m['fault_nrmse'] == {'uh2': {'F_p': pytest.approx(0.25), 'F_w': pytest.approx(0.25)}}
+
+
+@pytest.mark.parametrize('key, floor', [('p', NRMSE_FLOOR_P), ('w', NRMSE_FLOOR_W)])
+@pytest.mark.parametrize('factor, meaningful', [(0.99, False), (1.01, True)])
+def test_nrmse_is_null_with_a_reason_below_the_floor_and_a_number_above(key, floor, factor, meaningful):
+    truth = np.zeros((K_FAULT, 4, 3))
+    truth[:, 2] = [0.0, factor * floor, 0.0]                     # UH3: constant truth, RMS factor * floor
+    estimate = truth + [0.02, 0.0, 0.0]                          # absolute error 0.02 either way
+    arrays = {f'true_{key}': truth, f'est_{key}': estimate}
+    m = _fault_metrics({3: FaultedUH(10.0, True)}, **arrays)
+    entry = m['fault_estimation']['uh3'][key]
+    assert entry['rms_error'] == pytest.approx(0.02)
+    assert entry['truth_rms'] == pytest.approx(factor * floor)
+    if meaningful:
+        assert entry['nrmse'] == pytest.approx(0.02 / (factor * floor)) and entry['nrmse_note'] is None
+        assert not nrmse_below_floor(entry)
+    else:
+        assert entry['nrmse'] is None and 'below the floor' in entry['nrmse_note']
+        assert nrmse_below_floor(entry)
+    symbol = {'p': 'F_p', 'w': 'F_w'}[key]
+    assert m['fault_nrmse']['uh3'][symbol] == entry['nrmse']
+
+
+def test_fault_estimation_of_a_run_ending_before_onset_plus_delay_is_null():
+    m = _fault_metrics({2: FaultedUH(36.0, False)})              # window from 41 s: past the end (39.9 s)
+    assert m['fault_estimation'] == {'uh2': {'window': None, 'w': {
+        'rms_error': None, 'truth_rms': None, 'nrmse': None, 'nrmse_note': 'no step in the window'}}}
+    assert not nrmse_below_floor(m['fault_estimation']['uh2']['w'])

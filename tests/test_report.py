@@ -8,6 +8,7 @@ exists) is shared by this file, tests/test_replay.py and tests/test_markers_reco
 """
 import csv
 import fcntl
+import io
 import json
 import os
 import re
@@ -21,14 +22,17 @@ import numpy as np
 import pytest
 
 from uh_runtime.network import reserve_domain_id
+from uh_team.metrics import nrmse_below_floor
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN = ROOT / 'scripts' / 'run_formation.sh'
 TEAM_RUN_DURATION = 22.0   # s: past the paper scenario's settle time (20 s), so every metric is defined
 
-# The paper scenario (docs/scenario.md) has faults in UH2, UH3 and UH5: one fault figure each.
+# The paper scenario (docs/scenario.md) has faults in UH2, UH3 and UH5: one fault figure each, and
+# one figure of the estimates where no fault acts.
 FAULTED = (2, 3, 5)
-PER_RUN_FIGURES = ['states', 'trajectory_3d', 'xy_snapshots'] + [f'faults_uh{i}' for i in FAULTED]
+PER_RUN_FIGURES = (['states', 'trajectory_3d', 'xy_snapshots'] + [f'faults_uh{i}' for i in FAULTED]
+                   + ['false_fault_estimate'])
 
 
 def shared_team_run(tmp_path_factory) -> Path:
@@ -157,18 +161,23 @@ def test_table_has_one_column_per_run_with_the_numbers_of_metrics_json(report):
         if not key:
             continue
         for run, cell in zip(runs, row[3:]):
-            value = lookup(json.loads((run / 'metrics.json').read_text()), key)
+            metrics = json.loads((run / 'metrics.json').read_text())
+            value = lookup(metrics, key)
             text = cell.strip('*')
             if isinstance(value, str):
                 assert text == value, (key, run)
             elif value is None:
-                assert text == 'n/a', (key, run)
+                below_floor = key.endswith('.nrmse') and nrmse_below_floor(lookup(metrics, key.rpartition('.')[0]))
+                assert text == ('n/m' if below_floor else 'n/a'), (key, run)
             else:
                 # the table shows 4 significant digits: relative rounding error at most 5e-4
                 assert float(text) == pytest.approx(value, rel=5e-4, abs=0), (key, run, text, value)
                 checked += 1
-    # every scalar of docs/metrics.md and the five scored fault vectors, for each run
-    assert checked >= 3 * (10 + 5)
+    # every scalar of docs/metrics.md, the false fault estimate of F_p and F_w, and the absolute
+    # error and NRMSE of the five scored fault vectors, for each run
+    assert {'false_fault_estimate.max.p', 'false_fault_estimate.max.w', 'fault_estimation.uh2.p.rms_error',
+            'fault_estimation.uh3.w.nrmse'} <= {row[2].strip('`') for row in rows[1:]}
+    assert checked >= 3 * (10 + 2 + 5 + 5)
     # the CSV holds the same numbers at full precision: equal to metrics.json to the bit
     with open(out / 'metrics_table.csv') as f:
         table = list(csv.reader(f))
@@ -191,6 +200,44 @@ def test_index_html_shows_every_figure_and_the_table(report):
     assert page.count('<tr>') == len(markdown_table((out / 'report.md').read_text()))
 
 
+def _run_with_metrics(name: str, metrics: dict):
+    from uh_bringup.report import RunData
+    return RunData(directory=Path('/runs') / name, name=name, label=name, source='timeseries', case='proposed',
+                   scenario=None, arrays={}, metrics=metrics)
+
+
+def _fault_metrics(uh3_truth_rms: float, uh3_nrmse) -> dict:
+    """The fault part of a metrics.json: UH3's F_w below the NRMSE floor when ``uh3_nrmse`` is None."""
+    def vector(rms_error, truth_rms, nrmse):
+        note = None if nrmse is not None else 'not meaningful: below the floor'
+        return {'rms_error': rms_error, 'truth_rms': truth_rms, 'nrmse': nrmse, 'nrmse_note': note}
+    return {'case': 'proposed',
+            'fault_estimation': {'uh2': {'window': [15.0, 59.99], 'p': vector(0.07, 2.3, 0.0304),
+                                         'w': vector(0.7, 2.8, 0.25)},
+                                 'uh3': {'window': [15.0, 59.99], 'w': vector(0.05, uh3_truth_rms, uh3_nrmse)}},
+            'false_fault_estimate': {'uh1': {'p': 0.04, 'w': 0.02, 'window': [5.0, 59.99]},
+                                     'max': {'p': 0.04, 'w': 0.02}, 'threshold': {'p': 0.05, 'w': 0.1}}}
+
+
+def test_tables_mark_an_nrmse_below_the_floor_as_not_meaningful():
+    """An NRMSE withheld below the floor shows 'n/m' (never a number, never 'n/a'), takes no part
+    in the bold of its row, and the absolute error next to it is still shown; false estimate rows."""
+    from uh_bringup.report import csv_table, markdown_table as report_table
+    runs = [_run_with_metrics('below', _fault_metrics(0.3, None)), _run_with_metrics('above', _fault_metrics(1.4, 0.5))]
+    rows = {r[2].strip('`'): r[3:] for r in markdown_table(report_table(runs))[1:]}
+    assert rows['fault_estimation.uh3.w.nrmse'] == ['n/m', '0.5']      # only one number: no bold
+    assert rows['fault_estimation.uh3.w.rms_error'] == ['**0.05**', '**0.05**']
+    assert rows['fault_estimation.uh2.p.nrmse'] == ['**0.0304**', '**0.0304**']
+    assert rows['false_fault_estimate.max.p'] == ['**0.04**', '**0.04**']
+    assert rows['false_fault_estimate.max.w'] == ['**0.02**', '**0.02**']
+    assert 'fault_estimation.uh3.p.nrmse' not in rows                  # UH3 scores F_w only
+    keys = list(rows)
+    assert keys.index('false_fault_estimate.max.p') < keys.index('fault_estimation.uh2.p.rms_error') < \
+        keys.index('fault_estimation.uh2.p.nrmse') < keys.index('fault_estimation.uh3.w.nrmse')
+    csv_rows = {r[0]: r[1:] for r in csv.reader(io.StringIO(csv_table(runs)))}
+    assert csv_rows['fault_estimation.uh3.w.nrmse'] == ['n/m', '0.5']
+
+
 def test_report_of_a_short_simulation_marks_undefined_metrics(tmp_path):
     """A 5 s run ends before the 20 s settle time: its after-settle metrics are null in
     metrics.json and 'n/a' in the table; the default output directory is RUN_DIR/report."""
@@ -202,6 +249,10 @@ def test_report_of_a_short_simulation_marks_undefined_metrics(tmp_path):
     rows = {r[2].strip('`'): r[3] for r in markdown_table((run / 'report' / 'report.md').read_text())[1:]}
     metrics = json.loads((run / 'metrics.json').read_text())
     assert metrics['formation_rms_m'] is None and rows['formation_rms_m'] == 'n/a'
+    # the faults start at 10 s: no step is scored after onset + 5 s, none after the 5 s start-up
+    assert metrics['fault_estimation']['uh2']['p']['nrmse'] is None and rows['fault_estimation.uh2.p.nrmse'] == 'n/a'
+    assert metrics['false_fault_estimate']['max'] == {'p': None, 'w': None}
+    assert rows['false_fault_estimate.max.p'] == 'n/a'
     assert float(rows['cpi']) == pytest.approx(metrics['cpi'], rel=5e-4)
     assert (run / 'report' / 'errors.png').stat().st_size > 10_000
 

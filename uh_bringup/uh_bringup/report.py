@@ -8,8 +8,9 @@
 - ``errors.png``, ``errors_per_uh.png``: formation and containment errors, the runs overlaid
   (Figures 10-12 when the runs are proposed, Case I and Case II);
 - per run, in ``DIR/<run name>/``: ``states.png`` (Figures 4-7), ``trajectory_3d.png``
-  (Figure 8), ``xy_snapshots.png`` (Figure 9) and ``faults_uh<i>.png`` for every faulted UH
-  (see :mod:`uh_bringup.report_figures`).
+  (Figure 8), ``xy_snapshots.png`` (Figure 9), ``faults_uh<i>.png`` for every faulted UH and
+  ``false_fault_estimate.png`` (the estimates where no fault acts, against the thresholds; see
+  :mod:`uh_bringup.report_figures`).
 
 A run is a directory written by ``scripts/run_formation.sh`` (``bag/``, ``run.json``,
 ``metrics.json``; the arrays are read from the bag with :func:`uh_bringup.bag_metrics.read_team_bag`),
@@ -251,7 +252,7 @@ def format_value(value) -> str:
 
 
 def _lookup(metrics: dict, key: str):
-    """Value of a dotted key (``fault_nrmse.uh2.F_p``); a KeyError if absent."""
+    """Value of a dotted key (``fault_estimation.uh2.p.nrmse``); a KeyError if absent."""
     value = metrics
     for part in key.split('.'):
         if not isinstance(value, dict) or part not in value:
@@ -260,32 +261,63 @@ def _lookup(metrics: dict, key: str):
     return value
 
 
+def _table_unit(unit: str) -> str:
+    return unit.replace('^2', '²')
+
+
+def _fault_rows(runs) -> list[tuple[str, str, str, bool]]:
+    """Rows of the fault metrics (docs/metrics.md): the false fault estimate's maximum over the UHs
+    per vector, then for every UH and vector any run scores its absolute RMS error and its NRMSE."""
+    from uh_team.metrics import LUMPED_FAULTS
+
+    rows = [(f'false_fault_estimate.max.{v.key}',
+             f'false fault estimate RMS ‖{v.symbol.replace("F", "F̂")}‖, max over UHs '
+             f'(threshold {v.false_estimate_threshold:g})', _table_unit(v.unit), True)
+            for v in LUMPED_FAULTS]
+    scored = {}
+    for run in runs:
+        for uh, entry in (run.metrics.get('fault_estimation') or {}).items():
+            scored.setdefault(uh, set()).update(v.key for v in LUMPED_FAULTS if v.key in entry)
+    order = lambda uh: int(re.sub(r'\D', '', uh) or 0)  # noqa: E731
+    for uh in sorted(scored, key=order):
+        for v in LUMPED_FAULTS:
+            if v.key not in scored[uh]:
+                continue
+            what = f'{uh.upper()} {v.symbol} ({v.loop} loop)'
+            rows.append((f'fault_estimation.{uh}.{v.key}.rms_error', f'fault estimation RMS error {what}',
+                         _table_unit(v.unit), True))
+            rows.append((f'fault_estimation.{uh}.{v.key}.nrmse', f'fault NRMSE {what}', '-', True))
+    return rows
+
+
 def table_rows(runs) -> list[tuple[str, str, str, bool]]:
     """``[(metrics.json key, what, unit, lower is better), ...]`` of the table for ``runs``.
 
-    The fixed rows of docs/metrics.md and, for every UH and vector any run scores, a fault NRMSE row
-    ``fault_nrmse.uh<i>.F_p`` / ``F_w``.
+    The fixed rows of docs/metrics.md, the false fault estimate (maximum over the UHs) of ``F_p``
+    and ``F_w``, and for every UH and vector any run scores the absolute RMS error
+    ``fault_estimation.uh<i>.<p|w>.rms_error`` and the NRMSE ``fault_estimation.uh<i>.<p|w>.nrmse``.
     """
-    rows = list(_ROWS[:9])
-    faults = {}
-    for run in runs:
-        for uh, entry in (run.metrics.get('fault_nrmse') or {}).items():
-            for vec in entry:
-                faults.setdefault(uh, set()).add(vec)
-    order = lambda uh: int(re.sub(r'\D', '', uh) or 0)  # noqa: E731
-    for uh in sorted(faults, key=order):
-        for vec in sorted(faults[uh], key=lambda v: (v != 'F_p', v)):
-            loop = 'position' if vec == 'F_p' else 'attitude'
-            rows.append((f'fault_nrmse.{uh}.{vec}', f'fault NRMSE {uh.upper()} {vec} ({loop} loop)', '-', True))
-    rows += _ROWS[9:]
-    return rows
+    return list(_ROWS[:9]) + _fault_rows(runs) + list(_ROWS[9:])
+
+
+def _table_value(metrics: dict, key: str):
+    """The value of ``key`` as the tables show it: that of ``metrics.json``, except an NRMSE
+    withheld below its floor, which is :data:`uh_team.metrics.NOT_MEANINGFUL_MARK` (not ``n/a``:
+    it is defined, just not a measure of the estimator). A KeyError if absent."""
+    from uh_team.metrics import NOT_MEANINGFUL_MARK, nrmse_below_floor
+
+    value = _lookup(metrics, key)
+    if value is None and key.startswith('fault_estimation.') and key.endswith('.nrmse'):
+        if nrmse_below_floor(_lookup(metrics, key.rpartition('.')[0])):
+            return NOT_MEANINGFUL_MARK
+    return value
 
 
 def _cells(runs, key: str, lower_is_better: bool, bold: bool) -> list[str]:
     values = []
     for run in runs:
         try:
-            values.append(_lookup(run.metrics, key))
+            values.append(_table_value(run.metrics, key))
         except KeyError:
             values.append(KeyError)
     texts = ['-' if v is KeyError else format_value(v) for v in values]
@@ -323,7 +355,7 @@ def csv_table(runs) -> str:
         row = [key]
         for run in runs:
             try:
-                value = _lookup(run.metrics, key)
+                value = _table_value(run.metrics, key)
             except KeyError:
                 row.append('')
                 continue
@@ -362,6 +394,9 @@ _FIGURE_TEXT = {
 
 
 def _figure_text(key: str) -> str:
+    if key == 'false_fault_estimate':
+        return ('Fault estimates ‖F̂_p‖ and ‖F̂_w‖ where no fault acts (healthy UHs; faulted UHs before the '
+                'onset) against the false-estimate thresholds')
     if key.startswith('faults_uh'):
         return f'Estimated vs true lumped faults of UH{key[9:]} (position and attitude loops)'
     return _FIGURE_TEXT.get(key, key)
@@ -383,6 +418,7 @@ def write_figures(runs, out: Path) -> dict:
                        'xy_snapshots': F.plot_xy_snapshots(run, d / 'xy_snapshots.png')}
         for uh in faulted_uhs(run.scenario):
             run.figures[f'faults_uh{uh}'] = F.plot_faults(run, uh, d / f'faults_uh{uh}.png')
+        run.figures['false_fault_estimate'] = F.plot_false_fault_estimate(run, d / 'false_fault_estimate.png')
         written[run.name] = dict(run.figures)
     return written
 
@@ -392,15 +428,21 @@ def _title(runs) -> str:
 
 
 def _notes(runs) -> list[str]:
+    from uh_team.metrics import (FALSE_ESTIMATE_START, FAULT_WINDOW_DELAY, NOT_MEANINGFUL_MARK, NRMSE_FLOOR_P,
+                                 NRMSE_FLOOR_W)
+
     settle = sorted({r.metrics.get('settle_time_s') for r in runs if r.metrics.get('settle_time_s') is not None})
     settle_text = ', '.join(f'{s:g}' for s in settle) or 'the settle time'
     return [
         'Metrics of docs/metrics.md (`uh_team/metrics.py`), copied from each run\'s `metrics.json` '
         '(4 significant digits; full precision in `metrics_table.csv`). Bold: the lowest value of a row.',
-        f'MSE and CPI cover the whole run; RMS errors and the hull distance the samples after t = {settle_text} s; '
-        'fault NRMSE = RMS |F̂ − F| / RMS |F| from the fault onset + 5 s to the end, `F_p` only for a '
-        'UH with a collective fault. `n/a`: undefined (e.g. the run ends before the settle time); '
-        '`-`: the run does not have that entry.',
+        f'MSE and CPI cover the whole run; RMS errors and the hull distance the samples after t = {settle_text} s. '
+        f'False fault estimate: RMS of ‖F̂‖ on the healthy UHs from {FALSE_ESTIMATE_START:g} s to the end and on '
+        f'the faulted UHs from {FALSE_ESTIMATE_START:g} s to their onset. Fault estimation: RMS ‖F̂ − F‖ from the '
+        f'onset + {FAULT_WINDOW_DELAY:g} s to the end, `F_p` only for a UH with a collective fault; NRMSE = that '
+        f'/ RMS ‖F‖, `{NOT_MEANINGFUL_MARK}` (not meaningful) when RMS ‖F‖ is below the floor '
+        f'({NRMSE_FLOOR_P:g} m/s² for `F_p`, {NRMSE_FLOOR_W:g} rad/s² for `F_w`). `n/a`: undefined (e.g. the '
+        'run ends before the settle time); `-`: the run does not have that entry.',
     ]
 
 

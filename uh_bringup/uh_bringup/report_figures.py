@@ -6,21 +6,23 @@ order) and writes one PNG of a fixed pixel size (:data:`FIGURE_SIZES` at :data:`
 can check what was drawn. Errors are computed with the one metrics module
 (:mod:`uh_team.metrics`, docs/metrics.md).
 
-=====================  ==========================================================================
-figure                 content (paper figure)
-=====================  ==========================================================================
-``states``             x, y, z (m) and yaw psi (deg) of every UH against time, virtual leader
-                       dashed (Figures 4-7)
-``trajectory_3d``      3-D trajectories and their projections on the XY, XZ and YZ planes
-                       (Figure 8)
-``xy_snapshots``       XY plane: trajectories, the leaders' triangle and the followers at
-                       snapshot times (Figure 9)
-``faults_uh<i>``       estimated vs true lumped faults F_p (m/s^2) and F_w (rad/s^2) of each
-                       faulted UH, per axis
-``errors``             formation error (leaders) and containment error (followers), RMS over
-                       the UHs, one line per run (Figures 10-12 when several runs are given)
-``errors_per_uh``      the same per UH, one panel per UH, one line per run
-=====================  ==========================================================================
+========================  ========================================================================
+figure                    content (paper figure)
+========================  ========================================================================
+``states``                x, y, z (m) and yaw psi (deg) of every UH against time, virtual leader
+                          dashed (Figures 4-7)
+``trajectory_3d``         3-D trajectories and their projections on the XY, XZ and YZ planes
+                          (Figure 8)
+``xy_snapshots``          XY plane: trajectories, the leaders' triangle and the followers at
+                          snapshot times (Figure 9)
+``faults_uh<i>``          estimated vs true lumped faults F_p (m/s^2) and F_w (rad/s^2) of each
+                          faulted UH, per axis
+``false_fault_estimate``  |Fhat_p| (m/s^2) and |Fhat_w| (rad/s^2) where no fault acts (healthy
+                          UHs; faulted UHs before their onset), log scale, with the thresholds
+``errors``                formation error (leaders) and containment error (followers), RMS over
+                          the UHs, one line per run (Figures 10-12 when several runs are given)
+``errors_per_uh``         the same per UH, one panel per UH, one line per run
+========================  ========================================================================
 """
 from __future__ import annotations
 
@@ -30,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ['DPI', 'FIGURE_SIZES', 'pixel_size', 'plot_states', 'plot_trajectory_3d', 'plot_xy_snapshots',
-           'plot_faults', 'plot_errors', 'plot_errors_per_uh', 'uh_errors', 'snapshot_times']
+           'plot_faults', 'plot_false_fault_estimate', 'plot_errors', 'plot_errors_per_uh', 'uh_errors', 'snapshot_times']
 
 #: Dots per inch of every PNG.
 DPI = 100
@@ -41,6 +43,7 @@ FIGURE_SIZES = {
     'trajectory_3d': (14.0, 11.0),
     'xy_snapshots': (11.0, 10.0),
     'faults': (14.0, 10.0),
+    'false_fault_estimate': (14.0, 10.0),
     'errors': (14.0, 8.0),
     'errors_per_uh': (14.0, 11.0),
 }
@@ -344,6 +347,75 @@ def _robust_ylim(ax, t, true, est, skip: float) -> None:
     lo, hi = float(values.min()), float(values.max())
     pad = 0.08 * (hi - lo) if hi > lo else max(abs(hi), 1e-3) * 0.5
     ax.set_ylim(lo - pad, hi + pad)
+
+
+def _fault_free_steps(run, uh: int, faulted: dict) -> np.ndarray:
+    """(K+1,) bool: the samples at which no scheduled fault of ``uh`` acts (all for a healthy UH)."""
+    t = np.asarray(run.arrays['time'], dtype=float)
+    return t < faulted[uh].onset if uh in faulted else np.ones(t.shape, dtype=bool)
+
+
+def _log_ylim(ax, shown, threshold: float) -> float:
+    """Log y range from below the scored values and a tenth of ``threshold`` up to the largest
+    value drawn; returns its bottom (curves are clipped to it, so a zero estimate stays visible)."""
+    values = np.concatenate(shown) if shown else np.empty(0)
+    values = values[np.isfinite(values) & (values > 0)]
+    low = min(threshold / 10, 0.5 * float(np.percentile(values, 1))) if values.size else threshold / 10
+    bottom = max(low, threshold * 1e-4)
+    top = max(3 * threshold, 2 * float(values.max())) if values.size else 10 * threshold
+    ax.set_ylim(bottom, top)
+    return bottom
+
+
+def plot_false_fault_estimate(run, path: Path) -> Path:
+    """The false fault estimate made visible (docs/metrics.md#false-fault-estimate).
+
+    ``|Fhat_p|`` (m/s^2, top) and ``|Fhat_w|`` (rad/s^2, bottom), log scale, of every UH where no
+    fault acts: healthy UHs over the whole run (solid), faulted UHs up to their onset (dashed);
+    the acceptance threshold (black dashes), the start-up that the metric leaves out shaded, and
+    each UH's RMS over its window (the run's ``false_fault_estimate``) in the legend. Values below
+    the y range (an estimate still exactly zero) are drawn on its bottom edge.
+    """
+    from uh_team.metrics import FALSE_ESTIMATE_START, LUMPED_FAULTS, faulted_uhs
+
+    t = np.asarray(run.arrays['time'], dtype=float)
+    ids = run.scenario.ids
+    faulted = faulted_uhs(run.scenario)
+    scores = run.metrics.get('false_fault_estimate') or {}
+    scored = t >= FALSE_ESTIMATE_START
+    with _style():
+        fig = _figure('false_fault_estimate')
+        axes = fig.subplots(2, 1, sharex=True)
+        for ax, vector in zip(axes, LUMPED_FAULTS):
+            unit = vector.unit.replace('^2', '²')
+            name = f'$\\|\\hat{{F}}_{vector.key}\\|$'
+            norms = np.linalg.norm(np.asarray(run.arrays[vector.estimate_array], dtype=float), axis=-1)
+            fault_free = {uh: _fault_free_steps(run, uh, faulted) for uh in ids}
+            bottom = _log_ylim(ax, [norms[fault_free[uh] & scored, c] for c, uh in enumerate(ids)],
+                               vector.false_estimate_threshold)
+            for c, uh in enumerate(ids):
+                keep = fault_free[uh]
+                if not keep.any():
+                    continue
+                rms = (scores.get(f'uh{uh}') or {}).get(vector.key)
+                where = 'healthy' if uh not in faulted else f'before its fault at {faulted[uh].onset:g} s'
+                ax.semilogy(t[keep], np.maximum(norms[keep, c], bottom), color=_uh_colour(c),
+                            linestyle='-' if uh not in faulted else '--',
+                            label=f'UH{uh} ({where})' + (f': RMS {rms:.3g} {unit}' if rms is not None else ''))
+            threshold = vector.false_estimate_threshold
+            ax.axhline(threshold, color='black', linestyle=(0, (7, 3)), linewidth=2.2,
+                       label=f'threshold {threshold:g} {unit}')
+            ax.axvspan(float(t[0]), min(FALSE_ESTIMATE_START, float(t[-1])), color='0.88', zorder=0,
+                       label='start-up, not scored')
+            _mark_faults(ax, run)
+            largest = (scores.get('max') or {}).get(vector.key)
+            ax.set_title(f'{vector.loop} loop: {name} where no fault acts'
+                         + (f' (largest RMS over the UHs: {largest:.3g} {unit})' if largest is not None else ''))
+            ax.set_ylabel(f'{name} ({unit})')
+            ax.legend(loc='upper left', bbox_to_anchor=(1.01, 1.0), frameon=False, fontsize=10)
+        axes[1].set_xlabel('time t (s)')
+        _title(fig, run, 'False fault estimates (log scale)')
+        return _save(fig, path)
 
 
 # ----------------------------------------------------------------------------------------------
