@@ -220,3 +220,28 @@ def test_team_kernel_cache_is_emptied_when_the_kernels_it_calls_change():
         assert marker.read_text() == saved                           # the digest of the files again
     finally:
         marker.write_text(saved)
+
+
+@pytest.mark.parametrize('name', ['paper', 'square', 'wide'])
+def test_fault_estimates_tell_faults_from_model_error(name):
+    """docs/control_law.md#learning-phase, measured with docs/metrics.md on the three bundled
+    scenarios (one gains file): tracking within 0.02 m (formation) and 0.01 m (containment) after
+    the settle time; no false fault on a healthy UH or before an onset (the metric thresholds);
+    every scored fault vector whose truth is above the floor estimated with NRMSE < 0.25."""
+    from uh_team.metrics import (FALSE_ESTIMATE_THRESHOLD_P, FALSE_ESTIMATE_THRESHOLD_W, NRMSE_TARGET,
+                                 nrmse_below_floor)
+    scenario = load_scenario(name)
+    run = run_team_simulation(scenario, 'proposed')
+    m = metrics_from_arrays(run.arrays(), scenario, 'proposed')
+    assert m['formation_rms_m'] < 0.02 and m['containment_rms_m'] < 0.01, m
+    false = m['false_fault_estimate']['max']
+    assert false['p'] < FALSE_ESTIMATE_THRESHOLD_P and false['w'] < FALSE_ESTIMATE_THRESHOLD_W, false
+    scored = [(uh, key, entry) for uh, vectors in m['fault_estimation'].items()
+              for key, entry in vectors.items() if key in ('p', 'w')]
+    assert {uh for uh, _, _ in scored} == {f'uh{i}' for i, faults in scenario.faults.items() if faults}
+    for uh, key, entry in scored:
+        if entry['nrmse'] is None:      # a truth below the floor has no meaningful ratio
+            assert nrmse_below_floor(entry), (uh, key, entry)
+        else:
+            assert entry['nrmse'] < NRMSE_TARGET, (uh, key, entry)
+    assert any(entry['nrmse'] is not None for _, _, entry in scored)
