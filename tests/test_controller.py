@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import yaml
 
-from uh_controller_node.control_kernels import (CP_MIN_VERTICAL_ACCEL, CP_TILT_LIMIT, control_parameters,
+from uh_controller_node.control_kernels import (CP_MIN_VERTICAL_ACCEL, CP_TILT_LIMIT, M_F_HAT_P, M_F_HAT_W,
+                                                control_parameters,
                                                 filter_advance, filter_gain, filter_rate, thrust_and_attitude,
                                                 wrap_angle)
 from uh_controller_node.controller import ControllerError, UHController
@@ -341,3 +342,21 @@ def test_commands_stay_within_the_input_limits():
         assert np.all(u >= lo) and np.all(u <= hi)
     assert st.saturated_tilt and st.saturated_cyclic
     assert np.all(np.abs(st.fault_estimate_position) <= 5.0 + 1e-12)    # projection bound (gains file)
+
+
+def test_learning_phase_is_counted_in_run_time_so_a_late_joiner_estimates_faults_at_once():
+    """docs/control_law.md#learning-phase: the phase covers the run's first seconds, not a
+    controller's first seconds. A controller started at step 0 holds its fault estimates at zero;
+    one whose first step is after the phase (restarted in a running team) runs its observers from
+    its first step."""
+    scn = paper_like()
+    phase = ControllerGains.from_mapping(paper_gains()).learning_phase
+    own = state(p=(0.5, 0.2, 9.0), v=(0.3, -0.1, 0.05), euler=(0.02, -0.01, 0.1), omega=(0.01, 0.02, 0.1))
+    nbrs = {j: state(p=(j, -j, 10.0)) for j in scn.neighbours(4)}
+    fresh, late = UHController(4, scn, helicopter_params=PARAMS), UHController(4, scn, helicopter_params=PARAMS)
+    k_late = int(round(phase / 0.01)) + 500
+    for n in range(3):
+        fresh.step(n, own, nbrs, None, 0.01)
+        late.step(k_late + n, own, nbrs, None, 0.01)
+    assert not np.any(fresh.kernel_arrays().memory[M_F_HAT_P]) and not np.any(fresh.kernel_arrays().memory[M_F_HAT_W])
+    assert np.any(late.kernel_arrays().memory[M_F_HAT_P]) and np.any(late.kernel_arrays().memory[M_F_HAT_W])

@@ -154,7 +154,7 @@ def test_learning_phase_trains_the_network_and_holds_the_observer():
 
 
 def test_the_learning_phase_ends_after_its_duration_of_steps():
-    """uh_control_step counts simulated time in memory; the phase ends once it reaches learning_phase."""
+    """uh_control_step keeps the step's simulated time in memory; the phase ends once it reaches learning_phase."""
     from uh_controller_node import control_kernels as ck
     params = np.zeros(ck.CONTROL_PARAMS_SIZE)
     params[ck.CP_LEARNING_PHASE] = 0.05
@@ -162,6 +162,6 @@ def test_the_learning_phase_ends_after_its_duration_of_steps():
     flags = []
     for _ in range(7):
         flags.append(bool(ck._learning(params, memory)))
-        memory[ck.M_FLAGS, ck.FLAG_ELAPSED] += 0.01
+        memory[ck.M_FLAGS, ck.FLAG_TIME] += 0.01
     # 0.00 .. 0.04 inside; 0.05 (five additions of 0.01, which rounds just above 0.05) and later out
     assert flags == [True] * 5 + [False] * 2

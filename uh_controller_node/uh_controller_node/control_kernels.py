@@ -100,7 +100,7 @@ __all__ = [
     'L_SIGMA', 'L_LAMBDA', 'L_SIGMA_F', 'L_FAULT_BOUND', 'L_WEIGHT_BOUND', 'L_RBF_LOW', 'L_RBF_HIGH',
     'L_RBF_WIDTH', 'LOOP_GAINS_SIZE', 'R_P', 'R_V', 'R_YAW', 'REFERENCE_SIZE',
     'M_ALPHA_F', 'M_V_HAT', 'M_F_HAT_P', 'M_THETA_DF', 'M_ALPHA_WF', 'M_OMEGA_HAT', 'M_F_HAT_W',
-    'M_FLAGS', 'FLAG_STARTED', 'FLAG_ELAPSED', 'MEMORY_ROWS', 'CP_LEARNING_PHASE', 'L_LATE_LEARNING_RATE',
+    'M_FLAGS', 'FLAG_STARTED', 'FLAG_TIME', 'MEMORY_ROWS', 'CP_LEARNING_PHASE', 'L_LATE_LEARNING_RATE',
     'L_LATE_SIGMA',
     'S_Z1', 'S_Z2', 'S_Z3', 'S_Z4', 'S_F_HAT_P', 'S_F_HAT_W', 'S_ZN_P', 'S_ZN_W', 'S_U_P', 'S_EULER_D',
     'S_THRUST', 'S_W_NORM_P', 'S_W_NORM_W', 'S_SAT_TILT', 'S_SAT_COLLECTIVE', 'S_SAT_CYCLIC',
@@ -172,9 +172,10 @@ M_THETA_DF = 3              # filtered attitude command Theta_df, rad (continuou
 M_ALPHA_WF = 4              # filtered virtual body rate alpha_wf, rad/s
 M_OMEGA_HAT = 5             # inner SPEM state omegahat, rad/s
 M_F_HAT_W = 6               # inner fault estimate Fhat_w, rad/s^2, body
-M_FLAGS = 7                 # flags and clocks: columns FLAG_STARTED, FLAG_ELAPSED
+M_FLAGS = 7                 # flags and clock: columns FLAG_STARTED, FLAG_TIME
 FLAG_STARTED = 0            # 1.0 after the first step
-FLAG_ELAPSED = 1            # simulated time since the first step, s (ends the learning phase)
+FLAG_TIME = 1               # simulated time t_k of the step being computed, s (set by the caller on
+                            # the first step, k dt; advanced by dt per step): ends the learning phase
 MEMORY_ROWS = 8
 
 # -- status vector ------------------------------------------------------------------------------
@@ -508,8 +509,9 @@ def fault_observer_update(fhat, z, zn, lambda_, gamma_f, sigma_f, dt, bound):
 
 @njit(cache=True)
 def _learning(params, memory):
-    """True while the controller is in its learning phase (``FLAG_ELAPSED`` below ``CP_LEARNING_PHASE``)."""
-    return memory[M_FLAGS, FLAG_ELAPSED] < params[CP_LEARNING_PHASE]
+    """True while the step's simulated time (``FLAG_TIME``) is within the learning phase
+    (``CP_LEARNING_PHASE``, counted from step 0 of the run)."""
+    return memory[M_FLAGS, FLAG_TIME] < params[CP_LEARNING_PHASE]
 
 
 @njit(cache=True)
@@ -1094,7 +1096,7 @@ def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset
     inner_advance(params, dt, memory, weights_w, act_w, euler_d, work[_W_ALPHA_W], work[_W_NET_W],
                   work[_W_DRIFT_W], work[_W_APPLIED], z4, zn_w)
     memory[M_FLAGS, FLAG_STARTED] = 1.0
-    memory[M_FLAGS, FLAG_ELAPSED] += dt
+    memory[M_FLAGS, FLAG_TIME] += dt
 
     u_m = work[_W_U_M]
     u[U_COL] = theta_col

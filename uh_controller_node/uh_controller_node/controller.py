@@ -37,7 +37,8 @@ import numpy as np
 from uh_topology.graph import reachable_from
 
 from .control_kernels import (
-    INPUT_SIZE, M_ALPHA_F, M_ALPHA_WF, M_F_HAT_P, M_F_HAT_W, M_OMEGA_HAT, M_V_HAT, MEMORY_ROWS,
+    FLAG_STARTED, FLAG_TIME, INPUT_SIZE, M_ALPHA_F, M_ALPHA_WF, M_F_HAT_P, M_F_HAT_W, M_FLAGS, M_OMEGA_HAT,
+    M_V_HAT, MEMORY_ROWS,
     R_P, R_V, R_YAW, REFERENCE_SIZE, S_COST_RATE, S_EULER_D, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE,
     S_SAT_CYCLIC, S_SAT_TILT, S_THRUST, S_U_P, S_W_NORM_P, S_W_NORM_W, S_Z1, S_Z2, S_Z3, S_Z4, S_ZN_P, S_ZN_W,
     STATE_SIZE, STATUS_SIZE, STEP_DONE, ControlArrays, control_parameters, uh_control_step)
@@ -487,6 +488,10 @@ class UHController:
 
     def _run(self, k, nb_states, nb_weights, nb_offsets, leader_link, dt, ids):
         """One kernel call on the loaded inputs; the command and the status record."""
+        if self._memory[M_FLAGS, FLAG_STARTED] == 0.0:
+            # the run's time at this controller's first step: a controller that joins a running team
+            # (restarted) after the learning phase starts with its fault observers on
+            self._memory[M_FLAGS, FLAG_TIME] = k * dt
         u = np.empty(INPUT_SIZE)
         status = np.empty(STATUS_SIZE)
         done = uh_control_step(self._params, self._own, nb_states, nb_weights, nb_offsets, self._offset,
