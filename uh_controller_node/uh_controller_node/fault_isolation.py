@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ['CHANNELS', 'IsolationSettings', 'ChannelReport', 'FaultIsolator', 'input_deviation',
-           'thrust_axis', 'isolate_run']
+           'isolate_run', 'healthy_deviation_statistics']
 
 #: Channel names, in input order (docs/faults.md#channels).
 CHANNELS = ('collective', 'tail_rotor', 'lateral', 'longitudinal')
@@ -56,40 +56,46 @@ class IsolationSettings:
         hold zero then; docs/control_law.md#learning-phase). The paper gains' 8 s;
         :func:`isolate_run` takes the scenario's own value.
     2. filter_tau : float
-        Time constant of the first-order low-pass filter on each deviation, s.
+        Time constant of the first-order low-pass filter on each deviation, s (0.2: smooths the
+        observers' onset transients, a few of their 1/20 s and 1/40 s time constants).
     3. thresholds : tuple of 4 float
         Constant part of the isolation threshold per channel, rad: three times the largest
-        filtered healthy deviation measured on the bundled scenarios, rounded up.
+        filtered healthy deviation after the learning phase on the bundled scenarios
+        (:func:`healthy_deviation_statistics`), rounded up to two digits.
     4. confirmation_time : float
         How long ``|filtered d|`` must stay above its threshold, without a break, before the
-        channel is isolated, s.
+        channel is isolated, s (0.5: 25 times the longest excursion of a healthy channel, and
+        within the 2 s detection budget).
     5. coupling_window : float
         Window over which the range of the thrust-deviation estimate counts as not yet settled
-        between the outer and inner observers, s (the coupling allowances, see
-        :class:`FaultIsolator`).
+        between the outer and inner observers, s (0.3: the length of their transient after a
+        thrust step; the coupling allowances, see :class:`FaultIsolator`).
     6. forgetting : float
         Forgetting factor of the least-squares fit per step, in (0, 1]; 1: none (the fault model's
-        ``rho`` and constant bias are constants).
+        ``rho`` and constant bias are constants, and forgetting would shrink the command spread
+        the fit needs).
     7. noise_rms : tuple of 4 float
-        RMS of the healthy deviation per channel, rad (measured on the bundled scenarios): the
+        RMS of the healthy deviation per channel, rad: the largest per-UH RMS on the bundled
+        scenarios from one second after the learning phase, rounded up to two digits. The
         a priori size of what in ``d`` is not the fault, used in the fit's error bounds.
     8. residual_max : tuple of 4 float
         Largest RMS residual of the fit per channel for which the fault counts as affine in the
-        command (``rho`` and a constant bias), rad.
+        command (``rho`` and a constant bias), rad: five times ``noise_rms``.
     9. rho_tolerance, bias_tolerance : float
-        A fit is called identifiable only if its worst-case error bounds are within these (-, rad).
+        A fit is called identifiable only if its worst-case error bounds are within these
+        (-, rad).
     10. min_fit_time : float
         Shortest fit, s, before a verdict can be identifiable.
     """
 
     learning_phase: float = 8.0
     filter_tau: float = 0.2
-    thresholds: tuple = (1.0e-3, 7.5e-4, 1.2e-4, 2.7e-4)
+    thresholds: tuple = (9.1e-4, 8.6e-4, 1.1e-4, 2.7e-4)
     confirmation_time: float = 0.5
     coupling_window: float = 0.3
     forgetting: float = 1.0
-    noise_rms: tuple = (2.0e-4, 1.1e-4, 2.0e-5, 1.1e-4)
-    residual_max: tuple = (1.0e-3, 5.0e-4, 2.0e-4, 5.0e-4)
+    noise_rms: tuple = (2.1e-4, 1.1e-4, 6.6e-6, 1.1e-5)
+    residual_max: tuple = (1.05e-3, 5.5e-4, 3.3e-5, 5.5e-5)
     rho_tolerance: float = 0.05
     bias_tolerance: float = 0.003
     min_fit_time: float = 2.0
@@ -126,7 +132,7 @@ class ChannelReport:
     4. rho, bias : float
         Effectiveness (-) and constant bias (rad) of the fit; NaN unless ``identifiable``.
     5. rho_fit, bias_fit : float
-        The fit's values whatever the verdict (NaN before two distinct commands were seen).
+        The fit's values whatever the verdict (NaN while the command has not varied).
     6. identifiable : bool
         The fit's worst-case error bounds are within the tolerances and its residual is small.
     7. reason : str
@@ -139,7 +145,11 @@ class ChannelReport:
     10. residual_rms : float
         RMS residual of the fit, rad.
     11. rho_bound, bias_bound : float
-        Worst-case error bounds of ``rho`` (-) and ``bias`` (rad) (see :class:`FaultIsolator`).
+        Worst-case error bounds of ``rho`` (-) and ``bias`` (rad) (see :class:`FaultIsolator`;
+        infinite when the actual input's spread does not exceed the noise).
+    12. mean_command, mean_deviation : float
+        Means over the fit of ``u_c`` and ``d_c``, rad: what is known even when ``rho`` and ``b``
+        are not, the deviation ``(rho - 1) u + b`` at the operating point.
     """
 
     channel: str
@@ -157,22 +167,15 @@ class ChannelReport:
     residual_rms: float
     rho_bound: float
     bias_bound: float
+    mean_command: float
+    mean_deviation: float
 
     def as_dict(self) -> dict:
-        """The report as a plain dict (floats, NaN as None)."""
+        """The report as a plain dict (JSON-ready: NaN and infinite floats as None)."""
         out = {}
         for key, value in self.__dict__.items():
-            out[key] = None if isinstance(value, float) and math.isnan(value) else value
+            out[key] = None if isinstance(value, float) and not math.isfinite(value) else value
         return out
-
-
-def thrust_axis(euler) -> np.ndarray:
-    """1. The thrust axis ``R(Theta) e3`` in the inertial frame (ZYX Euler angles ``(phi, theta,
-    psi)`` in rad; docs/model.md#frames-and-conventions), shape (3,)."""
-    phi, theta, psi = float(euler[0]), float(euler[1]), float(euler[2])
-    cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
-                              math.cos(psi), math.sin(psi))
-    return np.array([cp * st * cf + sp * sf, sp * st * cf - cp * sf, ct * cf])
 
 
 def input_deviation(nominal, x, u, fhat_p, fhat_w):
@@ -191,38 +194,52 @@ def input_deviation(nominal, x, u, fhat_p, fhat_w):
 
     Parameters
     ----------
-    nominal : uh_core.airframe.HelicopterParams
+    1. nominal : uh_core.airframe.HelicopterParams
         The controller's nominal model (:func:`uh_controller_node.nominal_model.nominal_model`).
-    x : array (12,)
+    2. x : array (12,)
         State ``[p m, v m/s, (phi, theta, psi) rad, (p, q, r) rad/s]``.
-    u : array (4,)
+    3. u : array (4,)
         Command ``(theta_col, theta_tr, delta_lat, delta_lon)``, rad (the limited command).
-    fhat_p : array (3,)
+    4. fhat_p : array (3,)
         Position-loop lumped-fault estimate, m/s^2, inertial.
-    fhat_w : array (3,)
+    5. fhat_w : array (3,)
         Attitude-loop lumped-fault estimate, rad/s^2, body.
 
     Returns
     -------
-    d : ndarray (4,)
+    1. d : ndarray (4,)
         Deviations ``(d_col, d_tr, d_lat, d_lon)``, rad.
-    dT : float
+    2. dT : float
         Thrust deviation, N.
     """
-    P = nominal
+    d, dT, _ = _deviation(_constants(nominal), [float(v) for v in x[9:11]], [float(v) for v in u],
+                          [float(v) for v in x[6:9]], [float(v) for v in fhat_p], [float(v) for v in fhat_w])
+    return np.array(d), dT
+
+
+def _constants(P) -> tuple:
+    """The nominal constants :func:`_deviation` uses, as floats."""
     jx, jy, jz = (float(v) for v in P.inertia)
-    dT = float(P.mass) * float(np.dot(thrust_axis(x[6:9]), fhat_p))
-    T = P.c_M1 * float(u[0]) + P.c_M2
-    k_t = P.K_beta + T * P.h_M
-    k_ta = P.K_beta + (T + dT) * P.h_M
-    d = np.empty(_N)
-    d[0] = dT / P.c_M1
-    d[1] = (jz * float(fhat_w[2]) + P.c_Q * dT) / P.K_tr
-    d[2] = (jx * float(fhat_w[0]) - (k_ta - k_t) * (P.B_lat * float(u[2]) - P.tau_f * float(x[9]))) \
-        / (k_ta * P.B_lat)
-    d[3] = (jy * float(fhat_w[1]) - (k_ta - k_t) * (P.A_lon * float(u[3]) - P.tau_f * float(x[10]))) \
-        / (k_ta * P.A_lon)
-    return d, dT
+    return (float(P.mass), jx, jy, jz, float(P.c_M1), float(P.c_M2), float(P.K_beta), float(P.h_M),
+            float(P.B_lat), float(P.A_lon), float(P.tau_f), float(P.K_tr), float(P.c_Q))
+
+
+def _deviation(k, pq, u, euler, fp, fw):
+    """:func:`input_deviation` on floats: ``k`` from :func:`_constants`, ``pq`` the body rates
+    ``(p, q)``; returns ``([d_col, d_tr, d_lat, d_lon], dT, kTa)``."""
+    m, jx, jy, jz, c_m1, c_m2, k_beta, h_m, b_lat, a_lon, tau_f, k_tr, c_q = k
+    phi, theta, psi = euler
+    cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
+                              math.cos(psi), math.sin(psi))
+    dT = m * ((cp * st * cf + sp * sf) * fp[0] + (sp * st * cf - cp * sf) * fp[1] + ct * cf * fp[2])
+    T = c_m1 * u[0] + c_m2
+    k_t = k_beta + T * h_m
+    k_ta = k_beta + (T + dT) * h_m
+    d = [dT / c_m1,
+         (jz * fw[2] + c_q * dT) / k_tr,
+         (jx * fw[0] - (k_ta - k_t) * (b_lat * u[2] - tau_f * pq[0])) / (k_ta * b_lat),
+         (jy * fw[1] - (k_ta - k_t) * (a_lon * u[3] - tau_f * pq[1])) / (k_ta * a_lon)]
+    return d, dT, k_ta
 
 
 class _AffineFit:
@@ -308,24 +325,31 @@ class FaultIsolator:
     actual input ``u_c + d_c`` over the fit, ``r`` the residual RMS, ``n_c`` the healthy noise RMS
     (``noise_rms``) and ``sigma = max(n_c, r)``:
 
-    - ``rho_bound = sigma / s_a``: the slope's error is ``cov(u, e) / var(u)`` for the part ``e``
-      of ``d`` that is not the fault; it is at most ``std(e) / std(u)`` (Cauchy-Schwarz), and
-      ``std(u) >= s_a`` when the fault is affine (``s_a = rho std(u)``). Using ``s_a`` rather than
-      ``std(u)`` also catches a command that varies only to cancel a time-varying bias (the
-      actual input then stays still and ``rho`` and ``b(t)`` cannot be separated at all).
-    - ``bias_bound = sigma + rho_bound |mean u_c|`` (the intercept's error).
+    - Assumption: the part ``e`` of ``d`` that is not ``(rho - 1) u + b`` has ``std(e) <= sigma``
+      (the healthy noise, or more if the fit leaves more unexplained).
+    - ``rho_bound = sigma / (s_a - sigma)``: the slope's error is ``cov(u, e) / var(u)``, at most
+      ``std(e) / std(u)`` (Cauchy-Schwarz); the true actual input ``rho u + b`` has
+      ``std = rho std(u) <= std(u)`` and differs from ``u + d`` by ``e``, so
+      ``std(u) >= s_a - sigma``. Using the actual input rather than the command also catches a
+      command that varies only to cancel a time-varying bias or a disturbance: the actual input
+      then stays still, the fit finds a slope near -1 (``rho`` near 0) with a small residual, and
+      ``rho`` and ``b(t)`` cannot be separated at all.
+    - ``bias_bound = sigma + rho_bound |mean u_c|`` (the intercept's error: ``mean(e)`` plus the
+      slope's error times the mean command).
     - identifiable iff the fit spans ``min_fit_time``, ``r <= residual_max_c``, ``rho_bound <=
       rho_tolerance`` and ``bias_bound <= bias_tolerance``.
 
     Parameters
     ----------
-    nominal : uh_core.airframe.HelicopterParams
+    1. nominal : uh_core.airframe.HelicopterParams
         The controller's nominal model.
-    mismatch : float
-        The scenario's ``model_mismatch`` (> 0): the nominal ``c_Q`` is ``mismatch`` times the true one.
-    dt : float
+    2. mismatch : float
+        The scenario's ``model_mismatch`` (> 0, -): the nominal ``c_Q`` is ``mismatch`` times the
+        true one.
+    3. dt : float
         Control period, s (> 0).
-    settings : IsolationSettings, optional
+    4. settings : IsolationSettings, optional
+        Default :class:`IsolationSettings()`.
     """
 
     def __init__(self, nominal, mismatch: float, dt: float, settings: IsolationSettings | None = None):
@@ -333,22 +357,24 @@ class FaultIsolator:
             raise ValueError(f'mismatch must be a finite number > 0, got {mismatch!r}')
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
             raise ValueError(f'dt must be a finite number > 0, got {dt!r}')
-        self._p = nominal
         self._mismatch = float(mismatch)
         self._dt = float(dt)
         self._s = settings if settings is not None else IsolationSettings()
         self._alpha = 1.0 - math.exp(-self._dt / self._s.filter_tau)
         self._cq_error = abs(1.0 / self._mismatch - 1.0)
-        self._thr = np.array(self._s.thresholds)
+        self._k = _constants(nominal)
+        self._lower = [float(v) for v in nominal.input_lower]
+        self._upper = [float(v) for v in nominal.input_upper]
+        self._thr = list(self._s.thresholds)
         self._t_first = math.nan
-        self._y = np.zeros(_N)                 # filtered deviations, rad
-        self._e = np.zeros(_N)                 # filtered coupling allowances, rad
+        self._y = [0.0] * _N                   # filtered deviations, rad
+        self._e = [0.0] * _N                   # filtered coupling allowances, rad
         self._above_since = [math.nan] * _N
         self._isolated = [False] * _N
         self._t_iso = [math.nan] * _N
         self._fits = [None] * _N
         self._dT_window = deque(maxlen=max(1, int(round(self._s.coupling_window / self._dt)) + 1))
-        self._last_d = np.zeros(_N)
+        self._last_d = [0.0] * _N
 
     # -- per step -------------------------------------------------------------------------------
     def update(self, t: float, x, u, fhat_p, fhat_w) -> None:
@@ -356,14 +382,14 @@ class FaultIsolator:
 
         Parameters
         ----------
-        t : float
-            Step time, s (increasing).
-        x : array (12,)
-            State ``[p, v, Theta, omega]``, SI units, rad.
-        u : array (4,)
+        1. t : float
+            Step time, s (increasing; the learning phase counts from the first call).
+        2. x : array (12,)
+            State ``[p m, v m/s, (phi, theta, psi) rad, (p, q, r) rad/s]``.
+        3. u : array (4,)
             Command ``(theta_col, theta_tr, delta_lat, delta_lon)``, rad; limited here to the
             nominal model's input limits (the faults act on the limited command).
-        fhat_p, fhat_w : array (3,)
+        4. fhat_p, fhat_w : array (3,)
             The lumped-fault estimates the controller used at this step, m/s^2 (inertial) and
             rad/s^2 (body).
         """
@@ -372,28 +398,29 @@ class FaultIsolator:
             self._t_first = t
         if t - self._t_first < self._s.learning_phase - 1e-9:
             return
-        P = self._p
-        u = np.clip(np.asarray(u, dtype=float), P.input_lower, P.input_upper)
-        x = np.asarray(x, dtype=float)
-        d, dT = input_deviation(P, x, u, np.asarray(fhat_p, dtype=float), np.asarray(fhat_w, dtype=float))
+        u = [min(max(float(v), lo), hi) for v, lo, hi in zip(u, self._lower, self._upper)]
+        x = [float(v) for v in x]
+        d, dT, k_ta = _deviation(self._k, x[9:11], u, x[6:9], [float(v) for v in fhat_p],
+                                 [float(v) for v in fhat_w])
         self._last_d = d
-        self._dT_window.append(dT)
-        spread = max(self._dT_window) - min(self._dT_window)
-        k_ta = P.K_beta + (P.c_M1 * u[0] + P.c_M2 + dT) * P.h_M
-        allowance = np.array([
-            0.0,
-            P.c_Q * (self._cq_error * abs(dT) + spread) / P.K_tr,
-            P.h_M * spread * abs(P.B_lat * u[2] - P.tau_f * x[9]) / (abs(k_ta) * P.B_lat),
-            P.h_M * spread * abs(P.A_lon * u[3] - P.tau_f * x[10]) / (abs(k_ta) * P.A_lon),
-        ])
+        window = self._dT_window
+        window.append(dT)
+        spread = max(window) - min(window)
+        _, _, _, _, _, _, _, h_m, b_lat, a_lon, tau_f, k_tr, c_q = self._k
+        allowance = (0.0,
+                     c_q * (self._cq_error * abs(dT) + spread) / k_tr,
+                     h_m * spread * abs(b_lat * u[2] - tau_f * x[9]) / (abs(k_ta) * b_lat),
+                     h_m * spread * abs(a_lon * u[3] - tau_f * x[10]) / (abs(k_ta) * a_lon))
         a = self._alpha
-        self._y += a * (d - self._y)
-        self._e += a * (allowance - self._e)
+        y, e = self._y, self._e
+        for c in range(_N):
+            y[c] += a * (d[c] - y[c])
+            e[c] += a * (allowance[c] - e[c])
         for c in range(_N):
             if self._isolated[c]:
-                self._fits[c].add(t, float(u[c]), float(d[c]))
+                self._fits[c].add(t, u[c], d[c])
                 continue
-            if abs(self._y[c]) > self._thr[c] + self._e[c]:
+            if abs(y[c]) > self._thr[c] + e[c]:
                 if math.isnan(self._above_since[c]):
                     self._above_since[c] = t
                 if t - self._above_since[c] >= self._s.confirmation_time - 1e-9:
@@ -422,7 +449,7 @@ class FaultIsolator:
     @property
     def threshold(self) -> tuple:
         """The current isolation threshold per channel (constant + filtered allowance), rad."""
-        return tuple(float(v) for v in self._thr + self._e)
+        return tuple(th + e for th, e in zip(self._thr, self._e))
 
     @property
     def isolated(self) -> tuple:
@@ -464,61 +491,43 @@ class FaultIsolator:
         nan = math.nan
         if not self._isolated[c]:
             return ChannelReport(name, False, nan, nan, nan, nan, nan, False, 'not isolated',
-                                 0.0, nan, nan, nan, nan, nan)
+                                 0.0, nan, nan, nan, nan, nan, nan, nan)
         fit = self._fits[c]
         fit_time = 0.0 if fit.w == 0.0 else fit.t1 - fit.t0 + self._dt
         th1, th2 = fit.theta()
         std_u, std_a, resid = fit.stats()
         rho_fit, bias_fit = 1.0 + th1, th2
         sigma = max(s.noise_rms[c], resid) if not math.isnan(resid) else nan
-        rho_bound = sigma / std_a if std_a > 0.0 else math.inf
-        bias_bound = sigma + rho_bound * abs(fit.mu) if not math.isnan(sigma) else nan
-        if fit_time < s.min_fit_time - 1e-9 or math.isnan(th1):
+        rho_bound = sigma / (std_a - sigma) if std_a > sigma else math.inf
+        bias_bound = sigma + rho_bound * abs(fit.mu) if math.isfinite(rho_bound) else math.inf
+        if fit_time < s.min_fit_time - 1e-9:
             reason = f'fit too short ({fit_time:.2g} s < {s.min_fit_time:g} s)'
         elif resid > s.residual_max[c]:
             reason = (f'residual {resid:.1e} rad > {s.residual_max[c]:.1e} rad: bias not constant '
                       f'(d not affine in the command)')
         elif rho_bound > s.rho_tolerance or bias_bound > s.bias_tolerance:
-            reason = (f'actual input nearly constant (std {std_a:.1e} rad, command std {std_u:.1e} rad): '
-                      f'(rho - 1) u and b confounded (rho bound {rho_bound:.2g} > {s.rho_tolerance:g} '
-                      f'or bias bound {bias_bound:.1e} rad > {s.bias_tolerance:g} rad)')
+            reason = (f'actual input nearly constant (std {std_a:.1e} rad): (rho - 1) u and b confounded '
+                      f'(rho bound {rho_bound:.2g}, tolerance {s.rho_tolerance:g}; bias bound '
+                      f'{bias_bound:.1e} rad, tolerance {s.bias_tolerance:g} rad)')
+            if std_u > 2.0 * std_a:
+                reason += (f'; the command varies more (std {std_u:.1e} rad), to cancel a varying '
+                           f'deviation (time-varying bias or disturbance)')
         else:
             reason = 'identifiable'
         ok = reason == 'identifiable'
         return ChannelReport(name, True, self._t_iso[c], rho_fit if ok else nan, bias_fit if ok else nan,
                              rho_fit, bias_fit, ok, reason, fit_time, std_u, std_a, resid,
-                             rho_bound, bias_bound)
+                             rho_bound, bias_bound, fit.mu if fit.w > 0.0 else nan,
+                             fit.md if fit.w > 0.0 else nan)
 
     def report(self) -> tuple:
         """:class:`ChannelReport` of every channel, in channel order."""
         return tuple(self.channel(c) for c in range(_N))
 
 
-def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSettings | None = None) -> dict:
-    """Run one :class:`FaultIsolator` per UH over a team run's time series.
-
-    Parameters
-    ----------
-    arrays : mapping
-        ``time`` (K+1,) s, ``states`` (K+1, n, 12), ``commands`` (K or K+1, n, 4) rad,
-        ``fault_est_p``, ``fault_est_w`` (K or K+1, n, 3), UH axis in ``scenario.ids`` order, the
-        estimates of row ``k`` those the controller used at step ``k``
-        (``uh_team.team_simulation.TeamRun.arrays()`` or a recorded run's arrays).
-    scenario : uh_topology.scenario.Scenario
-        Gives the helicopter, the model mismatch, ``dt`` and the learning phase of its gains.
-    case : str
-        Controller case whose gains give the learning phase.
-    settings : IsolationSettings, optional
-        Default: :class:`IsolationSettings` with the scenario's learning phase.
-
-    Returns
-    -------
-    dict
-        ``{"uh<i>": {"isolated": [channel names], "channels": {name: ChannelReport.as_dict()}}}``
-        for every UH, plus ``"settings"`` (the settings used, as a dict).
-    """
-    import dataclasses
-
+def _setup(arrays, scenario, case, settings):
+    """Nominal model, settings (the scenario's learning phase by default) and the run's arrays
+    (float arrays, rows cut to the shortest)."""
     from uh_core.airframe import load_helicopter_params
 
     from .gains import ControllerGains
@@ -528,24 +537,110 @@ def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSet
         phase = ControllerGains.from_mapping(scenario.gains, case).learning_phase
         settings = IsolationSettings(learning_phase=float(phase))
     nominal = nominal_model(load_helicopter_params(scenario.helicopter), scenario.model_mismatch)
-    time = np.asarray(arrays['time'], dtype=float)
-    states = np.asarray(arrays['states'], dtype=float)
-    commands = np.asarray(arrays['commands'], dtype=float)
-    est_p = np.asarray(arrays['fault_est_p'], dtype=float)
-    est_w = np.asarray(arrays['fault_est_w'], dtype=float)
-    rows = min(len(time), len(states), len(commands), len(est_p), len(est_w))
-    ids = tuple(scenario.ids)
-    if states.shape[1] != len(ids):
-        raise ValueError(f'arrays have {states.shape[1]} UHs, the scenario {len(ids)}')
+    keys = ('time', 'states', 'commands', 'fault_est_p', 'fault_est_w')
+    data = {key: np.asarray(arrays[key], dtype=float) for key in keys}
+    rows = min(len(v) for v in data.values())
+    n = len(tuple(scenario.ids))
+    if data['states'].ndim != 3 or data['states'].shape[1] != n:
+        raise ValueError(f'arrays have UH axis {data["states"].shape[1:2]}, the scenario {n} UHs')
+    return nominal, settings, {key: v[:rows] for key, v in data.items()}
+
+
+def _steps(data, j):
+    """Per-step arguments of :meth:`FaultIsolator.update` for UH column ``j``."""
+    return zip(data['time'].tolist(), data['states'][:, j].tolist(), data['commands'][:, j].tolist(),
+               data['fault_est_p'][:, j].tolist(), data['fault_est_w'][:, j].tolist())
+
+
+def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSettings | None = None) -> dict:
+    """Run one :class:`FaultIsolator` per UH over a team run's time series.
+
+    Parameters
+    ----------
+    1. arrays : mapping
+        ``time`` (K+1,) s, ``states`` (K+1, n, 12), ``commands`` (K or K+1, n, 4) rad,
+        ``fault_est_p`` m/s^2, ``fault_est_w`` rad/s^2 (K or K+1, n, 3); UH axis in
+        ``scenario.ids`` order; the estimates of row ``k`` are those the controller used at step
+        ``k`` (``uh_team.team_simulation.TeamRun.arrays()``, or a recorded run's arrays). Rows
+        beyond the shortest array are ignored.
+    2. scenario : uh_topology.scenario.Scenario
+        Gives the helicopter, the model mismatch, ``dt`` and (with ``case``) the learning phase.
+    3. case : str
+        Controller case whose gains give the learning phase.
+    4. settings : IsolationSettings, optional
+        Default: :class:`IsolationSettings` with the scenario's learning phase.
+
+    Returns
+    -------
+    dict
+        ``{"uh<i>": {"isolated": [channel names], "channels": {name: ChannelReport.as_dict()}}}``
+        for every UH, and ``"settings"``: the settings used, as a dict. Deterministic.
+    """
+    import dataclasses
+
+    nominal, settings, data = _setup(arrays, scenario, case, settings)
     out = {}
-    for j, uh in enumerate(ids):
+    for j, uh in enumerate(tuple(scenario.ids)):
         iso = FaultIsolator(nominal, scenario.model_mismatch, float(scenario.dt), settings)
-        for k in range(rows):
-            iso.update(time[k], states[k, j], commands[k, j], est_p[k, j], est_w[k, j])
+        for step in _steps(data, j):
+            iso.update(*step)
         reports = iso.report()
         out[f'uh{uh}'] = {
             'isolated': [r.channel for r in reports if r.isolated],
             'channels': {r.channel: r.as_dict() for r in reports},
         }
     out['settings'] = dataclasses.asdict(settings)
+    return out
+
+
+def healthy_deviation_statistics(arrays, scenario, case: str = 'proposed',
+                                 settings: IsolationSettings | None = None,
+                                 settle: float = 1.0) -> dict:
+    """The healthy deviation statistics the default thresholds and noise levels are set from
+    (docs/faults.md#isolation-and-identification): per channel, over every fault-free UH and over
+    every faulted UH before its earliest onset, after the learning phase.
+
+    Parameters
+    ----------
+    1. arrays, scenario, case, settings
+        As for :func:`isolate_run` (the scenario's faults say which samples are healthy).
+    2. settle : float
+        s after the learning phase from which ``rms`` is taken (the networks' switch-over
+        transient at the end of the phase is left out of it).
+
+    Returns
+    -------
+    dict
+        ``{channel name: {"filtered_max": rad, "filtered_max_at": "uh<i> t=<s>", "rms": rad}}``:
+        the largest ``|filtered d|`` after the learning phase and the largest per-UH RMS of the
+        raw ``d`` after ``learning_phase + settle``.
+    """
+    nominal, settings, data = _setup(arrays, scenario, case, settings)
+    out = {name: {'filtered_max': 0.0, 'filtered_max_at': None, 'rms': 0.0} for name in CHANNELS}
+    for j, uh in enumerate(tuple(scenario.ids)):
+        onset = min((float(f.onset_time) for f in scenario.faults[uh]), default=math.inf)
+        iso = FaultIsolator(nominal, scenario.model_mismatch, float(scenario.dt), settings)
+        sums, counts = [0.0] * _N, 0
+        t0 = None
+        for step in _steps(data, j):
+            t = step[0]
+            if t >= onset - 1e-9:
+                break
+            iso.update(*step)
+            if t0 is None:
+                t0 = t
+            if t - t0 < settings.learning_phase - 1e-9:
+                continue
+            y, d = iso.filtered_deviation, iso.deviation
+            for c, name in enumerate(CHANNELS):
+                if abs(y[c]) > out[name]['filtered_max']:
+                    out[name]['filtered_max'] = abs(y[c])
+                    out[name]['filtered_max_at'] = f'uh{uh} t={t:.2f}'
+            if t - t0 >= settings.learning_phase + settle - 1e-9:
+                counts += 1
+                for c in range(_N):
+                    sums[c] += d[c] * d[c]
+        if counts:
+            for c, name in enumerate(CHANNELS):
+                out[name]['rms'] = max(out[name]['rms'], math.sqrt(sums[c] / counts))
     return out
