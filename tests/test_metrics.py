@@ -297,3 +297,46 @@ def test_fault_estimation_of_a_run_ending_before_onset_plus_delay_is_null():
     assert m['fault_estimation'] == {'uh2': {'window': None, 'w': {
         'rms_error': None, 'truth_rms': None, 'nrmse': None, 'nrmse_note': 'no step in the window'}}}
     assert not nrmse_below_floor(m['fault_estimation']['uh2']['w'])
+
+
+@pytest.fixture(scope='module')
+def paper_run():
+    from uh_team.team_simulation import run_team_simulation
+    from uh_topology.scenario import load_scenario
+    scenario = load_scenario('paper')
+    return scenario, run_team_simulation(scenario, 'proposed').arrays()
+
+
+def test_fault_isolation_of_the_paper_run_isolates_every_fault_in_time_and_nothing_else(paper_run):
+    from uh_core.layout import CHANNEL_NAMES
+    from uh_team.metrics import metrics_from_arrays
+    scenario, arrays = paper_run
+    metrics = metrics_from_arrays(arrays, scenario, 'proposed')
+    assert list(metrics) == list(METRIC_KEYS)
+    isolation = metrics['fault_isolation']
+    summary = isolation['summary']
+    assert summary['false_isolations'] == 0 and summary['missed'] == 0
+    assert 0.0 < summary['max_delay'] < 2.0
+    # the UHs with a fault, every channel named, the truth copied from the scenario
+    assert set(isolation) - {'summary'} == {f'uh{uh}' for uh in faulted_uhs(scenario)}
+    for uh, specs in scenario.faults.items():
+        for spec in specs:
+            entry = isolation[f'uh{uh}'][CHANNEL_NAMES[spec.channel]]
+            assert entry['faulty'] and entry['isolated']
+            assert entry['delay'] == pytest.approx(entry['detected_at'] - spec.onset_time, abs=1e-9)
+            assert entry['rho_true'] == spec.rho and entry['bias_constant_true'] == spec.bias_constant
+            # steady turns: nothing identifiable (docs/faults.md), and then no number is reported
+            assert entry['identifiable'] is False and entry['rho'] is None and entry['bias'] is None
+            assert entry['reason'] != 'identifiable'
+    for channels in (v for k, v in isolation.items() if k != 'summary'):
+        assert set(channels) == set(CHANNEL_NAMES)
+        for entry in channels.values():
+            if not entry['faulty']:
+                assert not entry['isolated'] and entry['delay'] is None and entry['rho_true'] == 1.0
+
+
+def test_fault_isolation_is_null_without_commands(paper_run):
+    from uh_team.metrics import metrics_from_arrays
+    scenario, arrays = paper_run
+    short = {k: v[:200] for k, v in arrays.items() if k not in ('commands', 'ids')}
+    assert metrics_from_arrays(short, scenario, 'proposed')['fault_isolation'] is None

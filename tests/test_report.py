@@ -197,7 +197,10 @@ def test_index_html_shows_every_figure_and_the_table(report):
     images = set(re.findall(r'<img src="([^"]+)"', page))
     on_disk = {p.relative_to(out).as_posix() for p in out.rglob('*.png')}
     assert images == on_disk and len(on_disk) == 2 + len(runs) * len(PER_RUN_FIGURES)
-    assert page.count('<tr>') == len(markdown_table((out / 'report.md').read_text()))
+    metrics_table = page.split('</table>')[0]
+    assert metrics_table.count('<tr>') == len(markdown_table((out / 'report.md').read_text()))
+    # one fault isolation table per run (each faulted channel of the paper scenario a row)
+    assert page.count('<table>') == 1 + len(runs)
 
 
 def _run_with_metrics(name: str, metrics: dict):
@@ -318,3 +321,27 @@ def test_the_console_script_exits_2_without_traceback(tmp_path):
     proc = subprocess.run([str(exe), str(tmp_path / 'missing')], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert 'no such run directory' in proc.stderr and 'Traceback' not in proc.stderr
+
+
+def test_tables_show_the_fault_isolation_summary_and_a_per_run_table():
+    from uh_bringup.report import ISOLATION_HEAD, html_table, isolation_table, markdown_table as report_table
+    entry = {'faulty': True, 'onset': 10.0, 'isolated': True, 'detected_at': 10.56, 'delay': 0.56, 'rho': None,
+             'bias': None, 'identifiable': False, 'reason': 'actual input nearly constant', 'rho_true': 0.8,
+             'bias_constant_true': 0.0}
+    false = dict(entry, faulty=False, onset=None, delay=None, rho_true=1.0, reason='fit too short')
+    healthy = dict(false, isolated=False, detected_at=None, reason='not isolated')
+    isolation = {'uh2': {'collective': entry, 'tail_rotor': healthy, 'lateral': healthy, 'longitudinal': healthy},
+                 'uh4': {'collective': healthy, 'tail_rotor': false, 'lateral': healthy, 'longitudinal': healthy},
+                 'summary': {'false_isolations': 1, 'missed': 0, 'max_delay': 0.56}}
+    runs = [_run_with_metrics('with', {**_fault_metrics(1.4, 0.5), 'fault_isolation': isolation}),
+            _run_with_metrics('older', _fault_metrics(1.4, 0.5))]
+    rows = {r[2].strip('`'): r[3:] for r in markdown_table(report_table(runs))[1:]}
+    assert rows['fault_isolation.summary.false_isolations'] == ['1', '-']
+    assert rows['fault_isolation.summary.missed'] == ['0', '-']
+    assert rows['fault_isolation.summary.max_delay'] == ['0.56', '-']
+    assert 'fault_isolation.summary.max_delay' in html_table(runs)
+    table = isolation_table(runs[0])
+    assert len(ISOLATION_HEAD) == len(table[0])
+    assert table == [['UH2', 'collective', '10', '0.56', 'n/a', '0.8', 'n/a', '0', 'actual input nearly constant'],
+                     ['UH4', 'tail_rotor', '-', 'false isolation', 'n/a', '1', 'n/a', '0', 'fit too short']]
+    assert isolation_table(runs[1]) is None

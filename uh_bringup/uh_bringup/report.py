@@ -3,7 +3,8 @@
 ``uh-report RUN_DIR [RUN_DIR ...] [--out DIR]`` reads each run and writes into ``DIR``:
 
 - ``report.md`` and ``index.html``: the metrics table of all runs side by side (one column per
-  run, the numbers of each run's ``metrics.json``, docs/metrics.md) and every figure;
+  run, the numbers of each run's ``metrics.json``, docs/metrics.md), per run a table of its fault
+  isolation (each faulted channel's delay, ``rho`` and ``b`` against the truth) and every figure;
 - ``metrics_table.csv``: the same table at full precision;
 - ``errors.png``, ``errors_per_uh.png``: formation and containment errors, the runs overlaid
   (Figures 10-12 when the runs are proposed, Case I and Case II);
@@ -60,6 +61,17 @@ _ROWS = [
     ('settle_time_s', 'settle time', 's', False),
     ('wall_time_s', 'wall time of the run', 's', False),
 ]
+
+# rows of the fault isolation's summary (docs/metrics.md#fault-isolation)
+_ISOLATION_ROWS = [
+    ('fault_isolation.summary.false_isolations', 'false isolations (isolated channels not faulty)', '-', True),
+    ('fault_isolation.summary.missed', 'faulted channels never isolated', '-', True),
+    ('fault_isolation.summary.max_delay', 'largest isolation delay after the onset', 's', True),
+]
+
+#: Heading of the per-run fault isolation table (:func:`isolation_table`).
+ISOLATION_HEAD = ('UH', 'channel', 'onset (s)', 'isolated after (s)', 'ρ identified', 'ρ true',
+                  'b identified (rad)', 'b constant true (rad)', 'verdict')
 
 
 class ReportError(ValueError):
@@ -295,9 +307,58 @@ def table_rows(runs) -> list[tuple[str, str, str, bool]]:
 
     The fixed rows of docs/metrics.md, the false fault estimate (maximum over the UHs) of ``F_p``
     and ``F_w``, and for every UH and vector any run scores the absolute RMS error
-    ``fault_estimation.uh<i>.<p|w>.rms_error`` and the NRMSE ``fault_estimation.uh<i>.<p|w>.nrmse``.
+    ``fault_estimation.uh<i>.<p|w>.rms_error`` and the NRMSE ``fault_estimation.uh<i>.<p|w>.nrmse``,
+    then the fault isolation's summary (false isolations, missed channels, largest delay).
     """
-    return list(_ROWS[:9]) + _fault_rows(runs) + list(_ROWS[9:])
+    return list(_ROWS[:9]) + _fault_rows(runs) + list(_ISOLATION_ROWS) + list(_ROWS[9:])
+
+
+def isolation_table(run) -> list[list[str]] | None:
+    """Rows (cell texts, columns :data:`ISOLATION_HEAD`) of the fault isolation of ``run``: every
+    faulted channel (isolation delay, identified ``rho`` and ``b`` against the truth, or why they
+    are not identifiable) and every falsely isolated one; ``None`` if ``metrics.json`` has no
+    ``fault_isolation`` section (an older run, or one without commands)."""
+    section = run.metrics.get('fault_isolation')
+    if not section:
+        return None
+    rows = []
+    for uh, channels in section.items():
+        for name, e in (channels.items() if uh != 'summary' else ()):
+            if not (e['faulty'] or e['isolated']):
+                continue
+            after = (format_value(e['delay']) if e['faulty'] else 'false isolation') if e['isolated'] \
+                else 'not isolated'
+            rows.append([uh.upper(), name, format_value(e['onset']) if e['faulty'] else '-', after,
+                         format_value(e['rho']), format_value(e['rho_true']), format_value(e['bias']),
+                         format_value(e['bias_constant_true']), e['reason']])
+    return rows
+
+
+def _markdown_grid(head, rows) -> str:
+    """A plain Markdown table of texts."""
+    cell = lambda t: str(t).replace('|', '\\|')  # noqa: E731
+    lines = ['| ' + ' | '.join(map(cell, head)) + ' |', '|' + '---|' * len(head)]
+    return '\n'.join(lines + ['| ' + ' | '.join(map(cell, row)) + ' |' for row in rows]) + '\n'
+
+
+def _html_grid(head, rows) -> str:
+    """A plain HTML table of texts, styled like :func:`html_table`."""
+    th = ''.join(f'<th>{html.escape(h)}</th>' for h in head)
+    body = ['<tr>' + ''.join(f'<td>{html.escape(str(t))}</td>' for t in row) + '</tr>' for row in rows]
+    return f'<table>\n<thead><tr>{th}</tr></thead>\n<tbody>\n' + '\n'.join(body) + '\n</tbody>\n</table>'
+
+
+def _html_paragraph(text: str) -> str:
+    return f'<p>{html.escape(text)}</p>'
+
+
+def _isolation_section(run, grid, paragraph) -> str:
+    """The per-run fault isolation table rendered by ``grid`` (:func:`_markdown_grid` or
+    :func:`_html_grid`), or a sentence rendered by ``paragraph`` when there is none."""
+    rows = isolation_table(run)
+    if rows is None:
+        return paragraph('No fault isolation in metrics.json.')
+    return grid(ISOLATION_HEAD, rows) if rows else paragraph('No faulted or isolated channel.')
 
 
 def _table_value(metrics: dict, key: str):
@@ -393,6 +454,9 @@ _FIGURE_TEXT = {
 }
 
 
+_ISOLATION_TEXT = 'Fault isolation: delay after the onset, ρ and b identified vs truth, or why not'
+
+
 def _figure_text(key: str) -> str:
     if key == 'false_fault_estimate':
         return ('Fault estimates ‖F̂_p‖ and ‖F̂_w‖ where no fault acts (healthy UHs; faulted UHs before the '
@@ -443,6 +507,9 @@ def _notes(runs) -> list[str]:
         f'/ RMS ‖F‖, `{NOT_MEANINGFUL_MARK}` (not meaningful) when RMS ‖F‖ is below the floor '
         f'({NRMSE_FLOOR_P:g} m/s² for `F_p`, {NRMSE_FLOOR_W:g} rad/s² for `F_w`). `n/a`: undefined (e.g. the '
         'run ends before the settle time); `-`: the run does not have that entry.',
+        'Fault isolation: the causal isolator a controller would run, over the run\'s arrays; false '
+        'isolations count isolated channels that are not faulty (healthy UHs included), the delay is '
+        'from the channel\'s onset (docs/faults.md#isolation-and-identification).',
     ]
 
 
@@ -470,7 +537,8 @@ def write_report(runs, out: Path) -> Path:
     for key in ('errors', 'errors_per_uh'):
         md += [f'### {_figure_text(key)}', '', f'![{key}]({rel(figures[key])})', '']
     for run in runs:
-        md += [f'## {run.label} (`{run.directory.name}`)', '']
+        md += [f'## {run.label} (`{run.directory.name}`)', '', f'### {_ISOLATION_TEXT}', '',
+               _isolation_section(run, _markdown_grid, str), '']
         for key, path in run.figures.items():
             md += [f'### {_figure_text(key)}', '', f'![{run.name} {key}]({rel(path)})', '']
     (out / 'report.md').write_text('\n'.join(md))
@@ -482,6 +550,7 @@ def write_report(runs, out: Path) -> Path:
                      f'<figcaption>{html.escape(_figure_text(key))}</figcaption></figure>')
     for run in runs:
         parts.append(f'<h2>{html.escape(run.label)} <small><code>{html.escape(str(run.directory))}</code></small></h2>')
+        parts.append(f'<h3>{html.escape(_ISOLATION_TEXT)}</h3>\n{_isolation_section(run, _html_grid, _html_paragraph)}')
         for key, path in run.figures.items():
             parts.append(f'<figure><img src="{html.escape(rel(path))}" alt="{html.escape(run.name + " " + key)}">'
                          f'<figcaption>{html.escape(_figure_text(key))}</figcaption></figure>')

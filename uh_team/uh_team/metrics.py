@@ -40,6 +40,11 @@ the tests and the benchmarks all call :func:`compute_metrics`. Keys of the resul
     layout of earlier versions (``None`` below the floor).
 ``saturation_fraction``
     Fraction of (step, UH) samples with any input limit active (tilt, collective, cyclic/pedal).
+``fault_isolation``
+    The causal isolator of ``uh_controller_node.fault_isolation`` run over the arrays
+    (:func:`fault_isolation_metrics`): ``{"uh<i>": {channel name: {...}}, "summary":
+    {"false_isolations", "missed", "max_delay"}}``; ``None`` when the arrays lack what it needs
+    (the commands) or do not match the scenario.
 
 Undefined values (no followers, an empty window, a true fault below the NRMSE floor) are ``None``
 (JSON ``null``).
@@ -57,7 +62,8 @@ __all__ = ['MetricsError', 'FaultedUH', 'LumpedFault', 'LUMPED_FAULTS', 'FAULT_W
            'NRMSE_TARGET', 'NRMSE_FLOOR_P', 'NRMSE_FLOOR_W', 'METRIC_KEYS', 'formation_errors',
            'containment_errors', 'consensus_errors', 'point_segment_distance',
            'point_triangle_distance', 'hull_distance', 'faulted_uhs', 'rms_norm', 'nrmse_below_floor',
-           'NOT_MEANINGFUL_MARK', 'compute_metrics', 'metrics_from_arrays']
+           'NOT_MEANINGFUL_MARK', 'ISOLATION_ARRAYS', 'compute_metrics', 'fault_isolation_metrics',
+           'metrics_from_arrays']
 
 #: Delay after a UH's fault onset before its fault estimate is scored, s (docs/metrics.md).
 FAULT_WINDOW_DELAY = 5.0
@@ -90,7 +96,11 @@ NOT_MEANINGFUL_MARK = 'n/m'
 #: Keys of :func:`compute_metrics`' result, in order.
 METRIC_KEYS = ('case', 'sim_time_s', 'wall_time_s', 'settle_time_s', 'formation_rms_m',
                'containment_rms_m', 'hull_distance_max_m', 'mse_formation', 'mse_containment', 'cpi',
-               'fault_estimation', 'false_fault_estimate', 'fault_nrmse', 'saturation_fraction')
+               'fault_estimation', 'false_fault_estimate', 'fault_nrmse', 'saturation_fraction',
+               'fault_isolation')
+
+#: Arrays the fault isolation needs (``uh_controller_node.fault_isolation.isolate_run``).
+ISOLATION_ARRAYS = ('time', 'states', 'commands', 'fault_est_p', 'fault_est_w')
 
 
 class MetricsError(ValueError):
@@ -561,6 +571,96 @@ def compute_metrics(*, case: str, time, positions, reference_positions, leaders,
     return result
 
 
+def _channel_faults(scenario, end: float) -> dict:
+    """``{uh id: {channel: (onset, rho, bias_constant)}}`` of the faults of ``scenario.faults``
+    whose onset is at or before ``end`` (s); the earliest fault of a channel counts."""
+    out = {}
+    for uh, specs in sorted(scenario.faults.items()):
+        for spec in specs:
+            get = (lambda k: spec[k]) if isinstance(spec, dict) else (lambda k: getattr(spec, k))
+            onset, channel = float(get('onset_time')), int(get('channel'))
+            if onset > end:
+                continue
+            known = out.setdefault(int(uh), {}).get(channel)
+            if known is None or onset < known[0]:
+                out[int(uh)][channel] = (onset, float(get('rho')), float(get('bias_constant')))
+    return {uh: chans for uh, chans in out.items() if chans}
+
+
+def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
+    """``fault_isolation`` of docs/metrics.md: the isolator a controller runs step by step
+    (``uh_controller_node.fault_isolation.isolate_run``, docs/faults.md#isolation-and-identification)
+    over a run's arrays, scored against the scenario's faults.
+
+    Parameters
+    ----------
+    arrays : mapping
+        :data:`ISOLATION_ARRAYS` in the layout of :func:`metrics_from_arrays`. Rows where any of
+        them is not finite for any UH (a step a real-time run did not record) are left out.
+    scenario : uh_topology.scenario.Scenario
+    case : str
+        Controller case (its gains give the learning phase).
+
+    Returns
+    -------
+    dict or None
+        ``{"uh<i>": {channel name: entry}}`` for every UH with a faulted or an isolated channel,
+        entries with ``faulty``, ``onset`` (s or ``None``), ``isolated``, ``detected_at`` (s),
+        ``delay`` (s after the onset; ``None`` unless faulty and isolated), ``rho``, ``bias`` (rad;
+        ``None`` unless ``identifiable``), ``identifiable``, ``reason``, ``rho_true``,
+        ``bias_constant_true`` (rad; 1 and 0 on a healthy channel); and ``"summary"``:
+        ``false_isolations`` (isolated channels that are not faulty, healthy UHs included),
+        ``missed`` (faulty channels never isolated), ``max_delay`` (s, ``None`` without an
+        isolated faulty channel). ``None`` if an array is missing or does not fit the scenario.
+        A fault counts as faulty from its onset, if that is within the run.
+    """
+    from uh_core.layout import CHANNEL_NAMES
+    from uh_controller_node.fault_isolation import isolate_run
+
+    if any(key not in arrays for key in ISOLATION_ARRAYS):
+        return None
+    n = len(tuple(scenario.ids))
+    data = {key: np.asarray(arrays[key], dtype=float) for key in ISOLATION_ARRAYS}
+    rows = min(v.shape[0] for v in data.values())
+    if rows < 2 or any(v.ndim < 2 or v.shape[1] != n for k, v in data.items() if k != 'time'):
+        return None
+    data = {key: v[:rows] for key, v in data.items()}
+    keep = np.isfinite(data['time'])
+    for key, v in data.items():
+        if key != 'time':
+            keep &= np.isfinite(v.reshape(rows, -1)).all(axis=1)
+    if keep.sum() < 2:
+        return None
+    data = {key: v[keep] for key, v in data.items()}
+    isolation = isolate_run(data, scenario, case)
+    end = float(data['time'][-1]) + 1e-9 * max(float(scenario.dt), 1.0)
+    truth = _channel_faults(scenario, end)
+    out, false_isolations, missed, delays = {}, 0, 0, []
+    for uh in tuple(scenario.ids):
+        reports = isolation[f'uh{uh}']['channels']
+        faults = truth.get(int(uh), {})
+        if not faults and not isolation[f'uh{uh}']['isolated']:
+            continue
+        entry = {}
+        for c, name in enumerate(CHANNEL_NAMES):
+            r = reports[name]
+            onset, rho_true, bias_true = faults.get(c, (None, 1.0, 0.0))
+            faulty = onset is not None
+            delay = round(r['detection_time'] - onset, 9) if faulty and r['isolated'] else None
+            false_isolations += int(r['isolated'] and not faulty)
+            missed += int(faulty and not r['isolated'])
+            if delay is not None:
+                delays.append(delay)
+            entry[name] = {'faulty': faulty, 'onset': onset, 'isolated': bool(r['isolated']),
+                           'detected_at': r['detection_time'], 'delay': delay, 'rho': r['rho'],
+                           'bias': r['bias'], 'identifiable': bool(r['identifiable']),
+                           'reason': r['reason'], 'rho_true': rho_true, 'bias_constant_true': bias_true}
+        out[f'uh{uh}'] = entry
+    out['summary'] = {'false_isolations': false_isolations, 'missed': missed,
+                      'max_delay': max(delays) if delays else None}
+    return out
+
+
 def metrics_from_arrays(arrays, scenario, case: str, wall_time_s: float | None = None) -> dict:
     """:func:`compute_metrics` on the arrays of a team run (reference simulation or recorded bag).
 
@@ -569,7 +669,8 @@ def metrics_from_arrays(arrays, scenario, case: str, wall_time_s: float | None =
     arrays : mapping
         ``time`` (K+1,), ``states`` (K+1, n, 12), ``reference`` (K+1, >=3) with p_0 in the first 3
         columns, and per step ``u_p`` (K or K+1, n, 3), ``saturated`` (K or K+1, n),
-        ``fault_true_p``, ``fault_true_w``, ``fault_est_p``, ``fault_est_w`` (K or K+1, n, 3); UH
+        ``fault_true_p``, ``fault_true_w``, ``fault_est_p``, ``fault_est_w`` (K or K+1, n, 3), and for
+        ``fault_isolation`` ``commands`` (K or K+1, n, 4) rad; UH
         axis in ``scenario.ids`` order (the layout of ``TeamRun.arrays()`` and of
         ``uh_bringup.bag_metrics.read_team_bag``). Per-step rows beyond K - 1 (a command at t_K that
         is never applied) are ignored.
@@ -581,7 +682,8 @@ def metrics_from_arrays(arrays, scenario, case: str, wall_time_s: float | None =
     Returns
     -------
     dict
-        As :func:`compute_metrics`; z1 for the CPI comes from :func:`consensus_errors`.
+        As :func:`compute_metrics`; z1 for the CPI comes from :func:`consensus_errors`, and
+        ``fault_isolation`` from :func:`fault_isolation_metrics` (``None`` without ``commands``).
     """
     missing = [k for k in ('time', 'states', 'reference', 'u_p', 'saturated') if k not in arrays]
     if missing:
@@ -600,7 +702,7 @@ def metrics_from_arrays(arrays, scenario, case: str, wall_time_s: float | None =
             raise MetricsError(f'{key} must have {steps} or {steps + 1} rows (one per step), got {arr.shape[0]}')
         return arr[:steps]
 
-    return compute_metrics(
+    result = compute_metrics(
         case=case, time=time, positions=positions, reference_positions=p0,
         leaders=scenario.leaders, followers=scenario.followers, offsets=scenario.offsets,
         containment_weights=scenario.containment_weights, z1=z1, u_p=per_step('u_p'),
@@ -608,3 +710,5 @@ def metrics_from_arrays(arrays, scenario, case: str, wall_time_s: float | None =
         fault_true_w=per_step('fault_true_w'), fault_est_p=per_step('fault_est_p'),
         fault_est_w=per_step('fault_est_w'), faulted=faulted_uhs(scenario),
         settle_time=float(scenario.settle_time), wall_time=wall_time_s)
+    result['fault_isolation'] = fault_isolation_metrics(arrays, scenario, case)
+    return result

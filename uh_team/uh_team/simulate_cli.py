@@ -166,6 +166,11 @@ def _main(argv) -> int:
         print(f'  {key:22s} {_number(metrics[key])}')
     for line in _fault_lines(metrics):
         print(line)
+    isolation = metrics['fault_isolation']
+    if isolation is not None:
+        summary = isolation['summary']
+        print(f'  {"fault isolation":22s} false isolations {summary["false_isolations"]}, missed '
+              f'{summary["missed"]}, max delay {_number(summary["max_delay"], ".2f")} s')
     print(f'wrote {args.out / "metrics.json"} and {args.out / "timeseries.npz"}')
     sys.stdout.flush()          # a closed pipe shows up here, inside main()'s handler
     return 0
