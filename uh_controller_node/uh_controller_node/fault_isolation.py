@@ -461,26 +461,6 @@ class FaultIsolator:
         """Per channel: time of isolation, s (NaN if not isolated)."""
         return tuple(self._t_iso)
 
-    @property
-    def rho(self) -> tuple:
-        """Per channel: identified effectiveness (-), NaN unless identifiable."""
-        return tuple(self.channel(c).rho for c in range(_N))
-
-    @property
-    def bias(self) -> tuple:
-        """Per channel: identified constant bias, rad, NaN unless identifiable."""
-        return tuple(self.channel(c).bias for c in range(_N))
-
-    @property
-    def identifiable(self) -> tuple:
-        """Per channel: the verdict (False when not isolated)."""
-        return tuple(self.channel(c).identifiable for c in range(_N))
-
-    @property
-    def reason(self) -> tuple:
-        """Per channel: the verdict's reason."""
-        return tuple(self.channel(c).reason for c in range(_N))
-
     def channel(self, c: int) -> ChannelReport:
         """The report of channel ``c`` (0..3) now (see the class docstring for the verdict)."""
         c = int(c)
