@@ -51,40 +51,40 @@ class IsolationSettings:
 
     Attributes
     ----------
-    1. learning_phase : float
+    learning_phase : float
         s after the first update during which nothing is processed (the controller's observers
         hold zero then; docs/control_law.md#learning-phase). The paper gains' 8 s;
         :func:`isolate_run` takes the scenario's own value.
-    2. filter_tau : float
+    filter_tau : float
         Time constant of the first-order low-pass filter on each deviation, s (0.2: smooths the
         observers' onset transients, a few of their 1/20 s and 1/40 s time constants).
-    3. thresholds : tuple of 4 float
+    thresholds : tuple of 4 float
         Constant part of the isolation threshold per channel, rad: three times the largest
         filtered healthy deviation after the learning phase on the bundled scenarios
         (:func:`healthy_deviation_statistics`), rounded up to two digits.
-    4. confirmation_time : float
+    confirmation_time : float
         How long ``|filtered d|`` must stay above its threshold, without a break, before the
         channel is isolated, s (0.5: 25 times the longest excursion of a healthy channel, and
         within the 2 s detection budget).
-    5. coupling_window : float
+    coupling_window : float
         Window over which the range of the thrust-deviation estimate counts as not yet settled
         between the outer and inner observers, s (0.3: the length of their transient after a
         thrust step; the coupling allowances, see :class:`FaultIsolator`).
-    6. forgetting : float
+    forgetting : float
         Forgetting factor of the least-squares fit per step, in (0, 1]; 1: none (the fault model's
         ``rho`` and constant bias are constants, and forgetting would shrink the command spread
         the fit needs).
-    7. noise_rms : tuple of 4 float
+    noise_rms : tuple of 4 float
         RMS of the healthy deviation per channel, rad: the largest per-UH RMS on the bundled
         scenarios from one second after the learning phase, rounded up to two digits. The
         a priori size of what in ``d`` is not the fault, used in the fit's error bounds.
-    8. residual_max : tuple of 4 float
+    residual_max : tuple of 4 float
         Largest RMS residual of the fit per channel for which the fault counts as affine in the
         command (``rho`` and a constant bias), rad: five times ``noise_rms``.
-    9. rho_tolerance, bias_tolerance : float
+    rho_tolerance, bias_tolerance : float
         A fit is called identifiable only if its worst-case error bounds are within these
         (-, rad).
-    10. min_fit_time : float
+    min_fit_time : float
         Shortest fit, s, before a verdict can be identifiable.
     """
 
@@ -123,31 +123,31 @@ class ChannelReport:
 
     Attributes
     ----------
-    1. channel : str
+    channel : str
         Name (:data:`CHANNELS`).
-    2. isolated : bool
+    isolated : bool
         Reported faulty (latched).
-    3. detection_time : float
+    detection_time : float
         Time of the isolation, s (NaN if not isolated).
-    4. rho, bias : float
+    rho, bias : float
         Effectiveness (-) and constant bias (rad) of the fit; NaN unless ``identifiable``.
-    5. rho_fit, bias_fit : float
+    rho_fit, bias_fit : float
         The fit's values whatever the verdict (NaN while the command has not varied).
-    6. identifiable : bool
+    identifiable : bool
         The fit's worst-case error bounds are within the tolerances and its residual is small.
-    7. reason : str
+    reason : str
         Why not identifiable (``'identifiable'`` when it is).
-    8. fit_time : float
+    fit_time : float
         Time span of the fit, s.
-    9. command_std, actual_std : float
+    command_std, actual_std : float
         Standard deviation over the fit of the command ``u_c`` and of the estimated actual input
         ``u_c + d_c``, rad.
-    10. residual_rms : float
+    residual_rms : float
         RMS residual of the fit, rad.
-    11. rho_bound, bias_bound : float
+    rho_bound, bias_bound : float
         Worst-case error bounds of ``rho`` (-) and ``bias`` (rad) (see :class:`FaultIsolator`;
         infinite when the actual input's spread does not exceed the noise).
-    12. mean_command, mean_deviation : float
+    mean_command, mean_deviation : float
         Means over the fit of ``u_c`` and ``d_c``, rad: what is known even when ``rho`` and ``b``
         are not, the deviation ``(rho - 1) u + b`` at the operating point.
     """
@@ -194,22 +194,22 @@ def input_deviation(nominal, x, u, fhat_p, fhat_w):
 
     Parameters
     ----------
-    1. nominal : uh_core.airframe.HelicopterParams
+    nominal : uh_core.airframe.HelicopterParams
         The controller's nominal model (:func:`uh_controller_node.nominal_model.nominal_model`).
-    2. x : array (12,)
+    x : array (12,)
         State ``[p m, v m/s, (phi, theta, psi) rad, (p, q, r) rad/s]``.
-    3. u : array (4,)
+    u : array (4,)
         Command ``(theta_col, theta_tr, delta_lat, delta_lon)``, rad (the limited command).
-    4. fhat_p : array (3,)
+    fhat_p : array (3,)
         Position-loop lumped-fault estimate, m/s^2, inertial.
-    5. fhat_w : array (3,)
+    fhat_w : array (3,)
         Attitude-loop lumped-fault estimate, rad/s^2, body.
 
     Returns
     -------
-    1. d : ndarray (4,)
+    d : ndarray (4,)
         Deviations ``(d_col, d_tr, d_lat, d_lon)``, rad.
-    2. dT : float
+    dT : float
         Thrust deviation, N.
     """
     d, dT, _ = _deviation(_constants(nominal), [float(v) for v in x[9:11]], [float(v) for v in u],
@@ -341,14 +341,14 @@ class FaultIsolator:
 
     Parameters
     ----------
-    1. nominal : uh_core.airframe.HelicopterParams
+    nominal : uh_core.airframe.HelicopterParams
         The controller's nominal model.
-    2. mismatch : float
+    mismatch : float
         The scenario's ``model_mismatch`` (> 0, -): the nominal ``c_Q`` is ``mismatch`` times the
         true one.
-    3. dt : float
+    dt : float
         Control period, s (> 0).
-    4. settings : IsolationSettings, optional
+    settings : IsolationSettings, optional
         Default :class:`IsolationSettings()`.
     """
 
@@ -382,14 +382,14 @@ class FaultIsolator:
 
         Parameters
         ----------
-        1. t : float
+        t : float
             Step time, s (increasing; the learning phase counts from the first call).
-        2. x : array (12,)
+        x : array (12,)
             State ``[p m, v m/s, (phi, theta, psi) rad, (p, q, r) rad/s]``.
-        3. u : array (4,)
+        u : array (4,)
             Command ``(theta_col, theta_tr, delta_lat, delta_lon)``, rad; limited here to the
             nominal model's input limits (the faults act on the limited command).
-        4. fhat_p, fhat_w : array (3,)
+        fhat_p, fhat_w : array (3,)
             The lumped-fault estimates the controller used at this step, m/s^2 (inertial) and
             rad/s^2 (body).
         """
@@ -537,17 +537,17 @@ def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSet
 
     Parameters
     ----------
-    1. arrays : mapping
+    arrays : mapping
         ``time`` (K+1,) s, ``states`` (K+1, n, 12), ``commands`` (K or K+1, n, 4) rad,
         ``fault_est_p`` m/s^2, ``fault_est_w`` rad/s^2 (K or K+1, n, 3); UH axis in
         ``scenario.ids`` order; the estimates of row ``k`` are those the controller used at step
         ``k`` (``uh_team.team_simulation.TeamRun.arrays()``, or a recorded run's arrays). Rows
         beyond the shortest array are ignored.
-    2. scenario : uh_topology.scenario.Scenario
+    scenario : uh_topology.scenario.Scenario
         Gives the helicopter, the model mismatch, ``dt`` and (with ``case``) the learning phase.
-    3. case : str
+    case : str
         Controller case whose gains give the learning phase.
-    4. settings : IsolationSettings, optional
+    settings : IsolationSettings, optional
         Default: :class:`IsolationSettings` with the scenario's learning phase.
 
     Returns
@@ -582,9 +582,9 @@ def healthy_deviation_statistics(arrays, scenario, case: str = 'proposed',
 
     Parameters
     ----------
-    1. arrays, scenario, case, settings
+    arrays, scenario, case, settings
         As for :func:`isolate_run` (the scenario's faults say which samples are healthy).
-    2. settle : float
+    settle : float
         s after the learning phase from which ``rms`` is taken (the networks' switch-over
         transient at the end of the phase is left out of it).
 
