@@ -121,6 +121,18 @@ def test_metrics_from_the_bag_meet_the_thresholds(lockstep_run):
             assert value < 0.5, f'{uh} {name}: fault NRMSE {value}'
 
 
+def test_the_bags_fault_isolation_is_what_the_controllers_published_and_equals_in_process(
+        lockstep_run, paper, reference_run):
+    from uh_team.metrics import metrics_from_arrays
+    out, _, _ = lockstep_run
+    recorded = json.loads((out / 'metrics.json').read_text())['fault_isolation']
+    in_process = metrics_from_arrays(reference_run.arrays(), paper, 'proposed')['fault_isolation']
+    assert recorded['summary'].pop('source') == 'status'        # read off /uhN/status
+    assert in_process['summary'].pop('source') == 'recomputed'
+    assert recorded == in_process
+    assert recorded['summary']['missed'] == 0 and recorded['summary']['false_isolations'] == 0
+
+
 def test_bag_is_complete_and_decodes_with_rosbags(lockstep_run, paper, reference_run):
     out, _, _ = lockstep_run
     steps = reference_run.states.shape[0]  # K + 1 = 6001: every per-step topic carries steps 0..K

@@ -164,13 +164,15 @@ def test_nothing_is_processed_during_the_learning_phase():
     assert earliest <= iso.detection_time[2] < earliest + 0.05
 
 
-def test_the_learning_phase_counts_from_the_first_update():
+def test_the_learning_phase_is_in_run_time_so_an_isolator_started_late_works_at_once():
+    # a controller restarted after the learning phase runs its observers at once (its kernel
+    # counts the phase in run time), so its isolator must too
     iso = FaultIsolator(NOMINAL, MISMATCH, DT)
     big = one_channel(3, 0.01)
-    run(iso, steps(100.0, 107.9), lambda t, u: big)
-    assert iso.isolated == (False,) * 4
-    run(iso, steps(107.9, 109.0), lambda t, u: big)
-    assert iso.isolated[3] and iso.detection_time[3] >= 108.5 - 1e-9
+    run(iso, steps(100.0, 100.4), lambda t, u: big)
+    assert iso.isolated == (False,) * 4          # not yet confirmed ...
+    run(iso, steps(100.4, 101.0), lambda t, u: big)
+    assert iso.isolated[3] and iso.detection_time[3] == pytest.approx(100.5, abs=DT)  # ... then at once
 
 
 # ------------------------------------------------------------------------------------------------
@@ -410,3 +412,58 @@ def test_a_manoeuvring_team_gets_its_constant_faults_identified(tmp_path):
     identified = sorted(key for key, report in faulted.items() if report['identifiable'])
     assert identified == [(2, 'lateral'), (3, 'longitudinal'), (6, 'longitudinal')]
     assert 'bias not constant' in faulted[(5, 'lateral')]['reason']
+
+
+# ------------------------------------------------------------------------------------------------
+# Online: every controller runs the isolator and publishes it on ControllerStatus
+
+
+def test_the_status_codes_are_the_messages_constants():
+    from uh_controller_node import fault_isolation as fi
+    from uh_runtime import messages
+    msg = messages.ControllerStatus
+    for code, name in fi.IDENTIFICATION_CODES.items():
+        assert getattr(msg, f'IDENTIFICATION_{name.upper()}') == code
+    assert len(fi.IDENTIFICATION_CODES) == len([a for a in dir(msg) if a.startswith('IDENTIFICATION_')])
+
+
+def test_each_controller_publishes_what_isolate_run_computes_over_the_same_run():
+    """The controllers (UHController, what the nodes run) stepped on the in-process run's inputs
+    carry on their status records the verdicts isolate_run finds over that run's arrays, step for
+    step at the end; status_to_msg puts them on the message unchanged."""
+    from uh_controller_node.controller import UHController
+    from uh_core.wire import status_to_msg
+    from uh_sim_node.reference import VirtualLeaderReference
+    from uh_team.team_simulation import run_team_simulation
+    from uh_topology.scenario import load_scenario
+
+    scenario = load_scenario('paper')
+    run = run_team_simulation(scenario, 'proposed', duration=14.0)   # past the 10 s onsets
+    arrays = run.arrays()
+    expected = isolate_run(arrays, scenario)
+    ids = tuple(scenario.ids)
+    col = {i: c for c, i in enumerate(ids)}
+    reference = VirtualLeaderReference(scenario.reference)
+    controllers = [UHController(i, scenario) for i in ids]
+    dt = float(scenario.dt)
+    last = [None] * len(ids)
+    for k in range(arrays['time'].shape[0]):
+        xs = arrays['states'][k]
+        r = reference.at(k * dt)
+        for c, ctl in enumerate(controllers):
+            u, last[c] = ctl.step(k, xs[c], {j: xs[col[j]] for j in ctl.neighbours},
+                                  r if ctl.leader_link > 0.0 else None, dt)
+            assert np.array_equal(u, arrays['commands'][k, c])      # the same run, to the bit
+    isolated_somewhere = False
+    for c, ctl in enumerate(controllers):
+        uh = ids[c]
+        reports = ctl.isolator.report()
+        assert {r.channel: r.as_dict() for r in reports} == expected[f'uh{uh}']['channels']
+        assert last[c].isolation == ctl.isolator.status()
+        msg = status_to_msg(uh, k, k * dt, last[c])
+        assert list(msg.fault_isolated) == [r.isolated for r in reports]
+        assert list(msg.fault_identification) == [r.identification for r in reports]
+        np.testing.assert_array_equal(msg.identified_effectiveness, [r.rho_fit for r in reports])
+        np.testing.assert_array_equal(msg.fault_detection_time, [r.detection_time for r in reports])
+        isolated_somewhere |= any(r.isolated for r in reports)
+    assert isolated_somewhere   # the paper's faults are isolated within 14 s

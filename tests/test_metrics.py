@@ -340,3 +340,33 @@ def test_fault_isolation_is_null_without_commands(paper_run):
     scenario, arrays = paper_run
     short = {k: v[:200] for k, v in arrays.items() if k not in ('commands', 'ids')}
     assert metrics_from_arrays(short, scenario, 'proposed')['fault_isolation'] is None
+
+
+def test_fault_isolation_of_a_recorded_run_scores_what_the_controllers_published(paper_run):
+    """With an ``isolation`` entry per UH (read off the last /uhN/status of a bag) the section is
+    built from those verdicts, not recomputed: a published false isolation on healthy UH1 and an
+    identified UH2 collective show up as published."""
+    from uh_controller_node.fault_isolation import IDENTIFIABLE, NOT_ISOLATED
+    from uh_team.metrics import metrics_from_arrays
+    scenario, arrays = paper_run
+    nan = math.nan
+    quiet = {'step': 6000, 'isolated': [False] * 4, 'detection_time': [nan] * 4,
+             'effectiveness': [nan] * 4, 'bias': [nan] * 4, 'identification': [NOT_ISOLATED] * 4}
+    published = {uh: dict(quiet) for uh in scenario.ids}
+    published[1] = dict(quiet, isolated=[False, True, False, False], detection_time=[nan, 20.0, nan, nan])
+    published[2] = dict(quiet, isolated=[True, False, False, False], detection_time=[10.5, nan, nan, nan],
+                        effectiveness=[0.81, nan, nan, nan], bias=[0.002, nan, nan, nan],
+                        identification=[IDENTIFIABLE, 0, 0, 0])
+    section = metrics_from_arrays(dict(arrays, isolation=published), scenario, 'proposed')['fault_isolation']
+    assert section['summary']['source'] == 'status'
+    assert section['summary']['false_isolations'] == 1
+    assert section['uh1']['tail_rotor']['isolated'] and section['uh1']['tail_rotor']['detected_at'] == 20.0
+    collective = section['uh2']['collective']
+    assert collective['delay'] == pytest.approx(0.5) and collective['identifiable']
+    assert (collective['rho'], collective['bias'], collective['reason']) == (0.81, 0.002, 'identifiable')
+    # the faults nobody published are missed: UH2 lateral, UH3 (2), UH5 (2)
+    assert section['summary']['missed'] == 5
+    # without an entry for every UH the isolator is recomputed
+    partial = {1: published[1]}
+    assert metrics_from_arrays(dict(arrays, isolation=partial), scenario,
+                               'proposed')['fault_isolation']['summary']['source'] == 'recomputed'

@@ -36,7 +36,9 @@ def read_team_bag(bag_dir, scenario) -> dict:
     Returns a dict with ``time`` (K+1,), ``states`` (K+1, n, 12), ``commands`` (K+1, n, 4),
     ``reference`` (K+1, 5) = (x0, y0, z0, psi0, psi0'), ``fault_true_p``/``fault_true_w`` and
     ``fault_est_p``/``fault_est_w`` (K+1, n, 3), ``u_p`` (K+1, n, 3), ``saturated`` (K+1, n) (any
-    saturation flag), ``counts`` ({topic: messages}). Steps missing from a topic are NaN.
+    saturation flag), ``isolation`` (the last fault isolation each controller published,
+    :func:`_isolation_of`; ``{}`` when no status carried one), ``counts`` ({topic: messages}).
+    Steps missing from a topic are NaN.
     """
     from rosbags.rosbag2 import Reader
     from rosbags.rosbag2.errors import ReaderError
@@ -87,7 +89,8 @@ def read_team_bag(bag_dir, scenario) -> dict:
     out = {'time': np.arange(K + 1) * scenario.dt, 'states': nan(K + 1, n, 12), 'commands': nan(K + 1, n, 4),
            'reference': nan(K + 1, 5), 'fault_true_p': nan(K + 1, n, 3), 'fault_true_w': nan(K + 1, n, 3),
            'fault_est_p': nan(K + 1, n, 3), 'fault_est_w': nan(K + 1, n, 3), 'u_p': nan(K + 1, n, 3),
-           'saturated': np.zeros((K + 1, n), dtype=bool), 'counts': counts, 'rejected': rejected}
+           'saturated': np.zeros((K + 1, n), dtype=bool), 'isolation': {}, 'counts': counts,
+           'rejected': rejected}
     name = topics.REFERENCE.name
     for msgtype, raw in rows.get(name, []):
         r = decode(name, msgtype, raw)
@@ -115,14 +118,30 @@ def read_team_bag(bag_dir, scenario) -> dict:
                 out['fault_true_p'][f.step, c] = _vec(f.lumped_fault_position)
                 out['fault_true_w'][f.step, c] = _vec(f.lumped_fault_attitude)
         name = topics.uh_topic(i, topics.STATUS)
+        last = None
         for msgtype, raw in rows.get(name, []):
             st = decode(name, msgtype, raw)
             if st.step <= K and st.uh_id == i:
+                if last is None or st.step >= last.step:
+                    last = st
                 out['fault_est_p'][st.step, c] = _vec(st.fault_estimate_position)
                 out['fault_est_w'][st.step, c] = _vec(st.fault_estimate_attitude)
                 out['u_p'][st.step, c] = _vec(st.u_p)
                 out['saturated'][st.step, c] = st.saturated_tilt or st.saturated_collective or st.saturated_cyclic
+        if last is not None:
+            out['isolation'][i] = _isolation_of(last)
     return out
+
+
+def _isolation_of(status) -> dict:
+    """The fault isolation fields of one ``ControllerStatus`` as plain lists (one entry per channel):
+    ``step``, ``isolated``, ``detection_time`` (s), ``effectiveness``, ``bias`` (rad),
+    ``identification`` (codes)."""
+    return {'step': int(status.step), 'isolated': [bool(v) for v in status.fault_isolated],
+            'detection_time': [float(v) for v in status.fault_detection_time],
+            'effectiveness': [float(v) for v in status.identified_effectiveness],
+            'bias': [float(v) for v in status.identified_bias],
+            'identification': [int(v) for v in status.fault_identification]}
 
 
 def _check_bag_dir(bag_dir: Path) -> None:

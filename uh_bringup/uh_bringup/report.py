@@ -507,9 +507,11 @@ def _notes(runs) -> list[str]:
         f'/ RMS ‖F‖, `{NOT_MEANINGFUL_MARK}` (not meaningful) when RMS ‖F‖ is below the floor '
         f'({NRMSE_FLOOR_P:g} m/s² for `F_p`, {NRMSE_FLOOR_W:g} rad/s² for `F_w`). `n/a`: undefined (e.g. the '
         'run ends before the settle time); `-`: the run does not have that entry.',
-        'Fault isolation: the causal isolator a controller would run, over the run\'s arrays; false '
-        'isolations count isolated channels that are not faulty (healthy UHs included), the delay is '
-        'from the channel\'s onset (docs/faults.md#isolation-and-identification).',
+        'Fault isolation: the verdicts of the isolator every controller runs, as each controller '
+        'published them on its last `/uhN/status` (a recorded run) or recomputed over the run\'s arrays '
+        '(an in-process run: the same computation); false isolations count isolated channels that are '
+        'not faulty (healthy UHs included), the delay is from the channel\'s onset '
+        '(docs/faults.md#isolation-and-identification).',
     ]
 
 

@@ -21,6 +21,10 @@ Per step the order is fixed: consensus error -> outer law (u_p) -> thrust and at
 of every internal state from t_k to t_{k+1}. Neighbours are visited in ascending id order and the
 controller uses no randomness, so two runs with the same inputs give bit-identical outputs.
 
+After the law, the step's own state, limited command and fault estimates go to this UH's
+:class:`~uh_controller_node.fault_isolation.FaultIsolator` (docs/faults.md#isolation-and-identification),
+whose verdicts ride on the status record; they never feed back into the law.
+
 The law itself is :func:`uh_controller_node.control_kernels.uh_control_step` (numba); this class
 checks the inputs, copies them into float64 arrays, makes one kernel call per step and turns the
 kernel's status vector into a :class:`ControllerStatusData`. :meth:`UHController.kernel_arrays`
@@ -42,6 +46,7 @@ from .control_kernels import (
     R_P, R_V, R_YAW, REFERENCE_SIZE, S_COST_RATE, S_EULER_D, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE,
     S_SAT_CYCLIC, S_SAT_TILT, S_THRUST, S_U_P, S_W_NORM_P, S_W_NORM_W, S_Z1, S_Z2, S_Z3, S_Z4, S_ZN_P, S_ZN_W,
     STATE_SIZE, STATUS_SIZE, STEP_DONE, ControlArrays, control_parameters, uh_control_step)
+from .fault_isolation import FaultIsolator, IsolationSettings, IsolationStatus
 from .gains import ControllerGains
 from .nominal_model import nominal_model
 
@@ -97,6 +102,10 @@ class ControllerStatusData:
         ``|z1|^2 + |u_p|^2``, the integrand of the CPI (docs/metrics.md).
     stale_neighbours : tuple of str
         Filled by the node when a neighbour's data is older than its timeout; empty here.
+    isolation : IsolationStatus or None
+        The controller's fault isolation and identification after this step
+        (:class:`~uh_controller_node.fault_isolation.FaultIsolator`,
+        docs/faults.md#isolation-and-identification); None in a record not made by a controller.
     """
 
     uh_id: int
@@ -120,6 +129,7 @@ class ControllerStatusData:
     saturated_cyclic: bool
     cost_rate: float
     stale_neighbours: tuple = field(default_factory=tuple)
+    isolation: IsolationStatus | None = None
 
     @property
     def saturated(self) -> bool:
@@ -302,6 +312,10 @@ class UHController:
         self._own = np.empty(STATE_SIZE)
         self._nb_states = np.empty((n_nb, STATE_SIZE))
         self._reference = np.zeros(REFERENCE_SIZE)
+        # fault isolation (made at the first step, when the control period is known)
+        self._isolation_settings = IsolationSettings(learning_phase=float(self.gains.learning_phase))
+        self._mismatch = float(scenario.model_mismatch)
+        self.isolator: FaultIsolator | None = None
 
     # ------------------------------------------------------------------------------------------
     @property
@@ -504,4 +518,9 @@ class UHController:
                 what, values = f'state of neighbour UH {ids[done - 1]}', nb_states[done - 1]
             raise ControllerError(f'{what} contains NaN or infinity: {values.tolist()}')
         k = int(k)
-        return u, ControllerStatusData.from_vector(self.uh_id, k, k * dt, status)
+        record = ControllerStatusData.from_vector(self.uh_id, k, k * dt, status)
+        if self.isolator is None:
+            self.isolator = FaultIsolator(self.model, self._mismatch, dt, self._isolation_settings)
+        self.isolator.update(k * dt, self._own, u, record.fault_estimate_position, record.fault_estimate_attitude)
+        record.isolation = self.isolator.status()
+        return u, record

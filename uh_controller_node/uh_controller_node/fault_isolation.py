@@ -18,30 +18,54 @@ only, deterministic.
    ``|filtered d|`` has stayed above the channel's threshold for ``confirmation_time``. The
    threshold is a constant per channel plus a coupling allowance that grows with the estimated
    thrust deviation (the collective leaks into the tail rotor through ``c_Q`` and into the cyclics
-   through ``h_M``). Nothing is processed during the controller's learning phase, when the
-   estimates are held at zero.
+   through ``h_M``). Nothing is processed during the controller's learning phase (run time
+   ``t < learning_phase``), when the estimates are held at zero.
 3. **Identification**. From its isolation on, each isolated channel fits ``d = theta_1 u + theta_2``
    by recursive least squares (exact, no prior; forgetting factor 1 by default), giving
    ``rho = 1 + theta_1`` and the constant bias ``b = theta_2``, and a verdict saying whether the
    fit can be trusted, with the reason when not.
 
 The defaults of :class:`IsolationSettings` and their justification (the healthy deviation
-statistics of the bundled scenarios) are in docs/faults.md#isolation-and-identification.
+statistics of the bundled scenarios) are in docs/faults.md#isolation-and-identification. Every
+controller runs one isolator online (:class:`uh_controller_node.controller.UHController`) and
+publishes its verdicts on ``ControllerStatus`` (:data:`IDENTIFICATION_CODES`).
 """
 from __future__ import annotations
 
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ['CHANNELS', 'IsolationSettings', 'ChannelReport', 'FaultIsolator', 'input_deviation',
-           'isolate_run', 'healthy_deviation_statistics']
+__all__ = ['CHANNELS', 'IsolationSettings', 'ChannelReport', 'IsolationStatus', 'FaultIsolator', 'input_deviation',
+           'isolate_run', 'healthy_deviation_statistics', 'IDENTIFICATION_CODES', 'NOT_ISOLATED',
+           'FIT_TOO_SHORT', 'BIAS_NOT_CONSTANT', 'CONFOUNDED', 'IDENTIFIABLE', 'IDENTIFICATION_TEXT']
 
 #: Channel names, in input order (docs/faults.md#channels).
 CHANNELS = ('collective', 'tail_rotor', 'lateral', 'longitudinal')
 _N = len(CHANNELS)
+
+# Verdict codes of a channel (ChannelReport.identification; the IDENTIFICATION_* constants of
+# uh_msgs/msg/ControllerStatus.msg, checked equal by a test)
+NOT_ISOLATED = 0        #: the channel is not isolated
+FIT_TOO_SHORT = 1       #: isolated; the fit spans less than ``min_fit_time``
+BIAS_NOT_CONSTANT = 2   #: isolated; the fit's residual says the deviation is not affine in the command
+CONFOUNDED = 3          #: isolated; the actual input varies too little to separate rho and b
+IDENTIFIABLE = 4        #: isolated; rho and the constant bias are identified within the tolerances
+#: Code -> name, in code order.
+IDENTIFICATION_CODES = {NOT_ISOLATED: 'not_isolated', FIT_TOO_SHORT: 'fit_too_short',
+                        BIAS_NOT_CONSTANT: 'bias_not_constant', CONFOUNDED: 'confounded',
+                        IDENTIFIABLE: 'identifiable'}
+#: Code -> what it means, for reports (ChannelReport.reason adds the numbers).
+IDENTIFICATION_TEXT = {
+    NOT_ISOLATED: 'not isolated',
+    FIT_TOO_SHORT: 'fit too short',
+    BIAS_NOT_CONSTANT: 'bias not constant (deviation not affine in the command)',
+    CONFOUNDED: 'actual input nearly constant: (rho - 1) u and b confounded',
+    IDENTIFIABLE: 'identifiable',
+}
 
 
 @dataclass(frozen=True)
@@ -52,8 +76,8 @@ class IsolationSettings:
     Attributes
     ----------
     learning_phase : float
-        s after the first update during which nothing is processed (the controller's observers
-        hold zero then; docs/control_law.md#learning-phase). The paper gains' 8 s;
+        Run time, s, before which nothing is processed (the controller's observers hold zero
+        then; docs/control_law.md#learning-phase). The paper gains' 8 s;
         :func:`isolate_run` takes the scenario's own value.
     filter_tau : float
         Time constant of the first-order low-pass filter on each deviation, s (0.2: smooths the
@@ -137,6 +161,8 @@ class ChannelReport:
         The fit's worst-case error bounds are within the tolerances and its residual is small.
     reason : str
         Why not identifiable (``'identifiable'`` when it is).
+    identification : int
+        The verdict as a code (:data:`IDENTIFICATION_CODES`).
     fit_time : float
         Time span of the fit, s.
     command_std, actual_std : float
@@ -161,6 +187,7 @@ class ChannelReport:
     bias_fit: float
     identifiable: bool
     reason: str
+    identification: int
     fit_time: float
     command_std: float
     actual_std: float
@@ -176,6 +203,37 @@ class ChannelReport:
         for key, value in self.__dict__.items():
             out[key] = None if isinstance(value, float) and not math.isfinite(value) else value
         return out
+
+
+class IsolationStatus(NamedTuple):
+    """What a :class:`FaultIsolator` publishes each step (the fault-isolation fields of
+    ``uh_msgs/ControllerStatus``): one entry per channel, in :data:`CHANNELS` order.
+
+    Attributes
+    ----------
+    isolated : tuple of 4 bool
+        Reported faulty (latched).
+    detection_time : tuple of 4 float
+        Run time of the isolation, s (NaN while not isolated).
+    deviation : tuple of 4 float
+        Low-pass filtered input deviation, rad.
+    threshold : tuple of 4 float
+        Current isolation threshold, rad.
+    effectiveness, bias : tuple of 4 float
+        The fit's ``rho`` (-) and constant bias (rad) whatever the verdict (NaN while not
+        isolated or while the command has not varied); to be trusted only where
+        ``identification`` is :data:`IDENTIFIABLE`.
+    identification : tuple of 4 int
+        Verdict codes (:data:`IDENTIFICATION_CODES`).
+    """
+
+    isolated: tuple
+    detection_time: tuple
+    deviation: tuple
+    threshold: tuple
+    effectiveness: tuple
+    bias: tuple
+    identification: tuple
 
 
 def input_deviation(nominal, x, u, fhat_p, fhat_w):
@@ -215,6 +273,11 @@ def input_deviation(nominal, x, u, fhat_p, fhat_w):
     d, dT, _ = _deviation(_constants(nominal), [float(v) for v in x[9:11]], [float(v) for v in u],
                           [float(v) for v in x[6:9]], [float(v) for v in fhat_p], [float(v) for v in fhat_w])
     return np.array(d), dT
+
+
+def _floats(values) -> list:
+    """Python floats of a numpy array (one ``tolist``) or of any sequence of numbers."""
+    return values.tolist() if isinstance(values, np.ndarray) else [float(v) for v in values]
 
 
 def _constants(P) -> tuple:
@@ -366,7 +429,6 @@ class FaultIsolator:
         self._lower = [float(v) for v in nominal.input_lower]
         self._upper = [float(v) for v in nominal.input_upper]
         self._thr = list(self._s.thresholds)
-        self._t_first = math.nan
         self._y = [0.0] * _N                   # filtered deviations, rad
         self._e = [0.0] * _N                   # filtered coupling allowances, rad
         self._above_since = [math.nan] * _N
@@ -383,7 +445,8 @@ class FaultIsolator:
         Parameters
         ----------
         t : float
-            Step time, s (increasing; the learning phase counts from the first call).
+            Run time of the step, ``k dt``, s (increasing; nothing is processed while it is below
+            the learning phase).
         x : array (12,)
             State ``[p m, v m/s, (phi, theta, psi) rad, (p, q, r) rad/s]``.
         u : array (4,)
@@ -394,14 +457,11 @@ class FaultIsolator:
             rad/s^2 (body).
         """
         t = float(t)
-        if math.isnan(self._t_first):
-            self._t_first = t
-        if t - self._t_first < self._s.learning_phase - 1e-9:
+        if t < self._s.learning_phase - 1e-9:
             return
-        u = [min(max(float(v), lo), hi) for v, lo, hi in zip(u, self._lower, self._upper)]
-        x = [float(v) for v in x]
-        d, dT, k_ta = _deviation(self._k, x[9:11], u, x[6:9], [float(v) for v in fhat_p],
-                                 [float(v) for v in fhat_w])
+        u = [min(max(v, lo), hi) for v, lo, hi in zip(_floats(u), self._lower, self._upper)]
+        x = _floats(x)
+        d, dT, k_ta = _deviation(self._k, x[9:11], u, x[6:9], _floats(fhat_p), _floats(fhat_w))
         self._last_d = d
         window = self._dT_window
         window.append(dT)
@@ -471,38 +531,64 @@ class FaultIsolator:
         nan = math.nan
         if not self._isolated[c]:
             return ChannelReport(name, False, nan, nan, nan, nan, nan, False, 'not isolated',
-                                 0.0, nan, nan, nan, nan, nan, nan, nan)
-        fit = self._fits[c]
-        fit_time = 0.0 if fit.w == 0.0 else fit.t1 - fit.t0 + self._dt
-        th1, th2 = fit.theta()
-        std_u, std_a, resid = fit.stats()
-        rho_fit, bias_fit = 1.0 + th1, th2
-        sigma = max(s.noise_rms[c], resid) if not math.isnan(resid) else nan
-        rho_bound = sigma / (std_a - sigma) if std_a > sigma else math.inf
-        bias_bound = sigma + rho_bound * abs(fit.mu) if math.isfinite(rho_bound) else math.inf
-        if fit_time < s.min_fit_time - 1e-9:
+                                 NOT_ISOLATED, 0.0, nan, nan, nan, nan, nan, nan, nan)
+        code, rho_fit, bias_fit, fit_time, std_u, std_a, resid, rho_bound, bias_bound = self._verdict(c)
+        if code == FIT_TOO_SHORT:
             reason = f'fit too short ({fit_time:.2g} s < {s.min_fit_time:g} s)'
-        elif resid > s.residual_max[c]:
+        elif code == BIAS_NOT_CONSTANT:
             reason = (f'residual {resid:.1e} rad > {s.residual_max[c]:.1e} rad: bias not constant '
                       f'(d not affine in the command)')
-        elif rho_bound > s.rho_tolerance or bias_bound > s.bias_tolerance:
-            reason = (f'actual input nearly constant (std {std_a:.1e} rad): (rho - 1) u and b confounded '
-                      f'(rho bound {rho_bound:.2g}, tolerance {s.rho_tolerance:g}; bias bound '
-                      f'{bias_bound:.1e} rad, tolerance {s.bias_tolerance:g} rad)')
+        elif code == CONFOUNDED:
+            reason = (f'actual input nearly constant (std {std_a:.1e} rad): (rho - 1) u and b '
+                      f'confounded (rho bound {rho_bound:.2g}, tolerance {s.rho_tolerance:g}; bias '
+                      f'bound {bias_bound:.1e} rad, tolerance {s.bias_tolerance:g} rad)')
             if std_u > 2.0 * std_a:
                 reason += (f'; the command varies more (std {std_u:.1e} rad), to cancel a varying '
                            f'deviation (time-varying bias or disturbance)')
         else:
             reason = 'identifiable'
-        ok = reason == 'identifiable'
+        ok = code == IDENTIFIABLE
+        fit = self._fits[c]
         return ChannelReport(name, True, self._t_iso[c], rho_fit if ok else nan, bias_fit if ok else nan,
-                             rho_fit, bias_fit, ok, reason, fit_time, std_u, std_a, resid,
+                             rho_fit, bias_fit, ok, reason, code, fit_time, std_u, std_a, resid,
                              rho_bound, bias_bound, fit.mu if fit.w > 0.0 else nan,
                              fit.md if fit.w > 0.0 else nan)
+
+    def _verdict(self, c: int) -> tuple:
+        """Numbers and verdict code of isolated channel ``c`` (class docstring): ``(code, rho_fit,
+        bias_fit, fit_time, std u, std (u + d), residual RMS, rho_bound, bias_bound)``."""
+        s = self._s
+        fit = self._fits[c]
+        fit_time = 0.0 if fit.w == 0.0 else fit.t1 - fit.t0 + self._dt
+        th1, th2 = fit.theta()
+        std_u, std_a, resid = fit.stats()
+        sigma = max(s.noise_rms[c], resid) if not math.isnan(resid) else math.nan
+        rho_bound = sigma / (std_a - sigma) if std_a > sigma else math.inf
+        bias_bound = sigma + rho_bound * abs(fit.mu) if math.isfinite(rho_bound) else math.inf
+        if fit_time < s.min_fit_time - 1e-9:
+            code = FIT_TOO_SHORT
+        elif resid > s.residual_max[c]:
+            code = BIAS_NOT_CONSTANT
+        elif rho_bound > s.rho_tolerance or bias_bound > s.bias_tolerance:
+            code = CONFOUNDED
+        else:
+            code = IDENTIFIABLE
+        return code, 1.0 + th1, th2, fit_time, std_u, std_a, resid, rho_bound, bias_bound
 
     def report(self) -> tuple:
         """:class:`ChannelReport` of every channel, in channel order."""
         return tuple(self.channel(c) for c in range(_N))
+
+    def status(self) -> IsolationStatus:
+        """The per-step summary a controller publishes (:class:`IsolationStatus`; the same numbers
+        as :meth:`report`, without its texts: this runs every control step)."""
+        rho, bias, code = [math.nan] * _N, [math.nan] * _N, [NOT_ISOLATED] * _N
+        for c in range(_N):
+            if self._isolated[c]:
+                code[c], rho[c], bias[c] = self._verdict(c)[:3]
+        return IsolationStatus(tuple(self._isolated), tuple(self._t_iso), tuple(self._y),
+                               tuple(th + e for th, e in zip(self._thr, self._e)), tuple(rho),
+                               tuple(bias), tuple(code))
 
 
 def _setup(arrays, scenario, case, settings):
@@ -601,22 +687,19 @@ def healthy_deviation_statistics(arrays, scenario, case: str = 'proposed',
         onset = min((float(f.onset_time) for f in scenario.faults[uh]), default=math.inf)
         iso = FaultIsolator(nominal, scenario.model_mismatch, float(scenario.dt), settings)
         sums, counts = [0.0] * _N, 0
-        t0 = None
         for step in _steps(data, j):
             t = step[0]
             if t >= onset - 1e-9:
                 break
             iso.update(*step)
-            if t0 is None:
-                t0 = t
-            if t - t0 < settings.learning_phase - 1e-9:
+            if t < settings.learning_phase - 1e-9:
                 continue
             y, d = iso.filtered_deviation, iso.deviation
             for c, name in enumerate(CHANNELS):
                 if abs(y[c]) > out[name]['filtered_max']:
                     out[name]['filtered_max'] = abs(y[c])
                     out[name]['filtered_max_at'] = f'uh{uh} t={t:.2f}'
-            if t - t0 >= settings.learning_phase + settle - 1e-9:
+            if t >= settings.learning_phase + settle - 1e-9:
                 counts += 1
                 for c in range(_N):
                     sums[c] += d[c] * d[c]

@@ -146,10 +146,26 @@ _STATUS_SCALARS = ('thrust_command', 'weight_norm_position', 'weight_norm_attitu
 _STATUS_FLAGS = ('saturated_tilt', 'saturated_collective', 'saturated_cyclic')
 
 
+_NAN4 = (math.nan,) * 4
+
+
 def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=()):
-    """``ControllerStatus`` from the controller core's status record (same field names)."""
+    """``ControllerStatus`` from the controller core's status record (same field names; the fault
+    isolation fields from its ``isolation``, or "nothing isolated" when that is None)."""
     fields = {name: vector3(getattr(status, name)) for name in _STATUS_VECTORS}
     fields.update((name, float(getattr(status, name))) for name in _STATUS_SCALARS)
     fields.update((name, bool(getattr(status, name))) for name in _STATUS_FLAGS)
+    iso = getattr(status, 'isolation', None)
+    if iso is None:
+        fields.update(fault_isolated=[False] * 4, fault_detection_time=list(_NAN4),
+                      input_deviation=[0.0] * 4, isolation_threshold=list(_NAN4),
+                      identified_effectiveness=list(_NAN4), identified_bias=list(_NAN4),
+                      fault_identification=[0] * 4)
+    else:
+        fields.update(fault_isolated=[bool(v) for v in iso.isolated],
+                      fault_detection_time=_floats(iso.detection_time), input_deviation=_floats(iso.deviation),
+                      isolation_threshold=_floats(iso.threshold),
+                      identified_effectiveness=_floats(iso.effectiveness), identified_bias=_floats(iso.bias),
+                      fault_identification=[int(v) for v in iso.identification])
     return m.ControllerStatus(header=_header(t), uh_id=int(uh_id), step=int(k),
                               stale_neighbours=[str(s) for s in stale_neighbours], **fields)

@@ -41,10 +41,12 @@ the tests and the benchmarks all call :func:`compute_metrics`. Keys of the resul
 ``saturation_fraction``
     Fraction of (step, UH) samples with any input limit active (tilt, collective, cyclic/pedal).
 ``fault_isolation``
-    The causal isolator of ``uh_controller_node.fault_isolation`` run over the arrays
-    (:func:`fault_isolation_metrics`): ``{"uh<i>": {channel name: {...}}, "summary":
-    {"false_isolations", "missed", "max_delay"}}``; ``None`` when the arrays lack what it needs
-    (the commands) or do not match the scenario.
+    The verdicts of the causal isolator every controller runs (``uh_controller_node.fault_isolation``),
+    scored against the scenario's faults (:func:`fault_isolation_metrics`): from a bag, what each
+    controller published on its last ``ControllerStatus``; in-process, the same isolator run over
+    the arrays. ``{"uh<i>": {channel name: {...}}, "summary": {"false_isolations", "missed",
+    "max_delay", "source"}}``; ``None`` when the arrays lack what it needs (the commands) or do
+    not match the scenario.
 
 Undefined values (no followers, an empty window, a true fault below the NRMSE floor) are ``None``
 (JSON ``null``).
@@ -588,9 +590,11 @@ def _channel_faults(scenario, end: float) -> dict:
 
 
 def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
-    """``fault_isolation`` of docs/metrics.md: the isolator a controller runs step by step
-    (``uh_controller_node.fault_isolation.isolate_run``, docs/faults.md#isolation-and-identification)
-    over a run's arrays, scored against the scenario's faults.
+    """``fault_isolation`` of docs/metrics.md: the verdicts of the isolator every controller runs
+    step by step (docs/faults.md#isolation-and-identification), scored against the scenario's
+    faults. The verdicts are those the controllers published when ``arrays`` has an
+    ``isolation`` entry for every UH (``uh_bringup.bag_metrics.read_team_bag``), else
+    ``uh_controller_node.fault_isolation.isolate_run`` over the arrays (the same computation).
 
     Parameters
     ----------
@@ -611,11 +615,12 @@ def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
         ``bias_constant_true`` (rad; 1 and 0 on a healthy channel); and ``"summary"``:
         ``false_isolations`` (isolated channels that are not faulty, healthy UHs included),
         ``missed`` (faulty channels never isolated), ``max_delay`` (s, ``None`` without an
-        isolated faulty channel). ``None`` if an array is missing or does not fit the scenario.
-        A fault counts as faulty from its onset, if that is within the run.
+        isolated faulty channel), ``source`` (``"status"`` or ``"recomputed"``). ``reason`` is the
+        verdict's text (``IDENTIFICATION_TEXT``). ``None`` if an array is missing or does not fit
+        the scenario. A fault counts as faulty from its onset, if that is within the run.
     """
     from uh_core.layout import CHANNEL_NAMES
-    from uh_controller_node.fault_isolation import isolate_run
+    from uh_controller_node.fault_isolation import IDENTIFICATION_TEXT, isolate_run
 
     if any(key not in arrays for key in ISOLATION_ARRAYS):
         return None
@@ -632,14 +637,29 @@ def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
     if keep.sum() < 2:
         return None
     data = {key: v[keep] for key, v in data.items()}
-    isolation = isolate_run(data, scenario, case)
+    published = arrays.get('isolation') or {}
+    if all(int(uh) in published for uh in scenario.ids):
+        # what each controller published on its last status (a recorded run)
+        source = 'status'
+        verdicts = {int(uh): _published_verdicts(published[int(uh)], CHANNEL_NAMES) for uh in scenario.ids}
+    else:
+        # the same isolator, recomputed over the arrays (an in-process run)
+        source = 'recomputed'
+        isolation = isolate_run(data, scenario, case)
+        verdicts = {}
+        for uh in tuple(scenario.ids):
+            verdicts[int(uh)] = {
+                name: {'isolated': bool(r['isolated']), 'detection_time': r['detection_time'],
+                       'rho': r['rho'], 'bias': r['bias'], 'identifiable': bool(r['identifiable']),
+                       'reason': IDENTIFICATION_TEXT[r['identification']]}
+                for name, r in isolation[f'uh{uh}']['channels'].items()}
     end = float(data['time'][-1]) + 1e-9 * max(float(scenario.dt), 1.0)
     truth = _channel_faults(scenario, end)
     out, false_isolations, missed, delays = {}, 0, 0, []
     for uh in tuple(scenario.ids):
-        reports = isolation[f'uh{uh}']['channels']
+        reports = verdicts[int(uh)]
         faults = truth.get(int(uh), {})
-        if not faults and not isolation[f'uh{uh}']['isolated']:
+        if not faults and not any(r['isolated'] for r in reports.values()):
             continue
         entry = {}
         for c, name in enumerate(CHANNEL_NAMES):
@@ -657,7 +677,28 @@ def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
                            'reason': r['reason'], 'rho_true': rho_true, 'bias_constant_true': bias_true}
         out[f'uh{uh}'] = entry
     out['summary'] = {'false_isolations': false_isolations, 'missed': missed,
-                      'max_delay': max(delays) if delays else None}
+                      'max_delay': max(delays) if delays else None, 'source': source}
+    return out
+
+
+def _published_verdicts(published: dict, names) -> dict:
+    """Per channel name, the verdict entries of :func:`fault_isolation_metrics` from the fault
+    isolation fields of a controller's last ``ControllerStatus``
+    (``uh_bringup.bag_metrics.read_team_bag``'s ``isolation``)."""
+    from uh_controller_node.fault_isolation import IDENTIFIABLE, IDENTIFICATION_TEXT
+
+    def finite(value):
+        return float(value) if math.isfinite(value) else None
+
+    out = {}
+    for c, name in enumerate(names):
+        ok = published['identification'][c] == IDENTIFIABLE
+        out[name] = {'isolated': bool(published['isolated'][c]),
+                     'detection_time': finite(published['detection_time'][c]),
+                     'rho': finite(published['effectiveness'][c]) if ok else None,
+                     'bias': finite(published['bias'][c]) if ok else None,
+                     'identifiable': ok,
+                     'reason': IDENTIFICATION_TEXT.get(published['identification'][c], 'unknown verdict')}
     return out
 
 
