@@ -36,7 +36,7 @@ from pathlib import Path
 from mcap.writer import CompressionType, Writer
 
 from .bag_reader import BagError, ReadResult, bag_file, read_messages
-from .messages import typestore, uh_msg_texts
+from .messages import type_hash, typestore, uh_msg_texts
 from .qos import qos_profile_yaml
 
 __all__ = ['BagWriter', 'TopicInfo', 'message_definition', 'CHUNK_SIZE', 'FLUSH_PERIOD_S', 'recover_bag']
@@ -63,7 +63,7 @@ def message_definition(type_name: str) -> tuple[str, str]:
     if type_name in texts:
         own, _, deps = generated.partition(_SEPARATOR)
         generated = texts[type_name].rstrip('\n') + '\n' + (_SEPARATOR + deps if deps else '')
-    return generated, store.hash_rihs01(type_name)
+    return generated, type_hash(type_name)
 
 
 @dataclass

@@ -19,7 +19,7 @@ ROS-like defaults (zeros, empty strings and lists, nested messages built by defa
 constants are class attributes, so ``msg = UHState(); msg.position.x = 1.0`` works as with rclpy.
 
 Each DDS class carries ``__ros_typename__`` (``'uh_msgs/msg/UHState'``), ``__ros_typehash__``
-(``'RIHS01_<hex>'`` as rosbags' ``Typestore.hash_rihs01`` computes it, the same as ROS) and its DDS
+(``'RIHS01_<hex>'``, ROS's type hash: :func:`type_hash`) and its DDS
 type name ``uh_msgs::msg::dds_::UHState_``.
 """
 import dataclasses
@@ -169,17 +169,45 @@ def ros_type_from_dds(dds_name: str) -> str:
 
 
 def type_hash(name_or_class) -> str:
-    """``'RIHS01_<64 hex>'`` type hash of a message type (what ROS 2 Jazzy puts in USER_DATA)."""
+    """``'RIHS01_<64 hex>'`` type hash of a message type (what ROS 2 Jazzy puts in USER_DATA).
+
+    ROS hashes the type description of the IDL that rosidl generates from the ``.msg``, where a
+    ``char`` field has become ``uint8`` (rosidl_adapter); rosbags hashes ``char`` as its own field
+    type. :func:`_hash_store` is the type store with ``char`` written as ``uint8``, so the hash of
+    a type with a ``char`` in it (``rmw_dds_common/msg/Gid`` and the types that hold it) is ROS's.
+    """
     if not isinstance(name_or_class, str):
         cached = getattr(name_or_class, '__ros_typehash__', None)
         if cached:
             return cached
         name_or_class = ros_type_name(name_or_class)
     name = _normalise(name_or_class)
-    store = typestore()
+    store = _hash_store()
     if name not in store.fielddefs:
         raise MessageError(f'unknown message type {name!r}')
     return store.hash_rihs01(name)
+
+
+def _char_as_uint8(field):
+    """A rosbags field description with every ``char`` (alone, in an array or a sequence) as ``uint8``."""
+    from rosbags.interfaces import Nodetype
+    kind, payload = field
+    if kind == Nodetype.BASE and payload[0] == 'char':
+        return kind, ('uint8', payload[1])
+    if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+        return kind, (_char_as_uint8(payload[0]), payload[1])
+    return field
+
+
+@functools.lru_cache(maxsize=1)
+def _hash_store():
+    """:func:`typestore` with ``char`` fields as ``uint8`` (see :func:`type_hash`); for hashing only."""
+    from rosbags.typesys import Stores, get_typestore
+    source = typestore()
+    store = get_typestore(Stores.EMPTY)
+    store.register({name: (consts, [(fname, _char_as_uint8(f)) for fname, f in fields])
+                    for name, (consts, fields) in source.fielddefs.items()})
+    return store
 
 
 # ----------------------------------------------------------------------------------------------
@@ -258,7 +286,7 @@ def dds_message(name: str):
         for cname, _ctype, value in consts:
             namespace[cname] = value
         namespace['__ros_typename__'] = name
-        namespace['__ros_typehash__'] = store.hash_rihs01(name)
+        namespace['__ros_typehash__'] = type_hash(name)
         namespace['__module__'] = f'{pkg}.msg'
         namespace['__qualname__'] = typ
         cls = dataclasses.dataclass(IdlMeta(typ, bases, namespace))
