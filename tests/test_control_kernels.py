@@ -10,6 +10,7 @@ from numba import njit
 
 from uh_controller_node import control_kernels as ck
 from uh_controller_node.controller import ControllerError, ControllerStatusData, UHController
+from uh_controller_node.fault_isolation import IsolationStatus
 from uh_controller_node.gains import ControllerGains
 from uh_sim_node.reference import VirtualLeaderReference
 from uh_topology.scenario import load_scenario
@@ -202,6 +203,9 @@ def test_status_record_has_the_documented_types(paper):
             assert type(value) is bool
         elif name == 'stale_neighbours':
             assert value == ()
+        elif name == 'isolation':   # the fault isolator's per-channel tuples (4 entries each)
+            assert isinstance(value, IsolationStatus) and all(len(v) == 4 for v in value), value
+            assert value.isolated == (False,) * 4           # step 3: within the learning phase
         elif isinstance(value, np.ndarray):
             assert value.shape == (3,) and value.dtype == np.float64, name
         else:

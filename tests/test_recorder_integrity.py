@@ -193,3 +193,48 @@ def test_run_whose_recorder_is_killed_fails_and_recovers_the_bag(tmp_path):
     import numpy as np
     recorded = np.flatnonzero(~np.isnan(bag['states'][:, 0, 0]))
     assert recorded[0] == 0 and recorded[-1] >= 600 - 200 - 50
+
+
+def test_a_one_shot_injection_is_recorded_when_the_topic_is_expected(tmp_path, domain_id, processes):
+    """``ros2 topic pub --once`` publishes as soon as one subscription (the simulator's) matched, and
+    leaves: the recorder must be subscribed before. With the fault topic in ``expected_topics`` it
+    is, and the injection is in the bag."""
+    from uh_runtime import dds_backend as rt_dds
+    from uh_runtime import messages as m
+    from uh_core import topics
+    bag = tmp_path / 'bag'
+    recorder = processes.start([str(Path(sys.executable).with_name('recorder_node')), '--ros-args',
+                                '-p', f'output:={bag}', '-p', 'topics:=[/uh1/fault]',
+                                '-p', 'expected_topics:=[/uh1/fault=uh_msgs/msg/ActuatorFault]'],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    log = []
+    line = _until(lambda: (log.append(recorder.stdout.readline()) or 'recording /uh1/fault' in log[-1]),
+                  30, 'recorder subscribed', recorder)
+    assert line
+    # a stand-in for the simulator, the subscription the publisher waits for
+    context = rt_dds.Context()
+    context.init(args=['sim'])
+    try:
+        sim = rt_dds.Node('sim', context=context)
+        got = []
+        sim.create_subscription(m.ActuatorFault, '/uh1/fault', got.append, topics.qos_profile(topics.EVENT_QOS))
+        publisher = processes.start([sys.executable, str(ROOT / 'tests' / 'data' / 'once_publisher.py'), '/uh1/fault'],
+                                    stdout=subprocess.PIPE, text=True)
+        out, _ = publisher.communicate(timeout=60)
+        assert publisher.returncode == 0 and 'published 1' in out
+    finally:
+        context.try_shutdown()
+    recorder.send_signal(signal.SIGINT)
+    recorder.communicate(timeout=30)
+    counts = read_messages(bag_file(bag)).counts
+    assert counts.get('/uh1/fault') == 1, counts
+
+
+def test_a_malformed_expected_topic_is_refused_before_a_bag_is_made(tmp_path, domain_id):
+    bag = tmp_path / 'bag'
+    proc = subprocess.run([str(Path(sys.executable).with_name('recorder_node')), '--ros-args',
+                           '-p', f'output:={bag}', '-p', 'expected_topics:=[uh1/fault]'],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode != 0
+    assert "'expected_topics'" in proc.stderr + proc.stdout and 'name=pkg/msg/Type' in proc.stderr + proc.stdout
+    assert not bag.exists()

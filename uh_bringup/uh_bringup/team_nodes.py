@@ -81,8 +81,11 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
     if duration is not None:
         common += ['-p', f'duration:={float(duration)}']
     per_step = [name for name, spec in topics.team_topics(scenario.ids) if spec.per_step]
+    # injections may come from a publisher that lives a moment (ros2 topic pub --once)
+    injections = [f'{topics.uh_topic(i, topics.FAULT)}={topics.FAULT.type}' for i in scenario.ids]
     specs = [('recorder', 'recorder', ['--ros-args', '-p', f'output:={bag_dir}',
-                                       '-p', f'progress_topics:=[{",".join(per_step)}]'])]
+                                       '-p', f'progress_topics:=[{",".join(per_step)}]',
+                                       '-p', f'expected_topics:=[{",".join(injections)}]'])]
     for i in scenario.ids:
         ns = ['-r', f'__ns:={topics.uh_namespace(i)}', '-p', f'uh_id:={i}']
         specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *stale]))

@@ -5,6 +5,12 @@ in ``topics``), subscribes with QoS compatible with what the publishers offer (t
 when they all offer it, so nothing published before the subscription matched is missed) and
 stores the CDR payloads exactly as they arrive (raw subscriptions, no decode/re-encode).
 
+Topics that may only ever see a short-lived publisher (a fault injected with ``ros2 topic pub
+--once``, which publishes one volatile message and leaves) are named in ``expected_topics``
+(``name=pkg/msg/Type``): the recorder subscribes to them at start, reliable and volatile, so the
+message finds a matched reader whenever it comes, instead of a recorder that discovers the topic
+only after the publisher has gone.
+
 Log times are simulation times: the message's own stamp when its first field is a
 ``std_msgs/Header`` or a ``builtin_interfaces/Time`` (every uh_msgs type, ``/clock``), otherwise
 the latest ``/clock``. With ``progress_topics`` set, it publishes on ``/recorder/progress`` the sim
@@ -25,7 +31,7 @@ import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_runtime.bag import FLUSH_PERIOD_S, BagWriter
 from uh_runtime.bag_reader import BagError
-from uh_runtime.qos import merge_offered, profile_from_words, qos_profile_yaml, words_of
+from uh_runtime.qos import QoSWords, merge_offered, profile_from_words, qos_profile_yaml, words_of
 
 __all__ = ['RecorderNode', 'main', 'stamp_of']
 
@@ -57,6 +63,9 @@ class RecorderNode(rt.Node):
             description='bag directory to create (must not exist, or be empty)', read_only=True))
         self.declare_parameter('topics', [''], rt.ParameterDescriptor(
             description='topics to record; empty records every topic discovered', read_only=True))
+        self.declare_parameter('expected_topics', [''], rt.ParameterDescriptor(
+            description='name=pkg/msg/Type of topics to subscribe to at start (reliable, volatile), '
+                        'before any publisher appears', read_only=True))
         self.declare_parameter('progress_topics', [''], rt.ParameterDescriptor(
             description='per-step topics whose recorded sim time is published on /recorder/progress',
             read_only=True))
@@ -65,12 +74,23 @@ class RecorderNode(rt.Node):
             raise BagError("parameter 'output' is empty: give the bag directory to create")
         self.wanted = {t for t in self.get_parameter('topics').value if t}
         self.progress_topics = {t for t in self.get_parameter('progress_topics').value if t}
+        expected = []
+        for entry in (e for e in self.get_parameter('expected_topics').value if e):
+            name, sep, type_name = entry.partition('=')
+            if not (sep and name.startswith('/') and type_name.count('/') == 2):
+                raise BagError(f"parameter 'expected_topics': {entry!r} is not name=pkg/msg/Type "
+                               f"(e.g. /uh1/fault=uh_msgs/msg/ActuatorFault)")
+            m.get_message(type_name)   # an unknown type is refused before the bag exists
+            expected.append((name, type_name))
         self.bag = BagWriter(output)
         self.latest_stamp: dict[str, int] = {}
         self.clock_ns = 0
         self.progress_ns = -1
         self.subscriptions_by_topic = {}
         self.progress_pub = self.create_publisher(m.Time, '/recorder/progress', 10)
+        for name, type_name in expected:
+            words = QoSWords('reliable', 'volatile', 'keep_last', _RECORD_DEPTH)
+            self._subscribe(name, type_name, words, qos_profile_yaml('reliable', 'volatile', 'keep_last', 10))
         self.create_timer(0.05, self.discover)
         self.create_timer(FLUSH_PERIOD_S, self.bag.flush)
         self.discover()
@@ -89,17 +109,21 @@ class RecorderNode(rt.Node):
                 continue
             offered = [words_of(info.qos_profile) for info in infos]
             first = offered[0]
-            type_name = types[0]
-            self.bag.add_topic(name, type_name, qos_profile_yaml(
-                first.reliability, first.durability, first.history, first.depth))
             # reliable and transient-local only when every publisher offers it
-            qos = profile_from_words(dataclasses.replace(
-                merge_offered(offered), history='keep_last', depth=_RECORD_DEPTH))
-            stamped = _stamped_first(type_name)
-            self.subscriptions_by_topic[name] = self.create_subscription(
-                m.get_message(type_name), name,
-                lambda data, name=name, stamped=stamped: self.on_message(name, data, stamped), qos, raw=True)
-            self.get_logger().info(f'recording {name} [{type_name}]')
+            self._subscribe(name, types[0], dataclasses.replace(
+                merge_offered(offered), history='keep_last', depth=_RECORD_DEPTH),
+                qos_profile_yaml(first.reliability, first.durability, first.history, first.depth))
+
+    def _subscribe(self, name: str, type_name: str, words, offered_yaml: str) -> None:
+        """Add ``name`` to the bag and subscribe to it raw with the QoS ``words``."""
+        message_class = m.get_message(type_name)
+        self.bag.add_topic(name, type_name, offered_yaml)
+        stamped = _stamped_first(type_name)
+        self.subscriptions_by_topic[name] = self.create_subscription(
+            message_class, name,
+            lambda data, name=name, stamped=stamped: self.on_message(name, data, stamped),
+            profile_from_words(words), raw=True)
+        self.get_logger().info(f'recording {name} [{type_name}]')
 
     def on_message(self, topic: str, data: bytes, stamped: bool) -> None:
         log_ns = stamp_of(data) if stamped else self.clock_ns
