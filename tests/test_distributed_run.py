@@ -265,3 +265,41 @@ def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layou
     reference = run_team_simulation(paper, 'proposed', duration=3.0)
     assert np.array_equal(bag['states'], reference.states)
     assert np.array_equal(bag['commands'], reference.commands)
+
+
+def test_a_second_terminal_sees_the_team_with_only_the_printed_command(tmp_path, monkeypatch):
+    """A run started with no ROS_DOMAIN_ID (and an empty CYCLONEDDS_URI, which counts as unset)
+    picks a free domain and a loopback configuration; the command it prints, sourced in a shell
+    that has neither, is all ``uh topic list`` needs to see the team."""
+    import shutil
+    import sys
+    monkeypatch.delenv('ROS_DOMAIN_ID', raising=False)
+    monkeypatch.setenv('CYCLONEDDS_URI', '')
+    out = tmp_path / 'run'
+    proc = subprocess.Popen([str(ROOT / 'scripts' / 'run_formation.sh'), '--out', str(out), '--clock', 'realtime',
+                             '--duration', '30', '--processes', 'single', '--no-visualization'],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        printed = ''
+        while 'from another terminal: ' not in printed:
+            line = proc.stdout.readline()
+            assert line, f'run ended before printing the command: {printed}'
+            printed += line
+        command = printed.split('from another terminal: ')[1].split('   ')[0].strip()
+        assert command == f'source {out / "env.sh"}'
+        while 'run of' not in printed:
+            line = proc.stdout.readline()
+            assert line, f'run ended before it started: {printed}'
+            printed += line
+        clean = {k: v for k, v in os.environ.items() if k not in ('ROS_DOMAIN_ID', 'CYCLONEDDS_URI')}
+        uh = shutil.which('uh', path=str(Path(sys.executable).parent)) or 'uh'
+        listed = subprocess.run(['bash', '-c', f'{command} && {uh} topic list'], env=clean,
+                                capture_output=True, text=True, timeout=60)
+        assert listed.returncode == 0, listed.stderr
+        assert {'/uh1/state', '/uh5/status', '/reference'} <= set(listed.stdout.split()), listed.stdout
+        # and without it nothing is found on the default domain's settings
+        alone = subprocess.run([uh, 'topic', 'list'], env=clean, capture_output=True, text=True, timeout=60)
+        assert '/uh1/state' not in alone.stdout
+    finally:
+        os.killpg(proc.pid, signal.SIGINT)
+        proc.wait(timeout=60)

@@ -47,7 +47,7 @@ import sys
 import time
 from pathlib import Path
 
-from uh_runtime.network import MAX_DOMAIN_ID, loopback_environment, reserve_domain_id
+from uh_runtime.network import MAX_DOMAIN_ID, environment_script, loopback_environment, reserve_domain_id
 from uh_controller_node.gains import CASES
 from uh_bringup.team_nodes import NODES, node_specs
 
@@ -375,6 +375,9 @@ def run(args) -> int:
     print(f'[run] {scenario.name}: {len(scenario.leaders)} leaders, {len(scenario.followers)} followers, '
           f'case {args.case}, {args.clock} clock, {duration:g} s simulated, DDS domain {domain}', file=sys.stderr)
     print(f'[run] output: {out}', file=sys.stderr)
+    (out / 'env.sh').write_text(environment_script(env))
+    print(f'[run] from another terminal: source {out / "env.sh"}   (then ros2 topic list, or uh topic list)',
+          file=sys.stderr)
 
     sup = Supervisor(out / 'logs', env)
     interrupted = []

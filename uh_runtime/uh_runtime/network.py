@@ -14,7 +14,7 @@ import itertools
 import os
 import tempfile
 
-__all__ = ['loopback_config', 'loopback_environment', 'reserve_domain_id', 'release_domain_id',
+__all__ = ['loopback_config', 'loopback_environment', 'environment_script', 'reserve_domain_id', 'release_domain_id',
            'MAX_PARTICIPANTS', 'MAX_DOMAIN_ID']
 
 #: Largest DDS domain id ROS 2 allows (Cyclone's default port mapping ends there).
@@ -45,14 +45,28 @@ def loopback_environment(domain_id: int, base: dict | None = None) -> dict:
     """Return a copy of ``base`` (default ``os.environ``) set up for DDS domain ``domain_id`` on loopback.
 
     ``CYCLONEDDS_URI`` is only set when the caller has not chosen one, so a user's own
-    configuration (e.g. a real network interface) wins.
+    configuration (e.g. a real network interface) wins; an empty value counts as not chosen
+    (Cyclone DDS itself treats it as no configuration).
     """
     if not 0 <= int(domain_id) <= MAX_DOMAIN_ID:
         raise ValueError(f'DDS domain id {domain_id} is outside 0..{MAX_DOMAIN_ID} (the range ROS 2 allows)')
     env = dict(os.environ if base is None else base)
     env['ROS_DOMAIN_ID'] = str(int(domain_id))
-    env.setdefault('CYCLONEDDS_URI', loopback_config())
+    if not env.get('CYCLONEDDS_URI', '').strip():
+        env['CYCLONEDDS_URI'] = loopback_config()
     return env
+
+
+def environment_script(env: dict) -> str:
+    """A POSIX shell script that exports the ``ROS_DOMAIN_ID`` and ``CYCLONEDDS_URI`` of ``env``, so
+    that a second terminal that sources it (``ros2 topic list``, ``uh topic list``) joins the same
+    DDS domain with the same discovery settings."""
+    import shlex
+    lines = ['# source this file to reach the run from another terminal (ros2 CLI, uh CLI)']
+    for key in ('ROS_DOMAIN_ID', 'CYCLONEDDS_URI'):
+        if env.get(key):
+            lines.append(f'export {key}={shlex.quote(env[key])}')
+    return '\n'.join(lines) + '\n'
 
 
 _held: dict = {}          # domain id -> open lock file descriptor of this process
