@@ -126,13 +126,19 @@ def test_ros_discovery_info_names_the_node_and_lists_its_endpoint_gids(domain_id
     assert bytes(info.gid.data) == participant.bytes
     assert [(n.node_name, n.node_namespace) for n in info.node_entities_info_seq] == [('sim', '/uh3')]
     node = info.node_entities_info_seq[0]
-    ros_writers = {k.bytes for k, w in graph.writers.items()
-                   if w.participant_key == participant and w.topic_name.startswith('rt/')}
-    ros_readers = {k.bytes for k, r in graph.readers.items()
-                   if r.participant_key == participant and r.topic_name.startswith('rt/')}
-    assert {bytes(g.data) for g in node.writer_gid_seq} == ros_writers
-    assert {bytes(g.data) for g in node.reader_gid_seq} == ros_readers
-    assert len(ros_writers) == 1 and len(ros_readers) == 1  # state; command
+    # every ROS endpoint of the node: topics (rt/) and its parameter services (rq/ readers, rr/ writers)
+    ros_writers = {k.bytes: w.topic_name for k, w in graph.writers.items()
+                   if w.participant_key == participant and w.topic_name[:3] in ('rt/', 'rr/')}
+    ros_readers = {k.bytes: r.topic_name for k, r in graph.readers.items()
+                   if r.participant_key == participant and r.topic_name[:3] in ('rt/', 'rq/')}
+    assert {bytes(g.data) for g in node.writer_gid_seq} == set(ros_writers)
+    assert {bytes(g.data) for g in node.reader_gid_seq} == set(ros_readers)
+    services = ('describe_parameters', 'get_parameter_types', 'get_parameters', 'list_parameters',
+                'set_parameters', 'set_parameters_atomically')
+    assert sorted(ros_writers.values()) == sorted(
+        ['rt/parameter_events', 'rt/rosout', 'rt/uh3/state'] + [f'rr/uh3/sim/{s}Reply' for s in services])
+    assert sorted(ros_readers.values()) == sorted(
+        ['rt/uh3/command'] + [f'rq/uh3/sim/{s}Request' for s in services])
 
 
 def _uh(*args, domain_id):
@@ -147,8 +153,10 @@ def test_uh_cli_lists_topics_and_nodes_and_echoes(domain_id, processes, graph, t
 
     listed = _uh('topic', 'list', '-t', domain_id=domain_id)
     assert listed.returncode == 0, listed.stderr
-    assert listed.stdout.splitlines() == ['/uh3/command [uh_msgs/msg/ActuatorCommand]',
-                                          '/uh3/state [uh_msgs/msg/UHState]']
+    assert listed.stdout.splitlines() == ['/parameter_events [rcl_interfaces/msg/ParameterEvent]',
+                                          '/rosout [rcl_interfaces/msg/Log]',
+                                          '/uh3/command [uh_msgs/msg/ActuatorCommand]',
+                                          '/uh3/state [uh_msgs/msg/UHState]']   # as ros2 topic list -t
     nodes = _uh('node', 'list', domain_id=domain_id)
     assert nodes.returncode == 0, nodes.stderr
     assert nodes.stdout.splitlines() == ['/uh3/talker']

@@ -211,7 +211,8 @@ def test_graph_queries_see_local_and_discovered_endpoints(ctx):
     assert [(i.node_name, i.node_namespace, i.topic_type) for i in infos] == \
         [('sim', '/uh1', 'uh_msgs/msg/UHState')]
     assert infos[0].qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
-    assert infos[0].endpoint_gid == node.publishers[0].gid
+    (state_pub,) = [p for p in node.publishers if p.topic_name == '/uh1/state']
+    assert infos[0].endpoint_gid == state_pub.gid
     subs = node.get_subscriptions_info_by_topic('/uh1/state')
     assert subs[0].node_name == 'ctl' and subs[0].qos_profile.history == HistoryPolicy.KEEP_ALL
     assert ('/uh1/state', ['uh_msgs/msg/UHState']) in node.get_topic_names_and_types()

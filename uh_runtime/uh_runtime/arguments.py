@@ -114,12 +114,14 @@ class ParsedArguments:
     log_levels: dict = field(default_factory=dict)  # logger name ('' = default) -> level name
     enclave: str | None = None
     unparsed: list = field(default_factory=list)  # non-ROS arguments
+    rosout_logs: bool = True   # --disable-rosout-logs turns the /rosout publisher off
 
     def extend(self, other: 'ParsedArguments'):
         self.remaps += other.remaps
         self.parameters += other.parameters
         self.log_levels.update(other.log_levels)
         self.enclave = other.enclave or self.enclave
+        self.rosout_logs = self.rosout_logs and other.rosout_logs
 
 
 class _RosYamlLoader(yaml.SafeLoader):
@@ -285,6 +287,8 @@ def parse_ros_args(args) -> ParsedArguments:
             parsed.enclave = value(arg)
             i += 2
         elif arg in _FLAGS_NO_ARG:
+            if arg in ('--disable-rosout-logs', '--enable-rosout-logs'):
+                parsed.rosout_logs = arg == '--enable-rosout-logs'
             i += 1
         elif arg in _FLAGS_IGNORED_WITH_ARG:
             value(arg)

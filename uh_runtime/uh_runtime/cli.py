@@ -7,9 +7,15 @@
     uh topic hz TOPIC              receive rate
     uh topic info TOPIC [-v]       type, publishers, subscriptions (-v: nodes, GIDs, QoS)
     uh node list                   nodes, from ros_discovery_info
+    uh param list [NODE]           parameters of a node (or of every node), like ros2 param list
+    uh param get NODE NAME         a parameter's value
+    uh param set NODE NAME VALUE   set a parameter (VALUE typed as YAML, like ros2 param set)
+    uh param describe NODE NAME    a parameter's descriptor
 
 Every command takes ``--domain-id`` (default ``ROS_DOMAIN_ID`` or 0). Discovery uses the Cyclone
-configuration in ``CYCLONEDDS_URI`` like every other participant.
+configuration in ``CYCLONEDDS_URI``, else the runs' default
+(:func:`uh_runtime.network.default_cyclonedds_uri`: loopback only, or as
+``ROS_AUTOMATIC_DISCOVERY_RANGE`` and ``ROS_STATIC_PEERS`` say).
 """
 import argparse
 import math
@@ -43,7 +49,7 @@ def build_parser():
     parser = argparse.ArgumentParser(
         prog='uh', description='Inspect ROS 2 topics and nodes of a DDS domain over Cyclone DDS '
         '(works without ROS; output like the ros2 CLI).')
-    commands = parser.add_subparsers(dest='command', metavar='{topic,node}')
+    commands = parser.add_subparsers(dest='command', metavar='{topic,node,param}')
     commands.required = True
 
     topic = commands.add_parser('topic', help='topics: list, echo, hz, info')
@@ -86,6 +92,21 @@ def build_parser():
     p = nverbs.add_parser('list', help='list the nodes of the domain')
     p.add_argument('-c', '--count-nodes', action='store_true', help='only print the number of nodes')
     _common(p)
+
+    param = commands.add_parser('param', help='parameters of running nodes: list, get, set, describe')
+    pverbs = param.add_subparsers(dest='verb', metavar='{list,get,set,describe}')
+    pverbs.required = True
+    p = pverbs.add_parser('list', help='list the parameters of a node (default: of every node)')
+    p.add_argument('node_name', nargs='?', help='fully qualified node name, e.g. /uh1/controller')
+    _common(p)
+    for verb, text in (('get', 'print a parameter\'s value'), ('describe', 'print a parameter\'s descriptor'),
+                       ('set', 'set a parameter')):
+        p = pverbs.add_parser(verb, help=text)
+        p.add_argument('node_name', help='fully qualified node name, e.g. /uh1/controller')
+        p.add_argument('parameter_name', help='parameter name, e.g. stale_timeout')
+        if verb == 'set':
+            p.add_argument('value', help='new value, typed as YAML (1 int, 1.0 double, true bool, [1, 2] ...)')
+        _common(p)
     return parser
 
 
@@ -321,9 +342,148 @@ COMMANDS = {
 }
 
 
+# ----------------------------------------------------------------------------------------------
+_TYPE_NAMES = {0: 'not set', 1: 'boolean', 2: 'integer', 3: 'double', 4: 'string', 5: 'byte array',
+               6: 'boolean array', 7: 'integer array', 8: 'double array', 9: 'string array'}
+
+
+class _ParamClients:
+    """Parameter service clients on a context of the domain (created on demand, per node and service)."""
+
+    def __init__(self, args):
+        from .dds_backend.context import Context
+        self._context = Context()
+        self._context.init(args=['uh'], domain_id=_domain_default() if args.domain_id is None else args.domain_id)
+        self._clients = {}
+        self._wait = args.spin_time
+
+    def call(self, node: str, service: str, **fields):
+        from .dds_backend.services import ServiceClient
+        key = (node, service)
+        if key not in self._clients:
+            name = ''.join(part.capitalize() for part in service.split('_'))
+            self._clients[key] = ServiceClient(self._context, f'rcl_interfaces/srv/{name}', f'{node}/{service}')
+        client = self._clients[key]
+        if not client.wait_for_service(self._wait):
+            raise CliError(f'no parameter services of node {node!r} within {self._wait:g} s (is the node '
+                           'running, in this domain? see uh node list)')
+        try:
+            return client.call(client.request(**fields), timeout_sec=max(self._wait, 5.0))
+        except TimeoutError as exc:
+            raise CliError(str(exc)) from None
+
+    def close(self):
+        self._context.try_shutdown()
+
+
+def _node_name(name: str) -> str:
+    return name if name.startswith('/') else '/' + name
+
+
+def _value_text(msg) -> str:
+    from .dds_backend.services import parameter_value
+    value = parameter_value(msg)
+    return 'Parameter not set.' if value is None else f'{_TYPE_NAMES[int(msg.type)].capitalize()} value is: {value}'
+
+
+def cmd_param_list(args):
+    graph = args.graph
+    graph.settle(args.spin_time)
+    nodes = [f"{ns.rstrip('/')}/{n}" for n, ns in graph.node_names_and_namespaces()]
+    if args.node_name:
+        wanted = _node_name(args.node_name)
+        if wanted not in nodes:
+            raise CliError(f'node {wanted!r} not found; nodes: {", ".join(sorted(nodes)) or "(none)"}')
+        nodes = [wanted]
+    clients = _ParamClients(args)
+    try:
+        for node in sorted(nodes):
+            try:
+                names = sorted(clients.call(node, 'list_parameters').result.names)
+            except CliError as exc:
+                print(f'uh: {exc}', file=sys.stderr)
+                continue
+            if not args.node_name:
+                print(f'{node}:')
+            for name in names:
+                print(f'  {name}')
+    finally:
+        clients.close()
+    return 0
+
+
+def cmd_param_get(args):
+    clients = _ParamClients(args)
+    try:
+        values = clients.call(_node_name(args.node_name), 'get_parameters', names=[args.parameter_name]).values
+        if not values:
+            raise CliError(f'parameter {args.parameter_name!r} is not declared by {_node_name(args.node_name)}')
+        print(_value_text(values[0]))
+    finally:
+        clients.close()
+    return 0
+
+
+def cmd_param_set(args):
+    from .arguments import parse_parameter_value
+    from .dds_backend.services import value_message
+    from .messages import dds_message
+    value = parse_parameter_value(args.value)
+    clients = _ParamClients(args)
+    try:
+        param = dds_message('rcl_interfaces/msg/Parameter')(name=args.parameter_name, value=value_message(value))
+        result = clients.call(_node_name(args.node_name), 'set_parameters', parameters=[param]).results[0]
+    except TypeError as exc:
+        raise CliError(f'value {args.value!r}: {exc}') from None
+    finally:
+        clients.close()
+    if result.successful:
+        print('Set parameter successful')
+        return 0
+    print(f'Setting parameter failed: {result.reason}', file=sys.stderr)
+    return 1
+
+
+def cmd_param_describe(args):
+    clients = _ParamClients(args)
+    try:
+        found = clients.call(_node_name(args.node_name), 'describe_parameters', names=[args.parameter_name]).descriptors
+    finally:
+        clients.close()
+    if not found:
+        raise CliError(f'parameter {args.parameter_name!r} is not declared by {_node_name(args.node_name)}')
+    d = found[0]
+    print(f'Parameter name: {d.name}')
+    print(f'  Type: {_TYPE_NAMES.get(int(d.type), d.type)}')
+    if d.description:
+        print(f'  Description: {d.description}')
+    print('  Constraints:')
+    if d.read_only:
+        print('    Read only: true')
+    if d.dynamic_typing:
+        print('    Dynamic typing: true')
+    for r in d.floating_point_range:
+        print(f'    Min value: {r.from_value}\n    Max value: {r.to_value}' + (f'\n    Step: {r.step}' if r.step else ''))
+    for r in d.integer_range:
+        print(f'    Min value: {r.from_value}\n    Max value: {r.to_value}' + (f'\n    Step: {r.step}' if r.step else ''))
+    if d.additional_constraints:
+        print(f'    {d.additional_constraints}')
+    return 0
+
+
+COMMANDS.update({('param', 'list'): cmd_param_list, ('param', 'get'): cmd_param_get,
+                 ('param', 'set'): cmd_param_set, ('param', 'describe'): cmd_param_describe})
+
+
 def main(argv=None) -> int:
     """Console script ``uh``; returns the exit status."""
     args = build_parser().parse_args(argv)
+    try:
+        from .network import apply_network_default
+        apply_network_default()     # the runs' network default, unless CYCLONEDDS_URI says otherwise
+    except ValueError as exc:
+        print(f'uh: error: {exc}', file=sys.stderr)
+        return 1
     try:
         with _graph(args) as graph:
             args.graph = graph

@@ -36,7 +36,7 @@ from .backend import select_backend
 
 __all__ = [
     'MessageError', 'get_message', 'dds_message', 'type_hash', 'ros_type_name', 'dds_type_name',
-    'ros_type_from_dds', 'typestore', 'msg_search_path', 'message_to_ordereddict',
+    'ros_type_from_dds', 'dds_service_message', 'SERVICE_DEFINITIONS', 'typestore', 'msg_search_path', 'message_to_ordereddict',
     'message_to_yaml', 'message_fields', 'BACKEND',
 ]
 
@@ -70,6 +70,20 @@ KNOWN_TYPES = {
 
 _UH_PACKAGE = 'uh_msgs'
 _NAME_RE = re.compile(r'^([A-Za-z][A-Za-z0-9_]*)/(?:msg/)?([A-Za-z][A-Za-z0-9_]*)$')
+_SRV_NAME_RE = re.compile(r'^([A-Za-z][A-Za-z0-9_]*)/srv/([A-Za-z][A-Za-z0-9_]*_(?:Request|Response))$')
+
+#: The services the DDS backend serves (rclpy's parameter services), as the request and response
+#: parts of their ``.srv`` definitions (rcl_interfaces, Jazzy); the field types are the Jazzy type
+#: store's. Registered in :func:`typestore` as ``pkg/srv/<Service>_Request`` / ``_Response``.
+SERVICE_DEFINITIONS = {
+    'rcl_interfaces/srv/DescribeParameters': ('string[] names\n', 'ParameterDescriptor[] descriptors\n'),
+    'rcl_interfaces/srv/GetParameters': ('string[] names\n', 'ParameterValue[] values\n'),
+    'rcl_interfaces/srv/GetParameterTypes': ('string[] names\n', 'uint8[] types\n'),
+    'rcl_interfaces/srv/ListParameters': ('uint64 DEPTH_RECURSIVE=0\nstring[] prefixes\nuint64 depth\n',
+                                          'ListParametersResult result\n'),
+    'rcl_interfaces/srv/SetParameters': ('Parameter[] parameters\n', 'SetParametersResult[] results\n'),
+    'rcl_interfaces/srv/SetParametersAtomically': ('Parameter[] parameters\n', 'SetParametersResult result\n'),
+}
 
 
 class MessageError(LookupError):
@@ -77,7 +91,10 @@ class MessageError(LookupError):
 
 
 def _normalise(name: str) -> str:
-    """``'uh_msgs/UHState'`` or ``'uh_msgs/msg/UHState'`` -> ``'uh_msgs/msg/UHState'``."""
+    """``'uh_msgs/UHState'`` or ``'uh_msgs/msg/UHState'`` -> ``'uh_msgs/msg/UHState'``; a service
+    part ``'pkg/srv/<Service>_Request'`` (or ``_Response``) is kept as it is."""
+    if _SRV_NAME_RE.match(str(name).strip()):
+        return str(name).strip()
     match = _NAME_RE.match(str(name).strip())
     if not match:
         raise MessageError(
@@ -131,6 +148,15 @@ def typestore():
             for name, text in uh_msg_texts().items():
                 types.update(get_types_from_msg(text, name))
             store.register(types)
+            # service parts: parsed as pkg/msg/X so their field types resolve in pkg (rosbags knows
+            # no srv), stored under pkg/srv/X, the name ROS hashes them by
+            parts = {}
+            for service, texts in SERVICE_DEFINITIONS.items():
+                pkg, _, typ = service.split('/')
+                for part, text in zip(('Request', 'Response'), texts):
+                    parsed = get_types_from_msg(text, f'{pkg}/msg/{typ}_{part}')
+                    parts[f'{pkg}/srv/{typ}_{part}'] = parsed[f'{pkg}/msg/{typ}_{part}']
+            store.register(parts)
             _store = store
         return _store
 
@@ -156,8 +182,8 @@ def ros_type_name(msg_or_class) -> str:
 def dds_type_name(name_or_class) -> str:
     """DDS type name ROS uses for a message type: ``'uh_msgs::msg::dds_::UHState_'``."""
     name = name_or_class if isinstance(name_or_class, str) else ros_type_name(name_or_class)
-    pkg, _, typ = _normalise(name).split('/')
-    return f'{pkg}::msg::dds_::{typ}_'
+    pkg, kind, typ = _normalise(name).split('/')
+    return f'{pkg}::{kind}::dds_::{typ}_'
 
 
 def ros_type_from_dds(dds_name: str) -> str:
@@ -291,6 +317,50 @@ def dds_message(name: str):
         namespace['__qualname__'] = typ
         cls = dataclasses.dataclass(IdlMeta(typ, bases, namespace))
         _classes[name] = cls
+        return cls
+
+
+def dds_service_message(name: str):
+    """The Cyclone DDS class of a service's request or reply *sample* (``name`` =
+    ``'pkg/srv/<Service>_Request'`` or ``_Response``), as rmw_cyclonedds puts it on the wire: the
+    request header ``client_guid`` (uint64: the client's writer instance) and ``sequence_number``
+    (int64) before the message's own fields. Its DDS type name is the message's
+    (``rcl_interfaces::srv::dds_::ListParameters_Request_``) and its type hash the message's.
+    """
+    name = str(name).strip()
+    if not _SRV_NAME_RE.match(name):
+        raise MessageError(f'{name!r} is not a service part name; expected "<package>/srv/<Service>_Request" '
+                           'or "_Response"')
+    key = 'wrapped:' + name
+    with _lock:
+        cls = _classes.get(key)
+        if cls is not None:
+            return cls
+        from cyclonedds.idl import IdlStruct, types
+        from cyclonedds.idl._main import IdlMeta
+        store = typestore()
+        if name not in store.fielddefs:
+            raise MessageError(f'unknown service part {name!r}; known services: {", ".join(SERVICE_DEFINITIONS)}')
+        consts, fields = store.fielddefs[name]
+        pkg, _, typ = name.split('/')
+        bases = (IdlStruct,)
+        namespace = IdlMeta.__prepare__(typ, bases, typename=dds_type_name(name))
+        namespace['__annotations__']['client_guid'] = types.uint64
+        namespace['client_guid'] = 0
+        namespace['__annotations__']['sequence_number'] = types.int64
+        namespace['sequence_number'] = 0
+        for fname, spec in fields:
+            annotation, factory = _field_type(types, spec)
+            namespace['__annotations__'][fname] = annotation
+            namespace[fname] = dataclasses.field(default_factory=factory)
+        for cname, _ctype, value in consts:
+            namespace[cname] = value
+        namespace['__ros_typename__'] = name
+        namespace['__ros_typehash__'] = type_hash(name)
+        namespace['__module__'] = f'{pkg}.srv'
+        namespace['__qualname__'] = typ
+        cls = dataclasses.dataclass(IdlMeta(typ, bases, namespace))
+        _classes[key] = cls
         return cls
 
 

@@ -23,7 +23,7 @@ __all__ = [
     'QoSProfile', 'ReliabilityPolicy', 'DurabilityPolicy', 'HistoryPolicy', 'LivelinessPolicy',
     'qos_profile_system_default', 'qos_profile_sensor_data', 'QoSPresetProfiles', 'to_dds_qos',
     'from_dds_qos', 'Duration', 'DDS_INFINITY', 'QoSWords', 'profile_from_words', 'words_of',
-    'merge_offered', 'qos_profile_yaml', 'parse_offered_qos',
+    'merge_offered', 'qos_profile_yaml', 'parse_offered_qos', 'qos_profile_rosout_default',
 ]
 
 #: Cyclone DDS's ``DDS_INFINITY`` (``dds_duration_t``, ns): an infinite duration or time-out.
@@ -120,6 +120,9 @@ qos_profile_system_default = QoSProfile(history=HistoryPolicy.SYSTEM_DEFAULT, de
                                         durability=DurabilityPolicy.SYSTEM_DEFAULT)
 qos_profile_sensor_data = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
 qos_profile_clock = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+#: rcl_qos_profile_rosout_default: keep last 1000, reliable, transient local, lifespan 10 s.
+qos_profile_rosout_default = QoSProfile(depth=1000, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                                        lifespan=Duration(seconds=10.0))
 
 
 class QoSPresetProfiles(enum.Enum):

@@ -1,7 +1,8 @@
 """Recorder node (``recorder``): records topics to a rosbag2 MCAP bag (:mod:`uh_runtime.bag`).
 
 Like ``ros2 bag record -a -s mcap``: it discovers every topic in the DDS domain (or the ones given
-in ``topics``), subscribes with QoS compatible with what the publishers offer (transient-local
+in ``topics``; ``/parameter_events`` and ``/rosout`` included, so a bag shows when a gain changed
+and what the nodes logged), subscribes with QoS compatible with what the publishers offer (transient-local
 when they all offer it, so nothing published before the subscription matched is missed) and
 stores the CDR payloads exactly as they arrive (raw subscriptions, no decode/re-encode).
 
@@ -102,7 +103,7 @@ class RecorderNode(rt.Node):
                 continue
             if self.wanted and name not in self.wanted:
                 continue
-            if name.startswith('/_') or name in ('/ros_discovery_info', '/parameter_events', '/rosout'):
+            if name.startswith('/_') or name == '/ros_discovery_info':
                 continue
             infos = self.get_publishers_info_by_topic(name)
             if not infos:
@@ -143,7 +144,7 @@ class RecorderNode(rt.Node):
     def destroy_node(self):
         self.bag.close()
         counts = ', '.join(f'{t.name}: {t.message_count}' for t in self.bag.topics.values())
-        self.get_logger().info(f'bag closed: {self.bag.directory} ({counts})')
+        rt.log_on_exit(self, f'bag closed: {self.bag.directory} ({counts})')
         return super().destroy_node()
 
 

@@ -214,8 +214,10 @@ class Context:
             entry = node_cls()
             entry.node_namespace = node.get_namespace()
             entry.node_name = node.get_name()
-            entry.reader_gid_seq = [gid_cls(data=list(s.gid)) for s in node.subscriptions]
-            entry.writer_gid_seq = [gid_cls(data=list(p.gid)) for p in node.publishers]
+            entry.reader_gid_seq = [gid_cls(data=list(s.gid)) for s in (*node.subscriptions, *node.services)]
+            rosout = [node._rosout] if getattr(node, '_rosout', None) is not None else []
+            entry.writer_gid_seq = [gid_cls(data=list(p.gid)) for p in (*node.publishers, *rosout)] + \
+                [gid_cls(data=list(s.writer_gid)) for s in node.services]
             info.node_entities_info_seq.append(entry)
         return info
 

@@ -125,7 +125,7 @@ class Executor:
                 ret = attach(self._waitset._ref, self._context.guard._ref, _GUARD_ARG)
                 if ret < 0:
                     raise RuntimeError(f'cannot attach the guard condition to the wait set (DDS error {ret})')
-            wanted = [s for n in self._nodes for s in n.subscriptions]
+            wanted = [s for n in self._nodes for s in (*n.subscriptions, *n.services)]
             keys = {id(s) for s in wanted}
             for key in list(self._attached):
                 if key not in keys:
@@ -205,7 +205,7 @@ class Executor:
         by_arg = self._by_arg
         attached = self._attached
         if ready is None:
-            subs = [s for n in list(self._nodes) for s in list(n.subscriptions)
+            subs = [s for n in list(self._nodes) for s in (*n.subscriptions, *n.services)
                     if id(s) in attached and s._condition.is_triggered()]
         else:
             subs = [by_arg[a] for a in ready if a in by_arg]

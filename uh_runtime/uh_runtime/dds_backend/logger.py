@@ -3,7 +3,9 @@
 Mirrors ``rclpy.logging`` (``get_logger``, ``set_logger_level``) and
 ``rclpy.impl.rcutils_logger.RcutilsLogger``: ``[LEVEL] [<unix time>] [<name>]: message``, with
 ``once``, ``throttle_duration_sec`` and ``skip_first``; levels per logger name (dotted names
-inherit their parent's), set by ``--log-level`` through the context and the nodes.
+inherit their parent's), set by ``--log-level`` through the context and the nodes. A node's
+logger (and its children) also publishes every record it prints on ``/rosout``
+(``rcl_interfaces/msg/Log``), like rcl's rosout sink, unless ``--disable-rosout-logs``.
 """
 import inspect
 import sys
@@ -24,9 +26,14 @@ class RcutilsLogger:
         self.name = name
         self._once = set()
         self._last = {}
+        #: ``(severity, name, message, stamp_ns, file, function, line)`` -> None: the owning
+        #: node's /rosout publisher (None: stderr only)
+        self._rosout = None
 
     def get_child(self, name):
-        return RcutilsLogger(f'{self.name}.{name}' if self.name else name)
+        child = RcutilsLogger(f'{self.name}.{name}' if self.name else name)
+        child._rosout = self._rosout
+        return child
 
     def set_level(self, level):
         name = level if isinstance(level, str) else {10: 'DEBUG', 20: 'INFO', 30: 'WARN',
@@ -63,10 +70,16 @@ class RcutilsLogger:
             if key in self._last and now - self._last[key] < throttle_duration_sec:
                 return False
             self._last[key] = now
-        stamp = time.time()
+        stamp_ns = time.time_ns()
         with _log_lock:
-            sys.stderr.write(f'[{severity}] [{stamp:.9f}] [{self.name}]: {message}\n')
+            sys.stderr.write(f'[{severity}] [{stamp_ns / 1e9:.9f}] [{self.name}]: {message}\n')
             sys.stderr.flush()
+        sink = self._rosout
+        if sink is not None:
+            caller = inspect.currentframe().f_back.f_back
+            code = caller.f_code if caller else None
+            sink(_SEVERITY[severity], self.name, str(message), stamp_ns, code.co_filename if code else '',
+                 code.co_name if code else '', caller.f_lineno if caller else 0)
         return True
 
     def debug(self, message, **kw):

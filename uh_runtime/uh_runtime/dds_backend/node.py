@@ -18,7 +18,7 @@ from ..parameters import (
     ParameterNotDeclaredException, ParameterType, ParameterUninitializedException,
     SetParametersResult, check_value,
 )
-from ..qos import as_profile, qos_profile_clock, to_dds_qos
+from ..qos import as_profile, qos_profile_clock, qos_profile_rosout_default, to_dds_qos
 from .clock import ROSClock
 from .context import (
     DISCOVERY_TOPIC, ROS_TOPIC_PREFIX, NotInitializedException, get_default_context,
@@ -45,7 +45,10 @@ class Node:
             raise NotInitializedException('cannot create node')
         self.publishers = []
         self.subscriptions = []
+        self.services = []
         self.timers = []
+        self._parameter_services = None
+        self._rosout = None
         self._executors = weakref.WeakSet()
         self._destroyed = False
 
@@ -92,12 +95,24 @@ class Node:
         self._clock_sub = None
         self._context.participant  # create the participant before any entity
         self._context._add_node(self)
+        # /rosout and /parameter_events (rclpy creates both before declaring use_sim_time)
+        rosout_logs = parsed.rosout_logs and (not use_global_arguments or self._context.arguments.rosout_logs)
+        if enable_rosout and rosout_logs:
+            # rcl's rosout publisher: in ros_discovery_info, not in ``publishers`` (as in rclpy)
+            self._rosout = self.create_publisher(_messages.dds_message('rcl_interfaces/msg/Log'), '/rosout',
+                                                 qos_profile_rosout_default)
+            self.publishers.remove(self._rosout)
+            self._logger._rosout = self._publish_log
+        from .services import ParameterServices
+        self._parameter_services = ParameterServices(self)
         self.declare_parameter('use_sim_time', False)
         self._apply_use_sim_time(self.get_parameter('use_sim_time').value)
         if automatically_declare_parameters_from_overrides:
             for pname, param in overrides.items():
                 if pname not in self._parameters:
                     self.declare_parameter(pname, param.value)
+        if start_parameter_services:
+            self._parameter_services.start_services()
 
     # -- names ------------------------------------------------------------------------------
     @property
@@ -176,6 +191,43 @@ class Node:
         self._changed()
         return sub
 
+    def create_service(self, srv_type, srv_name, callback, *, qos_profile=None, callback_group=None):
+        """A service server (:class:`~uh_runtime.dds_backend.services.Service`); ``srv_type`` is
+        ``'pkg/srv/Name'``, one of :data:`uh_runtime.messages.SERVICE_DEFINITIONS`."""
+        from .services import Service, qos_profile_parameters
+        service = Service(self, srv_type, srv_name, callback, as_profile(qos_profile or qos_profile_parameters))
+        self.services.append(service)
+        self._context.publish_discovery_info()
+        self._changed()
+        return service
+
+    def destroy_service(self, service) -> bool:
+        if service not in self.services:
+            return False
+        self.services.remove(service)
+        self._changed()
+        for executor in list(self._executors):
+            executor._detach(service)
+        service._condition.__del__()
+        service._reader.__del__()
+        service._writer.__del__()
+        self._context.publish_discovery_info()
+        return True
+
+    def _publish_log(self, severity: int, name: str, message: str, stamp_ns: int, file: str,
+                     function: str, line: int) -> None:
+        """Publish one log record on ``/rosout`` (rcl_interfaces/msg/Log), as rcl's rosout sink."""
+        pub = self._rosout
+        if pub is None or self._destroyed or not self._context.ok():
+            return
+        msg = pub.msg_type(level=int(severity), name=name, msg=message, file=file, function=function,
+                           line=int(line))
+        msg.stamp.sec, msg.stamp.nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        try:
+            pub.publish(msg)
+        except Exception:   # logging must never raise
+            pass
+
     def create_timer(self, timer_period_sec, callback, callback_group=None, clock=None,
                      autostart=True):
         timer = Timer(self, callback, int(round(float(timer_period_sec) * 1e9)),
@@ -223,12 +275,19 @@ class Node:
         self._destroyed = True
         for timer in list(self.timers):
             self.destroy_timer(timer)
+        self._logger._rosout = None
+        rosout, self._rosout = self._rosout, None
+        if rosout is not None:
+            self.publishers.append(rosout)   # destroyed with the others
         if self._context._dp is not None:
+            for service in list(self.services):
+                self.destroy_service(service)
             for sub in list(self.subscriptions):
                 self.destroy_subscription(sub)
             for pub in list(self.publishers):
                 self.destroy_publisher(pub)
         else:
+            self.services.clear()
             self.subscriptions.clear()
             self.publishers.clear()
         for executor in list(self._executors):
@@ -332,6 +391,8 @@ class Node:
             self._parameters[name] = param
             self._run_post_callbacks([param])
             declared.append(param)
+        if self._parameter_services is not None:
+            self._parameter_services.publish_event(new=declared)
         return declared
 
     def _coerce(self, name, value, descriptor):
@@ -413,9 +474,12 @@ class Node:
             checked.append(Parameter(param.name, value=value))
         result = self._run_set_callbacks(checked)
         if result.successful:
+            new = [p for p in checked if p.name not in self._parameters]
             for param in checked:
                 self._parameters[param.name] = param
                 self._descriptors.setdefault(param.name, ParameterDescriptor(name=param.name))
+            if self._parameter_services is not None:
+                self._parameter_services.publish_event(new=new, changed=[p for p in checked if p not in new])
             self._run_post_callbacks(checked)
         return result
 

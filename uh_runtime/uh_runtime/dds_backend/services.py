@@ -1,0 +1,381 @@
+"""Service servers of the Cyclone DDS backend, and the parameter services and ``/parameter_events``
+every node has, with rclpy's (Jazzy) behaviour, so ``ros2 param list/get/set/describe`` and
+``ros2 topic echo /parameter_events`` work on a node of either backend (docs/runtime.md#parameters).
+
+Wire conventions (rmw_cyclonedds_cpp, Jazzy):
+
+- service ``/uh1/controller/list_parameters`` is a request topic ``rq/uh1/controller/list_parametersRequest``
+  and a reply topic ``rr/uh1/controller/list_parametersReply``, of DDS types
+  ``rcl_interfaces::srv::dds_::ListParameters_Request_`` and ``..._Response_``;
+- each sample starts with the request header, ``uint64`` client writer instance and ``int64``
+  sequence number, which the reply echoes (:func:`uh_runtime.messages.dds_service_message`);
+- USER_DATA ``serviceid=<id>;typehash=RIHS01_<hex>;`` on the request reader and the reply writer
+  (the same id on both, so a client pairs them), the request's and the response's own type hashes;
+- before replying, the server waits (at most :data:`REPLY_MATCH_WAIT_S`) until its reply writer
+  has matched the reader of the client that sent the request (``clientid=`` in that client's
+  USER_DATA), as rmw_cyclonedds does, so the first reply to a new client is not lost.
+
+Requests are served in the executor's thread, like subscription callbacks.
+"""
+from __future__ import annotations
+
+import itertools
+import time
+
+from .. import messages as _messages
+from ..parameters import (
+    InvalidParameterTypeException, InvalidParameterValueException, Parameter,
+    ParameterDescriptor, ParameterNotDeclaredException, ParameterType, ParameterUninitializedException,
+    SetParametersResult,
+)
+from ..qos import QoSProfile, DurabilityPolicy, HistoryPolicy, ReliabilityPolicy, to_dds_qos
+from .context import typehash_user_data
+
+__all__ = ['Service', 'ServiceClient', 'ParameterServices', 'parameter_value', 'value_message',
+           'qos_profile_parameters', 'qos_profile_parameter_events', 'REPLY_MATCH_WAIT_S']
+
+#: rmw_qos_profile_parameters (services) and rmw_qos_profile_parameter_events: keep last 1000,
+#: reliable, volatile.
+qos_profile_parameters = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+                                    reliability=ReliabilityPolicy.RELIABLE,
+                                    durability=DurabilityPolicy.VOLATILE)
+qos_profile_parameter_events = qos_profile_parameters
+
+#: Longest wait for the client's reply reader before a reply is sent anyway, s.
+REPLY_MATCH_WAIT_S = 0.5
+
+_service_ids = itertools.count(1)
+
+
+def _user_data_value(endpoint, key: str) -> str | None:
+    """Value of ``key=`` in the USER_DATA of a discovered endpoint (``DcpsEndpoint``), or None."""
+    from cyclonedds.core import Policy
+    try:
+        data = endpoint.qos[Policy.Userdata].data
+    except (KeyError, AttributeError, TypeError):
+        return None
+    for item in bytes(data).decode(errors='replace').split(';'):
+        name, sep, value = item.partition('=')
+        if sep and name == key:
+            return value
+    return None
+
+
+class Service:
+    """A service server (``rclpy.service.Service`` subset): ``callback(request, response)`` returns
+    the response; ``srv_type`` is ``'pkg/srv/Name'`` (one of
+    :data:`uh_runtime.messages.SERVICE_DEFINITIONS`)."""
+
+    def __init__(self, node, srv_type: str, srv_name: str, callback, qos_profile):
+        from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+        self._node = node
+        self.srv_type = srv_type
+        self.callback = self._serve
+        self._handler = callback
+        self.srv_name = node.resolve_topic_name(srv_name)
+        self.topic_name = self.srv_name          # what the executor names in its errors
+        self._request_cls = _messages.dds_service_message(f'{srv_type}_Request')
+        self._response_cls = _messages.dds_service_message(f'{srv_type}_Response')
+        context = node._context
+        # the same id on the request reader and the reply writer: a client pairs them by it
+        guid = context.gid
+        service_id = '.'.join(f'{b:x}' for b in bytes(guid[:12]) + next(_service_ids).to_bytes(4, 'big'))
+        extra = f'serviceid={service_id};'.encode()
+        self._reader = DataReader(context._sub, context.topic(f'rq{self.srv_name}Request', self._request_cls),
+                                  qos=to_dds_qos(qos_profile, extra + typehash_user_data(self._request_cls)))
+        self._writer = DataWriter(context._pub, context.topic(f'rr{self.srv_name}Reply', self._response_cls),
+                                  qos=to_dds_qos(qos_profile, extra + typehash_user_data(self._response_cls)))
+        self._condition = ReadCondition(self._reader, SampleState.NotRead | ViewState.Any | InstanceState.Any)
+        self.gid = self._reader.get_guid().bytes
+        self.writer_gid = self._writer.get_guid().bytes
+
+    def _take_messages(self, from_dds=True):
+        """Every waiting request (samples with their info)."""
+        if not from_dds:
+            return []
+        return [s for s in self._reader.take(N=64) if s.sample_info.valid_data]
+
+    def _client_reader_matched(self, publication_handle) -> bool | None:
+        """Whether the reply writer has matched the reader of the client whose request writer is
+        ``publication_handle``; None if that client is gone or does not say who it is."""
+        try:
+            writer = self._reader.get_matched_publication_data(publication_handle)
+        except Exception:
+            return None
+        client = _user_data_value(writer, 'clientid') if writer is not None else None
+        if client is None:
+            return None
+        for handle in self._writer.get_matched_subscriptions():
+            try:
+                reader = self._writer.get_matched_subscription_data(handle)
+            except Exception:
+                continue
+            if reader is not None and _user_data_value(reader, 'clientid') == client:
+                return True
+        return False
+
+    def _serve(self, request) -> None:
+        response = self._response_cls()
+        try:
+            response = self._handler(request, response)
+        except Exception as exc:   # a bad request must not take the node down
+            self._node.get_logger().error(f'service {self.srv_name}: request not served: {exc}')
+            return
+        response.client_guid = request.client_guid
+        response.sequence_number = request.sequence_number
+        deadline = time.monotonic() + REPLY_MATCH_WAIT_S
+        while self._client_reader_matched(request.sample_info.publication_handle) is False \
+                and time.monotonic() < deadline:
+            time.sleep(0.01)
+        self._writer.write(response)
+
+    def destroy(self):
+        self._node.destroy_service(self)
+
+
+# -- parameter services -------------------------------------------------------------------------
+def value_message(value, type_=None):
+    """``rcl_interfaces/msg/ParameterValue`` of a Python value."""
+    cls = _messages.dds_message('rcl_interfaces/msg/ParameterValue')
+    ptype = ParameterType.from_parameter_value(value) if type_ is None else type_
+    msg = cls(type=int(ptype))
+    field = {ParameterType.BOOL: 'bool_value', ParameterType.INTEGER: 'integer_value',
+             ParameterType.DOUBLE: 'double_value', ParameterType.STRING: 'string_value',
+             ParameterType.BYTE_ARRAY: 'byte_array_value', ParameterType.BOOL_ARRAY: 'bool_array_value',
+             ParameterType.INTEGER_ARRAY: 'integer_array_value',
+             ParameterType.DOUBLE_ARRAY: 'double_array_value',
+             ParameterType.STRING_ARRAY: 'string_array_value'}.get(ptype)
+    if field == 'byte_array_value':
+        value = list(bytes(value)) if isinstance(value, (bytes, bytearray)) else [bytes(v)[0] for v in value]
+    if field is not None:
+        setattr(msg, field, list(value) if isinstance(value, (list, tuple)) else value)
+    return msg
+
+
+def parameter_value(msg):
+    """Python value of an ``rcl_interfaces/msg/ParameterValue`` (None for NOT_SET)."""
+    ptype = ParameterType(int(msg.type))
+    if ptype == ParameterType.NOT_SET:
+        return None
+    field = {ParameterType.BOOL: 'bool_value', ParameterType.INTEGER: 'integer_value',
+             ParameterType.DOUBLE: 'double_value', ParameterType.STRING: 'string_value',
+             ParameterType.BYTE_ARRAY: 'byte_array_value', ParameterType.BOOL_ARRAY: 'bool_array_value',
+             ParameterType.INTEGER_ARRAY: 'integer_array_value',
+             ParameterType.DOUBLE_ARRAY: 'double_array_value',
+             ParameterType.STRING_ARRAY: 'string_array_value'}[ptype]
+    value = getattr(msg, field)
+    if ptype == ParameterType.BYTE_ARRAY:
+        return [bytes([b]) for b in value]
+    return list(value) if isinstance(value, (list, tuple)) else value
+
+
+def _parameter_msg(param):
+    cls = _messages.dds_message('rcl_interfaces/msg/Parameter')
+    return cls(name=param.name, value=value_message(param.value, param.type_))
+
+
+def _descriptor_msg(descriptor: ParameterDescriptor):
+    cls = _messages.dds_message('rcl_interfaces/msg/ParameterDescriptor')
+    fp = _messages.dds_message('rcl_interfaces/msg/FloatingPointRange')
+    ir = _messages.dds_message('rcl_interfaces/msg/IntegerRange')
+    return cls(name=descriptor.name, type=int(descriptor.type), description=descriptor.description,
+               additional_constraints=descriptor.additional_constraints, read_only=bool(descriptor.read_only),
+               dynamic_typing=bool(descriptor.dynamic_typing),
+               floating_point_range=[fp(from_value=float(r.from_value), to_value=float(r.to_value),
+                                        step=float(r.step)) for r in descriptor.floating_point_range],
+               integer_range=[ir(from_value=int(r.from_value), to_value=int(r.to_value), step=int(r.step))
+                              for r in descriptor.integer_range])
+
+
+def _result_msg(result: SetParametersResult):
+    cls = _messages.dds_message('rcl_interfaces/msg/SetParametersResult')
+    return cls(successful=bool(result.successful), reason=str(result.reason))
+
+
+class ParameterServices:
+    """rclpy's ``ParameterService`` and parameter-event publisher for a DDS-backend node: the six
+    services ``<node>/describe_parameters``, ``get_parameters``, ``get_parameter_types``,
+    ``list_parameters``, ``set_parameters``, ``set_parameters_atomically``, answered as
+    ``rclpy.parameter_service`` answers them, and a ``ParameterEvent`` on ``/parameter_events``
+    for every declaration and every accepted change (``new_parameters`` /
+    ``changed_parameters``)."""
+
+    SERVICES = (('describe_parameters', 'DescribeParameters'), ('get_parameters', 'GetParameters'),
+                ('get_parameter_types', 'GetParameterTypes'), ('list_parameters', 'ListParameters'),
+                ('set_parameters', 'SetParameters'),
+                ('set_parameters_atomically', 'SetParametersAtomically'))
+
+    def __init__(self, node):
+        self._node = node
+        self._events = node.create_publisher(
+            _messages.dds_message('rcl_interfaces/msg/ParameterEvent'), '/parameter_events',
+            qos_profile_parameter_events)
+
+    def start_services(self):
+        """Create the six services (rclpy does at the end of the node's constructor)."""
+        node = self._node
+        for suffix, srv in self.SERVICES:
+            node.create_service(f'rcl_interfaces/srv/{srv}', f'{node.get_name()}/{suffix}',
+                                getattr(self, f'_{suffix}'), qos_profile=qos_profile_parameters)
+
+    # -- events ----------------------------------------------------------------------------
+    def publish_event(self, new=(), changed=()):
+        """Publish a ``ParameterEvent`` for parameters just declared (``new``) or changed."""
+        if not (new or changed) or self._node._destroyed:
+            return
+        node = self._node
+        cls = _messages.dds_message('rcl_interfaces/msg/ParameterEvent')
+        ns = node.get_namespace()
+        event = cls(node=(ns + node.get_name()) if ns == '/' else f'{ns}/{node.get_name()}',
+                    new_parameters=[_parameter_msg(p) for p in new],
+                    changed_parameters=[_parameter_msg(p) for p in changed])
+        now = node.get_clock()._now_ns()
+        event.stamp.sec, event.stamp.nanosec = divmod(int(now), 1_000_000_000)
+        try:
+            self._events.publish(event)
+        except Exception:   # an event must never break a declaration or a change
+            pass
+
+    # -- service callbacks (rclpy.parameter_service) -----------------------------------------
+    def _describe_parameters(self, request, response):
+        try:
+            response.descriptors = [_descriptor_msg(self._node.describe_parameter(n)) for n in request.names]
+        except ParameterNotDeclaredException:
+            response.descriptors = []
+        return response
+
+    def _get_parameters(self, request, response):
+        values = []
+        for name in request.names:
+            try:
+                param = self._node.get_parameter(name)
+            except (ParameterNotDeclaredException, ParameterUninitializedException):
+                response.values = []
+                return response
+            values.append(value_message(param.value, param.type_))
+        response.values = values
+        return response
+
+    def _get_parameter_types(self, request, response):
+        types = []
+        for name in request.names:
+            if not self._node.has_parameter(name):
+                response.types = []
+                return response
+            types.append(int(self._node.get_parameter_or(name).type_))
+        response.types = types
+        return response
+
+    def _list_parameters(self, request, response):
+        result = response.result
+        prefixes, depth = list(request.prefixes), int(request.depth)
+        recursive = not prefixes and depth == 0   # DEPTH_RECURSIVE
+
+        def shallow(name):
+            return name.count('.') < depth
+        for name in self._node._parameters:
+            if not recursive:
+                if not (not prefixes and shallow(name)):
+                    if not any(name == p or (name.startswith(p + '.') and (depth == 0 or shallow(name[len(p) + 1:])))
+                               for p in prefixes):
+                        continue
+            result.names.append(name)
+            if '.' in name:
+                prefix = name[:name.rfind('.')]
+                if prefix not in result.prefixes:
+                    result.prefixes.append(prefix)
+        return response
+
+    def _set(self, parameters):
+        """``set_parameters_atomically`` of the node on the request's parameters, as a result."""
+        try:
+            params = [Parameter(p.name, value=parameter_value(p.value)) for p in parameters]
+        except (TypeError, ValueError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        try:
+            return self._node.set_parameters_atomically(params)
+        except ParameterNotDeclaredException as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+
+    def _set_parameters(self, request, response):
+        response.results = [_result_msg(self._set([p])) for p in request.parameters]
+        return response
+
+    def _set_parameters_atomically(self, request, response):
+        response.result = _result_msg(self._set(list(request.parameters)))
+        return response
+
+
+class ServiceClient:
+    """A blocking service client with rmw_cyclonedds' wire conventions (used by ``uh param`` and
+    the tests; any ROS 2 service server answers it): ``call(request)`` writes the request with a
+    header of this client's id and a sequence number and waits for the reply that echoes both.
+
+    Parameters
+    ----------
+    context : Context
+        An initialised context of this backend (its participant is used).
+    srv_type : str
+        ``'pkg/srv/Name'`` (one of :data:`uh_runtime.messages.SERVICE_DEFINITIONS`).
+    srv_name : str
+        Fully qualified service name, e.g. ``/uh1/controller/list_parameters``.
+    """
+
+    def __init__(self, context, srv_type: str, srv_name: str, qos_profile=None):
+        import random
+
+        from cyclonedds.pub import DataWriter
+        from cyclonedds.sub import DataReader
+        self.srv_name = srv_name
+        self._request_cls = _messages.dds_service_message(f'{srv_type}_Request')
+        self._response_cls = _messages.dds_service_message(f'{srv_type}_Response')
+        profile = qos_profile or qos_profile_parameters
+        guid = context.gid
+        client_id = '.'.join(f'{b:x}' for b in bytes(guid[:12]) + next(_service_ids).to_bytes(4, 'big'))
+        extra = f'clientid={client_id};'.encode()
+        self._writer = DataWriter(context._pub, context.topic(f'rq{srv_name}Request', self._request_cls),
+                                  qos=to_dds_qos(profile, extra + typehash_user_data(self._request_cls)))
+        self._reader = DataReader(context._sub, context.topic(f'rr{srv_name}Reply', self._response_cls),
+                                  qos=to_dds_qos(profile, extra + typehash_user_data(self._response_cls)))
+        self._guid = random.getrandbits(63)
+        self._sequence = 0
+
+    def request(self, **fields):
+        """A request of this service with ``fields`` set."""
+        return self._request_cls(**fields)
+
+    def service_is_ready(self) -> bool:
+        """A server's request reader and reply writer are both matched."""
+        return bool(self._writer.get_matched_subscriptions()) and bool(self._reader.get_matched_publications())
+
+    def wait_for_service(self, timeout_sec: float) -> bool:
+        deadline = time.monotonic() + timeout_sec
+        while not self.service_is_ready():
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+        time.sleep(0.05)   # let the server's reply writer match our reader too
+        return True
+
+    def call(self, request, timeout_sec: float = 5.0):
+        """Send ``request`` and return the reply (a response of the service), or raise
+        :class:`TimeoutError`."""
+        self._sequence += 1
+        request.client_guid, request.sequence_number = self._guid, self._sequence
+        self._writer.write(request)
+        deadline = time.monotonic() + timeout_sec
+        while time.monotonic() < deadline:
+            for sample in self._reader.take(N=16):
+                if sample.sample_info.valid_data and sample.client_guid == self._guid \
+                        and sample.sequence_number == self._sequence:
+                    return sample
+            time.sleep(0.005)
+        raise TimeoutError(f'no reply from {self.srv_name} within {timeout_sec:g} s')
+
+    def destroy(self):
+        self._reader.__del__()
+        self._writer.__del__()
