@@ -252,7 +252,7 @@ class UHController:
         Invalid gains mapping or unknown case.
     """
 
-    def __init__(self, uh_id: int, scenario, case: str = 'proposed', *, helicopter_params=None):
+    def __init__(self, uh_id: int, scenario, case: str = 'proposed', *, helicopter_params=None, gains=None):
         ids = tuple(int(i) for i in scenario.ids)
         if isinstance(uh_id, bool) or not isinstance(uh_id, (int, np.integer)) or int(uh_id) not in ids:
             raise ControllerError(f'unknown UH id {uh_id!r}; the scenario has UHs {list(ids)}')
@@ -291,8 +291,12 @@ class UHController:
             self._graph[j, list(scenario.neighbours(j))] = 1.0
             self._graph[j, 0] = float(scenario.leader_link(j))
         self.case = case
-        self.gains = ControllerGains.from_mapping(scenario.gains, case, source=f'gains of scenario '
-                                                  f'{getattr(scenario, "name", "?")!r}')
+        if gains is None:
+            gains = ControllerGains.from_mapping(scenario.gains, case, source=f'gains of scenario '
+                                                 f'{getattr(scenario, "name", "?")!r}')
+        elif gains.case != case:
+            raise ControllerError(f'gains are those of case {gains.case!r}, the controller is {case!r}')
+        self.gains = gains
         if helicopter_params is None:
             from uh_core.airframe import load_helicopter_params
             helicopter_params = load_helicopter_params(scenario.helicopter)
@@ -396,6 +400,22 @@ class UHController:
             self._load_reference(reference.position, reference.velocity, reference.yaw)
         return self._run(k, self._nb_states, self._nb_weights, self._nb_offsets, self.leader_link, dt,
                          self.neighbours)
+
+    def set_gains(self, gains: ControllerGains) -> None:
+        """Use ``gains`` from the next step on (a live change, docs/control_law.md#gains-as-parameters).
+        The internal states carry on; the RBF networks' size and centres cannot change.
+
+        Raises
+        ------
+        ControllerError
+            ``gains`` of another case, or with other RBF networks.
+        """
+        if gains.case != self.case:
+            raise ControllerError(f'gains are those of case {gains.case!r}, the controller is {self.case!r}')
+        if (gains.outer.rbf, gains.inner.rbf) != (self.gains.outer.rbf, self.gains.inner.rbf):
+            raise ControllerError('the RBF networks (rbf_*) cannot change while the controller runs')
+        self._params = control_parameters(gains, self.model)
+        self.gains = gains
 
     def reachable_without(self, lost) -> bool:
         """Whether this UH still has a directed path from the virtual leader when the UHs in ``lost``

@@ -13,7 +13,9 @@ section 2):
   simulation exactly.
 - ``realtime``: each own state k starts step k. It is computed as soon as every neighbour's state
   and the reference of the same step are in, or after ``sync_wait`` wall seconds with the latest
-  values received (latest-value semantics). The short wait matters: the sims publish step k at the
+  values received (latest-value semantics): a one-shot timer is armed when the own state arrives
+  and the step cannot be computed yet, so an idle controller wakes only for messages and a slow
+  check every ``SLOW_POLL_S``. The short wait matters: the sims publish step k at the
   same tick, and mixing step-k and step-(k-1) neighbour data makes the consensus error jitter by
   v dt, which the command filters' derivatives amplify into chattering commands.
 
@@ -38,7 +40,7 @@ from __future__ import annotations
 import uh_runtime as rt
 from uh_controller_node.control_kernels import compile_control_kernels
 from uh_controller_node.controller import ControllerError, UHController
-from uh_controller_node.gains import CASES
+from uh_controller_node.gains import CASES, ControllerGains, GainsError, gain_parameters, nest_gains
 from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser
 from uh_runtime import messages as m
 from uh_topology.run_config import RunConfigError, declare_run_parameters
@@ -46,6 +48,9 @@ from uh_core.wire import WireError, command_to_msg, msg_to_reference, msg_to_sta
 from uh_core import topics
 
 __all__ = ['ControllerNode', 'main']
+
+#: Period of the realtime check for a silent own state and the start-up grace, wall s.
+SLOW_POLL_S = 0.1
 
 #: Floating-point parameters of the synchroniser: (name, default, upper bound, description).
 SYNC_PARAMETERS = (
@@ -77,7 +82,11 @@ class ControllerNode(rt.Node):
         if case not in CASES:
             raise RunConfigError(f"parameter 'case' is {case!r}; allowed: {', '.join(CASES)}")
         self.uh_id, self.dt, scenario = run.uh_id, run.dt, run.scenario
-        self.controller = UHController(self.uh_id, scenario, case=case)
+        self.case = case
+        self.gain_names = self._declare_gains(scenario)
+        self.controller = UHController(self.uh_id, scenario, case=case, gains=self._gains_of({}))
+        self.add_on_set_parameters_callback(self._check_gains)
+        self.add_post_set_parameters_callback(self._apply_gains)
         # load the control law's numba kernel now (before the endpoints exist and the clock can start)
         compile_control_kernels()
         neighbours = tuple(scenario.neighbours(self.uh_id))
@@ -95,11 +104,56 @@ class ControllerNode(rt.Node):
                                      lambda msg, j=j: self.on_neighbour_state(j, msg), qos)
         if linked:
             self.create_subscription(m.Reference, topics.REFERENCE.name, self.on_reference, qos)
+        self._deadline = None
         if run.clock_mode == 'realtime':
-            self.create_timer(max(sync['sync_wait'] / 2, 0.0005), lambda: self._compute(self.sync.poll()))
+            # no busy polling: a one-shot timer armed only while a step waits for its neighbours'
+            # data (sync_wait after its own state), and a slow one for silence and start-up checks
+            self._deadline = self.create_timer(max(sync['sync_wait'], 0.0005), self._on_deadline)
+            self._deadline.cancel()
+            self.create_timer(SLOW_POLL_S, self._on_deadline)
         self.get_logger().info(f'uh{self.uh_id} ({case}, {run.clock_mode}): hears '
                                f"{', '.join(f'uh{j}' for j in neighbours) or 'no UH'}"
                                f"{' and the virtual leader' if linked else ''}")
+
+    # -- gains as parameters (docs/control_law.md#gains-as-parameters) ---------------------------
+    def _declare_gains(self, scenario) -> tuple:
+        """Declare every gain of the scenario's gains file as a parameter (``beta``, ``outer.k`` ...):
+        the file's value is the default, ``--params-file`` (``/**:``) or ``-p`` override it."""
+        names = []
+        for g in gain_parameters(scenario.gains, source=f'gains of scenario {scenario.name!r}'):
+            ranges = {}
+            if isinstance(g.value, int):
+                ranges['integer_range'] = [rt.IntegerRange(from_value=1, to_value=100000, step=1)]
+            elif g.minimum is not None:
+                ranges['floating_point_range'] = [rt.FloatingPointRange(from_value=g.minimum, to_value=1e12, step=0.0)]
+            self.declare_parameter(g.name, g.value, rt.ParameterDescriptor(
+                description=g.description, read_only=g.read_only, **ranges))
+            names.append(g.name)
+        return tuple(names)
+
+    def _gains_of(self, changes: dict) -> ControllerGains:
+        """The controller's gains from the current parameter values with ``changes`` applied
+        (validated like the gains file; :class:`GainsError` says what is wrong)."""
+        flat = {name: self.get_parameter(name).value for name in self.gain_names}
+        flat.update(changes)
+        return ControllerGains.from_mapping(nest_gains(flat), self.case, source=f'uh{self.uh_id} controller gains')
+
+    def _check_gains(self, params):
+        """Accept a change of gains only if the gains it makes pass the gains file's checks."""
+        changes = {p.name: p.value for p in params if p.name in self.gain_names}
+        if changes:
+            try:
+                self._gains_of(changes)
+            except GainsError as exc:
+                self.get_logger().warning(f'gain change {changes} rejected: {exc}')
+                return rt.SetParametersResult(successful=False, reason=str(exc))
+        return rt.SetParametersResult(successful=True)
+
+    def _apply_gains(self, params) -> None:
+        changed = [p for p in params if p.name in self.gain_names]
+        if changed:
+            self.controller.set_gains(self._gains_of({}))
+            self.get_logger().info('gains changed: ' + ', '.join(f'{p.name} = {p.value}' for p in changed))
 
     # -- inputs ------------------------------------------------------------------------------------
     def on_own_state(self, msg) -> None:
@@ -118,6 +172,15 @@ class ControllerNode(rt.Node):
             self.sync.reject(what, exc)
             return
         self._compute(self.sync.offer(key, int(msg.step), value))
+        if key == OWN and self._deadline is not None and self.sync.waiting is not None:
+            self._deadline.reset()     # fires once, sync_wait from now, unless the step is released first
+
+    def _on_deadline(self) -> None:
+        """realtime: the step waited for is due (or the slow check): release it with the latest data."""
+        self._deadline.cancel()
+        self._compute(self.sync.poll())
+        if self.sync.waiting is not None:   # still waiting (start-up grace): look again later
+            self._deadline.reset()
 
     # -- stepping ----------------------------------------------------------------------------------
     def _compute(self, released) -> None:
@@ -142,13 +205,14 @@ class ControllerNode(rt.Node):
     def destroy_node(self):
         if hasattr(self, 'published'):  # not when the constructor failed half-way
             rejected = self.sync.rejected_summary()
-            self.get_logger().info(
+            rt.log_on_exit(
+                self,
                 f"published: {topics.uh_topic(self.uh_id, topics.COMMAND)} {self.published['command']}, "
                 f"{topics.uh_topic(self.uh_id, topics.STATUS)} {self.published['status']}"
                 + (f'; rejected inputs: {rejected}' if rejected else ''))
             lag = self.sync.lag_summary()
             if lag:
-                self.get_logger().info(lag)
+                rt.log_on_exit(self, lag)
         return super().destroy_node()
 
 

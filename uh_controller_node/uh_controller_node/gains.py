@@ -27,7 +27,8 @@ from dataclasses import dataclass
 
 from uh_topology.errors import GainsError
 
-__all__ = ['CASES', 'GainsError', 'RBFSpec', 'LoopGains', 'ControllerGains']
+__all__ = ['CASES', 'GainsError', 'RBFSpec', 'LoopGains', 'ControllerGains', 'GainParameter',
+           'gain_parameters', 'nest_gains']
 
 #: The comparison cases of docs/control_law.md#comparison-cases, in report order.
 CASES = ('proposed', 'case1', 'case2')
@@ -275,3 +276,82 @@ def _loop(data, name, source):
         rbf=RBFSpec(nodes=nodes, low=low, high=high, width=values['rbf_width']),
         late_learning_rate=values.get('late_learning_rate', values['learning_rate']),
         late_sigma=values.get('late_sigma', values['sigma']))
+
+
+# -- the gains as ROS parameters (docs/control_law.md#gains-as-parameters) -------------------------
+#: What each gain key means, with its unit (the parameter descriptions).
+GAIN_DESCRIPTIONS = {
+    'beta': 'inverse-optimal factor beta (-); Lemma 2 needs beta >= 2',
+    'tilt_limit_deg': 'largest thrust tilt from vertical, deg (< 90)',
+    'min_vertical_accel': 'smallest vertical specific thrust commanded, m/s^2',
+    'learning_phase': 's after take-off in which the networks learn and the fault observers hold zero',
+    'k': 'error gain (k1 outer, k3 inner), 1/s',
+    'r': 'inverse-optimal input weight r, s',
+    'tau_command': 'command filter time constant, s',
+    'tau_rate': 'filter time constant of alpha_w, s',
+    'kappa': 'SPEM correction gain, 1/s',
+    'learning_rate': 'network learning rate Gamma, 1/s',
+    'gamma': 'prediction-error weight in the weight law (-)',
+    'gamma_F': 'prediction-error weight in the fault observer (-)',
+    'sigma': 'weight leakage (-)',
+    'lambda': 'fault observer gain, 1/s',
+    'sigma_F': 'fault-estimate leakage (-)',
+    'fault_bound': 'projection bound of each fault-estimate component',
+    'weight_bound': 'projection bound of each weight column norm',
+    'rbf_nodes': 'RBF centres per axis (-); fixed at start',
+    'rbf_low': 'first RBF centre; fixed at start',
+    'rbf_high': 'last RBF centre; fixed at start',
+    'rbf_width': 'Gaussian width of the RBFs; fixed at start',
+    'late_learning_rate': 'learning rate after the learning phase, 1/s',
+    'late_sigma': 'weight leakage after the learning phase (-)',
+}
+#: Keys that size or place the networks: read-only once the controller runs.
+STRUCTURAL_KEYS = ('rbf_nodes', 'rbf_low', 'rbf_high', 'rbf_width')
+
+
+@dataclass(frozen=True)
+class GainParameter:
+    """One gain as a ROS parameter: ``name`` (``beta``, ``outer.k`` ...), default ``value``,
+    ``description``, lower bound ``minimum`` (None: none) and ``read_only``."""
+
+    name: str
+    value: object
+    description: str
+    minimum: float | None
+    read_only: bool
+
+
+def gain_parameters(mapping, source: str = 'gains') -> list:
+    """The gains of ``mapping`` (plain or ``/**: ros__parameters:``, validated as by
+    :meth:`ControllerGains.from_mapping`) as a list of :class:`GainParameter`, dotted names for
+    the loops (``outer.k``), in file order."""
+    ControllerGains.from_mapping(mapping, 'proposed', source)   # validate first: clear errors
+    data = _unwrap(mapping, source)
+    out = []
+    for key, value in data.items():
+        if isinstance(value, dict):
+            for sub, sub_value in value.items():
+                out.append(_gain_parameter(f'{key}.{sub}', sub, sub_value))
+        else:
+            out.append(_gain_parameter(key, key, value))
+    return out
+
+
+def _gain_parameter(name, key, value):
+    if key == 'rbf_nodes':
+        return GainParameter(name, int(value), GAIN_DESCRIPTIONS[key], 1.0, True)
+    minimum = None if key in ('rbf_low', 'rbf_high') else 0.0
+    return GainParameter(name, float(value), GAIN_DESCRIPTIONS.get(key, key), minimum, key in STRUCTURAL_KEYS)
+
+
+def nest_gains(flat: dict) -> dict:
+    """``{'beta': 2.0, 'outer.k': 1.0, ...}`` -> the nested mapping of a gains file."""
+    out = {}
+    for name, value in flat.items():
+        head, dot, tail = name.partition('.')
+        if dot:
+            out.setdefault(head, {})[tail] = value
+        else:
+            out[name] = value
+    return out
+

@@ -16,7 +16,7 @@ from .backend import FACADE_NAMES, BackendError, select_backend
 from .facade import *  # noqa: F401,F403
 from .facade import BACKEND
 from .parameters import UnknownParameterOverrideError
-from .runner import check_parameter_overrides, run_node
+from .runner import check_parameter_overrides, log_on_exit, run_node
 
-__all__ = sorted({*FACADE_NAMES, 'BACKEND', 'BackendError', 'select_backend', 'run_node',
+__all__ = sorted({*FACADE_NAMES, 'BACKEND', 'BackendError', 'select_backend', 'run_node', 'log_on_exit',
                   'check_parameter_overrides', 'UnknownParameterOverrideError'})

@@ -6,7 +6,8 @@ import sys
 
 from . import facade as rt
 
-__all__ = ['check_parameter_overrides', 'run_node', 'declared_parameter_names', 'override_names']
+__all__ = ['check_parameter_overrides', 'run_node', 'declared_parameter_names', 'override_names',
+           'log_on_exit']
 
 # Parameters every rclpy node declares by itself (not the application's).
 _BUILTIN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
@@ -77,6 +78,21 @@ def _clear_errors():
     except (ImportError, AttributeError):
         pass
     return tuple(errors)
+
+
+def log_on_exit(node, message: str) -> None:
+    """Log a node's closing summary (from its ``destroy_node``): through its logger while its
+    context is up, else straight to stderr in the logger's format. On SIGINT rclpy shuts the
+    context down before :func:`run_node` destroys the nodes, and a record logged then cannot reach
+    ``/rosout``: rcl prints "Failed to publish log message to rosout: publisher's context is
+    invalid" instead."""
+    logger = node.get_logger()
+    if rt.ok(context=node.context):
+        logger.info(message)
+        return
+    import time
+    sys.stderr.write(f'[INFO] [{time.time():.9f}] [{logger.name}]: {message}\n')
+    sys.stderr.flush()
 
 
 def _prog(args) -> str:

@@ -146,7 +146,7 @@ class ClockNode(rt.Node):
 
     def destroy_node(self):
         if hasattr(self, 'clock'):  # not when the constructor failed half-way
-            self.get_logger().info(f'published: {topics.CLOCK.name} {self.clock.step + 1}')
+            rt.log_on_exit(self, f'published: {topics.CLOCK.name} {self.clock.step + 1}')
         return super().destroy_node()
 
 

@@ -165,7 +165,8 @@ class SimNode(rt.Node):
 
     def destroy_node(self):
         if hasattr(self, 'published'):  # not when the constructor failed half-way
-            self.get_logger().info(
+            rt.log_on_exit(
+                self,
                 f"published: {topics.uh_topic(self.uh_id, topics.STATE)} {self.published['state']}, "
                 f"{topics.uh_topic(self.uh_id, topics.FAULT_TRUTH)} {self.published['fault_truth']}"
                 + (f'; rejected commands: {self.rejected}' if self.rejected else ''))

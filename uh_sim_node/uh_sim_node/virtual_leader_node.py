@@ -33,7 +33,7 @@ class VirtualLeaderNode(rt.Node):
 
     def destroy_node(self):
         if hasattr(self, 'published_step'):  # not when the constructor failed half-way
-            self.get_logger().info(f'published: {topics.REFERENCE.name} {self.published_step + 1}')
+            rt.log_on_exit(self, f'published: {topics.REFERENCE.name} {self.published_step + 1}')
         return super().destroy_node()
 
 

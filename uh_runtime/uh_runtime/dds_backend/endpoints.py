@@ -175,7 +175,9 @@ class Timer:
     def reset(self):
         self._canceled = False
         self._next = self._clock._now_ns() + self.timer_period_ns
-        self._node._changed()
+        # a spinning executor recomputes its wait from the timers at every round: wake it (cheap)
+        # rather than mark its entities changed
+        self._node._context.wake()
 
     def time_until_next_call(self):
         if self._canceled:
