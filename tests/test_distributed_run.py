@@ -5,6 +5,7 @@ import json
 import os
 import signal
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
@@ -267,10 +268,11 @@ def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layou
     assert np.array_equal(bag['commands'], reference.commands)
 
 
-def test_a_second_terminal_sees_the_team_with_only_the_printed_command(tmp_path, monkeypatch):
+def test_a_second_terminal_sees_the_team_and_changes_a_gain_which_the_bag_records(tmp_path, monkeypatch):
     """A run started with no ROS_DOMAIN_ID (and an empty CYCLONEDDS_URI, which counts as unset)
     picks a free domain and a loopback configuration; the command it prints, sourced in a shell
-    that has neither, is all ``uh topic list`` needs to see the team."""
+    that has neither, is all ``uh topic list`` needs to see the team, and ``uh param set`` to change
+    a controller gain live: the controller logs it and the bag's /parameter_events records it."""
     import shutil
     import sys
     monkeypatch.delenv('ROS_DOMAIN_ID', raising=False)
@@ -300,6 +302,25 @@ def test_a_second_terminal_sees_the_team_with_only_the_printed_command(tmp_path,
         # and without it nothing is found on the default domain's settings
         alone = subprocess.run([uh, 'topic', 'list'], env=clean, capture_output=True, text=True, timeout=60)
         assert '/uh1/state' not in alone.stdout
+        changed = subprocess.run(['bash', '-c', f'{command} && {uh} param set /uh3/controller outer.k 1.2'],
+                                 env=clean, capture_output=True, text=True, timeout=60)
+        assert changed.returncode == 0 and 'Set parameter successful' in changed.stdout, changed
+        refused = subprocess.run(['bash', '-c', f'{command} && {uh} param set /uh3/controller outer.k 0.0'],
+                                 env=clean, capture_output=True, text=True, timeout=60)
+        assert refused.returncode == 1 and 'k must be > 0' in refused.stderr, refused
+        time.sleep(1.0)
     finally:
         os.killpg(proc.pid, signal.SIGINT)
         proc.wait(timeout=60)
+    from uh_runtime import messages
+    store = messages.typestore()
+    events = []
+    with Reader(out / 'bag') as reader:
+        conns = [c for c in reader.connections if c.topic == '/parameter_events']
+        for c, t, raw in reader.messages(connections=conns):
+            msg = store.deserialize_cdr(raw, c.msgtype)
+            events += [(t, msg.node, p.name, p.value.double_value) for p in msg.changed_parameters]
+    assert [e[1:] for e in events] == [('/uh3/controller', 'outer.k', 1.2)], events
+    assert events[0][0] > 0        # logged at the run's sim time of the change
+    logs = ''.join(p.read_text(errors='replace') for p in (out / 'logs').glob('*.log'))
+    assert 'gains changed: outer.k = 1.2' in logs and 'rejected' in logs

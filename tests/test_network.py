@@ -82,3 +82,30 @@ def test_ids_of_one_process_are_distinct_and_a_bad_range_is_refused():
             release_domain_id(d)
     with pytest.raises(ValueError, match=r'range 5..300 is not within 0..232'):
         reserve_domain_id(5, 300)
+
+
+@pytest.mark.parametrize('env, expect', [
+    ({}, 'loopback'),
+    ({'CYCLONEDDS_URI': ''}, 'loopback'),                             # empty counts as unset
+    ({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'localhost'}, 'loopback'),
+    ({'CYCLONEDDS_URI': '<CycloneDDS/>'}, None),                       # the user's own stands
+    ({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'}, None),                # Cyclone's default: multicast
+    ({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SYSTEM_DEFAULT', 'ROS_STATIC_PEERS': '10.0.0.2'}, None),
+])
+def test_default_network_follows_ros_discovery_variables(env, expect):
+    from uh_runtime.network import default_cyclonedds_uri, loopback_config
+    got = default_cyclonedds_uri(env)
+    assert got == (loopback_config() if expect == 'loopback' else expect)
+
+
+def test_static_peers_and_off():
+    from uh_runtime.network import default_cyclonedds_uri
+    local = default_cyclonedds_uri({'ROS_STATIC_PEERS': '10.0.0.2; robot.local'})
+    assert '<Peer address="127.0.0.1"/><Peer address="10.0.0.2"/><Peer address="robot.local"/>' in local
+    assert '<AllowMulticast>false</AllowMulticast>' in local and 'NetworkInterface' not in local
+    subnet = default_cyclonedds_uri({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET', 'ROS_STATIC_PEERS': '10.0.0.2'})
+    assert '<Peer address="10.0.0.2"/>' in subnet and 'AllowMulticast' not in subnet
+    off = default_cyclonedds_uri({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'OFF', 'ROS_STATIC_PEERS': '10.0.0.2'})
+    assert '<Tag>ros_discovery_off_' in off and 'Peer' not in off
+    with pytest.raises(ValueError, match="ROS_AUTOMATIC_DISCOVERY_RANGE='LAN'; allowed: LOCALHOST, SUBNET"):
+        default_cyclonedds_uri({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LAN'})

@@ -20,7 +20,7 @@ import sys
 import time
 
 from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
-from uh_runtime.network import MAX_DOMAIN_ID, loopback_config
+from uh_runtime.network import MAX_DOMAIN_ID, apply_network_default
 
 __all__ = ['main']
 
@@ -86,7 +86,7 @@ def main(argv=None) -> int:
               'outside what the controller can compensate', file=sys.stderr)
     if args.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
-    os.environ.setdefault('CYCLONEDDS_URI', loopback_config())
+    apply_network_default()
 
     import uh_runtime as rt
     from uh_runtime import messages as m

@@ -369,7 +369,10 @@ def run(args) -> int:
         # held by this process for the run, so that runs started at once never share a domain
         domain = int(os.environ['ROS_DOMAIN_ID']) if os.environ.get('ROS_DOMAIN_ID', '').isdigit() \
             else reserve_domain_id()
-    env = loopback_environment(domain)
+    try:
+        env = loopback_environment(domain)
+    except ValueError as exc:   # a bad ROS_AUTOMATIC_DISCOVERY_RANGE
+        raise UsageError(str(exc)) from None
     env['PYTHONUNBUFFERED'] = '1'
     duration = args.duration if args.duration is not None else scenario.duration
     print(f'[run] {scenario.name}: {len(scenario.leaders)} leaders, {len(scenario.followers)} followers, '

@@ -14,7 +14,8 @@ import itertools
 import os
 import tempfile
 
-__all__ = ['loopback_config', 'loopback_environment', 'environment_script', 'reserve_domain_id', 'release_domain_id',
+__all__ = ['loopback_config', 'loopback_environment', 'environment_script', 'default_cyclonedds_uri',
+           'apply_network_default', 'DISCOVERY_RANGES', 'reserve_domain_id', 'release_domain_id',
            'MAX_PARTICIPANTS', 'MAX_DOMAIN_ID']
 
 #: Largest DDS domain id ROS 2 allows (Cyclone's default port mapping ends there).
@@ -41,20 +42,71 @@ def loopback_config(max_participants: int = MAX_PARTICIPANTS) -> str:
     )
 
 
-def loopback_environment(domain_id: int, base: dict | None = None) -> dict:
-    """Return a copy of ``base`` (default ``os.environ``) set up for DDS domain ``domain_id`` on loopback.
+#: ``ROS_AUTOMATIC_DISCOVERY_RANGE`` values (ROS 2 Jazzy); the project's tools take ``LOCALHOST``
+#: when it is not set (ROS 2's own default is ``SUBNET``): a run stays on this machine unless asked.
+DISCOVERY_RANGES = ('LOCALHOST', 'SUBNET', 'OFF', 'SYSTEM_DEFAULT')
 
-    ``CYCLONEDDS_URI`` is only set when the caller has not chosen one, so a user's own
-    configuration (e.g. a real network interface) wins; an empty value counts as not chosen
-    (Cyclone DDS itself treats it as no configuration).
+
+def default_cyclonedds_uri(env: dict | None = None) -> str | None:
+    """The ``CYCLONEDDS_URI`` the project's commands use when the user has not set one (an empty
+    value counts as not set), following ROS 2's discovery variables as rmw_cyclonedds maps them
+    (docs/architecture.md#isolation-of-runs):
+
+    - ``ROS_AUTOMATIC_DISCOVERY_RANGE`` unset or ``LOCALHOST``: :func:`loopback_config` (loopback
+      only, no multicast, unicast discovery on this machine), plus the ``ROS_STATIC_PEERS``
+      (``;``-separated addresses) as peers, in which case the interface is not restricted;
+    - ``SUBNET``: Cyclone's default (multicast), plus the static peers;
+    - ``SYSTEM_DEFAULT``: Cyclone's default, peers ignored;
+    - ``OFF``: no discovery at all (no multicast, no peers, a tag of this process).
+
+    Returns None when Cyclone's own default applies or the user's ``CYCLONEDDS_URI`` stands.
+    """
+    env = os.environ if env is None else env
+    if env.get('CYCLONEDDS_URI', '').strip():
+        return None
+    scope = env.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '').strip().upper() or 'LOCALHOST'
+    if scope not in DISCOVERY_RANGES:
+        raise ValueError(f'ROS_AUTOMATIC_DISCOVERY_RANGE={env["ROS_AUTOMATIC_DISCOVERY_RANGE"]!r}; '
+                         f'allowed: {", ".join(DISCOVERY_RANGES)}')
+    peers = [p.strip() for p in env.get('ROS_STATIC_PEERS', '').split(';') if p.strip()]
+    peer_xml = ''.join(f'<Peer address="{p}"/>' for p in peers)
+    if scope == 'LOCALHOST' and not peers:
+        return loopback_config()
+    if scope == 'LOCALHOST':
+        return ('<CycloneDDS><Domain id="any"><General><AllowMulticast>false</AllowMulticast></General>'
+                '<Discovery><ParticipantIndex>auto</ParticipantIndex>'
+                f'<MaxAutoParticipantIndex>{MAX_PARTICIPANTS}</MaxAutoParticipantIndex>'
+                f'<Peers><Peer address="127.0.0.1"/>{peer_xml}</Peers></Discovery></Domain></CycloneDDS>')
+    if scope == 'SUBNET':
+        return (f'<CycloneDDS><Domain id="any"><Discovery><Peers>{peer_xml}</Peers></Discovery></Domain>'
+                '</CycloneDDS>') if peers else None
+    if scope == 'OFF':
+        return ('<CycloneDDS><Domain id="any"><General><AllowMulticast>false</AllowMulticast></General>'
+                '<Discovery><ParticipantIndex>none</ParticipantIndex>'
+                f'<Tag>ros_discovery_off_{os.getpid()}</Tag></Discovery></Domain></CycloneDDS>')
+    return None
+
+
+def apply_network_default(env: dict | None = None) -> dict:
+    """Set ``CYCLONEDDS_URI`` in ``env`` (default ``os.environ``) to :func:`default_cyclonedds_uri`
+    when that is not None; returns ``env``. What ``uh``, the scripts and the runs do first."""
+    env = os.environ if env is None else env
+    uri = default_cyclonedds_uri(env)
+    if uri is not None:
+        env['CYCLONEDDS_URI'] = uri
+    return env
+
+
+def loopback_environment(domain_id: int, base: dict | None = None) -> dict:
+    """Return a copy of ``base`` (default ``os.environ``) set up for DDS domain ``domain_id`` with
+    the project's network default (:func:`apply_network_default`: loopback only unless
+    ``CYCLONEDDS_URI``, ``ROS_AUTOMATIC_DISCOVERY_RANGE`` or ``ROS_STATIC_PEERS`` say otherwise).
     """
     if not 0 <= int(domain_id) <= MAX_DOMAIN_ID:
         raise ValueError(f'DDS domain id {domain_id} is outside 0..{MAX_DOMAIN_ID} (the range ROS 2 allows)')
     env = dict(os.environ if base is None else base)
     env['ROS_DOMAIN_ID'] = str(int(domain_id))
-    if not env.get('CYCLONEDDS_URI', '').strip():
-        env['CYCLONEDDS_URI'] = loopback_config()
-    return env
+    return apply_network_default(env)
 
 
 def environment_script(env: dict) -> str:
@@ -63,7 +115,7 @@ def environment_script(env: dict) -> str:
     DDS domain with the same discovery settings."""
     import shlex
     lines = ['# source this file to reach the run from another terminal (ros2 CLI, uh CLI)']
-    for key in ('ROS_DOMAIN_ID', 'CYCLONEDDS_URI'):
+    for key in ('ROS_DOMAIN_ID', 'CYCLONEDDS_URI', 'ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_STATIC_PEERS'):
         if env.get(key):
             lines.append(f'export {key}={shlex.quote(env[key])}')
     return '\n'.join(lines) + '\n'
