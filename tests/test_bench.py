@@ -115,3 +115,21 @@ def test_tiny_suite_records_every_section_and_prints_the_table(tmp_path, domain_
                     '### Real time, rate 1', '### Goals'):
         assert heading in text
     json.dumps(results, default=str)  # the results file is plain JSON
+
+
+@pytest.mark.dds
+@pytest.mark.slow
+def test_backends_section_measures_the_dds_backend_and_says_why_rclpy_is_not(tmp_path, monkeypatch):
+    monkeypatch.delenv('UH_BACKEND', raising=False)
+    cfg = {'backend_lockstep_duration': 0.2, 'backend_realtime_duration': 0.5}
+    results = suite.run_suite(cfg, tmp_path, sections=('backends',))
+    section = results['backends']
+    lock, realtime = section['lockstep']['dds'], section['realtime']['dds']
+    assert lock['status'] == 0 and lock['steps'] == 20 and lock['cpu_us_per_step'] > 0
+    assert realtime['status'] == 0 and realtime['controller_steps'] > 0
+    if suite.rclpy_available() is None:      # a sourced ROS 2: both measured, the ratio printed
+        assert set(section['lockstep']) == {'dds', 'rclpy'}
+        assert 'rclpy / DDS backend' in suite.markdown(results)
+    else:
+        assert set(section['lockstep']) == {'dds'} and 'rclpy is not importable' in section['skipped_rclpy']
+        assert 'rclpy not measured' in suite.markdown(results)

@@ -97,3 +97,47 @@ def test_setup_py_declares_the_package_xml_dependencies(pkg):
     setup = (ROOT / pkg / 'setup.py').read_text()
     required = set(re.findall(r"'(uh_\w+)'", setup[setup.index('install_requires'):]))
     assert _first_party_depends(pkg) - {'uh_msgs'} <= required
+
+
+#: third-party module -> the rosdep key a package importing it must declare (rosdistro's
+#: rosdep/python.yaml; keys ending in -pip install from PyPI on a ROS machine). cyclonedds is the
+#: DDS backend's alone, which a ROS machine does not use (it runs on rclpy), so it has no key.
+ROSDEP_KEYS = {'numpy': 'python3-numpy', 'numba': 'python3-numba', 'yaml': 'python3-yaml',
+               'scipy': 'python3-scipy', 'matplotlib': 'python3-matplotlib',
+               'rosbags': 'python3-rosbags-pip', 'mcap': 'mcap-ros2-support',
+               'mcap_ros2': 'mcap-ros2-support'}
+
+
+@pytest.mark.parametrize('pkg', PYTHON_PACKAGES)
+def test_third_party_imports_are_declared_as_rosdep_keys(pkg):
+    root = ET.parse(ROOT / pkg / 'package.xml').getroot()
+    declared = {e.text for e in root.iter() if e.tag.endswith('depend')}
+    missing = {}
+    for path in sorted((ROOT / pkg / pkg).rglob('*.py')):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else []
+            for name in names:
+                key = ROSDEP_KEYS.get(name.split('.')[0])
+                if key and key not in declared:
+                    missing.setdefault(key, f'{path.relative_to(ROOT)}:{node.lineno}')
+    assert not missing, f'{pkg}/package.xml lacks exec_depend {missing}'
+
+
+def _pins(path):
+    pins = {}
+    for line in (ROOT / path).read_text().splitlines():
+        line = line.split('#')[0].strip()
+        if line:
+            name, _, version = line.partition('==')
+            pins[name.lower()] = version
+    return pins
+
+
+def test_the_ros_machine_requirements_agree_with_the_pinned_ones_and_keep_numpy_1():
+    main, ros, constraints = _pins('requirements.txt'), _pins('requirements-ros.txt'), _pins('constraints-ros-jazzy.txt')
+    assert all(version for version in ros.values()), 'every ROS-machine requirement is pinned'
+    for name in set(main) & set(ros) - {'numba'}:     # numba: the release that supports numpy 1.26
+        assert ros[name] == main[name], name
+    assert 'numpy' not in ros and constraints['numpy'].startswith('1.26.')
+    assert {'rosbags', 'mcap', 'mcap-ros2-support', 'numba'} <= set(ros)

@@ -19,6 +19,11 @@ Sections (every figure is measured in the same invocation as the baseline it is 
     Real-time runs at the nominal control rate (rate 1) with the latency probe
     (:mod:`uh_bench.probe`): state-to-command latency p50/p99 per controller, late and missed
     steps; 5 UHs is the paper scenario, larger teams are generated.
+``backends``
+    The paper scenario, one process per node, on the Cyclone DDS backend and on real rclpy
+    (``UH_BACKEND``), lockstep and real time at rate 1: real-time factor, CPU per step (node
+    processes after start-up), p99 latency, late and missed steps. rclpy is skipped, with the
+    reason in the results, when this Python cannot import it (no ROS 2 sourced).
 ``memory``
     Peak resident set of the node processes (from every lockstep and real-time run above).
 
@@ -49,11 +54,13 @@ MODES = {
     'quick': {'transport_quick': True, 'paper_duration': 20.0, 'paper_layouts': ('per-node', 'single'),
               'component_steps': 500, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 3.0,
               'scaling_layouts': ('per-node', 'single'), 'realtime_duration': 8.0,
-              'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'))},
+              'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node')),
+              'backend_lockstep_duration': 20.0, 'backend_realtime_duration': 20.0},
     'full': {'transport_quick': False, 'paper_duration': 60.0, 'paper_layouts': ('per-node', 'per-uh', 'single'),
              'component_steps': 3000, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 20.0,
              'scaling_layouts': ('per-node', 'single'), 'realtime_duration': 60.0,
-             'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'), (20, 'single'))},
+             'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'), (20, 'single')),
+             'backend_lockstep_duration': 60.0, 'backend_realtime_duration': 60.0},
 }
 
 #: The goals of the performance issue: (key, description, target, comparison).
@@ -159,8 +166,8 @@ def _scaling(cfg, workdir, results):
     results['scaling'] = rows
 
 
-def _realtime_run(scenario, size, d, workdir, layout='per-node'):
-    out = workdir / f'realtime{size}-{layout}'
+def _realtime_run(scenario, size, d, workdir, layout='per-node', env_extra=None, name=None):
+    out = workdir / (name or f'realtime{size}-{layout}')
     out.mkdir(parents=True, exist_ok=True)
     domain = reserve_domain_id()
     probe_out, ready = out / 'probe.json', out / 'probe.ready'
@@ -180,7 +187,7 @@ def _realtime_run(scenario, size, d, workdir, layout='per-node'):
         while not ready.exists() and probe.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)
         run = runs.run_team(str(scenario), out, layout=layout, clock='realtime', rate=1.0, duration=d,
-                            domain_id=domain, timeout=120 + 3 * d)
+                            domain_id=domain, timeout=120 + 3 * d, env=env_extra)
     finally:
         if probe.poll() is None:
             time.sleep(0.5)
@@ -225,6 +232,41 @@ def _realtime(cfg, workdir, results):
         _log(f'  p99 {run["p99_ms_max"]} ms, late {run["late_steps"]}, missed {run["missed_steps"]}, '
              f'status {run["status"]}')
     results['realtime'] = rows
+
+
+def rclpy_available() -> str | None:
+    """None if this Python imports rclpy (a sourced ROS 2), else why not."""
+    probe = subprocess.run([sys.executable, '-c', 'import rclpy'], capture_output=True, text=True)
+    if probe.returncode == 0:
+        return None
+    last = (probe.stderr.strip().splitlines() or ['import failed'])[-1]
+    return f'rclpy is not importable by {sys.executable} ({last}); source a ROS 2 Jazzy to compare'
+
+
+def _backends(cfg, workdir, results):
+    """The paper scenario, one process per node, on the Cyclone DDS backend and on real rclpy, in
+    lockstep (real-time factor, CPU per step) and in real time at rate 1 (p99 latency, late and
+    missed steps, CPU per step), in one run so the comparison is a ratio of this machine's numbers."""
+    skipped = rclpy_available()
+    backends = ['dds'] + ([] if skipped else ['rclpy'])
+    section = {'skipped_rclpy': skipped, 'lockstep': {}, 'realtime': {}}
+    d_lock, d_rt = cfg['backend_lockstep_duration'], cfg['backend_realtime_duration']
+    for backend in backends:
+        env = {'UH_BACKEND': backend}
+        _log(f'backends: {backend}, lockstep paper scenario, {d_lock:g} s')
+        lock = runs.run_team('paper', workdir / f'backend-{backend}-lockstep', layout='per-node',
+                             duration=d_lock, timeout=120 + 30 * d_lock, env=env)
+        lock['cpu_us_per_step'] = 1e6 * lock['cpu_run_s'] / lock['steps'] if lock.get('steps') else None
+        section['lockstep'][backend] = lock
+        _log(f'backends: {backend}, real time paper scenario, {d_rt:g} s')
+        rt_run = _realtime_run('paper', 5, d_rt, workdir, 'per-node', env, name=f'backend-{backend}-realtime')
+        rt_run['cpu_us_per_step'] = 1e6 * rt_run['cpu_run_s'] / rt_run['steps'] if rt_run.get('steps') else None
+        section['realtime'][backend] = rt_run
+        _log(f'  lockstep rtf {lock["rtf"]}, realtime p99 {rt_run["p99_ms_max"]} ms, late {rt_run["late_steps"]}, '
+             f'missed {rt_run["missed_steps"]}')
+    if skipped:
+        _log(f'backends: rclpy skipped: {skipped}')
+    results['backends'] = section
 
 
 def _memory(results):
@@ -308,7 +350,7 @@ def run_suite(mode, workdir, sections=('transport', 'paper', 'components', 'scal
     results = {'mode': mode, 'config': cfg, 'date': datetime.datetime.now().isoformat(timespec='seconds'),
                'machine': machine_info(), 'sections': list(sections)}
     table = {'transport': _transport, 'paper': _paper, 'components': _components, 'scaling': _scaling,
-             'realtime': _realtime}
+             'realtime': _realtime, 'backends': _backends}
     for name in sections:
         table[name](cfg, workdir, results)
     _memory(results)
@@ -421,6 +463,23 @@ def markdown(results) -> str:
                          f'{_f(run["p99_ms_max"])} | '
                          f'{_f(run["max_ms"])} | {run["late_steps"]} | {run["missed_steps"]} | '
                          f'{run["controller_steps"]} | {run["late_commands_logged"]} |')
+        lines.append('')
+    backends = results.get('backends')
+    if backends:
+        lines += ['### Backends: Cyclone DDS and rclpy (paper scenario, one process per node)', '',
+                  '| backend | lockstep real-time factor | lockstep CPU per step µs | real time p99 ms | '
+                  'late steps | missed steps | real time CPU per step µs |', '|---|---|---|---|---|---|---|']
+        for name, lock in backends['lockstep'].items():
+            rt_run = backends['realtime'][name]
+            lines.append(f'| {name} | {_f(lock["rtf"])} | {_f(lock["cpu_us_per_step"], "{:.0f}")} | '
+                         f'{_f(rt_run["p99_ms_max"])} | {rt_run["late_steps"]} | {rt_run["missed_steps"]} | '
+                         f'{_f(rt_run["cpu_us_per_step"], "{:.0f}")} |')
+        if set(backends['lockstep']) == {'dds', 'rclpy'}:
+            d, r = backends['lockstep']['dds'], backends['lockstep']['rclpy']
+            if d['rtf'] and r['rtf']:
+                lines.append(f'\nrclpy / DDS backend, lockstep real-time factor: {r["rtf"] / d["rtf"]:.2f}')
+        if backends['skipped_rclpy']:
+            lines.append(f'\nrclpy not measured: {backends["skipped_rclpy"]}')
         lines.append('')
     mem = results.get('memory', {}).get('paper_per_node_max_kb')
     if mem:
