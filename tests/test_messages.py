@@ -4,6 +4,7 @@ For every uh_msgs type and the standard types the stack uses, the IdlStruct clas
 to exactly the bytes rosbags' ``serialize_cdr`` produces for the same non-trivial values, and
 read them back unchanged (docs/runtime.md: the payload is ROS 2 CDR).
 """
+import json
 import dataclasses
 from pathlib import Path
 
@@ -158,6 +159,18 @@ def test_type_hashes_of_types_with_char_fields_are_ross():
         messages.type_hash('rmw_dds_common/msg/ParticipantEntitiesInfo')
     # the char-free types hash as rosbags computes them
     assert messages.type_hash('std_msgs/msg/Header') == typestore().hash_rihs01('std_msgs/msg/Header')
+
+
+def test_every_standard_type_hash_equals_the_one_a_ros2_jazzy_build_generated():
+    # tests/data/ros2_jazzy_type_hashes.json: the type_hashes of the <Type>.json files that a ROS 2
+    # Jazzy built from source installs (share/<pkg>/msg, share/<pkg>/srv), for every standard type
+    # of the project's type store (messages, and the parameter services' request and response)
+    recorded = json.loads((Path(__file__).parent / 'data' / 'ros2_jazzy_type_hashes.json').read_text())
+    assert len(recorded) > 150 and 'rcl_interfaces/srv/ListParameters_Request' in recorded
+    assert 'rmw_dds_common/msg/Gid' in recorded
+    differ = {name: (messages.type_hash(name), expected) for name, expected in recorded.items()
+              if messages.type_hash(name) != expected}
+    assert not differ
 
 
 def test_messages_recorded_by_ros2_jazzy_read_and_rewrite_byte_for_byte():

@@ -20,8 +20,9 @@ Sections (every figure is measured in the same invocation as the baseline it is 
     (:mod:`uh_bench.probe`): state-to-command latency p50/p99 per controller, late and missed
     steps; 5 UHs is the paper scenario, larger teams are generated.
 ``backends``
-    The paper scenario, one process per node, on the Cyclone DDS backend and on real rclpy
-    (``UH_BACKEND``), lockstep and real time at rate 1: real-time factor, CPU per step (node
+    The paper scenario, one process per node, on the Cyclone DDS backend (``UH_BACKEND=dds``) and
+    as a ROS 2 user runs it (the team's nodes on real rclpy, the recorder and the visualisation on
+    the DDS backend), lockstep and real time at rate 1: real-time factor, CPU per step (node
     processes after start-up), p99 latency, late and missed steps. rclpy is skipped, with the
     reason in the results, when this Python cannot import it (no ROS 2 sourced).
 ``memory``
@@ -252,7 +253,9 @@ def _backends(cfg, workdir, results):
     section = {'skipped_rclpy': skipped, 'lockstep': {}, 'realtime': {}}
     d_lock, d_rt = cfg['backend_lockstep_duration'], cfg['backend_realtime_duration']
     for backend in backends:
-        env = {'UH_BACKEND': backend}
+        # rclpy as a ROS user runs the team: the default backend choice (rclpy for the team's nodes,
+        # the recorder and the visualisation on the DDS backend, uh_bringup.team_nodes.backend_environment)
+        env = {'UH_BACKEND': 'dds'} if backend == 'dds' else {}
         _log(f'backends: {backend}, lockstep paper scenario, {d_lock:g} s')
         lock = runs.run_team('paper', workdir / f'backend-{backend}-lockstep', layout='per-node',
                              duration=d_lock, timeout=120 + 30 * d_lock, env=env)

@@ -6,9 +6,11 @@ The node list comes from :func:`uh_bringup.team_nodes.node_specs`, the same func
 uses: a recorder (bag in ``out``), one simulator and one controller per helicopter, the
 visualisation node (``visualization:=false`` leaves it out), the virtual leader and the clock.
 The launch ends when the clock ends (run complete), and in lockstep also when any node dies (every
-step needs every node).
+step needs every node). The recorder and the visualisation run on the Cyclone DDS backend when its
+Python binding is installed (``uh_bringup.team_nodes.backend_environment``).
 """
 import datetime
+import os
 
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction, RegisterEventHandler
@@ -19,7 +21,7 @@ from launch_ros.actions import Node
 
 
 def _team(context):
-    from uh_bringup.team_nodes import NODES, node_specs
+    from uh_bringup.team_nodes import NODES, backend_environment, node_specs
     from uh_topology.scenario import load_scenario
 
     def arg(name):
@@ -34,8 +36,9 @@ def _team(context):
     actions = []
     for name, kind, ros_args in specs:
         # the namespace and parameters are in ros_args (--ros-args ...), as the run script passes them
+        # the recorder and the visualisation on the Cyclone DDS backend where it is installed
         node = Node(package=NODES[kind].package, executable=NODES[kind].executable, arguments=ros_args,
-                    output='screen')
+                    output='screen', additional_env=backend_environment(kind, os.environ))
         actions.append(node)
         if kind == 'clock' or clock_mode == 'lockstep':
             reason = 'run complete' if kind == 'clock' else f'{name} exited (lockstep needs every node)'

@@ -49,7 +49,7 @@ from pathlib import Path
 
 from uh_runtime.network import MAX_DOMAIN_ID, environment_script, loopback_environment, reserve_domain_id
 from uh_controller_node.gains import CASES
-from uh_bringup.team_nodes import NODES, node_specs
+from uh_bringup.team_nodes import NODES, backend_environment, node_specs
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
            'EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED']
@@ -177,8 +177,9 @@ def _prepare_out(out: Path, force: bool) -> None:
 
 
 def _entry(package: str, executable: str) -> list:
-    """Command that starts a node's entry point: ``ros2 run`` on a ROS 2 machine, else the venv script."""
-    if os.environ.get('UH_BACKEND') != 'dds' and shutil.which('ros2') and os.environ.get('ROS_DISTRO'):
+    """Command that starts a node's entry point: ``ros2 run`` on a ROS 2 machine (the backend is
+    chosen by the node's ``UH_BACKEND``), else the venv script."""
+    if shutil.which('ros2') and os.environ.get('ROS_DISTRO'):
         return ['ros2', 'run', package, executable]
     script = Path(sys.executable).with_name(executable)
     return [str(script)] if script.exists() else [executable]
@@ -417,9 +418,14 @@ def run(args) -> int:
                            out / 'bag', args.startup_timeout, args.stale_timeout,
                            visualization=not args.no_visualization)
         for name, kind, cmd in _processes(specs, args.processes, out / 'logs'):
+            node_env = env
+            if args.processes == 'per-node':
+                node_env = {**env, **backend_environment(kind, env)}
             if network is not None:
                 sup.prefix[name] = network.prefix(name)
-                sup.envs[name] = network.environment(name, env)
+                node_env = network.environment(name, node_env)
+            if node_env is not env:
+                sup.envs[name] = node_env
             sup.start(name, cmd, kind=kind)
         progress = _Progress(sup.nodes[-1].log_path)
         watcher = _Run(args, scenario, sup, progress, on_change=write_info)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from uh_core import topics
 
-__all__ = ['NodeKind', 'NODES', 'node_class', 'node_specs']
+__all__ = ['NodeKind', 'NODES', 'node_class', 'node_specs', 'backend_environment']
 
 
 @dataclass(frozen=True)
@@ -35,12 +35,17 @@ class NodeKind:
         ``module:Class`` of its node class, for composition in one process.
     per_uh : bool
         One per helicopter (in namespace ``/uhN``) rather than one per team.
+    infrastructure : bool
+        Moves data for people, not for the control loop (the recorder, the visualisation): runs on
+        the Cyclone DDS backend wherever that is installed, also on a ROS 2 machine, where rclpy's
+        per-message cost would take the CPU the team needs (:func:`backend_environment`).
     """
 
     package: str
     executable: str
     node_class: str
     per_uh: bool = False
+    infrastructure: bool = False
 
     @property
     def module(self) -> str:
@@ -50,16 +55,26 @@ class NodeKind:
 
 #: node kind -> how it is packaged, started and composed
 NODES = {
-    'recorder': NodeKind('uh_runtime', 'recorder_node', 'uh_runtime.recorder:RecorderNode'),
+    'recorder': NodeKind('uh_runtime', 'recorder_node', 'uh_runtime.recorder:RecorderNode', infrastructure=True),
     'sim': NodeKind('uh_sim_node', 'sim_node', 'uh_sim_node.sim_node:SimNode', per_uh=True),
     'controller': NodeKind('uh_controller_node', 'controller_node',
                            'uh_controller_node.controller_node:ControllerNode', per_uh=True),
     'visualization': NodeKind('uh_sim_node', 'visualization_node',
-                              'uh_sim_node.visualization_node:VisualizationNode'),
+                              'uh_sim_node.visualization_node:VisualizationNode', infrastructure=True),
     'virtual_leader': NodeKind('uh_sim_node', 'virtual_leader_node',
                                'uh_sim_node.virtual_leader_node:VirtualLeaderNode'),
     'clock': NodeKind('uh_sim_node', 'lockstep_clock_node', 'uh_sim_node.clock_node:ClockNode'),
 }
+
+
+def backend_environment(kind: str, env) -> dict:
+    """Extra environment of a node of ``kind``: ``UH_BACKEND=dds`` for an infrastructure node when
+    the user has not chosen a backend (``UH_BACKEND`` unset in ``env``) and the Cyclone DDS Python
+    binding is installed; nothing otherwise (the node then takes rclpy where it exists)."""
+    import importlib.util
+    if NODES[kind].infrastructure and not env.get('UH_BACKEND') and importlib.util.find_spec('cyclonedds'):
+        return {'UH_BACKEND': 'dds'}
+    return {}
 
 
 def node_class(kind: str):
