@@ -1,4 +1,6 @@
-"""Spinning an executor in tests: until a condition holds (bounded), or for a while."""
+"""Spinning an executor in tests: until a condition holds (bounded), for a while, or in a thread."""
+import contextlib
+import threading
 import time
 
 
@@ -16,3 +18,21 @@ def spin_for(executor, seconds):
     end = time.monotonic() + seconds
     while time.monotonic() < end:
         executor.spin_once(timeout_sec=0.05)
+
+
+@contextlib.contextmanager
+def spinning_in_thread(executor, context, bound=10.0):
+    """Spin ``executor`` in a daemon thread while the ``with`` block runs (a node that must answer
+    while the test calls it); the thread stops at the end (joined within ``bound`` s)."""
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set() and context.ok():
+            executor.spin_once(timeout_sec=0.05)
+    thread = threading.Thread(target=spin, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(timeout=bound)

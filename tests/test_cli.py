@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from spinning import spinning_in_thread
 
 from uh_runtime import cli
 from uh_runtime import dds_backend as rt
@@ -53,7 +54,6 @@ def test_unknown_topic_and_bad_type_are_clear_errors(domain_id, capsys):
 @pytest.fixture
 def running(domain_id):
     """A node in a thread of this process publishing a latched Reference and a stream of states."""
-    import threading
     ctx = rt.Context()
     ctx.init(args=['test'])
     node = rt.Node('leader', namespace='/team', context=ctx)
@@ -73,16 +73,8 @@ def running(domain_id):
     node.create_timer(0.02, tick)
     executor = rt.SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set() and ctx.ok():
-            executor.spin_once(timeout_sec=0.05)
-    thread = threading.Thread(target=spin, daemon=True)
-    thread.start()
-    yield node
-    stop.set()
-    thread.join(timeout=BOUND)
+    with spinning_in_thread(executor, ctx, BOUND):
+        yield node
     ctx.try_shutdown()
 
 

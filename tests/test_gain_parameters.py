@@ -3,11 +3,11 @@ scenario's gains file with descriptions and ranges, overridden by ``--params-fil
 through the parameter services, validated like the file (rejected with the reason, the old value
 kept), logged, and used by the control law from the next step."""
 import math
-import threading
 from pathlib import Path
 
 import pytest
 import yaml
+from spinning import spinning_in_thread
 
 from uh_controller_node.gains import ControllerGains, gain_parameters, nest_gains
 from uh_topology.scenario import load_scenario
@@ -47,18 +47,10 @@ def controller(domain_id, tmp_path):
                                                  '-p', 'clock_mode:=realtime', '--params-file', str(override)])
     executor = rt.SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set() and ctx.ok():
-            executor.spin_once(timeout_sec=0.05)
-    thread = threading.Thread(target=spin, daemon=True)
-    thread.start()
     caller = rt.Context()
     caller.init(args=['caller'])
-    yield node, caller
-    stop.set()
-    thread.join(timeout=BOUND)
+    with spinning_in_thread(executor, ctx, BOUND):
+        yield node, caller
     node.destroy_node()
     caller.try_shutdown()
     ctx.try_shutdown()

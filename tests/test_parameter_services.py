@@ -3,10 +3,10 @@ and ``ros2 topic echo /rosout`` use), with rclpy's (Jazzy) answers; and the ``uh
 node in another process. Wire conventions: uh_runtime.dds_backend.services."""
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import pytest
+from spinning import spinning_in_thread
 
 from uh_runtime import dds_backend as rt
 from uh_runtime import messages
@@ -32,13 +32,8 @@ def served(domain_id):
     node.declare_parameter('case', 'proposed', ParameterDescriptor(read_only=True))
     executor = rt.SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
-    stop = threading.Event()
-
-    def spin():
-        while not stop.is_set() and ctx.ok():
-            executor.spin_once(timeout_sec=0.05)
-    thread = threading.Thread(target=spin, daemon=True)
-    thread.start()
+    spinner = spinning_in_thread(executor, ctx, BOUND)
+    spinner.__enter__()
     caller = rt.Context()
     caller.init(args=['caller'])
     clients = {}
@@ -51,8 +46,7 @@ def served(domain_id):
         client = clients[service]
         return client.call(client.request(**fields), timeout_sec=BOUND)
     yield node, call, caller
-    stop.set()
-    thread.join(timeout=BOUND)
+    spinner.__exit__(None, None, None)
     caller.try_shutdown()
     ctx.try_shutdown()
 

@@ -281,6 +281,28 @@ def _field_type(types, spec):
     raise MessageError(f'unsupported field specification {spec!r}')
 
 
+def _idl_class(name: str, consts, fields, module: str):
+    """The ``IdlStruct`` dataclass of ROS type ``name`` with rosbags ``fields`` and ``consts``: DDS
+    type name :func:`dds_type_name`, ROS-like defaults, constants as class attributes,
+    ``__ros_typename__`` and ``__ros_typehash__``, module ``<pkg>.<module>`` like rosidl's."""
+    from cyclonedds.idl import IdlStruct, types
+    from cyclonedds.idl._main import IdlMeta
+    pkg, _, typ = name.split('/')
+    bases = (IdlStruct,)
+    namespace = IdlMeta.__prepare__(typ, bases, typename=dds_type_name(name))
+    for fname, spec in fields:
+        annotation, factory = _field_type(types, spec)
+        namespace['__annotations__'][fname] = annotation
+        namespace[fname] = dataclasses.field(default_factory=factory)
+    for cname, _ctype, value in consts:
+        namespace[cname] = value
+    namespace['__ros_typename__'] = name
+    namespace['__ros_typehash__'] = type_hash(name)
+    namespace['__module__'] = f'{pkg}.{module}'
+    namespace['__qualname__'] = typ
+    return dataclasses.dataclass(IdlMeta(typ, bases, namespace))
+
+
 def dds_message(name: str):
     """The Cyclone DDS (``IdlStruct``) class of message type ``name``, whatever the backend.
 
@@ -294,28 +316,12 @@ def dds_message(name: str):
         cls = _classes.get(name)
         if cls is not None:
             return cls
-        from cyclonedds.idl import IdlStruct, types
-        from cyclonedds.idl._main import IdlMeta
         store = typestore()
         if name not in store.fielddefs:
             raise MessageError(
                 f'unknown message type {name!r}: not a uh_msgs type (.msg files in '
                 f'{_uh_msgs_dir()}) nor a ROS 2 Jazzy standard type')
-        consts, fields = store.fielddefs[name]
-        pkg, _, typ = name.split('/')
-        bases = (IdlStruct,)
-        namespace = IdlMeta.__prepare__(typ, bases, typename=dds_type_name(name))
-        for fname, spec in fields:
-            annotation, factory = _field_type(types, spec)
-            namespace['__annotations__'][fname] = annotation
-            namespace[fname] = dataclasses.field(default_factory=factory)
-        for cname, _ctype, value in consts:
-            namespace[cname] = value
-        namespace['__ros_typename__'] = name
-        namespace['__ros_typehash__'] = type_hash(name)
-        namespace['__module__'] = f'{pkg}.msg'
-        namespace['__qualname__'] = typ
-        cls = dataclasses.dataclass(IdlMeta(typ, bases, namespace))
+        cls = _idl_class(name, *store.fielddefs[name], module='msg')
         _classes[name] = cls
         return cls
 
@@ -336,30 +342,14 @@ def dds_service_message(name: str):
         cls = _classes.get(key)
         if cls is not None:
             return cls
-        from cyclonedds.idl import IdlStruct, types
-        from cyclonedds.idl._main import IdlMeta
+        from rosbags.interfaces import Nodetype
         store = typestore()
         if name not in store.fielddefs:
             raise MessageError(f'unknown service part {name!r}; known services: {", ".join(SERVICE_DEFINITIONS)}')
         consts, fields = store.fielddefs[name]
-        pkg, _, typ = name.split('/')
-        bases = (IdlStruct,)
-        namespace = IdlMeta.__prepare__(typ, bases, typename=dds_type_name(name))
-        namespace['__annotations__']['client_guid'] = types.uint64
-        namespace['client_guid'] = 0
-        namespace['__annotations__']['sequence_number'] = types.int64
-        namespace['sequence_number'] = 0
-        for fname, spec in fields:
-            annotation, factory = _field_type(types, spec)
-            namespace['__annotations__'][fname] = annotation
-            namespace[fname] = dataclasses.field(default_factory=factory)
-        for cname, _ctype, value in consts:
-            namespace[cname] = value
-        namespace['__ros_typename__'] = name
-        namespace['__ros_typehash__'] = type_hash(name)
-        namespace['__module__'] = f'{pkg}.srv'
-        namespace['__qualname__'] = typ
-        cls = dataclasses.dataclass(IdlMeta(typ, bases, namespace))
+        header = [('client_guid', (Nodetype.BASE, ('uint64', 0))),
+                  ('sequence_number', (Nodetype.BASE, ('int64', 0)))]
+        cls = _idl_class(name, consts, header + list(fields), module='srv')
         _classes[key] = cls
         return cls
 

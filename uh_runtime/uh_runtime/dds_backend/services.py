@@ -61,6 +61,23 @@ def _user_data_value(endpoint, key: str) -> str | None:
     return None
 
 
+def _endpoints(context, srv_type: str, srv_name: str, qos_profile, role: str):
+    """What the request and the reply endpoints of ``srv_name`` need: ``((publisher or subscriber
+    entity, DDS topic, qos=...) arguments, sample class)`` each; the server reads requests and
+    writes replies, the client the other way round. Both carry ``<role>=<id>;`` (``serviceid`` or
+    ``clientid``, an id unique to this pair) before the type hash in USER_DATA, as rmw_cyclonedds."""
+    ident = '.'.join(f'{b:x}' for b in bytes(context.gid[:12]) + next(_service_ids).to_bytes(4, 'big'))
+    extra = f'{role}={ident};'.encode()
+    out = []
+    for prefix, part, suffix in (('rq', 'Request', 'Request'), ('rr', 'Response', 'Reply')):
+        cls = _messages.dds_service_message(f'{srv_type}_{part}')
+        serves = (role == 'serviceid') == (part == 'Request')    # the server reads requests
+        entity = context._sub if serves else context._pub
+        qos = to_dds_qos(qos_profile, extra + typehash_user_data(cls))
+        out.append(((entity, context.topic(f'{prefix}{srv_name}{suffix}', cls), qos), cls))
+    return out
+
+
 class Service:
     """A service server (``rclpy.service.Service`` subset): ``callback(request, response)`` returns
     the response; ``srv_type`` is ``'pkg/srv/Name'`` (one of
@@ -76,17 +93,11 @@ class Service:
         self._handler = callback
         self.srv_name = node.resolve_topic_name(srv_name)
         self.topic_name = self.srv_name          # what the executor names in its errors
-        self._request_cls = _messages.dds_service_message(f'{srv_type}_Request')
-        self._response_cls = _messages.dds_service_message(f'{srv_type}_Response')
-        context = node._context
         # the same id on the request reader and the reply writer: a client pairs them by it
-        guid = context.gid
-        service_id = '.'.join(f'{b:x}' for b in bytes(guid[:12]) + next(_service_ids).to_bytes(4, 'big'))
-        extra = f'serviceid={service_id};'.encode()
-        self._reader = DataReader(context._sub, context.topic(f'rq{self.srv_name}Request', self._request_cls),
-                                  qos=to_dds_qos(qos_profile, extra + typehash_user_data(self._request_cls)))
-        self._writer = DataWriter(context._pub, context.topic(f'rr{self.srv_name}Reply', self._response_cls),
-                                  qos=to_dds_qos(qos_profile, extra + typehash_user_data(self._response_cls)))
+        request, reply = _endpoints(node._context, srv_type, self.srv_name, qos_profile, 'serviceid')
+        self._request_cls, self._response_cls = request[1], reply[1]
+        self._reader = DataReader(*request[0])
+        self._writer = DataWriter(*reply[0])
         self._condition = ReadCondition(self._reader, SampleState.NotRead | ViewState.Any | InstanceState.Any)
         self.gid = self._reader.get_guid().bytes
         self.writer_gid = self._writer.get_guid().bytes
@@ -331,16 +342,10 @@ class ServiceClient:
         from cyclonedds.pub import DataWriter
         from cyclonedds.sub import DataReader
         self.srv_name = srv_name
-        self._request_cls = _messages.dds_service_message(f'{srv_type}_Request')
-        self._response_cls = _messages.dds_service_message(f'{srv_type}_Response')
-        profile = qos_profile or qos_profile_parameters
-        guid = context.gid
-        client_id = '.'.join(f'{b:x}' for b in bytes(guid[:12]) + next(_service_ids).to_bytes(4, 'big'))
-        extra = f'clientid={client_id};'.encode()
-        self._writer = DataWriter(context._pub, context.topic(f'rq{srv_name}Request', self._request_cls),
-                                  qos=to_dds_qos(profile, extra + typehash_user_data(self._request_cls)))
-        self._reader = DataReader(context._sub, context.topic(f'rr{srv_name}Reply', self._response_cls),
-                                  qos=to_dds_qos(profile, extra + typehash_user_data(self._response_cls)))
+        request, reply = _endpoints(context, srv_type, srv_name, qos_profile or qos_profile_parameters, 'clientid')
+        self._request_cls, self._response_cls = request[1], reply[1]
+        self._writer = DataWriter(*request[0])
+        self._reader = DataReader(*reply[0])
         self._guid = random.getrandbits(63)
         self._sequence = 0
 
