@@ -232,6 +232,7 @@ def test_run_script_error_has_no_traceback(tmp_path):
                            str(tmp_path / 'o')], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert 'Traceback' not in proc.stderr
+    assert not (tmp_path / 'run').exists()     # refused before anything was written
     assert 'bad.yaml:' in proc.stderr and 'YAML syntax error' in proc.stderr
     assert not (tmp_path / 'o').exists()
 
@@ -246,6 +247,7 @@ def test_node_entry_point_with_a_bad_scenario_exits_cleanly(tmp_path):
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 1
     assert 'Traceback' not in proc.stderr
+    assert not (tmp_path / 'run').exists()     # refused before anything was written
     assert 'error:' in proc.stderr and 'no directed path from the virtual leader' in proc.stderr
 
 
@@ -284,6 +286,7 @@ def test_inject_fault_without_a_team_says_so(domain_id):
     assert proc.returncode == 1
     assert f'nobody subscribes to /uh2/fault in DDS domain {domain_id}' in proc.stderr
     assert 'Traceback' not in proc.stderr
+    assert not (tmp_path / 'run').exists()     # refused before anything was written
 
 
 # -- bags given to the metrics reader --------------------------------------------------------------
@@ -393,3 +396,20 @@ def test_invalid_messages_in_a_bag_are_left_out_and_counted(tmp_path):
     arrays = read_team_bag(tmp_path / 'rogue', paper)
     assert np.array_equal(arrays['states'][:, 1], np.ones((3, 12)))
     assert arrays['rejected'] == {'/uh2/state': 2}
+
+
+@pytest.mark.parametrize('command', [['scripts/inject_fault.sh', '--uh', '1', '--channel', 'collective', '--rho', '0.5',
+                                      '--onset', '1'],
+                                     ['scripts/run_formation.sh', '--duration', '1'],
+                                     ['.venv/bin/uh', 'topic', 'list']])
+def test_a_bad_discovery_range_is_named_with_what_is_allowed(command, tmp_path):
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LAN')
+    env.pop('CYCLONEDDS_URI', None)
+    if command[0] == 'scripts/run_formation.sh':
+        command = command + ['--out', str(tmp_path / 'run')]
+    proc = subprocess.run([str(ROOT / command[0]), *command[1:]], env=env, capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode in (1, 2), proc
+    assert "ROS_AUTOMATIC_DISCOVERY_RANGE='LAN'; allowed: LOCALHOST, SUBNET, OFF, SYSTEM_DEFAULT" in proc.stderr
+    assert 'Traceback' not in proc.stderr
+    assert not (tmp_path / 'run').exists()     # refused before anything was written

@@ -86,7 +86,10 @@ def main(argv=None) -> int:
               'outside what the controller can compensate', file=sys.stderr)
     if args.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
-    apply_network_default()
+    try:
+        apply_network_default()    # the runs' network default (uh_runtime.network.default_cyclonedds_uri)
+    except ValueError as exc:      # a bad ROS_AUTOMATIC_DISCOVERY_RANGE
+        parser.error(str(exc))
 
     import uh_runtime as rt
     from uh_runtime import messages as m

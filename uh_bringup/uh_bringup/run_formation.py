@@ -47,7 +47,8 @@ import sys
 import time
 from pathlib import Path
 
-from uh_runtime.network import MAX_DOMAIN_ID, environment_script, loopback_environment, reserve_domain_id
+from uh_runtime.network import (MAX_DOMAIN_ID, default_cyclonedds_uri, environment_script, loopback_environment,
+                                reserve_domain_id)
 from uh_controller_node.gains import CASES
 from uh_bringup.team_nodes import NODES, backend_environment, node_specs
 
@@ -356,6 +357,10 @@ def run(args) -> int:
     scenario = load_scenario(args.scenario)
     validate_team(scenario, args.case)
     scenario_arg = args.scenario if args.scenario == 'paper' else str(Path(args.scenario).resolve())
+    try:
+        default_cyclonedds_uri()   # a bad ROS_AUTOMATIC_DISCOVERY_RANGE is refused before --out is touched
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     out = Path(args.out or Path('runs') / datetime.datetime.now().strftime('%Y%m%d-%H%M%S')).resolve()
     network = None
     if args.hosts == 'netns':

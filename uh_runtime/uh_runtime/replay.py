@@ -283,8 +283,11 @@ def main(args=None) -> int:
         return _fail(str(exc))
     if info.message_count == 0:
         return _fail(f'{info.files[0]}: the bag holds no messages')
-    # same network set-up as run_formation.sh: loopback unless the user chose a CYCLONEDDS_URI
-    os.environ.update(loopback_environment(domain))
+    # same network set-up as run_formation.sh (uh_runtime.network.default_cyclonedds_uri)
+    try:
+        os.environ.update(loopback_environment(domain))
+    except ValueError as exc:    # a bad ROS_AUTOMATIC_DISCOVERY_RANGE
+        return _fail(str(exc))
     # Ctrl-C stops the replay also when a shell started it in the background (which ignores SIGINT)
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
