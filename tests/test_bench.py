@@ -133,3 +133,14 @@ def test_backends_section_measures_the_dds_backend_and_says_why_rclpy_is_not(tmp
     else:
         assert set(section['lockstep']) == {'dds'} and 'rclpy is not importable' in section['skipped_rclpy']
         assert 'rclpy not measured' in suite.markdown(results)
+
+
+def test_the_harness_gives_back_the_domain_ids_it_took(tmp_path, monkeypatch):
+    """A benchmark run inside a test session must not keep a DDS domain id reserved after it
+    (the next test that needs that id would find it held)."""
+    from uh_runtime import network
+    monkeypatch.setattr(runs.subprocess, 'Popen', lambda *a, **k: (_ for _ in ()).throw(OSError('no supervisor')))
+    held_before = dict(network._held)
+    with pytest.raises(runs.RunError, match='cannot start the run supervisor'):
+        runs.run_team('paper', tmp_path / 'run')
+    assert network._held == held_before

@@ -20,7 +20,7 @@ import threading
 import time
 from pathlib import Path
 
-from uh_runtime.network import reserve_domain_id
+from uh_runtime.network import release_domain_id, reserve_domain_id
 
 __all__ = ['run_team', 'node_kind', 'RunError', 'parse_run_complete']
 
@@ -87,7 +87,8 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
     layout, clock, rate, duration
         ``--processes``, ``--clock``, ``--rate``, ``--duration`` of the run.
     domain_id : int, optional
-        DDS domain (default: one from :func:`uh_runtime.network.reserve_domain_id`, held until exit).
+        DDS domain (default: one from :func:`uh_runtime.network.reserve_domain_id`, given back
+        when the run has ended).
     timeout : float, optional
         Wall seconds after which the run is interrupted (SIGINT) and reported as failed.
     env : dict, optional
@@ -127,6 +128,8 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
                                 env=child_env)
     except OSError as exc:
         log.close()
+        if domain_id is None:
+            release_domain_id(domain)
         raise RunError(f'cannot start the run supervisor: {exc}') from None
     timed_out = []
 
@@ -148,6 +151,8 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
         if timer:
             timer.cancel()
         log.close()
+        if domain_id is None:
+            release_domain_id(domain)
     proc.returncode = os.waitstatus_to_exitcode(wait_status)
     wall = time.monotonic() - started
 

@@ -44,7 +44,7 @@ import sys
 import time
 from pathlib import Path
 
-from uh_runtime.network import reserve_domain_id
+from uh_runtime.network import release_domain_id, reserve_domain_id
 
 from . import inprocess, runs, transport
 
@@ -137,7 +137,11 @@ def _paper(cfg, workdir, results):
 
 def _transport(cfg, workdir, results):
     _log('cost of one message: UDP, DDS between processes, in one process')
-    results['transport'] = transport.measure(reserve_domain_id(), quick=cfg.get('transport_quick', False))
+    domain = reserve_domain_id()
+    try:
+        results['transport'] = transport.measure(domain, quick=cfg.get('transport_quick', False))
+    finally:
+        release_domain_id(domain)
 
 
 def _components(cfg, workdir, results):
@@ -198,6 +202,7 @@ def _realtime_run(scenario, size, d, workdir, layout='per-node', env_extra=None,
         except subprocess.TimeoutExpired:
             probe.kill()
             probe.wait()
+        release_domain_id(domain)
     try:
         probed = json.loads(probe_out.read_text())['controllers']
     except (OSError, ValueError, KeyError):

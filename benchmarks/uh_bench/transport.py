@@ -255,13 +255,16 @@ def fanout(domain: int, counts=(0, 1, 3, 6), n: int = 2000) -> dict:
 
 def measure(domain: int, quick: bool = False) -> dict:
     """All the measurements (fewer messages, and no fan-out, when ``quick``)."""
-    from uh_runtime.network import reserve_domain_id
+    from uh_runtime.network import release_domain_id, reserve_domain_id
     scale = 4 if quick else 1
     other = reserve_domain_id()   # the in-process measurement's own domain
-    result = {'udp': udp_pingpong(20000 // scale), 'dds': dds_pingpong(domain, 8000 // scale),
-              'inprocess': inprocess_delivery(other, 20000 // scale)}
-    if not quick:
-        result['fanout_cpu_us_per_publish'] = fanout(domain)
+    try:
+        result = {'udp': udp_pingpong(20000 // scale), 'dds': dds_pingpong(domain, 8000 // scale),
+                  'inprocess': inprocess_delivery(other, 20000 // scale)}
+        if not quick:
+            result['fanout_cpu_us_per_publish'] = fanout(domain)
+    finally:
+        release_domain_id(other)
     return result
 
 

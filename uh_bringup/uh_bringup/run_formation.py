@@ -423,13 +423,12 @@ def run(args) -> int:
                            out / 'bag', args.startup_timeout, args.stale_timeout,
                            visualization=not args.no_visualization)
         for name, kind, cmd in _processes(specs, args.processes, out / 'logs'):
-            node_env = env
-            if args.processes == 'per-node':
-                node_env = {**env, **backend_environment(kind, env)}
+            # composed processes: only the recorder's own process (per-uh) is of an infrastructure kind
+            node_env = {**env, **backend_environment(kind, env)}
             if network is not None:
                 sup.prefix[name] = network.prefix(name)
                 node_env = network.environment(name, node_env)
-            if node_env is not env:
+            if node_env != env:
                 sup.envs[name] = node_env
             sup.start(name, cmd, kind=kind)
         progress = _Progress(sup.nodes[-1].log_path)
