@@ -106,3 +106,14 @@ def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkey
     handlers = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
     assert len(handlers) == 1 and handlers[0].kwargs['target_action'].kwargs['executable'] == 'lockstep_clock_node'
     assert 'visualization_node' not in [a.kwargs.get('executable') for a in actions]
+    # backend:=dds puts every node on the DDS backend; by default only the infrastructure may be
+    nodes = [a for a in actions if isinstance(a, mods['launch_ros.actions'].Node)]
+    assert all(n.kwargs['additional_env'].get('UH_BACKEND') != 'dds' for n in nodes
+               if n.kwargs['executable'] in ('sim_node', 'controller_node'))
+    arguments.update(backend='dds')
+    actions = opaque.kwargs['function'](None)
+    nodes = [a for a in actions if isinstance(a, mods['launch_ros.actions'].Node)]
+    assert nodes and all(n.kwargs['additional_env'] == {'UH_BACKEND': 'dds'} for n in nodes)
+    arguments.update(backend='zenoh')
+    with pytest.raises(ValueError, match="backend:='zenoh'; allowed: rclpy, dds"):
+        opaque.kwargs['function'](None)

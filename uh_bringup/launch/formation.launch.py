@@ -1,6 +1,7 @@
 """ROS 2 launch file of a team (ROS 2 Jazzy machines): the nodes ``scripts/run_formation.sh`` starts.
 
     ros2 launch uh_bringup formation.launch.py scenario:=paper case:=proposed clock_mode:=lockstep
+    ros2 launch uh_bringup formation.launch.py backend:=dds     # every node on the Cyclone DDS backend
 
 The node list comes from :func:`uh_bringup.team_nodes.node_specs`, the same function the run script
 uses: a recorder (bag in ``out``), one simulator and one controller per helicopter, the
@@ -27,7 +28,9 @@ def _team(context):
     def arg(name):
         return LaunchConfiguration(name).perform(context)
 
-    scenario_arg, clock_mode = arg('scenario'), arg('clock_mode')
+    scenario_arg, clock_mode, backend = arg('scenario'), arg('clock_mode'), arg('backend')
+    if backend not in ('rclpy', 'dds'):
+        raise ValueError(f"launch argument backend:={backend!r}; allowed: rclpy, dds")
     out = arg('out') or f'runs/launch_{datetime.datetime.now():%Y%m%d_%H%M%S}'
     duration = float(arg('duration')) if arg('duration') else None
     specs = node_specs(load_scenario(scenario_arg), scenario_arg, arg('case'), clock_mode, float(arg('rate')),
@@ -36,9 +39,11 @@ def _team(context):
     actions = []
     for name, kind, ros_args in specs:
         # the namespace and parameters are in ros_args (--ros-args ...), as the run script passes them
-        # the recorder and the visualisation on the Cyclone DDS backend where it is installed
+        # backend:=dds: every node on the Cyclone DDS backend; else the recorder and the visualisation
+        # there (where it is installed) and the team's nodes on rclpy
+        env = {'UH_BACKEND': 'dds'} if backend == 'dds' else backend_environment(kind, os.environ)
         node = Node(package=NODES[kind].package, executable=NODES[kind].executable, arguments=ros_args,
-                    output='screen', additional_env=backend_environment(kind, os.environ))
+                    output='screen', additional_env=env)
         actions.append(node)
         if kind == 'clock' or clock_mode == 'lockstep':
             reason = 'run complete' if kind == 'clock' else f'{name} exited (lockstep needs every node)'
@@ -57,6 +62,10 @@ def generate_launch_description():
         DeclareLaunchArgument('out', default_value='', description='run directory; the bag goes to OUT/bag '
                               '(default runs/launch_<timestamp>)'),
         DeclareLaunchArgument('visualization', default_value='true', description='start the visualisation node'),
+        DeclareLaunchArgument('backend', default_value='rclpy',
+                              description='rclpy: the team on rclpy (recorder, visualisation on the DDS backend); '
+                              'dds: every node on the Cyclone DDS backend (for realtime on small machines, '
+                              'docs/performance.md)'),
         DeclareLaunchArgument('startup_timeout', default_value='60.0', description='s to wait for all nodes'),
         DeclareLaunchArgument('stale_timeout', default_value='0.25',
                               description='realtime: simulated s after which a neighbour is stale'),
