@@ -152,13 +152,13 @@ def test_uh3_holds_position_and_uh4_keeps_following(sim_killed):
 
 def test_respawned_controller_rejoins_and_the_team_reconverges(tmp_path):
     out = tmp_path / 'run'
-    # UH2's controller dies at t = 10 s (the clock logs every 10 % of the 5000 steps), when UH2's
+    # UH2's controller dies at t = 10 s (the clock logs every 10 % of the 10000 steps), when UH2's
     # faults start. Until the new process has started (0.5 s wall on a quiet machine, several
     # seconds on a loaded one: 1 to 9 s simulated at rate 2) UH2 flies on with its last command and
     # drifts; the restarted controller starts with empty networks and a zero fault estimate (past the
     # learning phase, so its observers run at once), brings UH2 back and estimates its faults
     code, output, pid = _run_and_kill(out, reserve_domain_id(), 'uh2_controller', 1000,
-                                      '--rate', '2', '--duration', '50', '--respawn')
+                                      '--rate', '2', '--duration', '100', '--respawn')
     assert code == 3, output
     assert 'node uh2_controller killed by SIGKILL' in output
     assert 'restarting uh2_controller (1/3); it rejoins the running team at the current step' in output
@@ -181,12 +181,12 @@ def test_respawned_controller_rejoins_and_the_team_reconverges(tmp_path):
     assert commands[joined + 50:].mean() > commands[100:1000].mean() - 0.1
     # re-converged: UH2's formation error over the last 5 s is back to the paper's threshold
     # (0.10 m RMS, the bound the realtime run is held to; measured about 0.02 m). How far UH2 drifts
-    # while its controller is down depends on the machine's load (49 m after a 4.5 s wall restart on
-    # a busy machine, which left 0.10 m at 35-40 s, decaying with a time constant of about 1.4 s):
-    # the run is long enough to come back from that
+    # while its controller is down depends on the machine's load and on how long a controller takes
+    # to start among the running team (4-6 s wall measured, 23-71 m of drift at rate 2; 71 m still
+    # left 1.6 m at 45-50 s): the run is long enough (100 s) to come back from that
     ref = bag['reference'][:, :3]
     err = np.linalg.norm(bag['states'][:, 1, :3] - np.asarray(paper.offsets[2]) - ref, axis=1)
-    last = bag['time'] >= 45.0
+    last = bag['time'] >= 95.0
     gap_wall = (len(gap) * paper.dt) / 2.0
     print(f'uh2 controller: {len(gap)} steps without a command ({gap_wall:.1f} s wall at rate 2), joined at step '
           f'{joined} with uh2 {err[joined]:.2f} m off its formation point; formation error of uh2 over the '

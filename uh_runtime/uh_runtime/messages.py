@@ -208,10 +208,26 @@ def type_hash(name_or_class) -> str:
             return cached
         name_or_class = ros_type_name(name_or_class)
     name = _normalise(name_or_class)
-    store = _hash_store()
+    store = typestore()
     if name not in store.fielddefs:
         raise MessageError(f'unknown message type {name!r}')
-    return store.hash_rihs01(name)
+    # the second store is built (once, about 0.1 s) only for a type that holds a char somewhere
+    return (_hash_store() if _holds_char(name) else store).hash_rihs01(name)
+
+
+@functools.lru_cache(maxsize=None)
+def _holds_char(name: str) -> bool:
+    """Whether type ``name`` or a type it holds has a ``char`` field."""
+    from rosbags.interfaces import Nodetype
+
+    def char_in(field):
+        kind, payload = field
+        if kind == Nodetype.BASE:
+            return payload[0] == 'char'
+        if kind == Nodetype.NAME:
+            return _holds_char(payload)
+        return char_in(payload[0])   # array or sequence
+    return any(char_in(f) for _, f in typestore().fielddefs[name][1])
 
 
 def _char_as_uint8(field):
