@@ -205,6 +205,16 @@ def _result_msg(result: SetParametersResult):
     return cls(successful=bool(result.successful), reason=str(result.reason))
 
 
+def _listed(name: str, prefixes: list, depth: int) -> bool:
+    """Whether ``list_parameters`` with ``prefixes`` and ``depth`` (0: DEPTH_RECURSIVE) lists
+    parameter ``name``, by rclpy's rule (``Node.list_parameters``)."""
+    def shallow(part):
+        return depth == 0 or part.count('.') < depth
+    if not prefixes:
+        return shallow(name)
+    return any(name == p or (name.startswith(p + '.') and shallow(name[len(p) + 1:])) for p in prefixes)
+
+
 class ParameterServices:
     """rclpy's ``ParameterService`` and parameter-event publisher for a DDS-backend node: the six
     services ``<node>/describe_parameters``, ``get_parameters``, ``get_parameter_types``,
@@ -282,20 +292,11 @@ class ParameterServices:
     def _list_parameters(self, request, response):
         result = response.result
         prefixes, depth = list(request.prefixes), int(request.depth)
-        recursive = not prefixes and depth == 0   # DEPTH_RECURSIVE
-
-        def shallow(name):
-            return name.count('.') < depth
         for name in self._node._parameters:
-            if not recursive:
-                if not (not prefixes and shallow(name)):
-                    if not any(name == p or (name.startswith(p + '.') and (depth == 0 or shallow(name[len(p) + 1:])))
-                               for p in prefixes):
-                        continue
-            result.names.append(name)
-            if '.' in name:
-                prefix = name[:name.rfind('.')]
-                if prefix not in result.prefixes:
+            if _listed(name, prefixes, depth):
+                result.names.append(name)
+                prefix = name.rpartition('.')[0]
+                if prefix and prefix not in result.prefixes:
                     result.prefixes.append(prefix)
         return response
 
