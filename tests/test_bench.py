@@ -121,17 +121,24 @@ def test_tiny_suite_records_every_section_and_prints_the_table(tmp_path, domain_
 @pytest.mark.slow
 def test_backends_section_measures_the_dds_backend_and_says_why_rclpy_is_not(tmp_path, monkeypatch):
     monkeypatch.delenv('UH_BACKEND', raising=False)
-    cfg = {'backend_lockstep_duration': 0.2, 'backend_realtime_duration': 0.5}
+    cfg = {'backend_lockstep_duration': 0.2, 'backend_realtime_duration': 0.5, 'executor_messages': 200}
     results = suite.run_suite(cfg, tmp_path, sections=('backends',))
     section = results['backends']
     lock, realtime = section['lockstep']['dds'], section['realtime']['dds']
     assert lock['status'] == 0 and lock['steps'] == 20 and lock['cpu_us_per_step'] > 0
     assert realtime['status'] == 0 and realtime['controller_steps'] > 0
+    row = next(line for line in suite.markdown(results).splitlines() if line.startswith('| dds |'))
+    assert row.endswith('| exit 0 |')
+    by_case = {e['case']: e for e in section['executors']}
+    assert by_case['dds']['messages'] >= 200 and by_case['dds']['cpu_us_per_message'] > 0
     if suite.rclpy_available() is None:      # a sourced ROS 2: both measured, the ratio printed
         assert set(section['lockstep']) == {'dds', 'rclpy'}
+        assert section['lockstep']['rclpy']['steps'] == 20 and section['realtime']['rclpy']['status'] == 0
+        assert set(by_case) == {'dds', 'rclpy', 'rclpy-static'}
         assert 'rclpy / DDS backend' in suite.markdown(results)
     else:
         assert set(section['lockstep']) == {'dds'} and 'rclpy is not importable' in section['skipped_rclpy']
+        assert set(by_case) == {'dds'}
         assert 'rclpy not measured' in suite.markdown(results)
 
 

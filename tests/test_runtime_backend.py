@@ -93,7 +93,8 @@ def test_facade_reexports_rclpy_objects_when_rclpy_is_importable(tmp_path):
         exc = module('rclpy.exceptions', NotInitializedException=cls('NIE'))
         for n in ['InvalidParameterTypeException', 'InvalidParameterValueException',
                   'ParameterAlreadyDeclaredException', 'ParameterException',
-                  'ParameterNotDeclaredException', 'ParameterUninitializedException']:
+                  'ParameterNotDeclaredException', 'ParameterUninitializedException',
+                  'InvalidHandle']:
             setattr(exc, n, cls(n))
         module('rclpy.clock', Clock=cls('Clock'), ClockType=cls('ClockType'), ROSClock=cls('ROSClock'))
         module('rclpy.context', Context=cls('Context'))
@@ -110,7 +111,11 @@ def test_facade_reexports_rclpy_objects_when_rclpy_is_importable(tmp_path):
         module('rclpy.subscription', Subscription=cls('Subscription'))
         module('rclpy.time', Time=cls('Time'))
         module('rclpy.timer', Timer=cls('Timer'))
-        module('rclpy.utilities', get_default_context=lambda: None, remove_ros_args=lambda a: a)
+        module('rclpy.utilities', get_default_context=lambda: None, remove_ros_args=lambda a: a,
+               timeout_sec_to_nsec=lambda t: -1)
+        module('rclpy.impl')
+        module('rclpy.impl.implementation_singleton', rclpy_implementation=None)
+        module('rclpy.waitable', NumberOfEntities=cls('NumberOfEntities'))
         module('rcl_interfaces')
         module('rcl_interfaces.msg', **{{n: cls(n) for n in ['FloatingPointRange', 'IntegerRange',
                'ParameterDescriptor', 'SetParametersResult']}})
@@ -126,12 +131,13 @@ def test_facade_reexports_rclpy_objects_when_rclpy_is_importable(tmp_path):
                   rt.ParameterType is rclpy.parameter.Parameter.Type,
                   messages.UHState is uh_msgs.msg.UHState,
                   messages.get_message('uh_msgs/msg/UHState') is uh_msgs.msg.UHState,
-                  rt.init(args=['x']) is None]
+                  rt.init(args=['x']) is None,
+                  issubclass(rt.StaticSingleThreadedExecutor, rclpy.executors.SingleThreadedExecutor)]
         missing = [n for n in {CONTRACT_NAMES!r} if not hasattr(rt, n)]
         print(checks, missing)
     """, tmp_path)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == f"{[True] * 9} []"
+    assert result.stdout.strip() == f"{[True] * 10} []"
 
 
 def test_uh_backend_rclpy_without_rclpy_fails_at_import(tmp_path):

@@ -98,8 +98,20 @@ def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkey
     handlers = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
     # lockstep: the death of any node ends the launch, the clock's with 'run complete'
     assert [h.kwargs['target_action'] for h in handlers] == nodes
-    reasons = [h.kwargs['on_exit'][0].kwargs['event'].kwargs['reason'] for h in handlers]
-    assert reasons[-1] == 'run complete' and all('lockstep needs every node' in r for r in reasons[:-1])
+    running, stopping = types.SimpleNamespace(is_shutdown=False), types.SimpleNamespace(is_shutdown=True)
+
+    def outcome(handler, status, context=running):
+        try:
+            done = handler.kwargs['on_exit'](types.SimpleNamespace(returncode=status), context)
+        except launch_file['RunFailed'] as exc:
+            return f'failed: {exc}'
+        return [a.kwargs['event'].kwargs['reason'] for a in done]
+    assert outcome(handlers[-1], 0) == ['run complete']
+    assert outcome(handlers[-1], 1).startswith('failed: clock exited with status 1')
+    assert outcome(handlers[0], 0)[0].endswith('(lockstep needs every node)')
+    assert outcome(handlers[1], -9).startswith('failed: uh1_sim exited with status -9')
+    # nodes stopped by the launch's own shutdown end quietly, whatever their status
+    assert outcome(handlers[1], -2, stopping) == [] and outcome(handlers[-1], 1, stopping) == []
 
     arguments.update(clock_mode='realtime', visualization='false')
     actions = opaque.kwargs['function'](None)

@@ -25,6 +25,7 @@ Sections (every figure is measured in the same invocation as the baseline it is 
     the DDS backend), lockstep and real time at rate 1: real-time factor, CPU per step (node
     processes after start-up), p99 latency, late and missed steps. rclpy is skipped, with the
     reason in the results, when this Python cannot import it (no ROS 2 sourced).
+    Also the CPU per received message of each executor (:mod:`uh_bench.executors`).
 ``memory``
     Peak resident set of the node processes (from every lockstep and real-time run above).
 
@@ -46,7 +47,7 @@ from pathlib import Path
 
 from uh_runtime.network import release_domain_id, reserve_domain_id
 
-from . import inprocess, runs, transport
+from . import executors, inprocess, runs, transport
 
 __all__ = ['MODES', 'GOALS', 'run_suite', 'markdown', 'machine_info', 'evaluate_goals']
 
@@ -271,7 +272,17 @@ def _backends(cfg, workdir, results):
         rt_run['cpu_us_per_step'] = 1e6 * rt_run['cpu_run_s'] / rt_run['steps'] if rt_run.get('steps') else None
         section['realtime'][backend] = rt_run
         _log(f'  lockstep rtf {lock["rtf"]}, realtime p99 {rt_run["p99_ms_max"]} ms, late {rt_run["late_steps"]}, '
-             f'missed {rt_run["missed_steps"]}')
+             f'missed {rt_run["missed_steps"]}, status {lock["status"]}/{rt_run["status"]}')
+    section['executors'] = []
+    for case in [c for c, (backend, _) in executors.CASES.items() if backend in backends]:
+        _log(f'backends: CPU per received message, executor {case}')
+        domain = reserve_domain_id()
+        try:
+            from uh_runtime.network import loopback_environment
+            section['executors'].append(executors.measure(
+                case, cfg.get('executor_messages', 2500), loopback_environment(domain, dict(os.environ))))
+        finally:
+            release_domain_id(domain)
     if skipped:
         _log(f'backends: rclpy skipped: {skipped}')
     results['backends'] = section
@@ -298,6 +309,9 @@ def _all_runs(results):
     for row in results.get('scaling', []):
         for layout, run in row['lockstep'].items():
             yield f'team{row["uhs"]}/{layout}', run
+    for mode in ('lockstep', 'realtime'):
+        for backend, run in results.get('backends', {}).get(mode, {}).items():
+            yield f'backends/{backend}/{mode}', run
     for run in results.get('realtime', []):
         yield f'realtime{run["uhs"]}/{run["layout"]}', run
 
@@ -476,16 +490,25 @@ def markdown(results) -> str:
     if backends:
         lines += ['### Backends: Cyclone DDS and rclpy (paper scenario, one process per node)', '',
                   '| backend | lockstep real-time factor | lockstep CPU per step µs | real time p99 ms | '
-                  'late steps | missed steps | real time CPU per step µs |', '|---|---|---|---|---|---|---|']
+                  'late steps | missed steps | real time CPU per step µs | runs ended with |',
+                  '|---|---|---|---|---|---|---|---|']
         for name, lock in backends['lockstep'].items():
             rt_run = backends['realtime'][name]
+            # a run that failed (e.g. the clock died) has no meaningful latency: say so in the row
+            ended = ', '.join(f'{what} exit {run["status"]}' for what, run in
+                              (('lockstep', lock), ('real time', rt_run)) if run['status'] != 0) or 'exit 0'
             lines.append(f'| {name} | {_f(lock["rtf"])} | {_f(lock["cpu_us_per_step"], "{:.0f}")} | '
                          f'{_f(rt_run["p99_ms_max"])} | {rt_run["late_steps"]} | {rt_run["missed_steps"]} | '
-                         f'{_f(rt_run["cpu_us_per_step"], "{:.0f}")} |')
+                         f'{_f(rt_run["cpu_us_per_step"], "{:.0f}")} | {ended} |')
         if set(backends['lockstep']) == {'dds', 'rclpy'}:
             d, r = backends['lockstep']['dds'], backends['lockstep']['rclpy']
             if d['rtf'] and r['rtf']:
                 lines.append(f'\nrclpy / DDS backend, lockstep real-time factor: {r["rtf"] / d["rtf"]:.2f}')
+        if backends.get('executors'):
+            lines += ['', '| executor (5 topics of UHState at 100 Hz each) | backend | CPU per received message µs |',
+                      '|---|---|---|']
+            lines += [f'| {e["case"]} ({e["executor"]}) | {e["backend"]} | {_f(e["cpu_us_per_message"], "{:.0f}")} |'
+                      for e in backends['executors']]
         if backends['skipped_rclpy']:
             lines.append(f'\nrclpy not measured: {backends["skipped_rclpy"]}')
         lines.append('')

@@ -7,7 +7,7 @@ The node list comes from :func:`uh_bringup.team_nodes.node_specs`, the same func
 uses: a recorder (bag in ``out``), one simulator and one controller per helicopter, the
 visualisation node (``visualization:=false`` leaves it out), the virtual leader and the clock.
 The launch ends when the clock ends (run complete), and in lockstep also when any node dies (every
-step needs every node). The recorder and the visualisation run on the Cyclone DDS backend when its
+step needs every node); it exits with status 1 when the clock or (in lockstep) a node failed. The recorder and the visualisation run on the Cyclone DDS backend when its
 Python binding is installed (``uh_bringup.team_nodes.backend_environment``).
 """
 import datetime
@@ -46,10 +46,30 @@ def _team(context):
                     output='screen', additional_env=env)
         actions.append(node)
         if kind == 'clock' or clock_mode == 'lockstep':
-            reason = 'run complete' if kind == 'clock' else f'{name} exited (lockstep needs every node)'
             actions.append(RegisterEventHandler(OnProcessExit(
-                target_action=node, on_exit=[EmitEvent(event=Shutdown(reason=reason))])))
+                target_action=node, on_exit=_on_exit(name, kind))))
     return actions
+
+
+class RunFailed(RuntimeError):
+    """A node the run needs died: ``ros2 launch`` shuts everything down and exits with status 1."""
+
+
+def _on_exit(name, kind):
+    """What the end of node ``name`` does: the clock's end with status 0 ends the launch ('run
+    complete'); a failed clock, or a lockstep node that fails before the shutdown, ends it with
+    exit status 1 (launch turns an exception in an event handler into shutdown and status 1)."""
+    def on_exit(event, context):
+        status = event.returncode
+        if kind == 'clock' and status == 0:
+            return [EmitEvent(event=Shutdown(reason='run complete'))]
+        if context.is_shutdown:
+            return []
+        if status != 0:
+            raise RunFailed(f'{name} exited with status {status}: the run did not complete '
+                            '(its log is above)')
+        return [EmitEvent(event=Shutdown(reason=f'{name} exited (lockstep needs every node)'))]
+    return on_exit
 
 
 def generate_launch_description():

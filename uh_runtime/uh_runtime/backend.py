@@ -16,7 +16,7 @@ BACKENDS = ('rclpy', 'dds')
 FACADE_NAMES = (
     'Clock', 'ClockType', 'Context', 'Duration', 'Executor', 'ExternalShutdownException',
     'MultiThreadedExecutor', 'Node', 'NotInitializedException', 'Publisher', 'ROSClock',
-    'SingleThreadedExecutor', 'Subscription', 'Time', 'Timer', 'get_default_context',
+    'SingleThreadedExecutor', 'StaticSingleThreadedExecutor', 'Subscription', 'Time', 'Timer', 'get_default_context',
     'get_global_executor', 'init', 'ok', 'shutdown', 'spin', 'spin_once',
     'spin_until_future_complete', 'try_shutdown', 'get_logger', 'FloatingPointRange',
     'IntegerRange', 'InvalidParameterTypeException', 'InvalidParameterValueException',

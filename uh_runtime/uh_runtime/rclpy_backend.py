@@ -1,6 +1,7 @@
 """rclpy backend: re-exports of ROS 2 Jazzy's own rclpy objects under the facade's names.
 
-Nothing is wrapped: ``rt.Node`` *is* ``rclpy.node.Node``, ``rt.init`` *is* ``rclpy.init`` (which
+One addition: ``StaticSingleThreadedExecutor`` (``uh_runtime.rclpy_executor``), the executor the
+project's nodes spin in. Nothing is wrapped: ``rt.Node`` *is* ``rclpy.node.Node``, ``rt.init`` *is* ``rclpy.init`` (which
 returns ``None`` on Jazzy; there is no ``with rclpy.init():`` there). Only imported when
 :func:`uh_runtime.backend.select_backend` chose rclpy.
 """
@@ -33,6 +34,7 @@ from rclpy.timer import Timer  # noqa: F401
 from rclpy.utilities import get_default_context, remove_ros_args  # noqa: F401
 
 from .backend import FACADE_NAMES
+from .rclpy_executor import StaticSingleThreadedExecutor  # noqa: F401
 
 init = rclpy.init
 ok = rclpy.ok

@@ -149,17 +149,15 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
             print(f'{prog}: error: {exc}', file=sys.stderr)
             status = 1
         else:
-            executor = executor or (rt.SingleThreadedExecutor() if len(nodes) > 1 or until
-                                    else None)
+            # rclpy's SingleThreadedExecutor rebuilds its wait set on every wait; this one keeps
+            # it (docs/runtime.md#executors-on-rclpy)
+            executor = executor or rt.StaticSingleThreadedExecutor()
             procstats.mark_spinning()
             _freeze_startup_objects()
-            if executor is None:
-                rt.spin(nodes[0])
-            else:
-                for node in nodes:
-                    executor.add_node(node)
-                while rt.ok() and not (until is not None and until(nodes[0])):
-                    executor.spin_once()
+            for node in nodes:
+                executor.add_node(node)
+            while rt.ok() and not (until is not None and until(nodes[0])):
+                executor.spin_once()
             if exit_code is not None:
                 status = int(exit_code(nodes[0]))
     except (KeyboardInterrupt, rt.ExternalShutdownException):

@@ -169,6 +169,7 @@ class SimNode(rt.Node):
                 self,
                 f"published: {topics.uh_topic(self.uh_id, topics.STATE)} {self.published['state']}, "
                 f"{topics.uh_topic(self.uh_id, topics.FAULT_TRUTH)} {self.published['fault_truth']}"
+                + (f'; late commands: {self.late_commands}' if self.mode == 'realtime' else '')
                 + (f'; rejected commands: {self.rejected}' if self.rejected else ''))
         return super().destroy_node()
 

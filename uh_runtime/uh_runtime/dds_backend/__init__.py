@@ -40,7 +40,7 @@ from .context import (  # noqa: F401
 from .endpoints import Publisher, Subscription, Timer  # noqa: F401
 from .executors import (  # noqa: F401
     Executor, ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor,
-    get_global_executor, spin, spin_once, spin_until_future_complete,
+    StaticSingleThreadedExecutor, get_global_executor, spin, spin_once, spin_until_future_complete,
 )
 from .logger import get_logger  # noqa: F401
 from .node import Node  # noqa: F401

@@ -14,8 +14,9 @@ import time
 from ..qos import DDS_INFINITY
 from .context import get_default_context
 
-__all__ = ['Executor', 'SingleThreadedExecutor', 'MultiThreadedExecutor', 'ExternalShutdownException',
-           'get_global_executor', 'spin', 'spin_once', 'spin_until_future_complete']
+__all__ = ['Executor', 'SingleThreadedExecutor', 'StaticSingleThreadedExecutor',
+           'MultiThreadedExecutor', 'ExternalShutdownException', 'get_global_executor', 'spin',
+           'spin_once', 'spin_until_future_complete']
 
 
 class ExternalShutdownException(Exception):
@@ -258,6 +259,13 @@ class Executor:
 
 class SingleThreadedExecutor(Executor):
     """``rclpy.executors.SingleThreadedExecutor``."""
+
+
+class StaticSingleThreadedExecutor(SingleThreadedExecutor):
+    """The facade's executor for the project's nodes (``uh_runtime.rclpy_executor`` on rclpy).
+
+    This backend's executor already keeps its DDS waitset between waits, so it is the same one.
+    """
 
 
 class MultiThreadedExecutor(Executor):
