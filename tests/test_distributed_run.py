@@ -324,3 +324,67 @@ def test_a_second_terminal_sees_the_team_and_changes_a_gain_which_the_bag_record
     assert events[0][0] > 0        # logged at the run's sim time of the change
     logs = ''.join(p.read_text(errors='replace') for p in (out / 'logs').glob('*.log'))
     assert 'gains changed: outer.k = 1.2' in logs and 'rejected' in logs
+
+
+def test_the_bag_holds_tf_odometry_and_diagnostics_that_follow_from_the_states(lockstep_run, paper):
+    """/tf, /uhN/odom and /diagnostics (docs/visualization.md): every recorded transform and
+    odometry message equals the one recomputed from the recorded /uhN/state of its step, and the
+    diagnostics report the scenario's faults."""
+    from uh_core import frames
+    from uh_core.standard_msgs import level_of
+    from uh_runtime.messages import typestore
+    out, _, _ = lockstep_run
+    store = typestore()
+    states, tf, odom, diag = {}, {}, {}, []
+    dt = paper.dt
+    with Reader(out / 'bag') as reader:
+        for conn, _t, raw in reader.messages():
+            if conn.topic.endswith('/state') or conn.topic.endswith('/odom') or conn.topic in ('/tf', '/diagnostics'):
+                msg = store.deserialize_cdr(raw, conn.msgtype)
+            else:
+                continue
+            if conn.topic.endswith('/state'):
+                x = np.array([msg.position.x, msg.position.y, msg.position.z, msg.velocity.x, msg.velocity.y,
+                              msg.velocity.z, msg.euler.x, msg.euler.y, msg.euler.z, msg.body_rates.x,
+                              msg.body_rates.y, msg.body_rates.z])
+                states[(msg.uh_id, msg.step)] = x
+            elif conn.topic == '/tf':
+                for tr in msg.transforms:
+                    k = round((tr.header.stamp.sec + tr.header.stamp.nanosec * 1e-9) / dt)
+                    tf[(tr.child_frame_id, k)] = tr
+            elif conn.topic == '/diagnostics':
+                diag += [(level_of(s), s.name, s.message, msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9)
+                         for s in msg.status]
+            else:
+                k = round((msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9) / dt)
+                odom[(int(conn.topic[3:].split('/')[0]), k)] = msg
+    steps = int(round(paper.duration / dt)) + 1
+    assert len(states) == len(odom) == 5 * steps
+    assert len(tf) == 6 * steps  # five UHs and the virtual leader, every step
+    for (uh, k), x in states.items():
+        position, q = frames.pose_of_state(x)
+        tr = tf[(f'uh{uh}/base_link', k)]
+        assert tr.header.frame_id == 'world'
+        assert (tr.transform.translation.x, tr.transform.translation.y, tr.transform.translation.z) == position
+        assert (tr.transform.rotation.x, tr.transform.rotation.y, tr.transform.rotation.z,
+                tr.transform.rotation.w) == q
+        o = odom[(uh, k)]
+        assert o.header.frame_id == 'world' and o.child_frame_id == f'uh{uh}/base_link'
+        assert (o.pose.pose.position.x, o.pose.pose.position.y, o.pose.pose.position.z) == position
+        assert (o.pose.pose.orientation.x, o.pose.pose.orientation.y, o.pose.pose.orientation.z,
+                o.pose.pose.orientation.w) == q
+        linear, angular = frames.body_twist_of_state(x)
+        assert (o.twist.twist.linear.x, o.twist.twist.linear.y, o.twist.twist.linear.z) == linear
+        assert (o.twist.twist.angular.x, o.twist.twist.angular.y, o.twist.twist.angular.z) == angular
+    # 2 Hz of simulated time from 5 simulators and 5 controllers
+    assert len(diag) == 10 * (int(paper.duration * 2) + 1)
+    onset = 10.0  # every scheduled fault of the paper scenario starts at 10 s (docs/scenario.md)
+    faulted = {2, 3, 5}
+    for level, name, message, t in diag:
+        uh = int(name[2:].split('/')[0])
+        if name.endswith('/sim'):
+            assert (level, 'actuator fault active' in message) == ((1, True) if uh in faulted and t >= onset
+                                                                   else (0, False)), (name, t, message)
+        elif t >= onset + 2.0:  # isolation takes 0.5-0.8 s (docs/faults.md)
+            assert ('fault isolated' in message) == (uh in faulted), (name, t, message)
+            assert level == (1 if uh in faulted or 'saturated' in message else 0), (name, t, message)

@@ -135,3 +135,24 @@ def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain
     print(f'late commands over the 5 simulators: {late}')
     metrics = write_metrics_from_bag(out / 'bag', load_scenario('paper'), 'proposed', tmp_path / 'm.json')
     assert metrics['formation_rms_m'] < 0.05 and metrics['containment_rms_m'] < 0.02, metrics
+
+
+def test_tf2_echo_and_diagnostics_of_a_running_team(domain_id, tmp_path):
+    """docs/visualization.md on real ROS: tf2 resolves world -> uh1/base_link from /tf, and
+    /diagnostics carries the simulators' and controllers' reports."""
+    launch = subprocess.Popen(['ros2', 'launch', 'uh_bringup', 'formation.launch.py', f'out:={tmp_path / "v"}',
+                               'duration:=30.0', 'visualization:=false'],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        echo = subprocess.run(['timeout', '--signal=INT', '20', 'ros2', 'run', 'tf2_ros', 'tf2_echo', 'world',
+                               'uh1/base_link'], capture_output=True, text=True, timeout=BOUND)
+        assert '- Translation: [' in echo.stdout and 'in Quaternion [' in echo.stdout, echo.stdout + echo.stderr
+        names = set()
+        deadline = time.monotonic() + BOUND
+        while not {'uh1/sim', 'uh1/controller'} <= names and time.monotonic() < deadline:
+            diag = _ros2('topic', 'echo', '/diagnostics', '--once', '--field', 'status', timeout=30)
+            names |= set(re.findall(r"name='([^']+)'", diag.stdout))
+        assert {'uh1/sim', 'uh1/controller'} <= names
+    finally:
+        os.killpg(launch.pid, signal.SIGINT)
+        launch.wait(timeout=BOUND)

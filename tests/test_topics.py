@@ -24,7 +24,7 @@ def test_recorder_lag_fits_in_the_history():
 
 def test_team_topics_of_the_paper_scenario():
     names = [name for name, _ in T.team_topics(load_scenario('paper').ids)]
-    assert len(names) == len(set(names)) == 2 + 5 * len(T.PER_UH)
+    assert len(names) == len(set(names)) == len(T.TEAM) + 5 * len(T.PER_UH)
     assert '/uh5/fault_truth' in names and '/clock' in names
 
 

@@ -74,7 +74,8 @@ def _memory_summary(processes: list) -> dict:
 
 def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = 'lockstep',
              rate: float = 1.0, duration: float | None = None, domain_id: int | None = None,
-             timeout: float | None = None, env: dict | None = None, on_started=None) -> dict:
+             timeout: float | None = None, env: dict | None = None, on_started=None,
+             extra_args=()) -> dict:
     """Run a team with ``run_formation`` and measure it.
 
     Parameters
@@ -95,6 +96,8 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
         Extra environment for the supervisor and its nodes.
     on_started : callable, optional
         Called with the supervisor's ``Popen`` once it runs.
+    extra_args : sequence of str
+        More ``run_formation`` options (e.g. ``--no-standard-views``).
 
     Returns
     -------
@@ -117,6 +120,7 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
            '--rate', repr(float(rate)), '--domain-id', str(domain)]
     if duration is not None:
         cmd += ['--duration', repr(float(duration))]
+    cmd += list(extra_args)
     child_env = dict(os.environ)
     child_env.pop('UH_PROFILE_DIR', None)      # profiling distorts timing: only when asked for here
     child_env.update(env or {})

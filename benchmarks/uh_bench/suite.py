@@ -8,7 +8,8 @@ Sections (every figure is measured in the same invocation as the baseline it is 
 ``paper``
     The paper scenario in lockstep for each process layout (``per-node``: one process per node;
     ``per-uh``; ``single``), and the in-process reference simulation of the same scenario and
-    duration: real-time factors and their ratio, CPU seconds of the node processes.
+    duration: real-time factors and their ratio, CPU seconds of the node processes; and the
+    per-node run again without ``/tf``, odom and ``/diagnostics`` (what they cost).
 ``components``
     Per-step cost of the controller and of the helicopter model in process (microseconds).
 ``scaling``
@@ -69,6 +70,8 @@ MODES = {
 GOALS = (
     ('paper_lockstep_rtf', 'paper scenario, lockstep, one process per node: real-time factor', 10.0, '>='),
     ('paper_lockstep_best_rtf', 'paper scenario, lockstep, best process layout: real-time factor', 10.0, '>='),
+    ('standard_views_slowdown', 'paper scenario, lockstep, one process per node: real-time factor without '
+     '/tf, odom and /diagnostics over with them', 1.10, '<='),
     ('inprocess_rtf', 'paper scenario, in-process reference: real-time factor', 200.0, '>='),
     ('team20_lockstep_rtf', '20 UHs, lockstep, one process per node: real-time factor', 2.0, '>='),
     ('team40_lockstep_rtf', '40 UHs, lockstep, one process per node: real-time factor', 1.0, '>='),
@@ -133,6 +136,19 @@ def _paper(cfg, workdir, results):
         run['ratio_to_inprocess'] = run['rtf'] / ref['rtf'] if run['rtf'] else None
         section['lockstep'][layout] = run
         _log(f'  real-time factor {run["rtf"]}, CPU {run["cpu_s"]:.1f} s, status {run["status"]}')
+    if 'per-node' in section['lockstep']:
+        # what /tf, /uhN/odom and /diagnostics cost (docs/visualization.md): the same run without them
+        _log(f'lockstep paper scenario, per-node, --no-standard-views, {d:g} s')
+        bare = runs.run_team('paper', workdir / 'paper-per-node-no-views', layout='per-node', duration=d,
+                             timeout=60 + 30 * d, extra_args=('--no-standard-views',))
+        with_views = section['lockstep']['per-node']
+        section['standard_views'] = {
+            'without': bare,
+            'rtf_ratio': with_views['rtf'] / bare['rtf'] if with_views['rtf'] and bare['rtf'] else None,
+            'cpu_ratio': (with_views['cpu_run_s'] / bare['cpu_run_s']
+                          if with_views.get('cpu_run_s') and bare.get('cpu_run_s') else None)}
+        _log(f'  real-time factor {bare["rtf"]} without the views; with / without: '
+             f'{section["standard_views"]["rtf_ratio"]}')
     results['paper'] = section
 
 
@@ -306,6 +322,8 @@ def _memory(results):
 def _all_runs(results):
     for layout, run in results.get('paper', {}).get('lockstep', {}).items():
         yield f'paper/{layout}', run
+    if 'standard_views' in results.get('paper', {}):
+        yield 'paper/per-node-no-standard-views', results['paper']['standard_views']['without']
     for row in results.get('scaling', []):
         for layout, run in row['lockstep'].items():
             yield f'team{row["uhs"]}/{layout}', run
@@ -328,6 +346,9 @@ def evaluate_goals(results) -> list:
         measured['paper_lockstep_best_rtf'] = max(rtfs)
     if 'inprocess' in paper:
         measured['inprocess_rtf'] = paper['inprocess']['rtf']
+    views = paper.get('standard_views')
+    if views and views['rtf_ratio']:
+        measured['standard_views_slowdown'] = 1.0 / views['rtf_ratio']
     for row in results.get('scaling', []):
         if row['uhs'] not in (20, 40):
             continue
@@ -426,6 +447,15 @@ def markdown(results) -> str:
                          f'{_f(run["ratio_to_inprocess"], "{:.3f}")} | {run["cpu_s"]:.1f} '
                          f'({run["cpu_startup_s"]:.1f} + {run["cpu_run_s"]:.1f}) | '
                          f'{1000 * run["cpu_run_s"] / steps:.2f} |')
+        views = paper.get('standard_views')
+        if views:
+            bare = views['without']
+            steps = bare['steps'] or paper['duration_s'] / 0.01
+            lines.append(f'| lockstep, per-node, `--no-standard-views` | {bare["n_processes"]} | {_f(bare["rtf"])} | '
+                         f'— | {bare["cpu_s"]:.1f} ({bare["cpu_startup_s"]:.1f} + {bare["cpu_run_s"]:.1f}) | '
+                         f'{1000 * bare["cpu_run_s"] / steps:.2f} |')
+            lines.append(f'\n/tf, odom and /diagnostics: real-time factor with / without {_f(views["rtf_ratio"], "{:.3f}")}, '
+                         f'run CPU with / without {_f(views["cpu_ratio"], "{:.3f}")}')
         lines.append('')
     per_node = (paper or {}).get('lockstep', {}).get('per-node')
     if per_node and per_node.get('steps'):

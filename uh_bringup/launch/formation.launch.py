@@ -5,7 +5,8 @@
 
 The node list comes from :func:`uh_bringup.team_nodes.node_specs`, the same function the run script
 uses: a recorder (bag in ``out``), one simulator and one controller per helicopter, the
-visualisation node (``visualization:=false`` leaves it out), the virtual leader and the clock.
+visualisation node (``visualization:=false`` leaves it out), the virtual leader and the clock;
+``standard_views:=false`` switches off /tf, /uhN/odom and /diagnostics.
 The launch ends when the clock ends (run complete), and in lockstep also when any node dies (every
 step needs every node); it exits with status 1 when the clock or (in lockstep) a node failed. The recorder and the visualisation run on the Cyclone DDS backend when its
 Python binding is installed (``uh_bringup.team_nodes.backend_environment``).
@@ -35,7 +36,8 @@ def _team(context):
     duration = float(arg('duration')) if arg('duration') else None
     specs = node_specs(load_scenario(scenario_arg), scenario_arg, arg('case'), clock_mode, float(arg('rate')),
                        duration, f'{out}/bag', float(arg('startup_timeout')), float(arg('stale_timeout')),
-                       visualization=arg('visualization') == 'true')
+                       visualization=arg('visualization') == 'true',
+                       standard_views=arg('standard_views') == 'true')
     actions = []
     for name, kind, ros_args in specs:
         # the namespace and parameters are in ros_args (--ros-args ...), as the run script passes them
@@ -82,6 +84,8 @@ def generate_launch_description():
         DeclareLaunchArgument('out', default_value='', description='run directory; the bag goes to OUT/bag '
                               '(default runs/launch_<timestamp>)'),
         DeclareLaunchArgument('visualization', default_value='true', description='start the visualisation node'),
+        DeclareLaunchArgument('standard_views', default_value='true',
+                              description='publish /tf, /uhN/odom and /diagnostics (docs/visualization.md)'),
         DeclareLaunchArgument('backend', default_value='rclpy',
                               description='rclpy: the team on rclpy (recorder, visualisation on the DDS backend); '
                               'dds: every node on the Cyclone DDS backend (for realtime on small machines, '

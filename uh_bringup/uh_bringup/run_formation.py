@@ -89,6 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--no-visualization', action='store_true',
                    help='do not start the visualisation node (no /markers in the bag): headless batch runs; '
                         'with one process per node it saves about 8 %% of the CPU of a lockstep step')
+    p.add_argument('--no-standard-views', action='store_true',
+                   help='do not publish /tf, /uhN/odom and /diagnostics (docs/visualization.md): for '
+                        'benchmarks and batch runs')
     p.add_argument('--startup-timeout', type=float, default=60.0, help='s to wait for all nodes to come up')
     p.add_argument('--respawn', action='store_true',
                    help=f'realtime: restart a controller process that dies (up to {MAX_RESPAWNS} times each); '
@@ -400,7 +403,8 @@ def run(args) -> int:
     # run.json is written when the nodes have started (status "running", their pids), after every
     # node failure and at the end
     info = {'command': sys.argv, 'scenario': args.scenario, 'case': args.case, 'clock': args.clock,
-            'rate': args.rate, 'processes': args.processes, 'visualization': not args.no_visualization, 'duration_s': duration, 'domain_id': domain,
+            'rate': args.rate, 'processes': args.processes, 'visualization': not args.no_visualization,
+            'standard_views': not args.no_standard_views, 'duration_s': duration, 'domain_id': domain,
             'hosts': args.hosts, 'loss_pct': args.loss, 'respawn': args.respawn, 'exit_status': None}
 
     def write_info():
@@ -421,7 +425,8 @@ def run(args) -> int:
             print(f'[run] network: {network.describe()}', file=sys.stderr)
         specs = node_specs(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
                            out / 'bag', args.startup_timeout, args.stale_timeout,
-                           visualization=not args.no_visualization)
+                           visualization=not args.no_visualization,
+                           standard_views=not args.no_standard_views)
         for name, kind, cmd in _processes(specs, args.processes, out / 'logs'):
             # composed processes: only the recorder's own process (per-uh) is of an infrastructure kind
             node_env = {**env, **backend_environment(kind, env)}

@@ -88,10 +88,12 @@ def node_class(kind: str):
 
 def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, duration: float | None,
                bag_dir: Path, startup_timeout: float, stale_timeout: float | None = None,
-               visualization: bool = True) -> list[tuple[str, str, list]]:
+               visualization: bool = True, standard_views: bool = True) -> list[tuple[str, str, list]]:
     """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last
-    (the visualisation node only if ``visualization``)."""
+    (the visualisation node only if ``visualization``; ``standard_views=False`` switches /tf, odom
+    and /diagnostics off, docs/visualization.md)."""
     common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
+    views = [] if standard_views else ['-p', 'standard_views:=false']
     stale = ['-p', f'stale_timeout:={float(stale_timeout)}'] if stale_timeout is not None else []
     if duration is not None:
         common += ['-p', f'duration:={float(duration)}']
@@ -103,11 +105,12 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
                                        '-p', f'expected_topics:=[{",".join(injections)}]'])]
     for i in scenario.ids:
         ns = ['-r', f'__ns:={topics.uh_namespace(i)}', '-p', f'uh_id:={i}']
-        specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *stale]))
-        specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, *stale, '-p', f'case:={case}']))
+        specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *stale, *views]))
+        specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, *stale, *views,
+                                                          '-p', f'case:={case}']))
     if visualization:
         specs.append(('visualization', 'visualization', ['--ros-args', *common]))
-    specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common]))
+    specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common, *views]))
     specs.append(('clock', 'clock', ['--ros-args', *common, '-p', f'rate:={float(rate)}', '-p', 'expect_recorder:=true',
                                      '-p', f'startup_timeout:={float(startup_timeout)}']))
     return specs

@@ -37,15 +37,18 @@ so it joins at the current step instead of replaying the last ``STEP_DEPTH`` ste
 """
 from __future__ import annotations
 
+import numpy as np
+
 import uh_runtime as rt
 from uh_controller_node.control_kernels import compile_control_kernels
 from uh_controller_node.controller import ControllerError, UHController
 from uh_controller_node.gains import CASES, ControllerGains, GainsError, gain_parameters, nest_gains
 from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser
 from uh_runtime import messages as m
-from uh_topology.run_config import RunConfigError, declare_run_parameters
+from uh_topology.run_config import RunConfigError, declare_run_parameters, declare_view_parameters
 from uh_core.wire import WireError, command_to_msg, msg_to_reference, msg_to_state, status_to_msg
-from uh_core import topics
+from uh_core import diagnostics, topics
+from uh_core.standard_msgs import diagnostic_array_msg
 
 __all__ = ['ControllerNode', 'main']
 
@@ -98,6 +101,12 @@ class ControllerNode(rt.Node):
         qos = topics.qos_profile(topics.STEP_QOS)
         self.command_pub = self.create_publisher(m.ActuatorCommand, topics.COMMAND.name, qos)
         self.status_pub = self.create_publisher(m.ControllerStatus, topics.STATUS.name, qos)
+        self.views = declare_view_parameters(self, self.dt)
+        self.window = diagnostics.ControllerWindow()
+        self._rejected_reported = 0
+        if self.views.enabled:
+            self.diag_pub = self.create_publisher(m.get_message(topics.DIAGNOSTICS.type), topics.DIAGNOSTICS.name,
+                                                  topics.qos_profile(topics.VIEW_QOS))
         self.create_subscription(m.UHState, topics.STATE.name, self.on_own_state, qos)
         for j in neighbours:
             self.create_subscription(m.UHState, topics.uh_topic(j, topics.STATE),
@@ -195,12 +204,35 @@ class ControllerNode(rt.Node):
                     u, status = self.controller.step(k, inputs.own, inputs.neighbours, inputs.reference, self.dt)
             except ControllerError as exc:  # inputs the law cannot use: no command this step, the node lives on
                 self.get_logger().error(f'step {k} not computed: {exc}', throttle_duration_sec=1.0)
+                self.window.not_computed += 1
                 continue
             t = k * self.dt
             self.command_pub.publish(command_to_msg(self.uh_id, k, t, u))
             self.status_pub.publish(status_to_msg(self.uh_id, k, t, status, inputs.stale_labels))
             self.published['command'] += 1
             self.published['status'] += 1
+            if self.views.enabled:
+                self._diagnose(k, t, inputs, status)
+
+    def _diagnose(self, k: int, t: float, inputs, status) -> None:
+        """Add step k to the diagnostics window; publish it every ``views.diagnostics_every`` steps
+        (docs/visualization.md#diagnostics)."""
+        w = self.window
+        w.steps += 1
+        w.last_step = k
+        w.saturated_steps += bool(status.saturated_tilt or status.saturated_collective or status.saturated_cyclic)
+        w.max_input_lag = max([w.max_input_lag] + [stats.last for stats in self.sync.lag.values()])
+        w.stale_neighbours = tuple(inputs.stale_labels)
+        w.holding = inputs.hold is not None
+        w.fault_isolated = tuple(status.isolation.isolated)
+        w.fault_estimate_position = float(np.linalg.norm(status.fault_estimate_position))
+        w.fault_estimate_attitude = float(np.linalg.norm(status.fault_estimate_attitude))
+        if k % self.views.diagnostics_every:
+            return
+        rejected = sum(self.sync.rejected.values())
+        w.rejected_inputs, self._rejected_reported = rejected - self._rejected_reported, rejected
+        self.diag_pub.publish(diagnostic_array_msg(t, [diagnostics.controller_diagnostic(self.uh_id, w)]))
+        self.window = diagnostics.ControllerWindow()
 
     def destroy_node(self):
         if hasattr(self, 'published'):  # not when the constructor failed half-way

@@ -94,8 +94,10 @@ class LagStats:
     total: int = 0
     count: int = 0
     worst: int = 0
+    last: int = 0
 
     def add(self, behind: int) -> None:
+        self.last = behind
         self.total += behind
         self.count += 1
         self.worst = max(self.worst, behind)

@@ -11,6 +11,9 @@ QoS (ROS 2 profiles):
   discovery order (a reader matched late still receives the first steps), and the depth bounds how
   far the recorder may lag behind before the lockstep clock waits for it (``RECORDER_LAG_STEPS``).
 - fault injection: reliable, keep-last 10, volatile (an injection is an event, not state).
+- the standard views for generic tools (``/tf``, ``odom``, ``/diagnostics``; docs/visualization.md):
+  reliable, volatile, keep-last ``STEP_DEPTH`` (tf2's own broadcaster QoS), so RViz2, tf2 and
+  Foxglove match them and the recorder, lagging at most ``RECORDER_LAG_STEPS``, loses none.
 """
 from __future__ import annotations
 
@@ -21,7 +24,7 @@ from uh_runtime.qos import QoSWords, profile_from_words
 __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
     'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK', 'MARKERS',
-    'RECORDER_PROGRESS', 'PER_UH', 'TEAM', 'uh_namespace', 'uh_topic', 'team_topics', 'qos_profile',
+    'RECORDER_PROGRESS', 'VIEW_QOS', 'TF', 'ODOM', 'DIAGNOSTICS', 'PER_UH', 'TEAM', 'uh_namespace', 'uh_topic', 'team_topics', 'qos_profile',
 ]
 
 #: History depth of per-step topics: how many steps a slow reader may fall behind without loss.
@@ -50,6 +53,7 @@ class TopicSpec:
 
 STEP_QOS = QosSpec('reliable', 'transient_local', 'keep_last', STEP_DEPTH)
 EVENT_QOS = QosSpec('reliable', 'volatile', 'keep_last', 10)
+VIEW_QOS = QosSpec('reliable', 'volatile', 'keep_last', STEP_DEPTH)
 
 STATE = TopicSpec('state', 'uh_msgs/msg/UHState', STEP_QOS, True, 'sim (own UH)',
                   'controller of the same UH and of every UH that hears it; recorder',
@@ -73,8 +77,18 @@ RECORDER_PROGRESS = TopicSpec('/recorder/progress', 'builtin_interfaces/msg/Time
                               'recorder', 'lockstep clock',
                               'sim time up to which every per-step topic has been written to the bag')
 
-PER_UH = (STATE, COMMAND, STATUS, FAULT_TRUTH, FAULT)
-TEAM = (REFERENCE, CLOCK)
+TF = TopicSpec('/tf', 'tf2_msgs/msg/TFMessage', VIEW_QOS, False, 'sims, virtual_leader',
+               'RViz2, tf2, Foxglove; recorder',
+               'world -> uhN/base_link of every UH, world -> virtual_leader (REP 103/105 frames)')
+ODOM = TopicSpec('odom', 'nav_msgs/msg/Odometry', VIEW_QOS, False, 'sim',
+                 'RViz2, PlotJuggler, Foxglove; recorder',
+                 'pose in world, twist in uhN/base_link (the state for generic tools)')
+DIAGNOSTICS = TopicSpec('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', VIEW_QOS, False,
+                        'sims, controllers', 'rqt_robot_monitor, Foxglove; recorder',
+                        'OK/WARN/ERROR of every simulator and controller, a few times per simulated second')
+
+PER_UH = (STATE, COMMAND, STATUS, FAULT_TRUTH, FAULT, ODOM)
+TEAM = (REFERENCE, CLOCK, TF, DIAGNOSTICS)
 
 
 def uh_namespace(uh_id: int) -> str:

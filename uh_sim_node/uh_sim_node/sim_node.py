@@ -31,8 +31,9 @@ from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
 from uh_core.wire import (WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg)
-from uh_core import topics
-from uh_topology.run_config import declare_run_parameters
+from uh_core import diagnostics, frames, topics
+from uh_core.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg
+from uh_topology.run_config import declare_run_parameters, declare_view_parameters
 
 __all__ = ['SimNode', 'main']
 
@@ -60,7 +61,9 @@ class SimNode(rt.Node):
         self.stale_steps = max(1, int(round(float(self.get_parameter('stale_timeout').value) / self.dt)))
         self.command_stale = False
         self.rejected = 0
+        self.rejected_faults = 0
         self.published = {'state': 0, 'fault_truth': 0}
+        self.views = declare_view_parameters(self, self.dt)
         qos = topics.qos_profile(topics.STEP_QOS)
         self.state_pub = self.create_publisher(m.UHState, topics.STATE.name, qos)
         self.truth_pub = self.create_publisher(m.FaultTruth, topics.FAULT_TRUTH.name, qos)
@@ -68,6 +71,13 @@ class SimNode(rt.Node):
         self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
         self.create_subscription(m.ActuatorFault, topics.FAULT.name, self.on_fault,
                                  topics.qos_profile(topics.FAULT.qos))
+        if self.views.enabled:
+            view_qos = topics.qos_profile(topics.VIEW_QOS)
+            self.tf_pub = self.create_publisher(m.get_message(topics.TF.type), topics.TF.name, view_qos)
+            self.odom_pub = self.create_publisher(m.get_message(topics.ODOM.type), topics.ODOM.name, view_qos)
+            self.diag_pub = self.create_publisher(m.get_message(topics.DIAGNOSTICS.type), topics.DIAGNOSTICS.name,
+                                                  view_qos)
+            self._reported = {'late': 0, 'rejected': 0, 'rejected_faults': 0}
         self.get_logger().info(
             f'uh{self.uh_id}: {self.mode} mode, dt {self.dt} s, {self.last_step} steps, '
             f'{len(self.plant.faults)} scheduled fault(s)')
@@ -119,6 +129,7 @@ class SimNode(rt.Node):
         if int(msg.uh_id) != self.uh_id:
             self.get_logger().error(f'rejected fault injection: it names uh{msg.uh_id} but arrived on '
                                     f'/uh{self.uh_id}/fault; the plant keeps its current faults')
+            self.rejected_faults += 1
             return
         try:
             fault = ActuatorFault(channel=int(msg.channel), rho=float(msg.rho),
@@ -126,6 +137,7 @@ class SimNode(rt.Node):
                                   bias_frequency=float(msg.bias_frequency), onset_time=float(msg.onset_time))
         except FaultError as exc:
             self.get_logger().error(f'rejected fault injection: {exc}; the plant keeps its current faults')
+            self.rejected_faults += 1
             return
         self.plant.faults.add(fault)
         self.get_logger().warn(f'fault injected on uh{self.uh_id}: {fault}')
@@ -159,9 +171,31 @@ class SimNode(rt.Node):
         self.published['fault_truth'] += 1
 
     def _publish_state(self) -> None:
-        self.state_pub.publish(state_to_msg(self.uh_id, self.step, self.step * self.dt, self.plant.x))
+        t = self.step * self.dt
+        self.state_pub.publish(state_to_msg(self.uh_id, self.step, t, self.plant.x))
         self.published_step = self.step
         self.published['state'] += 1
+        if self.views.enabled:
+            self._publish_views(t)
+
+    def _publish_views(self, t: float) -> None:
+        """The state for generic tools (docs/visualization.md): /tf and odom every
+        ``views.pose_every`` steps, /diagnostics every ``views.diagnostics_every`` steps."""
+        x = self.plant.x
+        if self.step % self.views.pose_every == 0:
+            position, quaternion = frames.pose_of_state(x)
+            self.tf_pub.publish(tf_msg([transform_msg(t, frames.WORLD_FRAME, frames.base_link(self.uh_id),
+                                                      position, quaternion)]))
+            self.odom_pub.publish(odometry_msg(self.uh_id, t, x))
+        if self.step % self.views.diagnostics_every == 0:
+            seen = {'late': self.late_commands, 'rejected': self.rejected, 'rejected_faults': self.rejected_faults}
+            since = {key: seen[key] - self._reported[key] for key in seen}
+            self._reported = seen
+            window = diagnostics.SimulatorWindow(
+                last_step=self.step, late_commands=since['late'], rejected_commands=since['rejected'],
+                rejected_faults=since['rejected_faults'], command_stale=self.command_stale,
+                fault_active=self.plant.fault_active(t), stuck=self.plant.stuck(t))
+            self.diag_pub.publish(diagnostic_array_msg(t, [diagnostics.simulator_diagnostic(self.uh_id, window)]))
 
     def destroy_node(self):
         if hasattr(self, 'published'):  # not when the constructor failed half-way

@@ -5,9 +5,10 @@ from __future__ import annotations
 import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_sim_node.reference import VirtualLeaderReference
-from uh_topology.run_config import declare_run_parameters
+from uh_topology.run_config import declare_run_parameters, declare_view_parameters
 from uh_core.wire import clock_step, reference_to_msg
-from uh_core import topics
+from uh_core import frames, topics
+from uh_core.standard_msgs import tf_msg, transform_msg
 
 __all__ = ['VirtualLeaderNode', 'main']
 
@@ -21,6 +22,10 @@ class VirtualLeaderNode(rt.Node):
         self.published_step = -1
         qos = topics.qos_profile(topics.STEP_QOS)
         self.pub = self.create_publisher(m.Reference, topics.REFERENCE.name, qos)
+        self.views = declare_view_parameters(self, self.dt)
+        if self.views.enabled:
+            self.tf_pub = self.create_publisher(m.get_message(topics.TF.type), topics.TF.name,
+                                                topics.qos_profile(topics.VIEW_QOS))
         self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
 
     def on_clock(self, msg) -> None:
@@ -29,7 +34,13 @@ class VirtualLeaderNode(rt.Node):
         while self.published_step < k:
             self.published_step += 1
             t = self.published_step * self.dt
-            self.pub.publish(reference_to_msg(self.published_step, t, self.reference.at(t)))
+            ref = self.reference.at(t)
+            self.pub.publish(reference_to_msg(self.published_step, t, ref))
+            if self.views.enabled and self.published_step % self.views.pose_every == 0:
+                # the reference's frame: its position and yaw (docs/visualization.md#frames)
+                self.tf_pub.publish(tf_msg([transform_msg(
+                    t, frames.WORLD_FRAME, frames.VIRTUAL_LEADER_FRAME, ref.position.tolist(),
+                    frames.quaternion_from_euler_zyx(0.0, 0.0, float(ref.yaw)))]))
 
     def destroy_node(self):
         if hasattr(self, 'published_step'):  # not when the constructor failed half-way

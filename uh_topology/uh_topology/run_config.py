@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import uh_runtime as rt
 from uh_topology.scenario import load_scenario
 
-__all__ = ['RunConfig', 'RunConfigError', 'declare_run_parameters', 'CLOCK_MODES']
+__all__ = ['RunConfig', 'RunConfigError', 'ViewConfig', 'declare_run_parameters', 'declare_view_parameters',
+           'CLOCK_MODES']
 
 CLOCK_MODES = ('lockstep', 'realtime')
 
@@ -59,3 +60,32 @@ def declare_run_parameters(node, per_uh: bool = True) -> RunConfig:
     duration = float(node.get_parameter('duration').value) or float(scenario.duration)
     last_step = int(round(duration / scenario.dt))
     return RunConfig(scenario, mode, float(scenario.dt), last_step, uh_id)
+
+
+@dataclass(frozen=True)
+class ViewConfig:
+    """The standard views a node publishes for generic tools (docs/visualization.md)."""
+
+    enabled: bool           # /tf, odom, /diagnostics at all
+    pose_every: int         # steps between two /tf and odom messages
+    diagnostics_every: int  # steps between two /diagnostics reports
+
+
+def declare_view_parameters(node, dt: float) -> ViewConfig:
+    """Declare ``standard_views`` (bool), ``pose_rate`` and ``diagnostics_rate`` (Hz of simulated
+    time) on ``node`` (control period ``dt`` s) and return them as steps."""
+    node.declare_parameter('standard_views', True, _describe(
+        'publish /tf, odom and /diagnostics for RViz2, tf2, Foxglove and rqt (off for benchmarks)',
+        read_only=True))
+    node.declare_parameter('pose_rate', 0.0, _describe(
+        'Hz of simulated time of /tf and odom; 0 = every step', read_only=True,
+        floating_point_range=[rt.FloatingPointRange(from_value=0.0, to_value=1e6, step=0.0)]))
+    node.declare_parameter('diagnostics_rate', 2.0, _describe(
+        'Hz of simulated time of /diagnostics', read_only=True,
+        floating_point_range=[rt.FloatingPointRange(from_value=0.001, to_value=1e6, step=0.0)]))
+
+    def every(rate: float) -> int:
+        return 1 if rate <= 0.0 else max(1, int(round(1.0 / (rate * dt))))
+    return ViewConfig(bool(node.get_parameter('standard_views').value),
+                      every(float(node.get_parameter('pose_rate').value)),
+                      every(float(node.get_parameter('diagnostics_rate').value)))
