@@ -101,7 +101,8 @@ def test_setup_py_declares_the_package_xml_dependencies(pkg):
 
 #: third-party module -> the rosdep key a package importing it must declare (rosdistro's
 #: rosdep/python.yaml; keys ending in -pip install from PyPI on a ROS machine). cyclonedds is the
-#: DDS backend's alone, which a ROS machine does not use (it runs on rclpy), so it has no key.
+#: DDS backend's alone, which a ROS machine does not use (it runs on rclpy), so it has no key; nor
+#: has foxglove (the live view of the pip-only path: a ROS machine runs foxglove_bridge).
 ROSDEP_KEYS = {'numpy': 'python3-numpy', 'numba': 'python3-numba', 'yaml': 'python3-yaml',
                'scipy': 'python3-scipy', 'matplotlib': 'python3-matplotlib',
                'rosbags': 'python3-rosbags-pip', 'mcap': 'mcap-ros2-support',

@@ -24,6 +24,7 @@ setup(
         'console_scripts': [
             'uh = uh_runtime.cli:main',
             'recorder_node = uh_runtime.recorder:main',
+            'live_view_node = uh_runtime.live_view:main',
             'replay_node = uh_runtime.replay:main',
         ],
     },

@@ -51,6 +51,7 @@ from uh_runtime.network import (MAX_DOMAIN_ID, default_cyclonedds_uri, environme
                                 reserve_domain_id)
 from uh_controller_node.gains import CASES
 from uh_bringup.team_nodes import NODES, backend_environment, node_specs
+from uh_runtime.live_view import DEFAULT_PORT
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
            'EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED']
@@ -89,6 +90,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--no-visualization', action='store_true',
                    help='do not start the visualisation node (no /markers in the bag): headless batch runs; '
                         'with one process per node it saves about 8 %% of the CPU of a lockstep step')
+    p.add_argument('--foxglove', nargs='?', type=int, const=DEFAULT_PORT, default=None, metavar='PORT',
+                   help=f'serve the team live over the Foxglove WebSocket protocol on ws://HOST:PORT (default port '
+                        f'{DEFAULT_PORT}; docs/visualization.md#live-view-in-foxglove); needs foxglove-sdk')
+    p.add_argument('--foxglove-host', default='127.0.0.1', metavar='HOST',
+                   help='address the live view binds (default 127.0.0.1; 0.0.0.0 exposes it to the network)')
     p.add_argument('--no-standard-views', action='store_true',
                    help='do not publish /tf, /uhN/odom and /diagnostics (docs/visualization.md): for '
                         'benchmarks and batch runs')
@@ -201,7 +207,9 @@ def process_commands(specs, layout: str, spec_dir: Path) -> list[tuple[str, list
 
 def _group_kind(group: str) -> str:
     """The node kind that decides what a composed process's death means (see the module docstring)."""
-    return 'recorder' if group == 'recorder' else ('sim' if group.startswith('uh') else 'clock')
+    if group in ('recorder', 'live_view'):
+        return group
+    return 'sim' if group.startswith('uh') else 'clock'
 
 
 def _processes(specs, layout: str, spec_dir: Path) -> list[tuple[str, str, list]]:
@@ -216,7 +224,7 @@ def _processes(specs, layout: str, spec_dir: Path) -> list[tuple[str, str, list]
         elif name.startswith('uh'):
             group = name.split('_')[0]
         else:
-            group = 'recorder' if kind == 'recorder' else 'team'
+            group = kind if kind in ('recorder', 'live_view') else 'team'
         groups.setdefault(group, []).append({'node': kind, 'name': name, 'cli_args': args})
     spec_dir.mkdir(parents=True, exist_ok=True)
     out = []
@@ -294,6 +302,8 @@ class _Run:
 
     def decide(self, node) -> tuple[str, str]:
         kind = node.kind
+        if kind == 'live_view':  # a viewer never stops the team, in either clock mode
+            return 'continue', 'the live view is not needed by the team; the run goes on without it'
         if self.args.clock == 'lockstep':
             return 'stop', 'lockstep: every step needs every node; stopping the run'
         if kind in ('clock', 'virtual_leader', 'recorder'):
@@ -372,6 +382,16 @@ def run(args) -> int:
             netns.check_available(args.loss)
         except netns.NetnsError as exc:
             raise UsageError(str(exc)) from None
+    if args.foxglove is not None:
+        if args.hosts == 'netns':
+            raise UsageError('--foxglove with --hosts netns: the live view would live in a network namespace '
+                             'no viewer reaches; use one of them')
+        from uh_runtime.live_view import LiveViewError, check_port, require_foxglove
+        try:    # before any node starts: a port in use is the user's to fix
+            require_foxglove()
+            check_port(args.foxglove_host, args.foxglove)
+        except LiveViewError as exc:
+            raise UsageError(str(exc)) from None
     _prepare_out(out, args.force)
     domain = args.domain_id
     if domain is None:
@@ -405,6 +425,7 @@ def run(args) -> int:
     info = {'command': sys.argv, 'scenario': args.scenario, 'case': args.case, 'clock': args.clock,
             'rate': args.rate, 'processes': args.processes, 'visualization': not args.no_visualization,
             'standard_views': not args.no_standard_views, 'duration_s': duration, 'domain_id': domain,
+            'foxglove': None if args.foxglove is None else f'ws://{args.foxglove_host}:{args.foxglove}',
             'hosts': args.hosts, 'loss_pct': args.loss, 'respawn': args.respawn, 'exit_status': None}
 
     def write_info():
@@ -426,7 +447,11 @@ def run(args) -> int:
         specs = node_specs(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
                            out / 'bag', args.startup_timeout, args.stale_timeout,
                            visualization=not args.no_visualization,
-                           standard_views=not args.no_standard_views)
+                           standard_views=not args.no_standard_views,
+                           live_view=(args.foxglove_host, args.foxglove) if args.foxglove is not None else None)
+        if args.foxglove is not None:
+            print(f'[run] live view: ws://{args.foxglove_host}:{args.foxglove}   (Foxglove: Open connection, '
+                  'Foxglove WebSocket; docs/visualization.md)', file=sys.stderr)
         for name, kind, cmd in _processes(specs, args.processes, out / 'logs'):
             # composed processes: only the recorder's own process (per-uh) is of an infrastructure kind
             node_env = {**env, **backend_environment(kind, env)}

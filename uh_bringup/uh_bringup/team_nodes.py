@@ -64,6 +64,7 @@ NODES = {
     'virtual_leader': NodeKind('uh_sim_node', 'virtual_leader_node',
                                'uh_sim_node.virtual_leader_node:VirtualLeaderNode'),
     'clock': NodeKind('uh_sim_node', 'lockstep_clock_node', 'uh_sim_node.clock_node:ClockNode'),
+    'live_view': NodeKind('uh_runtime', 'live_view_node', 'uh_runtime.live_view:LiveViewNode', infrastructure=True),
 }
 
 
@@ -88,10 +89,12 @@ def node_class(kind: str):
 
 def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, duration: float | None,
                bag_dir: Path, startup_timeout: float, stale_timeout: float | None = None,
-               visualization: bool = True, standard_views: bool = True) -> list[tuple[str, str, list]]:
+               visualization: bool = True, standard_views: bool = True,
+               live_view: tuple | None = None) -> list[tuple[str, str, list]]:
     """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last
     (the visualisation node only if ``visualization``; ``standard_views=False`` switches /tf, odom
-    and /diagnostics off, docs/visualization.md)."""
+    and /diagnostics off, docs/visualization.md; ``live_view=(host, port)`` adds the Foxglove live
+    view after the recorder)."""
     common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
     views = [] if standard_views else ['-p', 'standard_views:=false']
     stale = ['-p', f'stale_timeout:={float(stale_timeout)}'] if stale_timeout is not None else []
@@ -103,6 +106,9 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
     specs = [('recorder', 'recorder', ['--ros-args', '-p', f'output:={bag_dir}',
                                        '-p', f'progress_topics:=[{",".join(per_step)}]',
                                        '-p', f'expected_topics:=[{",".join(injections)}]'])]
+    if live_view is not None:
+        specs.append(('live_view', 'live_view', ['--ros-args', '-p', f'host:={live_view[0]}',
+                                                 '-p', f'port:={int(live_view[1])}']))
     for i in scenario.ids:
         ns = ['-r', f'__ns:={topics.uh_namespace(i)}', '-p', f'uh_id:={i}']
         specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *stale, *views]))

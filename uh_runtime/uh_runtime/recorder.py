@@ -34,7 +34,7 @@ from uh_runtime.bag import FLUSH_PERIOD_S, BagWriter
 from uh_runtime.bag_reader import BagError
 from uh_runtime.qos import QoSWords, merge_offered, profile_from_words, qos_profile_yaml, words_of
 
-__all__ = ['RecorderNode', 'main', 'stamp_of']
+__all__ = ['RecorderNode', 'main', 'stamp_of', 'stamped_first', 'new_topics']
 
 _STAMPED_FIRST = {'rosgraph_msgs/msg/Clock', 'builtin_interfaces/msg/Time'}
 _TIME = struct.Struct('<iI')
@@ -42,7 +42,7 @@ _TIME = struct.Struct('<iI')
 _RECORD_DEPTH = 10000
 
 
-def _stamped_first(type_name: str) -> bool:
+def stamped_first(type_name: str) -> bool:
     """True when the CDR payload of ``type_name`` starts with a Time (own stamp, or a Header's)."""
     if type_name in _STAMPED_FIRST:
         return True
@@ -55,6 +55,22 @@ def stamp_of(data: bytes) -> int:
     """Nanoseconds of the Time at the start of a little-endian CDR payload (after the 4-byte header)."""
     sec, nanosec = _TIME.unpack_from(data, 4)
     return sec * 1_000_000_000 + nanosec
+
+
+def new_topics(node, followed, wanted=(), skip=()):
+    """``[(name, type, [offered QoSWords of each publisher]), ...]`` of the topics in ``node``'s
+    graph that have a publisher and are not ``followed`` yet (only ``wanted`` ones if given; never
+    hidden topics, ``ros_discovery_info`` or ``skip``)."""
+    found = []
+    for name, types in node.get_topic_names_and_types():
+        if name in followed or name in skip or (wanted and name not in wanted):
+            continue
+        if name.startswith('/_') or name == '/ros_discovery_info':
+            continue
+        infos = node.get_publishers_info_by_topic(name)
+        if infos:
+            found.append((name, types[0], [words_of(info.qos_profile) for info in infos]))
+    return found
 
 
 class RecorderNode(rt.Node):
@@ -98,20 +114,11 @@ class RecorderNode(rt.Node):
 
     def discover(self) -> None:
         """Subscribe to every wanted topic that has appeared since the last look."""
-        for name, types in self.get_topic_names_and_types():
-            if name in self.subscriptions_by_topic or name == '/recorder/progress':
-                continue
-            if self.wanted and name not in self.wanted:
-                continue
-            if name.startswith('/_') or name == '/ros_discovery_info':
-                continue
-            infos = self.get_publishers_info_by_topic(name)
-            if not infos:
-                continue
-            offered = [words_of(info.qos_profile) for info in infos]
+        for name, type_name, offered in new_topics(self, self.subscriptions_by_topic, self.wanted,
+                                                    skip=('/recorder/progress',)):
             first = offered[0]
             # reliable and transient-local only when every publisher offers it
-            self._subscribe(name, types[0], dataclasses.replace(
+            self._subscribe(name, type_name, dataclasses.replace(
                 merge_offered(offered), history='keep_last', depth=_RECORD_DEPTH),
                 qos_profile_yaml(first.reliability, first.durability, first.history, first.depth))
 
@@ -119,7 +126,7 @@ class RecorderNode(rt.Node):
         """Add ``name`` to the bag and subscribe to it raw with the QoS ``words``."""
         message_class = m.get_message(type_name)
         self.bag.add_topic(name, type_name, offered_yaml)
-        stamped = _stamped_first(type_name)
+        stamped = stamped_first(type_name)
         self.subscriptions_by_topic[name] = self.create_subscription(
             message_class, name,
             lambda data, name=name, stamped=stamped: self.on_message(name, data, stamped),

@@ -28,6 +28,8 @@ import argparse
 import math
 import os
 import signal
+import socket
+import subprocess
 import sys
 import time
 
@@ -251,6 +253,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--wait-for-subscribers', action='store_true',
                    help=f'start only once every replayed topic has a subscriber (at most '
                         f'{WAIT_FOR_SUBSCRIBERS_TIMEOUT:g} s, then exit 1)')
+    p.add_argument('--foxglove', nargs='?', type=int, const=8765, default=None, metavar='PORT',
+                   help='also serve the replayed topics over the Foxglove WebSocket protocol on ws://HOST:PORT '
+                        '(default port 8765; docs/visualization.md#live-view-in-foxglove); needs foxglove-sdk')
+    p.add_argument('--foxglove-host', default='127.0.0.1', metavar='HOST',
+                   help='address the live view binds (default 127.0.0.1)')
     p.add_argument('--no-check', action='store_true',
                    help='skip the CRC check of every chunk before playing (faster start on huge bags)')
     return p
@@ -277,6 +284,13 @@ def main(args=None) -> int:
         domain = int(env_domain) if env_domain.isdigit() else 0
     if not 0 <= domain <= MAX_DOMAIN_ID:
         return _fail(f'--domain-id {domain}: allowed 0..{MAX_DOMAIN_ID}')
+    if opts.foxglove is not None:
+        from .live_view import LiveViewError, check_port, require_foxglove
+        try:    # before anything starts
+            require_foxglove()
+            check_port(opts.foxglove_host, opts.foxglove)
+        except LiveViewError as exc:
+            return _fail(str(exc))
     try:
         info = open_bag(opts.bag, check_chunks=not opts.no_check)
     except BagError as exc:
@@ -298,7 +312,10 @@ def main(args=None) -> int:
     node = None
     status = 0
     progress = None
+    viewer = None
     try:
+        if opts.foxglove is not None:
+            viewer = _start_live_view(opts.foxglove_host, opts.foxglove)
         node = ReplayNode(info, opts.topics, clock=not opts.no_clock)
         selected = node.replay_topics
         count = sum(info.topics[t].message_count for t in selected)
@@ -312,7 +329,8 @@ def main(args=None) -> int:
             if lonely and rt.ok():
                 status = _fail(f'no subscriber within {WAIT_FOR_SUBSCRIBERS_TIMEOUT:g} s on {", ".join(lonely)}', 1)
                 return status
-        deadline = time.monotonic() + opts.delay
+        # the live view subscribes to what it discovers, every 0.2 s: give it a second
+        deadline = time.monotonic() + (max(opts.delay, 1.0) if viewer else opts.delay)
         while rt.ok() and time.monotonic() < deadline:
             time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
         progress = _Progress(sys.stderr, count, info.duration_s, opts.rate)
@@ -340,7 +358,31 @@ def main(args=None) -> int:
         if node is not None:
             node.destroy_node()
         rt.try_shutdown()
+        if viewer is not None:
+            viewer.send_signal(signal.SIGINT)
+            try:
+                viewer.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                viewer.kill()
     return status
+
+
+def _start_live_view(host: str, port: int):
+    """Start the live view node (:mod:`uh_runtime.live_view`) beside the replay, in its DDS domain;
+    return its process once it accepts connections."""
+    viewer = subprocess.Popen([sys.executable, '-P', '-m', 'uh_runtime.live_view', '--ros-args',
+                               '-p', f'host:={host}', '-p', f'port:={port}'], env=dict(os.environ))
+    deadline = time.monotonic() + 30.0
+    while time.monotonic() < deadline and viewer.poll() is None:
+        try:
+            socket.create_connection((host, port), timeout=0.5).close()
+            print(f'[replay] live view: ws://{host}:{port}   (Foxglove: Open connection, Foxglove WebSocket)',
+                  file=sys.stderr, flush=True)
+            return viewer
+        except OSError:
+            time.sleep(0.2)
+    viewer.kill()
+    raise BagError(f'the live view did not start on {host}:{port} (exit status {viewer.poll()})')
 
 
 if __name__ == '__main__':

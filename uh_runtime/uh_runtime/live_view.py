@@ -1,0 +1,136 @@
+"""Live view node (``live_view``): the team's topics over the Foxglove WebSocket protocol
+(docs/visualization.md#live-view-in-foxglove).
+
+Follows every topic of the DDS domain like the recorder (:func:`uh_runtime.recorder.new_topics`),
+subscribes to it raw, and logs each CDR payload unchanged to a channel of a ``foxglove-sdk``
+WebSocket server (``foxglove.websocket.v1``), with the type's ``ros2msg`` definition as the schema
+(the same text a bag's MCAP schema holds, :func:`uh_runtime.bag.message_definition`). The Foxglove
+app connected to ``ws://HOST:PORT`` decodes them like a ROS 2 connection: 3-D scene from ``/tf``
+and ``/markers``, plots, diagnostics.
+
+The server is foxglove-sdk's: every client has its own bounded queue, and a slow or vanished
+client only loses its own messages; a publisher of the team never waits for a viewer. Bound to
+``127.0.0.1`` unless ``host`` says otherwise. Needs the optional ``foxglove-sdk`` package; on a
+ROS 2 machine ``foxglove_bridge`` does the same job.
+"""
+from __future__ import annotations
+
+import dataclasses
+import errno
+import socket
+import time
+
+import uh_runtime as rt
+from uh_runtime import messages as m
+from uh_runtime.bag import message_definition
+from uh_runtime.bag_reader import BagError
+from uh_runtime.qos import merge_offered, profile_from_words
+from uh_runtime.recorder import new_topics, stamp_of, stamped_first
+
+__all__ = ['LiveViewNode', 'LiveViewError', 'check_port', 'require_foxglove', 'main', 'DEFAULT_PORT']
+
+DEFAULT_PORT = 8765
+_DEPTH = 100
+
+
+class LiveViewError(ValueError):
+    """The live view cannot start (port, host or the foxglove-sdk package)."""
+
+
+def check_port(host: str, port: int) -> None:
+    """Raise :class:`LiveViewError` unless a TCP server can bind ``host:port`` now."""
+    if not 1 <= int(port) <= 65535:
+        raise LiveViewError(f'--foxglove port {port}: allowed 1..65535')
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except socket.gaierror as exc:
+        raise LiveViewError(f'--foxglove-host {host!r}: cannot resolve it ({exc.strerror})') from None
+    family, kind, proto, _, address = infos[0]
+    with socket.socket(family, kind, proto) as sock:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            sock.bind(address)
+        except OSError as exc:
+            why = 'in use by another program' if exc.errno == errno.EADDRINUSE else exc.strerror
+            raise LiveViewError(f'cannot serve the live view on {host}:{port}: {why}; choose another '
+                                f'port with --foxglove PORT') from None
+
+
+def require_foxglove():
+    try:
+        import foxglove
+    except ImportError:
+        raise LiveViewError('the live view needs the foxglove-sdk package: pip install -r requirements.txt '
+                            '(on a ROS 2 machine use foxglove_bridge instead, docs/visualization.md)') from None
+    return foxglove
+
+
+class LiveViewNode(rt.Node):
+    """See the module docstring. Parameters: ``host``, ``port``, ``topics`` (empty: all)."""
+
+    def __init__(self, **kwargs):
+        super().__init__('live_view', **kwargs)
+        self.declare_parameter('host', '127.0.0.1', rt.ParameterDescriptor(
+            description='address the WebSocket server binds (0.0.0.0: every interface)', read_only=True))
+        self.declare_parameter('port', DEFAULT_PORT, rt.ParameterDescriptor(
+            description='TCP port of the WebSocket server', read_only=True))
+        self.declare_parameter('topics', [''], rt.ParameterDescriptor(
+            description='topics to serve; empty serves every topic discovered', read_only=True))
+        host, port = str(self.get_parameter('host').value), int(self.get_parameter('port').value)
+        self.wanted = {t for t in self.get_parameter('topics').value if t}
+        foxglove = require_foxglove()
+        check_port(host, port)
+        self._foxglove = foxglove
+        self.server = foxglove.start_server(name='uh team', host=host, port=port)
+        self.channels = {}
+        self.subscriptions_by_topic = {}
+        self.clock_ns = 0
+        self.logged = 0
+        self.get_logger().info(f'live view: ws://{host}:{self.server.port} (open it in Foxglove: '
+                               'Open connection, Foxglove WebSocket)')
+        self.create_timer(0.2, self.discover)
+        self.discover()
+
+    def discover(self) -> None:
+        """Serve every wanted topic that has appeared since the last look."""
+        for name, type_name, offered in new_topics(self, self.subscriptions_by_topic, self.wanted):
+            try:
+                message_class = m.get_message(type_name)
+                definition = message_definition(type_name)[0]
+            except (LookupError, ValueError, BagError) as exc:  # a type this machine does not know: not served
+                self.subscriptions_by_topic[name] = None
+                self.get_logger().warning(f'not serving {name}: {exc}')
+                continue
+            schema = self._foxglove.Schema(name=type_name, encoding='ros2msg', data=definition.encode())
+            channel = self.channels[name] = self._foxglove.Channel(name, schema=schema, message_encoding='cdr')
+            stamped = stamped_first(type_name)
+            # volatile: a viewer wants what comes from now on, not a replay of the writers' history
+            words = dataclasses.replace(merge_offered(offered), durability='volatile', history='keep_last',
+                                        depth=_DEPTH)
+            self.subscriptions_by_topic[name] = self.create_subscription(
+                message_class, name,
+                lambda data, channel=channel, stamped=stamped, name=name: self.on_message(name, channel, data,
+                                                                                          stamped),
+                profile_from_words(words), raw=True)
+            self.get_logger().info(f'serving {name} [{type_name}]')
+
+    def on_message(self, name: str, channel, data: bytes, stamped: bool) -> None:
+        log_ns = stamp_of(data) if stamped else (self.clock_ns or time.time_ns())
+        if name == '/clock':
+            self.clock_ns = log_ns
+        channel.log(bytes(data), log_time=log_ns)
+        self.logged += 1
+
+    def destroy_node(self):
+        if hasattr(self, 'server'):
+            self.server.stop()
+            rt.log_on_exit(self, f'live view stopped: {self.logged} messages on {len(self.channels)} topics')
+        return super().destroy_node()
+
+
+def main(args=None):
+    rt.run_node(LiveViewNode, args, user_errors=(LiveViewError,))
+
+
+if __name__ == '__main__':
+    main()
