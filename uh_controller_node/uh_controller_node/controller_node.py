@@ -216,19 +216,22 @@ class ControllerNode(rt.Node):
 
     def _diagnose(self, k: int, t: float, inputs, status) -> None:
         """Add step k to the diagnostics window; publish it every ``views.diagnostics_every`` steps
-        (docs/visualization.md#diagnostics)."""
+        (docs/visualization.md#diagnostics). Per step only counters; the rest at the report."""
         w = self.window
         w.steps += 1
+        if status.saturated_tilt or status.saturated_collective or status.saturated_cyclic:
+            w.saturated_steps += 1
+        for stats in self.sync.lag.values():
+            if stats.last > w.max_input_lag:
+                w.max_input_lag = stats.last
+        if k % self.views.diagnostics_every:
+            return
         w.last_step = k
-        w.saturated_steps += bool(status.saturated_tilt or status.saturated_collective or status.saturated_cyclic)
-        w.max_input_lag = max([w.max_input_lag] + [stats.last for stats in self.sync.lag.values()])
         w.stale_neighbours = tuple(inputs.stale_labels)
         w.holding = inputs.hold is not None
         w.fault_isolated = tuple(status.isolation.isolated)
         w.fault_estimate_position = float(np.linalg.norm(status.fault_estimate_position))
         w.fault_estimate_attitude = float(np.linalg.norm(status.fault_estimate_attitude))
-        if k % self.views.diagnostics_every:
-            return
         rejected = sum(self.sync.rejected.values())
         w.rejected_inputs, self._rejected_reported = rejected - self._rejected_reported, rejected
         self.diag_pub.publish(diagnostic_array_msg(t, [diagnostics.controller_diagnostic(self.uh_id, w)]))

@@ -77,7 +77,8 @@ def declare_view_parameters(node, dt: float) -> ViewConfig:
     node.declare_parameter('standard_views', True, _describe(
         'publish /tf, odom and /diagnostics for RViz2, tf2, Foxglove and rqt (off for benchmarks)',
         read_only=True))
-    node.declare_parameter('pose_rate', 0.0, _describe(
+    # what a person watches is decimated (docs/visualization.md): 25 Hz is smooth in a 3-D view
+    node.declare_parameter('pose_rate', 25.0, _describe(
         'Hz of simulated time of /tf and odom; 0 = every step', read_only=True,
         floating_point_range=[rt.FloatingPointRange(from_value=0.0, to_value=1e6, step=0.0)]))
     node.declare_parameter('diagnostics_rate', 2.0, _describe(
