@@ -43,6 +43,13 @@ def _spin_until(executor, done, bound=BOUND):
         executor.spin_once(timeout_sec=0.1)
 
 
+def _publish_when_matched(executor, pub, matched, values):
+    """Spin until ``pub`` has ``matched`` subscriptions, then publish ``Int64`` ``values``."""
+    _spin_until(executor, lambda: pub.get_subscription_count() == matched)
+    for value in values:
+        pub.publish(Int64(data=value))
+
+
 def _node(context, name, **kwargs):
     return rclpy.create_node(name, context=context, **kwargs)
 
@@ -55,9 +62,7 @@ def test_messages_arrive_in_order_also_on_a_subscription_created_while_spinning(
     first, second = [], []
     node.create_subscription(Int64, 'a', lambda m: first.append(m.data), 100)
     pub_a = talker.create_publisher(Int64, 'a', 100)
-    _spin_until(executor, lambda: pub_a.get_subscription_count() == 1)
-    for k in range(50):
-        pub_a.publish(Int64(data=k))
+    _publish_when_matched(executor, pub_a, 1, range(50))
     _spin_until(executor, lambda: len(first) == 50)
     assert first == list(range(50))
 
@@ -84,9 +89,7 @@ def test_a_subscription_destroyed_by_a_callback_gets_no_more_messages(context, e
     subs['once'] = node.create_subscription(Int64, 'a', once, 100)
     node.create_subscription(Int64, 'a', lambda m: other.append(m.data), 100)
     pub = node.create_publisher(Int64, 'a', 100)
-    _spin_until(executor, lambda: pub.get_subscription_count() == 2)
-    for k in range(10):
-        pub.publish(Int64(data=k))
+    _publish_when_matched(executor, pub, 2, range(10))
     _spin_until(executor, lambda: len(other) == 10)
     assert got == [0]
 

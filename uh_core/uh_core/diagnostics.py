@@ -21,14 +21,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from .layout import CHANNEL_NAMES
+
 __all__ = ['OK', 'WARN', 'ERROR', 'STALE', 'LEVEL_NAMES', 'Diagnostic', 'ControllerWindow',
-           'SimulatorWindow', 'controller_diagnostic', 'simulator_diagnostic', 'CHANNEL_NAMES']
+           'SimulatorWindow', 'controller_diagnostic', 'simulator_diagnostic']
 
 #: ``diagnostic_msgs/DiagnosticStatus`` levels (byte constants of the message).
 OK, WARN, ERROR, STALE = 0, 1, 2, 3
 LEVEL_NAMES = {OK: 'OK', WARN: 'WARN', ERROR: 'ERROR', STALE: 'STALE'}
-#: Actuator channels in the order of ``uh_msgs/ActuatorFault``'s ``CHANNEL_*``.
-CHANNEL_NAMES = ('collective', 'tail_rotor', 'lateral', 'longitudinal')
 
 
 @dataclass
