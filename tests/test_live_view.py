@@ -44,7 +44,7 @@ def _start(out, domain_id, *args):
 def _connect(port, deadline):
     while True:
         try:
-            return connect(f'ws://127.0.0.1:{port}', subprotocols=[SUBPROTOCOL], open_timeout=5)
+            return connect(f'ws://127.0.0.1:{port}', subprotocols=[SUBPROTOCOL], open_timeout=5, close_timeout=1)
         except OSError:
             assert time.monotonic() < deadline, 'the live view never accepted a connection'
             time.sleep(0.3)
@@ -64,7 +64,7 @@ def _advertised(ws, wanted, deadline):
 
 def test_a_foxglove_client_receives_odometry_and_markers_that_match_the_simulator(tmp_path, domain_id):
     port, out = _free_port(), tmp_path / 'run'
-    run = _start(out, domain_id, '--clock', 'realtime', '--duration', '12', '--foxglove', str(port))
+    run = _start(out, domain_id, '--clock', 'realtime', '--duration', '8', '--foxglove', str(port))
     store, odom, markers = typestore(), [], []
     try:
         deadline = time.monotonic() + BOUND
@@ -121,7 +121,7 @@ def test_a_viewer_that_never_reads_or_leaves_does_not_stall_the_team(tmp_path, d
     """Lockstep waits for every node: a publisher blocked by a viewer would stop the run. One client
     subscribes to everything and never reads; another leaves mid-run."""
     port, out = _free_port(), tmp_path / 'run'
-    run = _start(out, domain_id, '--duration', '20', '--foxglove', str(port))
+    run = _start(out, domain_id, '--duration', '10', '--foxglove', str(port))
     try:
         deadline = time.monotonic() + BOUND
         with _connect(port, deadline) as stuck:
@@ -136,7 +136,9 @@ def test_a_viewer_that_never_reads_or_leaves_does_not_stall_the_team(tmp_path, d
             run.kill()
             run.wait()
     assert run.returncode == 0, output[-3000:]
-    assert 'run complete: 2000 steps' in output
+    assert 'run complete: 1000 steps' in output
+    # and the live view itself shut down on SIGINT (not killed after the grace period)
+    assert 'live view stopped:' in (out / 'logs' / 'live_view.log').read_text()
 
 
 def test_replay_serves_a_bag_to_a_foxglove_client(tmp_path, domain_id):

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import errno
 import socket
+import threading
 import time
 
 import uh_runtime as rt
@@ -30,6 +31,8 @@ from uh_runtime.recorder import new_topics, stamp_of, stamped_first
 __all__ = ['LiveViewNode', 'LiveViewError', 'check_port', 'require_foxglove', 'main', 'DEFAULT_PORT']
 
 DEFAULT_PORT = 8765
+#: s to wait for viewers to close at shutdown
+STOP_WAIT_S = 1.0
 _DEPTH = 100
 
 
@@ -123,8 +126,14 @@ class LiveViewNode(rt.Node):
 
     def destroy_node(self):
         if hasattr(self, 'server'):
-            self.server.stop()
-            rt.log_on_exit(self, f'live view stopped: {self.logged} messages on {len(self.channels)} topics')
+            # stopping closes every connection gracefully, which waits for a client that does not
+            # read: give it STOP_WAIT_S, then leave (the process exit closes the sockets)
+            stopper = threading.Thread(target=self.server.stop, daemon=True)
+            stopper.start()
+            stopper.join(STOP_WAIT_S)
+            rt.log_on_exit(self, f'live view stopped: {self.logged} messages on {len(self.channels)} topics'
+                           + ('' if not stopper.is_alive() else
+                              f' (a viewer did not close within {STOP_WAIT_S:g} s: dropped)'))
         return super().destroy_node()
 
 
