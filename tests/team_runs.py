@@ -23,3 +23,21 @@ def wait_for_log(path: Path, needle: str, proc, timeout: float) -> None:
             raise AssertionError(f'run ended before {needle!r} appeared in {path}:\n{proc.stdout.read()}')
         time.sleep(0.05)
     raise AssertionError(f'{needle!r} did not appear in {path} within {timeout} s')
+
+
+def stop_run(proc, timeout: float = 60.0) -> None:
+    """End a run supervisor started in its own session the way Ctrl-C does (SIGINT: it stops every
+    node it started), then kill what is left. Killing only the supervisor would orphan its nodes,
+    which live on in the test's DDS domain and meet the next test that takes that id."""
+    import os
+    import signal
+    if proc.poll() is not None:
+        return
+    try:
+        os.killpg(proc.pid, signal.SIGINT)
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    except ProcessLookupError:
+        pass

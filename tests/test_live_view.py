@@ -20,6 +20,7 @@ from websockets.sync.client import connect  # noqa: E402
 
 from uh_runtime.messages import typestore  # noqa: E402
 from uh_runtime.network import loopback_environment  # noqa: E402
+from team_runs import stop_run  # noqa: E402
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 ROOT = Path(__file__).resolve().parents[1]
@@ -86,9 +87,7 @@ def test_a_foxglove_client_receives_odometry_and_markers_that_match_the_simulato
                     (odom if sid == 1 else markers).append(msg)
         output, _ = run.communicate(timeout=BOUND)
     finally:
-        if run.poll() is None:
-            run.kill()
-            run.wait()
+        stop_run(run)
     assert run.returncode == 0, output[-3000:]
     assert all(m.header.frame_id == 'world' and m.child_frame_id == 'uh1/base_link' for m in odom)
     assert all(any(k.header.frame_id == 'world' for k in m.markers) for m in markers)
@@ -132,9 +131,7 @@ def test_a_viewer_that_never_reads_or_leaves_does_not_stall_the_team(tmp_path, d
                 _advertised(leaving, {'/uh1/state'}, deadline)
             output, _ = run.communicate(timeout=BOUND)   # stuck is never read while the run goes on
     finally:
-        if run.poll() is None:
-            run.kill()
-            run.wait()
+        stop_run(run)
     assert run.returncode == 0, output[-3000:]
     assert 'run complete: 1000 steps' in output
     # and the live view itself shut down on SIGINT (not killed after the grace period)
