@@ -25,6 +25,7 @@ from uh_bringup.bag_metrics import read_team_bag
 from uh_runtime.messages import typestore
 from uh_runtime.network import reserve_domain_id
 from uh_topology.scenario import load_scenario
+from team_runs import start_run, wait_for_log
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN = ROOT / 'scripts' / 'run_formation.sh'
@@ -216,3 +217,32 @@ def test_a_death_in_lockstep_ends_the_run_naming_the_node(tmp_path):
     assert 'FAILED: node uh4_controller killed by SIGKILL' in output
     # the others were stopped cleanly: the bag is finalised
     assert (out / 'bag' / 'metadata.yaml').exists()
+
+
+def test_no_node_outlives_a_killed_supervisor(tmp_path, domain_id):
+    """SIGKILL to the run supervisor alone (no Ctrl-C, no clean-up): every node process it started
+    gets SIGTERM from the kernel (parent-death signal) and ends, instead of running on in the DDS
+    domain (uh_runtime.runner.end_with_supervisor)."""
+    out = tmp_path / 'run'
+    proc = start_run(out, domain_id, '--clock', 'realtime', '--duration', '60')
+    try:
+        wait_for_log(out / 'logs' / 'clock.log', 'realtime run of', proc, timeout=120)
+        pids = json.loads((out / 'run.json').read_text())['pids']
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+        deadline = time.monotonic() + 30   # bounds a failure only; a clean node shutdown takes ~1 s
+        alive = dict(pids)
+        while alive and time.monotonic() < deadline:
+            alive = {n: p for n, p in alive.items() if Path(f'/proc/{p}').exists()
+                     and Path(f'/proc/{p}/stat').read_text().split()[2] != 'Z'}
+            time.sleep(0.2)
+        assert not alive, f'still running after the supervisor was killed: {alive}'
+    finally:   # whatever the outcome, leave nothing behind in the domain
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        started = json.loads((out / 'run.json').read_text())['pids'] if (out / 'run.json').exists() else {}
+        for pid in started.values():
+            try:
+                os.killpg(pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass

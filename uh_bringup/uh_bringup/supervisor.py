@@ -19,6 +19,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from uh_runtime.runner import SUPERVISOR_ENV
+
 __all__ = ['NodeProcess', 'Supervisor', 'NodeFailure', 'describe_exit']
 
 
@@ -92,9 +94,10 @@ class Supervisor:
                 log.write(f'---- {time.strftime("%H:%M:%S")} respawned ({node.restarts}) after the process '
                           f'{describe_exit(node.returncode)} ----\n')
                 log.flush()
+            # the node ends with this process even if it is killed (uh_runtime.runner.end_with_supervisor)
+            env = {**self.envs.get(node.name, self.env), SUPERVISOR_ENV: str(os.getpid())}
             node.proc = subprocess.Popen([*self.prefix.get(node.name, []), *node.cmd], stdout=log,
-                                         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                         env=self.envs.get(node.name, self.env),
+                                         stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
                                          start_new_session=True)
         finally:
             log.close()

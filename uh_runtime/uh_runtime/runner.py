@@ -98,6 +98,28 @@ def log_on_exit(node, message: str) -> None:
     sys.stderr.flush()
 
 
+#: Set by the run supervisor (uh_bringup.supervisor) to its pid in its nodes' environment.
+SUPERVISOR_ENV = 'UH_SUPERVISOR_PID'
+
+
+def end_with_supervisor() -> None:
+    """Make this node process get SIGTERM (a clean shutdown) when the run supervisor that started it
+    dies, even by SIGKILL, so that no node is left running behind it (Linux's parent-death signal).
+
+    Only when ``UH_SUPERVISOR_PID`` names this process's parent (a node started by ``ros2 run`` has
+    the wrapper as parent; it is left alone).
+    """
+    wanted = os.environ.get(SUPERVISOR_ENV, '')
+    if not wanted.isdigit() or not sys.platform.startswith('linux') or os.getppid() != int(wanted):
+        return
+    import ctypes
+    import signal
+    pr_set_pdeathsig = 1
+    ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGTERM), 0, 0, 0)
+    if os.getppid() != int(wanted):   # the supervisor died before the call: end now
+        os.kill(os.getpid(), signal.SIGTERM)
+
+
 def _prog(args) -> str:
     argv0 = (args or sys.argv or ['node'])[0]
     return os.path.basename(str(argv0)) or 'node'
@@ -126,6 +148,7 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
     """
     from . import procstats
     procstats.install_from_env()
+    end_with_supervisor()
     if not faulthandler.is_enabled():
         # a crash in native code (Cyclone DDS, numpy) leaves the Python stack in the node's log
         faulthandler.enable()
