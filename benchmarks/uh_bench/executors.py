@@ -75,10 +75,19 @@ def _subscribe(executor_name: str, messages: int) -> dict:
             'cpu_us_per_message': 1e6 * cpu / got if got else None}
 
 
-def measure(case: str, messages: int = 2500, env=None) -> dict:
-    """Run the publisher and the subscriber of ``case`` (a key of :data:`CASES`); their result."""
+def measure(case: str, messages: int = 2500) -> dict:
+    """Run the publisher and the subscriber of ``case`` (a key of :data:`CASES`) in a DDS domain of
+    their own (reserved, loopback network, given back); their result."""
+    from uh_runtime.network import loopback_environment, release_domain_id, reserve_domain_id
+    domain = reserve_domain_id()
+    try:
+        return _measure(case, messages, loopback_environment(domain, dict(os.environ)))
+    finally:
+        release_domain_id(domain)
+
+
+def _measure(case: str, messages: int, env: dict) -> dict:
     backend, executor_name = CASES[case]
-    env = dict(os.environ if env is None else env)
     bench_dir = str(Path(__file__).resolve().parents[1])  # so the children import uh_bench
     env['PYTHONPATH'] = bench_dir + (os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH') else '')
     seconds = 30.0 + messages / (TOPICS * RATE_HZ)
@@ -109,14 +118,8 @@ def main(argv=None) -> int:
     elif args.role == 'sub':
         print(json.dumps(_subscribe(args.executor, args.messages)))
     else:
-        from uh_runtime.network import loopback_environment, release_domain_id, reserve_domain_id
-        domain = reserve_domain_id()
-        try:
-            env = loopback_environment(domain, dict(os.environ))
-            for case in CASES:
-                print(json.dumps(measure(case, args.messages, env)))
-        finally:
-            release_domain_id(domain)
+        for case in CASES:
+            print(json.dumps(measure(case, args.messages)))
     return 0
 
 

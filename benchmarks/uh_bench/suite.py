@@ -292,13 +292,7 @@ def _backends(cfg, workdir, results):
     section['executors'] = []
     for case in [c for c, (backend, _) in executors.CASES.items() if backend in backends]:
         _log(f'backends: CPU per received message, executor {case}')
-        domain = reserve_domain_id()
-        try:
-            from uh_runtime.network import loopback_environment
-            section['executors'].append(executors.measure(
-                case, cfg.get('executor_messages', 2500), loopback_environment(domain, dict(os.environ))))
-        finally:
-            release_domain_id(domain)
+        section['executors'].append(executors.measure(case, cfg.get('executor_messages', 2500)))
     if skipped:
         _log(f'backends: rclpy skipped: {skipped}')
     results['backends'] = section
@@ -441,19 +435,16 @@ def markdown(results) -> str:
                   '|---|---|---|---|---|---|',
                   f'| in-process reference | 1 | {_f(ref["rtf"], "{:.1f}")} | 1 | — | '
                   f'{_f(1000 * ref["wall_s"] / (paper["duration_s"] / 0.01), "{:.2f}")} (wall) |']
-        for layout, run in paper['lockstep'].items():
+
+        def lockstep_row(label, run, ratio):
             steps = run['steps'] or paper['duration_s'] / 0.01
-            lines.append(f'| lockstep, {layout} | {run["n_processes"]} | {_f(run["rtf"])} | '
-                         f'{_f(run["ratio_to_inprocess"], "{:.3f}")} | {run["cpu_s"]:.1f} '
-                         f'({run["cpu_startup_s"]:.1f} + {run["cpu_run_s"]:.1f}) | '
-                         f'{1000 * run["cpu_run_s"] / steps:.2f} |')
+            return (f'| {label} | {run["n_processes"]} | {_f(run["rtf"])} | {ratio} | {run["cpu_s"]:.1f} '
+                    f'({run["cpu_startup_s"]:.1f} + {run["cpu_run_s"]:.1f}) | {1000 * run["cpu_run_s"] / steps:.2f} |')
+        for layout, run in paper['lockstep'].items():
+            lines.append(lockstep_row(f'lockstep, {layout}', run, _f(run['ratio_to_inprocess'], '{:.3f}')))
         views = paper.get('standard_views')
         if views:
-            bare = views['without']
-            steps = bare['steps'] or paper['duration_s'] / 0.01
-            lines.append(f'| lockstep, per-node, `--no-standard-views` | {bare["n_processes"]} | {_f(bare["rtf"])} | '
-                         f'— | {bare["cpu_s"]:.1f} ({bare["cpu_startup_s"]:.1f} + {bare["cpu_run_s"]:.1f}) | '
-                         f'{1000 * bare["cpu_run_s"] / steps:.2f} |')
+            lines.append(lockstep_row('lockstep, per-node, `--no-standard-views`', views['without'], '—'))
             lines.append(f'\n/tf, odom and /diagnostics: real-time factor with / without {_f(views["rtf_ratio"], "{:.3f}")}, '
                          f'run CPU with / without {_f(views["cpu_ratio"], "{:.3f}")}')
         lines.append('')

@@ -51,7 +51,7 @@ from uh_runtime.network import (MAX_DOMAIN_ID, default_cyclonedds_uri, environme
                                 reserve_domain_id)
 from uh_controller_node.gains import CASES
 from uh_bringup.team_nodes import NODES, backend_environment, node_specs
-from uh_runtime.live_view import DEFAULT_PORT
+from uh_runtime import live_view
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
            'EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED']
@@ -90,11 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--no-visualization', action='store_true',
                    help='do not start the visualisation node (no /markers in the bag): headless batch runs; '
                         'with one process per node it saves about 8 %% of the CPU of a lockstep step')
-    p.add_argument('--foxglove', nargs='?', type=int, const=DEFAULT_PORT, default=None, metavar='PORT',
-                   help=f'serve the team live over the Foxglove WebSocket protocol on ws://HOST:PORT (default port '
-                        f'{DEFAULT_PORT}; docs/visualization.md#live-view-in-foxglove); needs foxglove-sdk')
-    p.add_argument('--foxglove-host', default='127.0.0.1', metavar='HOST',
-                   help='address the live view binds (default 127.0.0.1; 0.0.0.0 exposes it to the network)')
+    live_view.add_arguments(p, 'the team')
     p.add_argument('--no-standard-views', action='store_true',
                    help='do not publish /tf, /uhN/odom and /diagnostics (docs/visualization.md): for '
                         'benchmarks and batch runs')
@@ -386,11 +382,9 @@ def run(args) -> int:
         if args.hosts == 'netns':
             raise UsageError('--foxglove with --hosts netns: the live view would live in a network namespace '
                              'no viewer reaches; use one of them')
-        from uh_runtime.live_view import LiveViewError, check_port, require_foxglove
         try:    # before any node starts: a port in use is the user's to fix
-            require_foxglove()
-            check_port(args.foxglove_host, args.foxglove)
-        except LiveViewError as exc:
+            live_view.check_available(args.foxglove_host, args.foxglove)
+        except live_view.LiveViewError as exc:
             raise UsageError(str(exc)) from None
     _prepare_out(out, args.force)
     domain = args.domain_id
@@ -450,8 +444,7 @@ def run(args) -> int:
                            standard_views=not args.no_standard_views,
                            live_view=(args.foxglove_host, args.foxglove) if args.foxglove is not None else None)
         if args.foxglove is not None:
-            print(f'[run] live view: ws://{args.foxglove_host}:{args.foxglove}   (Foxglove: Open connection, '
-                  'Foxglove WebSocket; docs/visualization.md)', file=sys.stderr)
+            print(f'[run] live view: {live_view.connect_hint(args.foxglove_host, args.foxglove)}', file=sys.stderr)
         for name, kind, cmd in _processes(specs, args.processes, out / 'logs'):
             # composed processes: only the recorder's own process (per-uh) is of an infrastructure kind
             node_env = {**env, **backend_environment(kind, env)}

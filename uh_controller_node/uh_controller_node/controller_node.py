@@ -48,7 +48,7 @@ from uh_runtime import messages as m
 from uh_topology.run_config import RunConfigError, declare_run_parameters, declare_view_parameters
 from uh_core.wire import WireError, command_to_msg, msg_to_reference, msg_to_state, status_to_msg
 from uh_core import diagnostics, topics
-from uh_core.standard_msgs import diagnostic_array_msg
+from uh_core.standard_msgs import diagnostic_array_msg, view_publisher
 
 __all__ = ['ControllerNode', 'main']
 
@@ -105,8 +105,7 @@ class ControllerNode(rt.Node):
         self.window = diagnostics.ControllerWindow()
         self._rejected_reported = 0
         if self.views.enabled:
-            self.diag_pub = self.create_publisher(m.get_message(topics.DIAGNOSTICS.type), topics.DIAGNOSTICS.name,
-                                                  topics.qos_profile(topics.VIEW_QOS))
+            self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
         self.create_subscription(m.UHState, topics.STATE.name, self.on_own_state, qos)
         for j in neighbours:
             self.create_subscription(m.UHState, topics.uh_topic(j, topics.STATE),

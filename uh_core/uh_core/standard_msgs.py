@@ -6,22 +6,30 @@ Foxglove and rqt_robot_monitor. Frames and the mathematics: :mod:`uh_core.frames
 """
 from __future__ import annotations
 
+import functools
+
 from uh_runtime import messages as m
 
-from . import frames
+from . import frames, topics
 from .wire import stamp
 
-__all__ = ['transform_msg', 'tf_msg', 'odometry_msg', 'diagnostic_array_msg', 'level_of']
+__all__ = ['view_publisher', 'transform_msg', 'tf_msg', 'odometry_msg', 'diagnostic_array_msg', 'level_of']
 
-_level_is_bytes = None
+
+def view_publisher(node, spec):
+    """``node``'s publisher of the standard view ``spec`` (:data:`uh_core.topics.TF`, ``ODOM``,
+    ``DIAGNOSTICS``) with its type and QoS from the topic registry."""
+    return node.create_publisher(m.get_message(spec.type), spec.name, topics.qos_profile(spec.qos))
+
+
+@functools.cache
+def _level_is_bytes() -> bool:
+    return isinstance(m.get_message('diagnostic_msgs/msg/DiagnosticStatus')().level, bytes)
 
 
 def _level_value(level: int):
     """``DiagnosticStatus.level`` is ``byte``: ``bytes`` of length 1 on rclpy, an int on the DDS backend."""
-    global _level_is_bytes
-    if _level_is_bytes is None:
-        _level_is_bytes = isinstance(m.get_message('diagnostic_msgs/msg/DiagnosticStatus')().level, bytes)
-    return bytes([level]) if _level_is_bytes else int(level)
+    return bytes([level]) if _level_is_bytes() else int(level)
 
 
 def level_of(status) -> int:
@@ -45,10 +53,11 @@ def tf_msg(transforms):
     return m.get_message('tf2_msgs/msg/TFMessage')(transforms=list(transforms))
 
 
-def odometry_msg(uh_id: int, t: float, x):
+def odometry_msg(uh_id: int, t: float, x, pose=None):
     """``nav_msgs/Odometry`` of UH ``uh_id`` in state ``x`` (12,) at time ``t``: pose in ``world``,
-    twist in ``uhN/base_link`` (REP 105); covariances zero (the simulator's state is exact)."""
-    position, q = frames.pose_of_state(x)
+    twist in ``uhN/base_link`` (REP 105); covariances zero (the simulator's state is exact).
+    ``pose``: :func:`uh_core.frames.pose_of_state` of ``x`` if already computed."""
+    position, q = pose or frames.pose_of_state(x)
     linear, angular = frames.body_twist_of_state(x)
     pose = m.Pose(position=m.Point(x=position[0], y=position[1], z=position[2]),
                   orientation=m.Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]))

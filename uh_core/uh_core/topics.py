@@ -24,7 +24,8 @@ from uh_runtime.qos import QoSWords, profile_from_words
 __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
     'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK', 'MARKERS',
-    'RECORDER_PROGRESS', 'VIEW_QOS', 'TF', 'ODOM', 'DIAGNOSTICS', 'PER_UH', 'TEAM', 'uh_namespace', 'uh_topic', 'team_topics', 'qos_profile',
+    'RECORDER_PROGRESS', 'VIEW_QOS', 'TF', 'ODOM', 'DIAGNOSTICS', 'PER_UH', 'TEAM', 'uh_namespace',
+    'uh_topic', 'team_topics', 'qos_profile',
 ]
 
 #: History depth of per-step topics: how many steps a slow reader may fall behind without loss.

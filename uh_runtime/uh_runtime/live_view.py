@@ -26,9 +26,10 @@ from uh_runtime import messages as m
 from uh_runtime.bag import message_definition
 from uh_runtime.bag_reader import BagError
 from uh_runtime.qos import merge_offered, profile_from_words
-from uh_runtime.recorder import new_topics, stamp_of, stamped_first
+from uh_runtime.recorder import LogClock, new_topics, stamped_first
 
-__all__ = ['LiveViewNode', 'LiveViewError', 'check_port', 'require_foxglove', 'main', 'DEFAULT_PORT']
+__all__ = ['LiveViewNode', 'LiveViewError', 'add_arguments', 'check_available', 'check_port', 'connect_hint',
+           'require_foxglove', 'main', 'DEFAULT_PORT']
 
 DEFAULT_PORT = 8765
 #: s to wait for viewers to close at shutdown
@@ -68,6 +69,29 @@ def require_foxglove():
     return foxglove
 
 
+def check_available(host: str, port: int) -> None:
+    """Everything a live view needs before anything starts: foxglove-sdk, and ``host:port`` free."""
+    require_foxglove()
+    check_port(host, port)
+
+
+def connect_hint(host: str, port: int) -> str:
+    """What a user types into Foxglove to see the live view."""
+    return (f'ws://{host}:{port}   (Foxglove: Open connection, Foxglove WebSocket; '
+            'docs/visualization.md#live-view-in-foxglove)')
+
+
+def add_arguments(parser, what: str) -> None:
+    """``--foxglove [PORT]`` and ``--foxglove-host HOST`` of the command-line tools that offer the
+    live view; ``what`` names what is served (e.g. 'the team')."""
+    parser.add_argument('--foxglove', nargs='?', type=int, const=DEFAULT_PORT, default=None, metavar='PORT',
+                        help=f'serve {what} live over the Foxglove WebSocket protocol on ws://HOST:PORT '
+                             f'(default port {DEFAULT_PORT}; docs/visualization.md#live-view-in-foxglove); '
+                             'needs foxglove-sdk')
+    parser.add_argument('--foxglove-host', default='127.0.0.1', metavar='HOST',
+                        help='address the live view binds (default 127.0.0.1; 0.0.0.0 exposes it to the network)')
+
+
 class LiveViewNode(rt.Node):
     """See the module docstring. Parameters: ``host``, ``port``, ``topics`` (empty: all)."""
 
@@ -84,13 +108,12 @@ class LiveViewNode(rt.Node):
         foxglove = require_foxglove()
         check_port(host, port)
         self._foxglove = foxglove
-        self.server = foxglove.start_server(name='uh team', host=host, port=port)
         self.channels = {}
         self.subscriptions_by_topic = {}
-        self.clock_ns = 0
+        self.log_clock = LogClock()
         self.logged = 0
-        self.get_logger().info(f'live view: ws://{host}:{self.server.port} (open it in Foxglove: '
-                               'Open connection, Foxglove WebSocket)')
+        self.server = foxglove.start_server(name='uh team', host=host, port=port)  # last: destroy_node needs the rest
+        self.get_logger().info(f'live view: {connect_hint(host, self.server.port)}')
         self.create_timer(0.2, self.discover)
         self.discover()
 
@@ -118,9 +141,9 @@ class LiveViewNode(rt.Node):
             self.get_logger().info(f'serving {name} [{type_name}]')
 
     def on_message(self, name: str, channel, data: bytes, stamped: bool) -> None:
-        log_ns = stamp_of(data) if stamped else (self.clock_ns or time.time_ns())
-        if name == '/clock':
-            self.clock_ns = log_ns
+        log_ns = self.log_clock.of(name, data, stamped)
+        if not stamped and not log_ns:   # unstamped, before the first /clock: wall time
+            log_ns = time.time_ns()
         channel.log(bytes(data), log_time=log_ns)
         self.logged += 1
 

@@ -42,26 +42,19 @@ class _Collection:
     """The entities of the executor's nodes and the one wait set that waits on them."""
 
     def __init__(self, executor):
-        self.subscriptions, self.timers, self.others = [], [], []
-        services, clients, node_guards, self.waitables = [], [], [], []
-        for node in executor.get_nodes():
-            for sub in node.subscriptions:
-                self.subscriptions.append((sub, node, _is_plain(sub.callback)))
-            for tmr in node.timers:
-                self.timers.append((tmr, node, _is_plain(tmr.callback)))
-            services += [(srv, node) for srv in node.services]
-            clients += [(cli, node) for cli in node.clients]
-            node_guards += [(gc, node) for gc in node.guards]
-            self.waitables += [(wt, node) for wt in node.waitables]
-        self.services, self.clients, self.node_guards = services, clients, node_guards
-        guards = [gc for gc, _ in node_guards] + [executor._guard, executor._sigint_gc]
-        self.guards = guards
-        self.handles = ([executor.context.handle] + [e.handle for e, _, _ in self.subscriptions]
-                        + [e.handle for e, _, _ in self.timers] + [e.handle for e, _ in services]
-                        + [e.handle for e, _ in clients] + [gc.handle for gc in guards]
-                        + [waitable for waitable, _ in self.waitables])
-        count = NumberOfEntities(len(self.subscriptions), len(guards), len(self.timers),
-                                 len(clients), len(services))
+        nodes = executor.get_nodes()
+        self.subscriptions = [(sub, node, _is_plain(sub.callback)) for node in nodes for sub in node.subscriptions]
+        self.timers = [(tmr, node, _is_plain(tmr.callback)) for node in nodes for tmr in node.timers]
+        self.services = [(srv, node) for node in nodes for srv in node.services]
+        self.clients = [(cli, node) for node in nodes for cli in node.clients]
+        self.node_guards = [(gc, node) for node in nodes for gc in node.guards]
+        self.waitables = [(wt, node) for node in nodes for wt in node.waitables]
+        self.guards = [gc for gc, _ in self.node_guards] + [executor._guard, executor._sigint_gc]
+        self.handles = ([executor.context.handle]
+                        + [e.handle for e, *_ in self.subscriptions + self.timers + self.services + self.clients]
+                        + [gc.handle for gc in self.guards] + [wt for wt, _ in self.waitables])
+        count = NumberOfEntities(len(self.subscriptions), len(self.guards), len(self.timers),
+                                 len(self.clients), len(self.services))
         for waitable, _ in self.waitables:
             count += waitable.get_num_entities()
         self.wait_set = _rclpy.WaitSet(
@@ -122,7 +115,7 @@ class StaticSingleThreadedExecutor(SingleThreadedExecutor):
             super()._spin_once_impl(timeout_sec, wait_condition)
             return
         self._cb_iter = None  # the base path's leftovers are ready again in our wait set
-        if self._stale or self._collection is None:
+        if self._stale:   # True from the start, so a collection exists after this
             if self._collection is not None:
                 self._collection.destroy()
             self._stale = False

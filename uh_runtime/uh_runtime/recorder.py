@@ -34,7 +34,7 @@ from uh_runtime.bag import FLUSH_PERIOD_S, BagWriter
 from uh_runtime.bag_reader import BagError
 from uh_runtime.qos import QoSWords, merge_offered, profile_from_words, qos_profile_yaml, words_of
 
-__all__ = ['RecorderNode', 'main', 'stamp_of', 'stamped_first', 'new_topics']
+__all__ = ['RecorderNode', 'LogClock', 'main', 'stamp_of', 'stamped_first', 'new_topics']
 
 _STAMPED_FIRST = {'rosgraph_msgs/msg/Clock', 'builtin_interfaces/msg/Time'}
 _TIME = struct.Struct('<iI')
@@ -55,6 +55,20 @@ def stamp_of(data: bytes) -> int:
     """Nanoseconds of the Time at the start of a little-endian CDR payload (after the 4-byte header)."""
     sec, nanosec = _TIME.unpack_from(data, 4)
     return sec * 1_000_000_000 + nanosec
+
+
+class LogClock:
+    """Log time of a raw message: its own stamp (or its Header's) when its type starts with one
+    (:func:`stamped_first`), else the simulation time of the latest ``/clock``, 0 before any."""
+
+    def __init__(self):
+        self.clock_ns = 0
+
+    def of(self, topic: str, data: bytes, stamped: bool) -> int:
+        log_ns = stamp_of(data) if stamped else self.clock_ns
+        if topic == '/clock':
+            self.clock_ns = log_ns
+        return log_ns
 
 
 def new_topics(node, followed, wanted=(), skip=()):
@@ -101,7 +115,7 @@ class RecorderNode(rt.Node):
             expected.append((name, type_name))
         self.bag = BagWriter(output)
         self.latest_stamp: dict[str, int] = {}
-        self.clock_ns = 0
+        self.log_clock = LogClock()
         self.progress_ns = -1
         self.subscriptions_by_topic = {}
         self.progress_pub = self.create_publisher(m.Time, '/recorder/progress', 10)
@@ -134,9 +148,7 @@ class RecorderNode(rt.Node):
         self.get_logger().info(f'recording {name} [{type_name}]')
 
     def on_message(self, topic: str, data: bytes, stamped: bool) -> None:
-        log_ns = stamp_of(data) if stamped else self.clock_ns
-        if topic == '/clock':
-            self.clock_ns = log_ns
+        log_ns = self.log_clock.of(topic, data, stamped)
         self.bag.write(topic, data, log_ns)
         if topic in self.progress_topics:
             self.latest_stamp[topic] = log_ns

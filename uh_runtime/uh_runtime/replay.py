@@ -34,7 +34,7 @@ import sys
 import time
 
 import uh_runtime as rt
-from uh_runtime import messages
+from uh_runtime import live_view, messages
 from uh_runtime.bag_reader import BagError, BagInfo, iter_bag_messages, open_bag
 from uh_runtime.network import MAX_DOMAIN_ID, loopback_environment
 from uh_runtime.qos import QoSWords, profile_from_words
@@ -253,11 +253,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--wait-for-subscribers', action='store_true',
                    help=f'start only once every replayed topic has a subscriber (at most '
                         f'{WAIT_FOR_SUBSCRIBERS_TIMEOUT:g} s, then exit 1)')
-    p.add_argument('--foxglove', nargs='?', type=int, const=8765, default=None, metavar='PORT',
-                   help='also serve the replayed topics over the Foxglove WebSocket protocol on ws://HOST:PORT '
-                        '(default port 8765; docs/visualization.md#live-view-in-foxglove); needs foxglove-sdk')
-    p.add_argument('--foxglove-host', default='127.0.0.1', metavar='HOST',
-                   help='address the live view binds (default 127.0.0.1)')
+    live_view.add_arguments(p, 'the replayed topics')
     p.add_argument('--no-check', action='store_true',
                    help='skip the CRC check of every chunk before playing (faster start on huge bags)')
     return p
@@ -285,11 +281,9 @@ def main(args=None) -> int:
     if not 0 <= domain <= MAX_DOMAIN_ID:
         return _fail(f'--domain-id {domain}: allowed 0..{MAX_DOMAIN_ID}')
     if opts.foxglove is not None:
-        from .live_view import LiveViewError, check_port, require_foxglove
         try:    # before anything starts
-            require_foxglove()
-            check_port(opts.foxglove_host, opts.foxglove)
-        except LiveViewError as exc:
+            live_view.check_available(opts.foxglove_host, opts.foxglove)
+        except live_view.LiveViewError as exc:
             return _fail(str(exc))
     try:
         info = open_bag(opts.bag, check_chunks=not opts.no_check)
@@ -376,8 +370,7 @@ def _start_live_view(host: str, port: int):
     while time.monotonic() < deadline and viewer.poll() is None:
         try:
             socket.create_connection((host, port), timeout=0.5).close()
-            print(f'[replay] live view: ws://{host}:{port}   (Foxglove: Open connection, Foxglove WebSocket)',
-                  file=sys.stderr, flush=True)
+            print(f'[replay] live view: {live_view.connect_hint(host, port)}', file=sys.stderr, flush=True)
             return viewer
         except OSError:
             time.sleep(0.2)

@@ -32,7 +32,7 @@ from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
 from uh_core.wire import (WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg)
 from uh_core import diagnostics, frames, topics
-from uh_core.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg
+from uh_core.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg, view_publisher
 from uh_topology.run_config import declare_run_parameters, declare_view_parameters
 
 __all__ = ['SimNode', 'main']
@@ -72,11 +72,9 @@ class SimNode(rt.Node):
         self.create_subscription(m.ActuatorFault, topics.FAULT.name, self.on_fault,
                                  topics.qos_profile(topics.FAULT.qos))
         if self.views.enabled:
-            view_qos = topics.qos_profile(topics.VIEW_QOS)
-            self.tf_pub = self.create_publisher(m.get_message(topics.TF.type), topics.TF.name, view_qos)
-            self.odom_pub = self.create_publisher(m.get_message(topics.ODOM.type), topics.ODOM.name, view_qos)
-            self.diag_pub = self.create_publisher(m.get_message(topics.DIAGNOSTICS.type), topics.DIAGNOSTICS.name,
-                                                  view_qos)
+            self.tf_pub = view_publisher(self, topics.TF)
+            self.odom_pub = view_publisher(self, topics.ODOM)
+            self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
             self._reported = {'late': 0, 'rejected': 0, 'rejected_faults': 0}
         self.get_logger().info(
             f'uh{self.uh_id}: {self.mode} mode, dt {self.dt} s, {self.last_step} steps, '
@@ -183,10 +181,9 @@ class SimNode(rt.Node):
         ``views.pose_every`` steps, /diagnostics every ``views.diagnostics_every`` steps."""
         x = self.plant.x
         if self.step % self.views.pose_every == 0:
-            position, quaternion = frames.pose_of_state(x)
-            self.tf_pub.publish(tf_msg([transform_msg(t, frames.WORLD_FRAME, frames.base_link(self.uh_id),
-                                                      position, quaternion)]))
-            self.odom_pub.publish(odometry_msg(self.uh_id, t, x))
+            pose = frames.pose_of_state(x)
+            self.tf_pub.publish(tf_msg([transform_msg(t, frames.WORLD_FRAME, frames.base_link(self.uh_id), *pose)]))
+            self.odom_pub.publish(odometry_msg(self.uh_id, t, x, pose))
         if self.step % self.views.diagnostics_every == 0:
             seen = {'late': self.late_commands, 'rejected': self.rejected, 'rejected_faults': self.rejected_faults}
             since = {key: seen[key] - self._reported[key] for key in seen}

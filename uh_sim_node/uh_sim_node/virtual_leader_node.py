@@ -8,7 +8,7 @@ from uh_sim_node.reference import VirtualLeaderReference
 from uh_topology.run_config import declare_run_parameters, declare_view_parameters
 from uh_core.wire import clock_step, reference_to_msg
 from uh_core import frames, topics
-from uh_core.standard_msgs import tf_msg, transform_msg
+from uh_core.standard_msgs import tf_msg, transform_msg, view_publisher
 
 __all__ = ['VirtualLeaderNode', 'main']
 
@@ -24,8 +24,7 @@ class VirtualLeaderNode(rt.Node):
         self.pub = self.create_publisher(m.Reference, topics.REFERENCE.name, qos)
         self.views = declare_view_parameters(self, self.dt)
         if self.views.enabled:
-            self.tf_pub = self.create_publisher(m.get_message(topics.TF.type), topics.TF.name,
-                                                topics.qos_profile(topics.VIEW_QOS))
+            self.tf_pub = view_publisher(self, topics.TF)
         self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
 
     def on_clock(self, msg) -> None:
