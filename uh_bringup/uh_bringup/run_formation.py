@@ -365,6 +365,9 @@ def run(args) -> int:
     _check_args(args)
     scenario = load_scenario(args.scenario)
     validate_team(scenario, args.case)
+    if scenario.impairments is not None and args.clock != 'lockstep':
+        raise UsageError(f'scenario {scenario.name!r} has impairments (docs/campaigns.md#impairments), which are '
+                         'defined on control steps: run it with --clock lockstep')
     scenario_arg = args.scenario if args.scenario == 'paper' else str(Path(args.scenario).resolve())
     try:
         default_cyclonedds_uri()   # a bad ROS_AUTOMATIC_DISCOVERY_RANGE is refused before --out is touched

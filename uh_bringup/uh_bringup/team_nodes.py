@@ -100,7 +100,8 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
     stale = ['-p', f'stale_timeout:={float(stale_timeout)}'] if stale_timeout is not None else []
     if duration is not None:
         common += ['-p', f'duration:={float(duration)}']
-    per_step = [name for name, spec in topics.team_topics(scenario.ids) if spec.per_step]
+    per_step = [name for name, spec in topics.team_topics(scenario.ids, scenario.impairments is not None)
+                if spec.per_step]
     # injections may come from a publisher that lives a moment (ros2 topic pub --once)
     injections = [f'{topics.uh_topic(i, topics.FAULT)}={topics.FAULT.type}' for i in scenario.ids]
     specs = [('recorder', 'recorder', ['--ros-args', '-p', f'output:={bag_dir}',

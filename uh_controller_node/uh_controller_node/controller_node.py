@@ -19,6 +19,11 @@ section 2):
   same tick, and mixing step-k and step-(k-1) neighbour data makes the consensus error jitter by
   v dt, which the command filters' derivatives amplify into chattering commands.
 
+Impairments (docs/campaigns.md#impairments): when the scenario has them, the controller uses what
+:class:`~uh_controller_node.impairments.ReceivedStates` makes of the released states (delay, loss,
+dropout, noise; the same functions as the in-process run) and publishes it on ``received``, so a
+bag shows what each controller actually got. They are defined on control steps: lockstep only.
+
 Received messages carrying NaN/inf (or another UH's id) are rejected: the node logs the reason
 (at most once a second per input, with a count) and keeps its last valid input, which then ages
 like a silent neighbour.
@@ -43,10 +48,12 @@ import uh_runtime as rt
 from uh_controller_node.control_kernels import compile_control_kernels
 from uh_controller_node.controller import ControllerError, UHController
 from uh_controller_node.gains import CASES, ControllerGains, GainsError, gain_parameters, nest_gains
+from uh_controller_node.impairments import ReceivedStates, compile_impairment_kernels
 from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser
 from uh_runtime import messages as m
 from uh_topology.run_config import RunConfigError, declare_run_parameters, declare_view_parameters
-from uh_core.wire import WireError, command_to_msg, msg_to_reference, msg_to_state, status_to_msg
+from uh_core.wire import (WireError, command_to_msg, msg_to_reference, msg_to_state, received_states_to_msg,
+                          status_to_msg)
 from uh_core import diagnostics, topics
 from uh_core.standard_msgs import diagnostic_array_msg, view_publisher
 
@@ -94,6 +101,13 @@ class ControllerNode(rt.Node):
         compile_control_kernels()
         neighbours = tuple(scenario.neighbours(self.uh_id))
         linked = scenario.leader_link(self.uh_id) > 0
+        self.received = None
+        if scenario.impairments is not None:
+            if run.clock_mode != 'lockstep':
+                raise RunConfigError(f'scenario {scenario.name!r} has impairments, which are defined on control '
+                                     'steps: run it with clock_mode lockstep (--clock lockstep)')
+            self.received = ReceivedStates(self.uh_id, neighbours, scenario.impairments, self.dt)
+            compile_impairment_kernels()
         self.sync = InputSynchroniser(self.uh_id, neighbours, linked, mode=run.clock_mode, dt=run.dt,
                                       last_step=run.last_step, reachable=self.controller.reachable_without,
                                       logger=self.get_logger(), **sync)
@@ -101,6 +115,9 @@ class ControllerNode(rt.Node):
         qos = topics.qos_profile(topics.STEP_QOS)
         self.command_pub = self.create_publisher(m.ActuatorCommand, topics.COMMAND.name, qos)
         self.status_pub = self.create_publisher(m.ControllerStatus, topics.STATUS.name, qos)
+        if self.received is not None:
+            self.received_pub = self.create_publisher(m.ReceivedStates, topics.RECEIVED.name, qos)
+            self.published['received'] = 0
         self.views = declare_view_parameters(self, self.dt)
         self.window = diagnostics.ControllerWindow()
         self._rejected_reported = 0
@@ -195,12 +212,15 @@ class ControllerNode(rt.Node):
         """Run the law on each released :class:`~uh_controller_node.input_sync.StepInputs`; publish."""
         for inputs in released:
             k = inputs.step
+            own, neighbours = inputs.own, inputs.neighbours
+            if self.received is not None:   # what this UH receives under the scenario's impairments
+                own, neighbours = self.received.receive(k, own, neighbours)
             try:
                 if inputs.stale:
-                    u, status = self.controller.step_degraded(k, inputs.own, inputs.neighbours, inputs.reference,
+                    u, status = self.controller.step_degraded(k, own, neighbours, inputs.reference,
                                                               self.dt, hold=inputs.hold)
                 else:
-                    u, status = self.controller.step(k, inputs.own, inputs.neighbours, inputs.reference, self.dt)
+                    u, status = self.controller.step(k, own, neighbours, inputs.reference, self.dt)
             except ControllerError as exc:  # inputs the law cannot use: no command this step, the node lives on
                 self.get_logger().error(f'step {k} not computed: {exc}', throttle_duration_sec=1.0)
                 self.window.not_computed += 1
@@ -210,6 +230,10 @@ class ControllerNode(rt.Node):
             self.status_pub.publish(status_to_msg(self.uh_id, k, t, status, inputs.stale_labels))
             self.published['command'] += 1
             self.published['status'] += 1
+            if self.received is not None:
+                self.received_pub.publish(received_states_to_msg(self.uh_id, k, self.dt, own, neighbours,
+                                                                 self.received.sample_steps))
+                self.published['received'] += 1
             if self.views.enabled:
                 self._diagnose(k, t, inputs, status)
 

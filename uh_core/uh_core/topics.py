@@ -24,7 +24,8 @@ from uh_runtime.qos import QoSWords, profile_from_words
 __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
     'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK', 'MARKERS',
-    'RECORDER_PROGRESS', 'VIEW_QOS', 'TF', 'ODOM', 'DIAGNOSTICS', 'PER_UH', 'TEAM', 'uh_namespace',
+    'RECORDER_PROGRESS', 'VIEW_QOS', 'TF', 'ODOM', 'DIAGNOSTICS', 'RECEIVED', 'PER_UH', 'IMPAIRED_PER_UH',
+    'TEAM', 'uh_namespace',
     'uh_topic', 'team_topics', 'qos_profile',
 ]
 
@@ -88,7 +89,13 @@ DIAGNOSTICS = TopicSpec('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', V
                         'sims, controllers', 'rqt_robot_monitor, Foxglove; recorder',
                         'OK/WARN/ERROR of every simulator and controller, a few times per simulated second')
 
+RECEIVED = TopicSpec('received', 'uh_msgs/msg/ReceivedStates', STEP_QOS, True, 'controller (impaired runs)',
+                     'recorder', 'the own and neighbour states the controller used at step k, after the '
+                     'scenario\'s delay, loss, dropout and noise (docs/campaigns.md#impairments)')
+
 PER_UH = (STATE, COMMAND, STATUS, FAULT_TRUTH, FAULT, ODOM)
+#: Per-UH topics of a run whose scenario has impairments, besides PER_UH.
+IMPAIRED_PER_UH = (RECEIVED,)
 TEAM = (REFERENCE, CLOCK, TF, DIAGNOSTICS)
 
 
@@ -104,11 +111,13 @@ def uh_topic(uh_id: int, spec: TopicSpec) -> str:
     return f'{uh_namespace(uh_id)}/{spec.name}'
 
 
-def team_topics(uh_ids) -> list[tuple[str, TopicSpec]]:
-    """Every recorded topic of a team with UHs ``uh_ids``: ``[(full name, spec), ...]``."""
+def team_topics(uh_ids, impaired: bool = False) -> list[tuple[str, TopicSpec]]:
+    """Every recorded topic of a team with UHs ``uh_ids`` (with ``impaired``, of a scenario with
+    impairments): ``[(full name, spec), ...]``."""
     topics = [(spec.name, spec) for spec in TEAM]
+    per_uh = PER_UH + (IMPAIRED_PER_UH if impaired else ())
     for uh_id in sorted(uh_ids):
-        topics += [(uh_topic(uh_id, spec), spec) for spec in PER_UH]
+        topics += [(uh_topic(uh_id, spec), spec) for spec in per_uh]
     return topics
 
 

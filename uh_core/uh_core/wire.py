@@ -16,7 +16,7 @@ from uh_runtime import messages as m
 from .records import Reference
 
 __all__ = [
-    'WireError', 'stamp', 'stamp_seconds', 'state_to_msg', 'msg_to_state',
+    'WireError', 'stamp', 'stamp_seconds', 'state_to_msg', 'msg_to_state', 'received_states_to_msg',
     'command_to_msg', 'msg_to_command', 'reference_to_msg', 'msg_to_reference', 'fault_truth_to_msg',
     'status_to_msg', 'vector3', 'clock_msg', 'clock_step',
 ]
@@ -88,6 +88,15 @@ def state_to_msg(uh_id: int, k: int, t: float, x: np.ndarray):
     return m.UHState(header=_header(t), uh_id=int(uh_id), step=int(k),
                      position=vec(x=v[0], y=v[1], z=v[2]), velocity=vec(x=v[3], y=v[4], z=v[5]),
                      euler=vec(x=v[6], y=v[7], z=v[8]), body_rates=vec(x=v[9], y=v[10], z=v[11]))
+
+
+def received_states_to_msg(uh_id: int, k: int, dt: float, own, neighbours: dict, sample_steps: dict):
+    """``ReceivedStates`` of UH ``uh_id`` at step ``k``: its ``own`` state (sent at k) and the
+    ``neighbours`` states ``{j: x}`` it used, each stamped with the step it was sent at
+    (``sample_steps[j]``, time ``step * dt``)."""
+    states = [state_to_msg(uh_id, k, k * dt, own)]
+    states += [state_to_msg(j, sample_steps[j], sample_steps[j] * dt, neighbours[j]) for j in sorted(neighbours)]
+    return m.ReceivedStates(header=_header(k * dt), uh_id=int(uh_id), step=int(k), states=states)
 
 
 def msg_to_state(msg, expected_id: int | None = None) -> np.ndarray:

@@ -51,6 +51,7 @@ KNOWN_TYPES = {
     'ActuatorFault': 'uh_msgs/msg/ActuatorFault',
     'FaultTruth': 'uh_msgs/msg/FaultTruth',
     'ControllerStatus': 'uh_msgs/msg/ControllerStatus',
+    'ReceivedStates': 'uh_msgs/msg/ReceivedStates',
     'Clock': 'rosgraph_msgs/msg/Clock',
     'Header': 'std_msgs/msg/Header',
     'String': 'std_msgs/msg/String',

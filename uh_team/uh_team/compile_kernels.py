@@ -17,9 +17,10 @@ def compile_all() -> dict:
     from uh_sim_node.plant_kernels import compile_plant_kernels
 
     from uh_controller_node.control_kernels import compile_control_kernels
+    from uh_controller_node.impairments import compile_impairment_kernels
     from .team_kernel import compile_team_kernel
     return {'model': compile_plant_kernels(), 'control law': compile_control_kernels(),
-            'team loop': compile_team_kernel()}
+            'impairments': compile_impairment_kernels(), 'team loop': compile_team_kernel()}
 
 
 def main(argv=None) -> int:

@@ -37,6 +37,8 @@ from uh_sim_node import plant_kernels as _plant
 from uh_sim_node.plant_kernels import lumped_faults, plant_step
 
 from uh_controller_node import control_kernels as _ctl
+from uh_controller_node import impairments as _impairments
+from uh_controller_node.impairments import add_noise, delivered_step
 from uh_controller_node.control_kernels import (
     S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_U_P, S_Z1, STATE_SIZE,
     STATUS_SIZE, STEP_DONE, uh_control_step,
@@ -71,6 +73,18 @@ class TeamArrays(NamedTuple):
         (n, PARAMS_SIZE), (n, NUM_CHANNELS, FAULT_FIELDS), (n, 3, DISTURBANCE_FIELDS).
     substeps : int
         RK4 substeps per control period (one value for the team).
+    ids : ndarray (n,) int64
+        UH ids of the rows.
+    impaired : bool
+        Whether the scenario has impairments (docs/campaigns.md#impairments); when False the
+        fields below are not read.
+    impairment_seed : int
+    delay, loss : ndarray (n, max_nb) int64, (n, max_nb)
+        Per link (row, neighbour slot): delay in steps, loss probability.
+    drop_step : ndarray (n,) int64
+        Per sender row: first step whose state no other UH receives.
+    noise : ndarray (12,)
+        Standard deviation of the noise on every received state, per component.
     """
 
     x: np.ndarray
@@ -88,10 +102,18 @@ class TeamArrays(NamedTuple):
     faults: np.ndarray
     disturbance: np.ndarray
     substeps: int
+    ids: np.ndarray
+    impaired: bool
+    impairment_seed: int
+    delay: np.ndarray
+    loss: np.ndarray
+    drop_step: np.ndarray
+    noise: np.ndarray
 
 
-def team_arrays(ids, controllers, plants) -> TeamArrays:
-    """Stack the kernel arrays of ``controllers`` and ``plants`` (both in the order of ``ids``).
+def team_arrays(ids, controllers, plants, impairments=None, dt: float = 0.01) -> TeamArrays:
+    """Stack the kernel arrays of ``controllers`` and ``plants`` (both in the order of ``ids``),
+    with the scenario's ``impairments`` (an ``ImpairmentSpec`` or None) on control period ``dt``.
 
     Raises
     ------
@@ -116,6 +138,18 @@ def team_arrays(ids, controllers, plants) -> TeamArrays:
         hears[c, :m] = [row[int(j)] for j in controller.neighbours]
         nb_weights[c, :m] = arrays.neighbour_weights
         nb_offsets[c, :m] = arrays.neighbour_offsets
+    delay = np.zeros((n, max_nb), dtype=np.int64)
+    loss = np.zeros((n, max_nb))
+    drop_step = np.zeros(n, dtype=np.int64)
+    noise = np.zeros(STATE_SIZE)
+    if impairments is not None:
+        for c, controller in enumerate(controllers):
+            i = int(ids[c])
+            drop_step[c] = impairments.drop_step(i, dt)
+            for slot, j in enumerate(controller.neighbours):
+                delay[c, slot] = impairments.delays[(i, int(j))]
+                loss[c, slot] = impairments.losses[(i, int(j))]
+        noise[:] = impairments.noise
     return TeamArrays(
         x=np.stack([p.x for p in plants]), hears=hears, count=count,
         links=np.array([a.leader_link for a in ctl], dtype=float),
@@ -124,14 +158,18 @@ def team_arrays(ids, controllers, plants) -> TeamArrays:
         weights_p=np.stack([a.weights_p for a in ctl]), weights_w=np.stack([a.weights_w for a in ctl]),
         memory=np.stack([a.memory for a in ctl]),
         plant_params=np.stack([p.params for p in plant]), faults=np.stack([p.faults for p in plant]),
-        disturbance=np.stack([p.disturbance for p in plant]), substeps=substeps.pop())
+        disturbance=np.stack([p.disturbance for p in plant]), substeps=substeps.pop(),
+        ids=np.array([int(i) for i in ids], dtype=np.int64), impaired=impairments is not None,
+        impairment_seed=int(impairments.seed) if impairments is not None else 0,
+        delay=delay, loss=loss, drop_step=drop_step, noise=noise)
 
 
 @njit(cache=True)
 def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control_params, offsets,
                    nb_weights, nb_offsets, weights_p, weights_w, memory, plant_params, faults,
-                   disturbance, substeps, states, commands, fault_true_p, fault_true_w, fault_est_p,
-                   fault_est_w, u_p, z1, saturated):
+                   disturbance, substeps, ids, impaired, impairment_seed, delay, loss, drop_step, noise,
+                   states, commands, fault_true_p, fault_true_w, fault_est_p, fault_est_w, u_p, z1,
+                   saturated):
     """Steps ``k0 .. k1-1`` of the team (see :mod:`uh_team.team_simulation` for the order).
 
     Parameters
@@ -145,9 +183,11 @@ def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control
         Control period, s.
     references : ndarray (K+1, 7)
         Virtual leader ``[p_0 m, v_0 m/s, psi_0 rad]`` at every step.
-    x ... substeps
+    x ... noise
         The :class:`TeamArrays` fields; ``x``, ``weights_p``, ``weights_w`` and ``memory`` are
-        updated in place.
+        updated in place. With ``impaired``, every controller receives its own and its neighbours'
+        states as :mod:`uh_controller_node.impairments` defines (neighbours' from ``states``, the
+        recorded history).
     states ... saturated
         Output rows of :class:`~uh_team.team_simulation.TeamRun`, written for the steps run:
         (K+1, n, 12), (K+1, n, 4), five (K+1, n, 3) and (K+1, n) bool.
@@ -162,6 +202,7 @@ def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control
     status = np.empty(STATUS_SIZE)
     out_p = np.empty(3)
     out_w = np.empty(3)
+    own = np.empty(STATE_SIZE)
     for k in range(k0, k1):
         t = k * dt
         finite = True
@@ -178,9 +219,17 @@ def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control
         for c in range(n):
             m = count[c]
             nb = np.empty((m, STATE_SIZE))
-            for j in range(m):
-                nb[j] = x[hears[c, j]]
-            done = uh_control_step(control_params[c], x[c], nb, nb_weights[c, :m], nb_offsets[c, :m],
+            if impaired:
+                add_noise(x[c], noise, impairment_seed, ids[c], ids[c], k, own)
+                for j in range(m):
+                    r = hears[c, j]
+                    s = delivered_step(k, delay[c, j], loss[c, j], drop_step[r], impairment_seed, ids[c], ids[r])
+                    add_noise(states[s, r], noise, impairment_seed, ids[c], ids[r], s, nb[j])
+            else:
+                own[:] = x[c]
+                for j in range(m):
+                    nb[j] = x[hears[c, j]]
+            done = uh_control_step(control_params[c], own, nb, nb_weights[c, :m], nb_offsets[c, :m],
                                    offsets[c], links[c], reference, dt, weights_p[c], weights_w[c],
                                    memory[c], commands[k, c], status)
             if done != STEP_DONE:
@@ -206,13 +255,14 @@ def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control
 
 
 #: Files whose contents are compiled into :func:`run_team_steps` besides this one.
-_DEPENDENCIES = (Path(_ctl.__file__), Path(_plant.__file__), Path(_faults.__file__), Path(_layout.__file__))
+_DEPENDENCIES = (Path(_ctl.__file__), Path(_plant.__file__), Path(_faults.__file__), Path(_layout.__file__),
+                 Path(_impairments.__file__))
 
 
 def refresh_cache() -> bool:
     """Empty :func:`run_team_steps`' numba cache index if the files it depends on
     (:data:`_DEPENDENCIES`: ``control_kernels.py``, ``plant_kernels.py``, ``faults.py``,
-    ``uh_core/layout.py``) changed since it was cached; the digest is kept next to the cache in
+    ``uh_core/layout.py``, ``impairments.py``) changed since it was cached; the digest is kept next to the cache in
     ``team_kernel.dependencies.sha256``. Returns True when the cache was emptied
     (:func:`uh_core.kernel_cache.refresh_cache`)."""
     return _kernel_cache.refresh_cache([run_team_steps], _DEPENDENCIES, 'team_kernel.dependencies.sha256')
@@ -236,7 +286,9 @@ def compile_team_kernel() -> float:
                    np.zeros((n, 1, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3, 3)),
                    np.zeros((n, _ctl.MEMORY_ROWS, 3)), plant_params,
                    np.zeros((n, _plant.NUM_CHANNELS, _plant.FAULT_FIELDS)),
-                   np.zeros((n, 3, _plant.DISTURBANCE_FIELDS)), 1, np.zeros((steps, n, STATE_SIZE)),
+                   np.zeros((n, 3, _plant.DISTURBANCE_FIELDS)), 1, np.ones(n, dtype=np.int64), False, 0,
+                   np.zeros((n, 1), dtype=np.int64), np.zeros((n, 1)), np.zeros(n, dtype=np.int64),
+                   np.zeros(STATE_SIZE), np.zeros((steps, n, STATE_SIZE)),
                    np.zeros((steps, n, 4)), vec3, vec3.copy(), vec3.copy(), vec3.copy(), vec3.copy(), vec3.copy(),
                    np.zeros((steps, n), dtype=np.bool_))
     return time.perf_counter() - start

@@ -178,7 +178,7 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     arrays = None
     if engine == 'kernel':
         from .team_kernel import team_arrays
-        arrays = team_arrays(ids, controllers, plants)
+        arrays = team_arrays(ids, controllers, plants, scenario.impairments, dt)
 
     out = {key: np.empty((K + 1, n, size)) for key, size in (
         ('states', 12), ('commands', 4), ('fault_true_p', 3), ('fault_true_w', 3), ('fault_est_p', 3),
@@ -203,7 +203,7 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         references[:, 6] = [r.yaw for r in samples]
         _run_kernel(K, dt, ids, arrays, references, out, every, progress)
     else:
-        _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress)
+        _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, scenario.impairments)
     wall = _time.perf_counter() - start
 
     return TeamRun(
@@ -228,7 +228,8 @@ def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False
         failed = run_team_steps(
             k0, k1, K, dt, references, a.x, a.hears, a.count, a.links, a.control_params, a.offsets,
             a.nb_weights, a.nb_offsets, a.weights_p, a.weights_w, a.memory, a.plant_params, a.faults,
-            a.disturbance, a.substeps, out['states'], out['commands'], out['fault_true_p'], out['fault_true_w'],
+            a.disturbance, a.substeps, a.ids, a.impaired, a.impairment_seed, a.delay, a.loss, a.drop_step,
+            a.noise, out['states'], out['commands'], out['fault_true_p'], out['fault_true_w'],
             out['fault_est_p'], out['fault_est_w'], out['u_p'], out['z1'], out['saturated'])
         if failed != TEAM_DONE:
             _non_finite(K, dt, ids, out['states'], failed)
@@ -236,10 +237,15 @@ def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False
             progress(k1 - 1, K)
 
 
-def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress):
+def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, impairments=None):
     """The step loop in Python over the per-UH objects (what the distributed nodes run); ``samples``
-    are the virtual leader's references of every step."""
+    are the virtual leader's references of every step; with ``impairments`` every controller
+    receives through a :class:`~uh_controller_node.impairments.ReceivedStates`, as a node does."""
+    from uh_controller_node.impairments import ReceivedStates
+
     col = {i: c for c, i in enumerate(ids)}
+    received = ([ReceivedStates(i, ctl.neighbours, impairments, dt) for i, ctl in zip(ids, controllers)]
+                if impairments is not None else None)
     hears = [tuple(col[j] for j in ctl.neighbours) for ctl in controllers]
     linked = [ctl.leader_link > 0.0 for ctl in controllers]
     states, commands = out['states'], out['commands']
@@ -251,7 +257,10 @@ def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress)
         if not np.isfinite(states[k]).all():
             _non_finite(K, dt, ids, states, k)
         for c, ctl in enumerate(controllers):
-            u, st = ctl.step(k, xs[c], {ids[j]: xs[j] for j in hears[c]}, r if linked[c] else None, dt)
+            own, nb = xs[c], {ids[j]: xs[j] for j in hears[c]}
+            if received is not None:
+                own, nb = received[c].receive(k, own, nb)
+            u, st = ctl.step(k, own, nb, r if linked[c] else None, dt)
             commands[k, c] = u
             out['fault_est_p'][k, c] = st.fault_estimate_position
             out['fault_est_w'][k, c] = st.fault_estimate_attitude

@@ -25,6 +25,13 @@ A scenario is one YAML file (see ``uh_topology/config/paper.yaml`` for a comment
     faults:                     # optional; channel: 0..3 or collective|tail_rotor|lateral|longitudinal
       - {uh: 2, channel: collective, rho: 0.8, bias_constant: 0, bias_amplitude: 0.01,
          bias_frequency: 0.5, onset_time: 10}
+    impairments:                # optional; what the controllers receive (docs/campaigns.md#impairments)
+      seed: 0                   # int >= 0: the loss draws and the noise
+      delay_steps: 0            # int >= 0: a link delivers the state sent delay_steps steps earlier
+      loss: 0.0                 # [0, 1): probability that a link loses a state
+      links: [{uh: 4, hears: 1, delay_steps: 5, loss: 0.2}]    # per-link overrides (an edge)
+      noise: {position: 0.01, velocity: 0.0, attitude: 0.0, rate: 0.0}   # std devs m, m/s, rad, rad/s
+      dropouts: [{uh: 3, time: 30.0}]   # from this time on no other UH receives uh 3's state
 
 Validation raises the specific :mod:`uh_topology.errors` types with the file, line and key path.
 """
@@ -49,7 +56,7 @@ from .graph import (check_lemma1, containment_pattern, laplacian, laplacian_bloc
                     unreachable_leader_message, unreachable_leaders)
 
 __all__ = [
-    'Scenario', 'FaultSpec', 'ReferenceSpec', 'DisturbanceSpec', 'load_scenario', 'parse_scenario',
+    'Scenario', 'FaultSpec', 'ReferenceSpec', 'DisturbanceSpec', 'ImpairmentSpec', 'load_scenario', 'parse_scenario',
     'scenario_from_mapping', 'bundled_scenarios', 'CHANNEL_ALIASES',
 ]
 
@@ -93,6 +100,49 @@ class DisturbanceSpec:
     @property
     def is_zero(self) -> bool:
         return not np.any(self.amplitude != 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class ImpairmentSpec:
+    """Deterministic communication and sensing impairments: what each controller receives
+    (docs/campaigns.md#impairments). They act in the receiving controller, on control steps, so
+    they are defined for the in-process run and the lockstep distributed run (identically).
+
+    Attributes
+    ----------
+    seed : int
+        Seeds the loss draws and the noise (with receiver, sender and step: no random stream).
+    delays : mapping {(i, j): int}
+        Steps by which the link "UH i hears UH j" delays every state, for every edge (>= 0).
+    losses : mapping {(i, j): float}
+        Probability in [0, 1) that the link loses a state (the receiver keeps the newest one it got).
+    noise : ndarray (12,)
+        Standard deviation of the zero-mean Gaussian noise added to every state a controller receives
+        (its own and its neighbours'), per state component: m, m/s, rad, rad/s.
+    dropouts : mapping {uh id: float}
+        Time from which no other UH receives the UH's state, s.
+    """
+
+    seed: int
+    delays: Mapping
+    losses: Mapping
+    noise: np.ndarray
+    dropouts: Mapping
+
+    @property
+    def is_active(self) -> bool:
+        """Whether anything is impaired (all zero: the run is that without impairments)."""
+        return (any(self.delays.values()) or any(self.losses.values()) or bool(np.any(self.noise))
+                or bool(self.dropouts))
+
+    def drop_step(self, uh: int, dt: float) -> int:
+        """First step whose state of ``uh`` no other UH receives (a huge number without a dropout)."""
+        t = self.dropouts.get(int(uh))
+        return NO_DROPOUT if t is None else int(math.ceil(t / dt - 1e-9))
+
+
+#: :meth:`ImpairmentSpec.drop_step` of a UH that never drops out.
+NO_DROPOUT = 2 ** 62
 
 
 def _ro(arr) -> np.ndarray:
@@ -139,6 +189,8 @@ class Scenario:
         ``-L1^-1 L2``; rows follow ``followers``, columns ``leaders``.
     gains : dict
         Raw gains mapping (a fresh copy per access); read lazily from the file named by ``gains:``.
+    impairments : ImpairmentSpec or None
+        Communication and sensing impairments (None: none; docs/campaigns.md#impairments).
     """
 
     name: str
@@ -161,6 +213,7 @@ class Scenario:
     laplacian_blocks: tuple
     containment_weights: np.ndarray
     gains_source: Any = None  # inline mapping, or Path of the gains file
+    impairments: ImpairmentSpec | None = None
 
     # -- roles and graph ----------------------------------------------------------------------
     @property
@@ -442,7 +495,7 @@ def _range(lo, hi, lo_open, hi_open) -> str:
 
 _TOP_REQUIRED = ('name', 'dt', 'duration', 'uhs', 'edges', 'reference_links', 'reference')
 _TOP_OPTIONAL = ('description', 'substeps', 'settle_time', 'model_mismatch', 'helicopter', 'gains',
-                 'disturbance', 'faults')
+                 'disturbance', 'faults', 'impairments')
 _UH_REQUIRED = ('id', 'role', 'initial_state')
 _UH_OPTIONAL = ('offset',)
 _STATE_REQUIRED = ('position',)
@@ -452,6 +505,8 @@ _REF_OPTIONAL = ('initial_yaw',)
 _DIST_OPTIONAL = ('amplitude', 'frequency', 'phase', 'phase_per_id')
 _FAULT_REQUIRED = ('uh', 'channel', 'rho')
 _FAULT_OPTIONAL = ('bias_constant', 'bias_amplitude', 'bias_frequency', 'onset_time')
+_IMPAIRMENT_OPTIONAL = ('seed', 'delay_steps', 'loss', 'links', 'noise', 'dropouts')
+_NOISE_KEYS = (('position', 'm'), ('velocity', 'm/s'), ('attitude', 'rad'), ('rate', 'rad/s'))
 
 DEFAULT_SUBSTEPS = 5
 DEFAULT_SETTLE_TIME = 20.0
@@ -684,6 +739,9 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
             onset_time=ctx.number(fd.get('onset_time', 0.0), path + ('onset_time',), lo=0.0, unit='s'),
         ))
 
+    impairments = (_impairments(ctx, top['impairments'], adjacency, known, duration)
+                   if top.get('impairments') is not None else None)
+
     adjacency.setflags(write=False)
     l1 = _ro(l1)
     l2 = _ro(l2)
@@ -696,7 +754,56 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         faults=MappingProxyType({i: tuple(sorted(f, key=lambda s: s.channel)) for i, f in faults.items()}),
         reference=reference, disturbance=disturbance,
         laplacian_blocks=(l1, l2), containment_weights=_ro(weights), gains_source=gains_source,
+        impairments=impairments,
     )
+
+
+def _impairments(ctx, raw, adjacency, known, duration) -> ImpairmentSpec:
+    """Validate the ``impairments`` mapping (docs/campaigns.md#impairments) against the graph."""
+    path = ('impairments',)
+    ctx.mapping(raw, path, (), _IMPAIRMENT_OPTIONAL, what='an impairments mapping')
+    seed = ctx.integer(raw.get('seed', 0), path + ('seed',), lo=0, what='an integer seed >= 0')
+    delay = ctx.integer(raw.get('delay_steps', 0), path + ('delay_steps',), lo=0,
+                        what='a whole number of steps >= 0')
+    loss = ctx.number(raw.get('loss', 0.0), path + ('loss',), lo=0.0, hi=1.0, hi_open=True)
+    edges = [(int(i), int(j)) for i, j in zip(*np.nonzero(adjacency[:, 1:] > 0.0))]
+    edges = [(i, j + 1) for i, j in edges]
+    delays = {e: delay for e in edges}
+    losses = {e: loss for e in edges}
+    links = raw.get('links') or []
+    if not isinstance(links, list):
+        raise ctx.error(E.WrongTypeError, path + ('links',), f'expected a list of links, got {_tname(links)}')
+    for idx, link in enumerate(links):
+        lp = path + ('links', idx)
+        ctx.mapping(link, lp, ('uh', 'hears'), ('delay_steps', 'loss'),
+                    what='a link mapping {uh, hears, delay_steps, loss}')
+        i = ctx.uh_id(link['uh'], lp + ('uh',), known)
+        j = ctx.uh_id(link['hears'], lp + ('hears',), known)
+        if (i, j) not in delays:
+            raise ctx.error(E.InvalidValueError, lp, f'UH {i} does not hear UH {j}: no such edge in `edges`; '
+                            f'impairments act on existing links only')
+        if 'delay_steps' in link:
+            delays[(i, j)] = ctx.integer(link['delay_steps'], lp + ('delay_steps',), lo=0,
+                                         what='a whole number of steps >= 0')
+        if 'loss' in link:
+            losses[(i, j)] = ctx.number(link['loss'], lp + ('loss',), lo=0.0, hi=1.0, hi_open=True)
+    noise_raw = raw.get('noise') or {}
+    ctx.mapping(noise_raw, path + ('noise',), (), tuple(k for k, _ in _NOISE_KEYS), what='a noise mapping')
+    noise = np.concatenate([np.full(3, ctx.number(noise_raw.get(key, 0.0), path + ('noise', key), lo=0.0, unit=unit))
+                            for key, unit in _NOISE_KEYS])
+    dropouts = {}
+    drops = raw.get('dropouts') or []
+    if not isinstance(drops, list):
+        raise ctx.error(E.WrongTypeError, path + ('dropouts',), f'expected a list of dropouts, got {_tname(drops)}')
+    for idx, drop in enumerate(drops):
+        dp = path + ('dropouts', idx)
+        ctx.mapping(drop, dp, ('uh', 'time'), (), what='a dropout mapping {uh, time}')
+        i = ctx.uh_id(drop['uh'], dp + ('uh',), known)
+        if i in dropouts:
+            raise ctx.error(E.InvalidValueError, dp + ('uh',), f'UH {i} already drops out; one dropout per UH')
+        dropouts[i] = ctx.number(drop['time'], dp + ('time',), lo=0.0, hi=duration, unit='s')
+    return ImpairmentSpec(seed=seed, delays=MappingProxyType(delays), losses=MappingProxyType(losses),
+                          noise=_ro(noise), dropouts=MappingProxyType(dropouts))
 
 
 def _channel(ctx, value, path) -> int:
@@ -724,7 +831,8 @@ def parse_scenario(text: str, *, source: str | None = None, base_dir=None) -> Sc
 
 def bundled_scenarios() -> tuple:
     """Names of the scenarios bundled in ``uh_topology/config`` (e.g. ``('paper',)``)."""
-    return tuple(sorted(p.stem for p in _CONFIG_DIR.glob('*.yaml') if not p.stem.endswith('_gains')))
+    return tuple(sorted(p.stem for p in _CONFIG_DIR.glob('*.yaml')
+                        if not p.stem.endswith('_gains') and not p.stem.startswith('campaign_')))
 
 
 def load_scenario(path_or_name) -> Scenario:

@@ -1,0 +1,163 @@
+"""What a controller receives under communication and sensing impairments (docs/campaigns.md#impairments).
+
+The impairments of a scenario (:class:`uh_topology.scenario.ImpairmentSpec`) act in the receiving
+controller, on control steps, and draw no random stream: every loss and every noise sample is a
+pure function of ``(seed, receiver, sender, step)`` (a SplitMix64 hash). So the in-process kernel
+(:func:`uh_team.team_kernel.run_team_steps`), the object loop and the distributed controller nodes
+(:class:`ReceivedStates`), whatever the order in which they meet the steps, compute the same
+received states with the same compiled functions: the runs stay bit-identical.
+
+At step k, receiver i uses from neighbour j (:func:`delivered_step`) the newest state j sent at a step
+``s <= k - d_ij`` that the link did not lose (each sent state is lost with probability ``l_ij``) and
+that j sent before its dropout; the state of step 0 is always delivered (every UH starts knowing
+its neighbours' initial states), and before step ``d_ij`` it is the one used. Noise is added to the
+delivered state (:func:`add_noise`), keyed by the step it was sent at, so a state kept because
+later ones were lost keeps its noise. The own state gets noise too (sensing), keyed by ``sender =
+receiver``; it is never delayed nor lost. The reference is received unimpaired.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from uh_core.layout import STATE_SIZE
+
+__all__ = ['LOSS_STREAM', 'hash_uniform', 'delivered_step', 'add_noise', 'ReceivedStates', 'reference_hash',
+           'compile_impairment_kernels']
+
+#: Stream of the loss draws; the noise of state component c uses streams 1 + 2c and 2 + 2c.
+LOSS_STREAM = 0
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_MIX1 = np.uint64(0xBF58476D1CE4E5B9)
+_MIX2 = np.uint64(0x94D049BB133111EB)
+_S30, _S27, _S31, _S11 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(11)
+_UNIT = 1.0 / 9007199254740992.0   # 2^-53
+
+
+@njit(cache=True)
+def _splitmix(z):
+    z = z + _GOLDEN
+    z = (z ^ (z >> _S30)) * _MIX1
+    z = (z ^ (z >> _S27)) * _MIX2
+    return z ^ (z >> _S31)
+
+
+@njit(cache=True)
+def hash_uniform(seed, receiver, sender, step, stream):
+    """A uniform number in [0, 1) from ``(seed, receiver, sender, step, stream)`` (all ints >= 0):
+    SplitMix64 applied to each in turn, the top 53 bits scaled by 2^-53."""
+    z = _splitmix(np.uint64(seed))
+    z = _splitmix(z ^ np.uint64(receiver))
+    z = _splitmix(z ^ np.uint64(sender))
+    z = _splitmix(z ^ np.uint64(step))
+    z = _splitmix(z ^ np.uint64(stream))
+    return float(z >> _S11) * _UNIT
+
+
+def reference_hash(seed: int, receiver: int, sender: int, step: int, stream: int) -> float:
+    """:func:`hash_uniform` in plain Python integers (the specification the kernel is tested against)."""
+    mask = (1 << 64) - 1
+
+    def mix(z):
+        z = (z + 0x9E3779B97F4A7C15) & mask
+        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & mask
+        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & mask
+        return z ^ (z >> 31)
+
+    z = mix(seed)
+    for value in (receiver, sender, step, stream):
+        z = mix(z ^ value)
+    return (z >> 11) * 2.0 ** -53
+
+
+@njit(cache=True)
+def delivered_step(k, delay, loss, drop_step, seed, receiver, sender):
+    """Step of the state of ``sender`` that ``receiver`` uses at step ``k`` (see the module docstring).
+
+    ``delay`` steps >= 0, ``loss`` probability in [0, 1), ``drop_step`` the sender's first step
+    nobody receives; ``receiver`` and ``sender`` are UH ids."""
+    s = k - delay
+    if s >= drop_step:
+        s = drop_step - 1
+    if loss > 0.0:
+        while s > 0 and hash_uniform(seed, receiver, sender, s, LOSS_STREAM) < loss:
+            s -= 1
+    if s < 0:
+        s = 0
+    return s
+
+
+@njit(cache=True)
+def add_noise(state, sigma, seed, receiver, sender, step, out):
+    """``out = state + sigma * g``, ``g`` standard normal per component (Box-Muller on two hashed
+    uniforms, keyed by the step the state was sent at); components with ``sigma == 0`` are copied."""
+    for c in range(STATE_SIZE):
+        if sigma[c] == 0.0:
+            out[c] = state[c]
+        else:
+            u1 = hash_uniform(seed, receiver, sender, step, 1 + 2 * c)
+            u2 = hash_uniform(seed, receiver, sender, step, 2 + 2 * c)
+            g = math.sqrt(-2.0 * math.log(1.0 - u1)) * math.cos(2.0 * math.pi * u2)
+            out[c] = state[c] + sigma[c] * g
+
+
+class ReceivedStates:
+    """The states one controller receives, step by step (a distributed node or the object loop).
+
+    Parameters
+    ----------
+    uh_id : int
+        The receiving UH.
+    neighbours : sequence of int
+        The UHs it hears, ascending.
+    impairments : ImpairmentSpec
+    dt : float
+        Control period, s (for the dropout times).
+
+    :meth:`receive` is called once per step, in step order, with the states *sent* at that step
+    (lockstep); it keeps only the states a later step may still deliver.
+    """
+
+    def __init__(self, uh_id: int, neighbours, impairments, dt: float):
+        self.uh_id = int(uh_id)
+        self.neighbours = tuple(int(j) for j in neighbours)
+        self.seed = int(impairments.seed)
+        self.delay = {j: int(impairments.delays[(self.uh_id, j)]) for j in self.neighbours}
+        self.loss = {j: float(impairments.losses[(self.uh_id, j)]) for j in self.neighbours}
+        self.drop = {j: impairments.drop_step(j, dt) for j in self.neighbours}
+        self.sigma = np.ascontiguousarray(impairments.noise, dtype=float)
+        self.history = {j: {} for j in self.neighbours}
+        self.sample_steps = {}
+
+    def receive(self, k: int, own, neighbours: dict):
+        """The own state and neighbour states the controller uses at step ``k``, from those sent at
+        step ``k``. Returns ``(own, {j: state})`` (new arrays); :attr:`sample_steps` then holds
+        the step each neighbour's state was sent at."""
+        own_out = np.empty(STATE_SIZE)
+        add_noise(np.ascontiguousarray(own, dtype=float), self.sigma, self.seed, self.uh_id, self.uh_id, k, own_out)
+        out = {}
+        for j in self.neighbours:
+            history = self.history[j]
+            if k < self.drop[j]:   # later states of a UH that dropped out are never delivered
+                history[k] = np.array(neighbours[j], dtype=float)   # a copy: the sender may reuse its array
+            s = delivered_step(k, self.delay[j], self.loss[j], self.drop[j], self.seed, self.uh_id, j)
+            state = np.empty(STATE_SIZE)
+            add_noise(history[s], self.sigma, self.seed, self.uh_id, j, s, state)
+            out[j] = state
+            self.sample_steps[j] = s
+            for old in [step for step in history if step < s]:   # never delivered again (s only grows)
+                del history[old]
+        return own_out, out
+
+
+def compile_impairment_kernels() -> float:
+    """Compile (or load from numba's cache) the kernels of this module; returns the seconds spent."""
+    import time
+
+    start = time.perf_counter()
+    delivered_step(5, 1, 0.5, 3, 1, 2, 3)
+    add_noise(np.zeros(STATE_SIZE), np.ones(STATE_SIZE), 1, 2, 3, 4, np.empty(STATE_SIZE))
+    return time.perf_counter() - start
