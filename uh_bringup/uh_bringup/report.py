@@ -20,6 +20,12 @@ a bare rosbag2 bag directory of such a run, or a directory written by ``uh-simul
 it is ``--scenario`` (default ``paper``). Without ``metrics.json`` the metrics are computed from
 the arrays with :func:`uh_team.metrics.metrics_from_arrays` (and the table says so).
 
+``uh-report CAMPAIGN_DIR [--out DIR]`` on a campaign directory (it holds ``campaign.sqlite`` of
+``uh-campaign``; it must be the only argument) writes the campaign report of
+:mod:`uh_bringup.campaign_report` instead (default ``DIR`` = ``CAMPAIGN_DIR/report``): success
+rates with Wilson intervals, distributions, paired comparisons of the cases, the worst runs with
+their re-run commands and the sweep; a missing, damaged or empty results file exits 2.
+
 Exit status: 0 written, 2 bad input (a missing or empty run directory, a bag that is not MCAP,
 truncated or damaged, arrays that do not fit the scenario, an unwritable output directory); the
 message names the file and what is wrong.
@@ -587,7 +593,8 @@ def build_parser() -> argparse.ArgumentParser:
         description='Figures (the paper\'s Figures 4-12) and a side-by-side metrics table of one or '
                     'several runs of run_formation.sh (MCAP bag) or uh-simulate (timeseries.npz).',
         epilog='Example: uh-report runs/proposed runs/case1 runs/case2 --out runs/report')
-    p.add_argument('runs', nargs='+', metavar='RUN_DIR', help='run directories (or bag directories)')
+    p.add_argument('runs', nargs='+', metavar='RUN_DIR',
+                   help='run directories (or bag directories), or one campaign directory (campaign.sqlite)')
     p.add_argument('--out', type=Path, default=None,
                    help='output directory (default: RUN_DIR/report for one run, report/ next to the runs for several)')
     p.add_argument('--scenario', default='paper',
@@ -609,12 +616,37 @@ def _fail(message: str, status: int = 2) -> int:
     return status
 
 
+def _campaign_main(args, campaign_dir) -> int:
+    """``uh-report CAMPAIGN_DIR [--out DIR]``: the report of :mod:`uh_bringup.campaign_report`."""
+    from .campaign_report import CampaignReportError, write_campaign_report
+
+    if len(args.runs) != 1:
+        return _fail(f'{campaign_dir} is a campaign directory (campaign.sqlite); a campaign is reported on its '
+                     f'own: uh-report {campaign_dir} [--out DIR]')
+    if args.labels:
+        return _fail('--labels does not apply to a campaign report')
+    base = Path(campaign_dir) if Path(campaign_dir).is_dir() else Path(campaign_dir).parent
+    out = args.out or base / 'report'
+    print(f'[report] reading campaign {campaign_dir}', file=sys.stderr, flush=True)
+    try:
+        report = write_campaign_report(campaign_dir, out, CASE_LABELS)
+    except CampaignReportError as exc:
+        return _fail(str(exc))
+    print(f'[report] wrote {report}, {out / "index.html"}, the figures and the CSV files in {out}', file=sys.stderr)
+    return 0
+
+
 def main(argv=None) -> int:
     """Entry point of ``uh-report``; returns the exit status (see the module docstring)."""
     import matplotlib
     matplotlib.use('Agg')
 
+    from .campaign_report import is_campaign_dir
+
     args = build_parser().parse_args(argv)
+    campaigns = [d for d in args.runs if is_campaign_dir(d)]
+    if campaigns:
+        return _campaign_main(args, campaigns[0])
     if args.labels is not None and len(args.labels) != len(args.runs):
         return _fail(f'--labels gives {len(args.labels)} names for {len(args.runs)} runs')
     try:
