@@ -10,7 +10,7 @@ from pathlib import Path
 
 from .suite import MODES, markdown, run_suite
 
-SECTIONS = ('transport', 'paper', 'components', 'scaling', 'realtime', 'backends')
+SECTIONS = ('transport', 'paper', 'components', 'scaling', 'realtime', 'backends', 'campaign')
 
 
 def main(argv=None) -> int:

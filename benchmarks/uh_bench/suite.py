@@ -27,6 +27,10 @@ Sections (every figure is measured in the same invocation as the baseline it is 
     processes after start-up), p99 latency, late and missed steps. rclpy is skipped, with the
     reason in the results, when this Python cannot import it (no ROS 2 sourced).
     Also the CPU per received message of each executor (:mod:`uh_bench.executors`).
+``campaign``
+    ``uh-campaign`` throughput (:mod:`uh_bench.campaign`): runs per second of a campaign of
+    paper-scenario runs (60 s simulated) on local worker processes against one run in process,
+    as a fraction of every core busy with runs; and the time 1,000 such runs take at that rate.
 ``memory``
     Peak resident set of the node processes (from every lockstep and real-time run above).
 
@@ -48,7 +52,7 @@ from pathlib import Path
 
 from uh_runtime.network import release_domain_id, reserve_domain_id
 
-from . import executors, inprocess, runs, transport
+from . import campaign, executors, inprocess, runs, transport
 
 __all__ = ['MODES', 'GOALS', 'run_suite', 'markdown', 'machine_info', 'evaluate_goals']
 
@@ -58,12 +62,12 @@ MODES = {
               'component_steps': 500, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 3.0,
               'scaling_layouts': ('per-node', 'single'), 'realtime_duration': 8.0,
               'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node')),
-              'backend_lockstep_duration': 20.0, 'backend_realtime_duration': 20.0},
+              'backend_lockstep_duration': 20.0, 'backend_realtime_duration': 20.0, 'campaign_runs': 100},
     'full': {'transport_quick': False, 'paper_duration': 60.0, 'paper_layouts': ('per-node', 'per-uh', 'single'),
              'component_steps': 3000, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 20.0,
              'scaling_layouts': ('per-node', 'single'), 'realtime_duration': 60.0,
              'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'), (20, 'single')),
-             'backend_lockstep_duration': 60.0, 'backend_realtime_duration': 60.0},
+             'backend_lockstep_duration': 60.0, 'backend_realtime_duration': 60.0, 'campaign_runs': 1000},
 }
 
 #: The goals of the performance issue: (key, description, target, comparison).
@@ -83,6 +87,10 @@ GOALS = (
     ('realtime5_best_p99_ms', '5 UHs, real time, best process layout: worst controller p99 '
      'state-to-command latency (ms)', 5.0, '<'),
     ('realtime5_best_missed', '5 UHs, real time, best process layout: missed + late steps', 0, '<='),
+    ('campaign_efficiency', 'campaign of paper-scenario runs on local workers: runs per second over '
+     'cores / (one run in process)', 0.8, '>='),
+    ('campaign_1000_runs_s', 'campaign: seconds for 1,000 paper-scenario runs of 60 s (at the measured rate)',
+     300.0, '<'),
 )
 
 
@@ -150,6 +158,14 @@ def _paper(cfg, workdir, results):
         _log(f'  real-time factor {bare["rtf"]} without the views; with / without: '
              f'{section["standard_views"]["rtf_ratio"]}')
     results['paper'] = section
+
+
+def _campaign(cfg, workdir, results):
+    n = cfg.get('campaign_runs', 100)
+    _log(f'campaign throughput: {n} paper-scenario runs of 60 s on local workers, and one run in process')
+    results['campaign'] = campaign.measure(workdir, runs=n)
+    c = results['campaign']
+    _log(f'  {c["runs_per_s"]:.2f} runs/s against {c["ideal_runs_per_s"]:.2f} ideal: efficiency {c["efficiency"]:.2f}')
 
 
 def _transport(cfg, workdir, results):
@@ -363,6 +379,9 @@ def evaluate_goals(results) -> list:
         best = key if best is None or key < best else best
     if best is not None:
         measured['realtime5_best_missed'], measured['realtime5_best_p99_ms'] = best
+    if 'campaign' in results:
+        measured['campaign_efficiency'] = results['campaign']['efficiency']
+        measured['campaign_1000_runs_s'] = results['campaign']['time_for_1000_runs_s']
     out = []
     for key, text, target, cmp in GOALS:
         value = measured.get(key)
@@ -387,7 +406,7 @@ def run_suite(mode, workdir, sections=('transport', 'paper', 'components', 'scal
     results = {'mode': mode, 'config': cfg, 'date': datetime.datetime.now().isoformat(timespec='seconds'),
                'machine': machine_info(), 'sections': list(sections)}
     table = {'transport': _transport, 'paper': _paper, 'components': _components, 'scaling': _scaling,
-             'realtime': _realtime, 'backends': _backends}
+             'realtime': _realtime, 'backends': _backends, 'campaign': _campaign}
     for name in sections:
         table[name](cfg, workdir, results)
     _memory(results)
@@ -464,6 +483,14 @@ def markdown(results) -> str:
             rss = max(p['peak_rss_kb'] for p in procs) / 1024
             lines.append(f'| {kind} | {n} | {run_us:.0f} | {start:.2f} | {rss:.1f} |')
         lines.append('')
+    camp = results.get('campaign')
+    if camp:
+        lines += [f'### Campaign throughput ({camp["runs"]} paper-scenario runs of {camp["duration_s"]:g} s, '
+                  f'{camp["workers"]} local workers)', '',
+                  '| one run in process (s) | ideal runs/s (cores / one run) | campaign runs/s (cold start) | '
+                  'efficiency | 1,000 runs at this rate (s) |', '|---|---|---|---|---|',
+                  f'| {camp["one_run_s"]:.3f} | {camp["ideal_runs_per_s"]:.2f} | {camp["runs_per_s"]:.2f} | '
+                  f'{camp["efficiency"]:.2f} | {camp["time_for_1000_runs_s"]:.0f} |', '']
     comp = results.get('components')
     if comp:
         c = comp['paper']

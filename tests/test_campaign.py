@@ -1,0 +1,316 @@
+"""uh-campaign: spec validation (file, line, key), reproducible draws, resolved scenarios that
+re-run to the stored numbers, failure recording, resume after Ctrl-C, and a Dask cluster giving
+the local pool's rows. Runs are short (12 s simulated, faults from 2-4 s so that the fault
+estimation is scored) so the file stays well under a minute."""
+import math
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from uh_team.campaign import cli, store
+from uh_team.campaign.runner import run_campaign
+from uh_team.campaign.spec import bundled_specs, load_spec, resolve_scenario, scenario_yaml
+from uh_topology import errors as E
+
+# 10 draws x 2 sweep values x 3 cases = 60 runs of 12 s (settle time: half of it)
+REFERENCE_SPEC = """\
+name: mc_test
+scenario: paper
+runs: 10
+seed: 42
+duration: 12.0
+cases: [proposed, case1, case2]
+draws:
+  position_spread: 1.0
+  attitude_spread: 0.05
+  yaw_spread: 0.2
+  faults:
+    faulted_uhs: [1, 2]
+    channels_per_uh: [1, 2]
+    rho: [0.7, 0.95]
+    bias_constant: [-0.01, 0.01]
+    onset_time: [2.0, 4.0]
+sweep: {parameter: model_mismatch, values: [0.9, 1.0]}
+"""
+
+
+def _write(directory: Path, text: str, name='spec.yaml') -> Path:
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / name
+    path.write_text(text)
+    return path
+
+
+def _rows(directory) -> dict:
+    runs = store.read_runs(Path(directory) / store.DB_NAME)
+    runs.pop('wall_time_s')
+    return runs
+
+
+def _assert_same_rows(a: dict, b: dict, draws=None):
+    """Every column equal (NaN == NaN), optionally only for the draws < ``draws`` of ``a``."""
+    if draws is not None:
+        keep = a['draw'] < draws
+        a = {k: v[keep] for k, v in a.items()}
+    assert a.keys() == b.keys()
+    for column in a:
+        if a[column].dtype.kind == 'f':
+            np.testing.assert_array_equal(a[column], b[column], err_msg=column)
+        else:
+            assert list(a[column]) == list(b[column]), column
+
+
+@pytest.fixture(scope='module')
+def reference(tmp_path_factory):
+    """The reference campaign, run once on 2 local workers: (spec path, campaign directory)."""
+    base = tmp_path_factory.mktemp('reference')
+    spec = _write(base, REFERENCE_SPEC)
+    out = base / 'out'
+    outcome = run_campaign(load_spec(spec), out, workers=2)
+    assert (outcome.total, outcome.done, outcome.failures) == (60, 60, 0)
+    return spec, out
+
+
+# ----------------------------------------------------------------------------------------------
+# Spec validation
+# ----------------------------------------------------------------------------------------------
+GOOD_HEAD = 'name: bad\nscenario: paper\nruns: 2\nduration: 4.0\n'       # lines 1-4
+
+
+@pytest.mark.parametrize('tail, error, line, key', [
+    ('runz: 3\n', E.UnknownKeyError, 5, 'runz'),
+    ('seed: one\n', E.WrongTypeError, 5, 'seed'),
+    ('cases: [proposed, case3]\n', E.InvalidValueError, 5, 'cases[1]'),
+    ('draws:\n  faults:\n    rho: [0.0, 0.9]\n', E.InvalidValueError, 7, 'draws.faults.rho[0]'),
+    ('draws:\n  faults:\n    rho:\n      - 0.5\n      - 1.2\n', E.InvalidValueError, 9, 'draws.faults.rho[1]'),
+    ('draws:\n  model_mismatch: [1.0, 0.8]\n', E.InvalidValueError, 6, 'draws.model_mismatch'),
+    ('draws:\n  faults: {faulted_uhs: [1, 9]}\n', E.InvalidValueError, 6, 'draws.faults.faulted_uhs[1]'),
+    ('impairments:\n  delay_steps: -1\n', E.InvalidValueError, 6, 'impairments.delay_steps'),
+    ('impairments:\n  seed: 3\n', E.InvalidValueError, 6, 'impairments.seed'),
+    ('sweep:\n  parameter: impairments.delay_steps\n  values: [0, 2, -5]\n', E.InvalidValueError, 7,
+     'sweep.values[2]'),
+    ('sweep:\n  parameter: model_mismatc\n  values: [0.9]\n', E.UnknownKeyError, 6, 'sweep.parameter'),
+    ('sweep:\n  parameter: model_mismatch\n  values: [0.9, 0.9]\n', E.InvalidValueError, 7, 'sweep.values[1]'),
+    ('success: {formation_rms: 0.05}\n', E.UnknownKeyError, 5, 'success.formation_rms'),
+    ('settle_time: 4.0\n', E.InvalidValueError, 5, 'settle_time'),
+])
+def test_bad_specs_are_refused_with_file_line_and_key(tmp_path, tail, error, line, key):
+    spec = _write(tmp_path, GOOD_HEAD + tail)
+    with pytest.raises(error) as info:
+        load_spec(spec)
+    assert (info.value.source, info.value.line, info.value.path) == (str(spec), line, key)
+    assert str(info.value).startswith(f'{spec}:{line}: {key}: ')
+
+
+@pytest.mark.parametrize('text, error, line, key', [
+    ('name: g\nruns: 1\ngenerator: {leaders: 0, followers: 2}\n', E.InvalidValueError, 3, 'generator.leaders'),
+    ('name: g\nruns: 1\ngenerator:\n  leaders: 2\n  followers: 2\n  follower_edge_probability: 0\n',
+     E.UnreachableFollowerError, 6, 'generator.follower_edge_probability'),
+    ('name: g\nruns: 1\ngenerator:\n  leaders: 3\n  followers: 1\n  leader_edge_probability: 0.0\n',
+     E.UnreachableLeaderError, 6, 'generator.leader_edge_probability'),
+    ('name: g\nruns: 1\ngenerator:\n  leaders: 3\n  followers: 1\n  reference_links: [0, 1]\n',
+     E.InvalidValueError, 6, 'generator.reference_links[0]'),
+    ('name: g\nruns: 0\ngenerator: {leaders: 2, followers: 2}\n', E.InvalidValueError, 2, 'runs'),
+    ('name: g\nruns: 1\nscenario: paper\ngenerator: {leaders: 2, followers: 2}\n', E.InvalidValueError, 1, None),
+    ('name: g\nruns: 1\nscenario: nowhere.yaml\n', E.ScenarioNotFoundError, 3, 'scenario'),
+    ('name: g\nruns: 1\nscenario: paper\nduration: 4.005\n', E.InvalidValueError, 4, 'duration'),
+    ('name: g\nruns: [1\n', E.ScenarioSyntaxError, 3, None),
+])
+def test_impossible_generators_and_other_bad_specs(tmp_path, text, error, line, key):
+    spec = _write(tmp_path, text)
+    with pytest.raises(error) as info:
+        load_spec(spec)
+    assert (info.value.line, info.value.path) == (line, key)
+
+
+def test_cli_refuses_a_bad_spec_with_status_2_before_running(tmp_path, capsys):
+    spec = _write(tmp_path, GOOD_HEAD + 'draws:\n  faults: {rho: [0.5, 1.5]}\n')
+    assert cli.main([str(spec), '--out', str(tmp_path / 'out')]) == 2
+    assert f'uh-campaign: error: {spec}:6: draws.faults.rho[1]: ' in capsys.readouterr().err
+    assert not (tmp_path / 'out').exists()
+    assert cli.main([str(spec), '--out', str(tmp_path / 'out'), '--workers', '0']) == 2
+    with pytest.raises(SystemExit) as info:
+        cli.build_parser().parse_args(['--help'])
+    assert info.value.code == 0
+    assert '--cluster ADDRESS' in capsys.readouterr().out
+
+
+def test_bundled_specs_load_and_draw_from_their_own_seed():
+    assert {'campaign_paper_faults', 'campaign_delay_sweep', 'campaign_random_graphs'} <= set(bundled_specs())
+    faults = load_spec('campaign_paper_faults')
+    assert (faults.runs, faults.cases, faults.total_runs) == (200, ('proposed', 'case1', 'case2'), 600)
+    sweep = load_spec('campaign_delay_sweep')
+    assert sweep.sweep.parameter == 'impairments.delay_steps' and sweep.sweep.values == (0, 2, 5, 10, 20)
+    graphs = load_spec('campaign_random_graphs')
+    assert (graphs.generator.leaders, graphs.generator.followers) == (4, 4)
+    # draw i depends on (spec, seed, i) only: the same mapping however often and in whatever order
+    assert resolve_scenario(faults, 7) == resolve_scenario(faults, 7)
+    assert resolve_scenario(faults, 7)['faults'] != resolve_scenario(faults, 8)['faults']
+    a, b = resolve_scenario(graphs, 3), resolve_scenario(graphs, 4)
+    assert a['edges'] != b['edges']                    # a new random graph per draw
+    # the delay sweep: the same draw at every delay, with one impairments seed per draw
+    d0, d4 = resolve_scenario(sweep, 5, 0), resolve_scenario(sweep, 5, 4)
+    assert d0['uhs'] == d4['uhs'] and (d0['impairments']['delay_steps'], d4['impairments']['delay_steps']) == (0, 20)
+    assert d0['impairments']['seed'] == d4['impairments']['seed'] != resolve_scenario(sweep, 6, 0)['impairments']['seed']
+
+
+# ----------------------------------------------------------------------------------------------
+# Reproducibility and the resolved scenarios
+# ----------------------------------------------------------------------------------------------
+def test_reference_campaign_stores_every_run_and_its_metadata(reference):
+    spec_path, out = reference
+    runs = store.read_runs(out / store.DB_NAME)
+    assert len(runs['draw']) == 60 and set(runs['status']) == {'ok'}
+    assert np.all(np.isfinite(runs['formation_rms_m'])) and np.all(np.isfinite(runs['fault_error_w']))
+    assert set(runs['success']) <= {0, 1}
+    ok = (runs['formation_rms_m'] <= 0.05) & (runs['containment_rms_m'] <= 0.02)
+    assert np.array_equal(runs['success'] == 1, ok)
+    # the draws differ from each other, the cases of one draw too
+    proposed = runs['case_name'] == 'proposed'
+    assert len(set(runs['formation_rms_m'][proposed])) == 20
+    con = store.open_store(out / store.DB_NAME)
+    meta = store.read_meta(con)
+    con.close()
+    assert meta['name'] == 'mc_test' and meta['spec'] == REFERENCE_SPEC and meta['spec_path'] == str(spec_path)
+    assert meta['cases'] == '["proposed", "case1", "case2"]' and meta['sweep_parameter'] == 'model_mismatch'
+    assert meta['sweep_values'] == '[0.9, 1.0]' and meta['runs'] == '10' and meta['seed'] == '42'
+    assert meta['success'] == '{"formation_rms_m": 0.05, "containment_rms_m": 0.02}'
+    assert len(meta['spec_digest']) == 64 and '"numba"' in meta['versions']
+    assert sorted(p.name for p in (out / 'scenarios').iterdir())[:3] == [
+        'draw_000000_s00.yaml', 'draw_000000_s01.yaml', 'draw_000001_s00.yaml']
+
+
+def test_same_draws_with_one_worker_and_a_smaller_campaign(reference, tmp_path):
+    spec_path, out = reference
+    small = tmp_path / 'small'
+    outcome = run_campaign(load_spec(spec_path).with_runs(3), small, workers=1)
+    assert outcome.done == 18
+    _assert_same_rows(_rows(out), _rows(small), draws=3)
+    for name in ('draw_000002_s01.yaml', 'draw_000000_s00.yaml'):
+        assert (small / 'scenarios' / name).read_text() == (out / 'scenarios' / name).read_text()
+    # and the same scenario again when resolved on its own, out of order
+    spec = load_spec(spec_path)
+    assert (out / 'scenarios' / 'draw_000007_s01.yaml').read_text().endswith(scenario_yaml(resolve_scenario(spec, 7, 1)))
+
+
+def test_a_resolved_scenario_loads_alone_and_reruns_to_the_stored_metrics(reference, tmp_path):
+    from uh_team.metrics import metrics_from_arrays
+    from uh_team.team_simulation import run_team_simulation
+    from uh_topology.scenario import load_scenario
+
+    _, out = reference
+    moved = tmp_path / 'elsewhere.yaml'           # no file it names is relative to the campaign
+    moved.write_text((out / 'scenarios' / 'draw_000004_s01.yaml').read_text())
+    scenario = load_scenario(moved)
+    assert scenario.model_mismatch == 1.0 and scenario.duration == 12.0 and scenario.name == 'mc_test_draw000004_s01'
+    runs = store.read_runs(out / store.DB_NAME)
+    i = int(np.flatnonzero((runs['draw'] == 4) & (runs['sweep_index'] == 1) & (runs['case_name'] == 'case1'))[0])
+    assert runs['scenario_file'][i] == 'scenarios/draw_000004_s01.yaml' and runs['sweep_value'][i] == 1.0
+    run = run_team_simulation(scenario, 'case1', duration=scenario.duration)
+    row = store.metric_row(metrics_from_arrays(run.arrays(), scenario, 'case1'))
+    for metric, value in row.items():
+        stored = runs[metric][i]
+        assert (value is None and math.isnan(stored)) or value == stored, metric
+
+
+# ----------------------------------------------------------------------------------------------
+# Failures, resume, refusal of another campaign's directory
+# ----------------------------------------------------------------------------------------------
+FAILING_SPEC = """\
+name: failing
+generator: {leaders: 2, followers: 2, leader_edge_probability: 0.5, follower_edge_probability: 0.4, attempts: 1}
+runs: 3
+seed: 9
+duration: 2.0
+cases: [proposed]
+sweep: {parameter: 'uhs[0].initial_state.omega[0]', values: [0.0, 10000.0]}
+"""
+
+
+def test_diverged_and_failed_runs_are_recorded_and_the_campaign_goes_on(tmp_path):
+    # seed 9: draw 1 finds no valid graph in its one attempt; 1e4 rad/s of roll rate diverges
+    out = tmp_path / 'out'
+    outcome = run_campaign(load_spec(_write(tmp_path, FAILING_SPEC)), out, workers=2)
+    assert (outcome.done, outcome.failures) == (6, 4)
+    runs = store.read_runs(out / store.DB_NAME)
+    status = {(int(d), int(s)): (st, r) for d, s, st, r in
+              zip(runs['draw'], runs['sweep_index'], runs['status'], runs['reason'])}
+    assert status[(0, 0)] == ('ok', None) and status[(2, 0)] == ('ok', None)
+    for draw in (0, 2):
+        assert status[(draw, 1)][0] == 'diverged' and 'non-finite' in status[(draw, 1)][1]
+    for sweep_index in (0, 1):
+        state, reason = status[(1, sweep_index)]
+        assert state == 'failed'
+        assert reason.startswith('InvalidValueError: ') and 'no graph satisfying Assumption 1 in 1 attempt' in reason
+    assert set(runs['success'][runs['status'] != 'ok']) == {0}
+    assert np.isnan(runs['formation_rms_m'][runs['status'] != 'ok']).all()
+
+
+def test_a_directory_of_another_campaign_is_refused(reference, tmp_path, capsys):
+    spec_path, out = reference
+    before = (out / store.DB_NAME).stat().st_mtime_ns
+    assert cli.main([str(spec_path), '--out', str(out), '--runs', '4', '--quiet']) == 2
+    err = capsys.readouterr().err
+    assert "holds campaign 'mc_test' of another spec" in err and 'new --out directory' in err
+    assert (out / store.DB_NAME).stat().st_mtime_ns == before
+    (tmp_path / 'other').mkdir()
+    (tmp_path / 'other' / 'notes.txt').write_text('x')
+    assert cli.main([str(spec_path), '--out', str(tmp_path / 'other'), '--quiet']) == 2
+    assert 'holds no campaign' in capsys.readouterr().err
+
+
+def _stored(db: Path) -> int:
+    try:
+        con = sqlite3.connect(str(db), timeout=5)
+        try:
+            return con.execute('SELECT COUNT(*) FROM runs').fetchone()[0]
+        finally:
+            con.close()
+    except sqlite3.OperationalError:      # not created yet
+        return 0
+
+
+def test_sigint_saves_what_is_done_and_a_rerun_completes_it(reference, tmp_path, processes):
+    spec_path, reference_out = reference
+    out = tmp_path / 'out'
+    command = [str(Path(sys.executable).with_name('uh-campaign')), str(spec_path), '--out', str(out),
+               '--workers', '2']
+    proc = processes.start(command, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    deadline = time.monotonic() + 60
+    while _stored(out / store.DB_NAME) < 6:
+        assert proc.poll() is None and time.monotonic() < deadline, 'the campaign ended before it was interrupted'
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 130, err
+    assert 'interrupted: ' in err and f'resume with:\n  uh-campaign {spec_path} --out {out} --workers 2' in err
+    stored = _stored(out / store.DB_NAME)
+    assert 6 <= stored < 60
+
+    again = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert again.returncode == 0, again.stderr
+    assert f'resuming: {stored} of 60 runs already stored' in again.stderr
+    assert f'60/60 runs stored ({60 - stored} now' in again.stderr
+    assert 'proposed ' in again.stderr and 'runs/s' in again.stderr      # progress lines and the summary
+    _assert_same_rows(_rows(reference_out), _rows(out))
+
+
+# ----------------------------------------------------------------------------------------------
+# Dask cluster
+# ----------------------------------------------------------------------------------------------
+def test_a_dask_cluster_gives_the_rows_of_the_local_pool(reference, tmp_path):
+    distributed = pytest.importorskip('distributed')
+    spec_path, reference_out = reference
+    out = tmp_path / 'dask'
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  worker_dashboard_address=None) as cluster:
+        status = cli.main([str(spec_path), '--out', str(out), '--runs', '4', '--cluster', cluster.scheduler_address,
+                           '--quiet'])
+    assert status == 0
+    _assert_same_rows(_rows(reference_out), _rows(out), draws=4)

@@ -1,0 +1,597 @@
+"""Running a campaign: work units in a local process pool or on a Dask cluster, resumably.
+
+A *run* (work unit) is ``(draw, sweep_index, case)``. The main process resolves the scenario of
+each (draw, sweep point) (:func:`uh_team.campaign.spec.resolve_scenario`), writes it to
+``DIR/scenarios/`` before anything runs it, and hands the pending cases of that scenario to a
+worker as one *task* (so the scenario is parsed once for its cases). A worker loads the scenario
+from the YAML text, runs each case with
+:func:`uh_team.team_simulation.run_team_simulation`, scores it with
+:func:`uh_team.metrics.metrics_from_arrays` and returns one row per case
+(:func:`uh_team.campaign.store.metric_row` plus status, reason and wall time). Only the main
+process writes the results file, one committed row per run as soon as it arrives
+(:mod:`uh_team.campaign.store`), so an interruption loses at most the runs in flight and a
+re-run skips every stored key.
+
+Outcome of a run: ``ok``; ``diverged`` when the simulation raised a
+:class:`~uh_team.team_simulation.SimulationError` about a non-finite state; ``failed`` with
+``'<exception type>: <message>'`` for anything else (a scenario that does not load, a generated
+draw without a valid graph, an error in the metrics). No run stops the campaign. ``success`` is 1
+when the run is ``ok`` and every metric of the spec's ``success`` mapping is at most its
+threshold (a missing or NaN metric is not met), else 0.
+
+Executors
+---------
+*Local* (default): :class:`concurrent.futures.ProcessPoolExecutor` with ``workers`` processes
+(default ``os.cpu_count()``), started with the ``spawn`` method: no fork of a process holding
+numba's state and an open results file, and, unlike Python 3.11's fork server, the workers get
+the main process's ``sys.path`` (a worker started in the repository root would otherwise import
+the source directories ``uh_team/``, ``uh_topology/`` as empty namespace packages). The main
+process loads (or compiles into numba's cache) the kernels before the pool starts and each
+worker loads them once, in its initializer (about 2 s per worker, once per campaign); workers
+ignore SIGINT, so Ctrl-C reaches only the main process. At most ``2 x workers`` tasks are in
+flight.
+
+*Cluster*: ``distributed.Client(ADDRESS)`` of Dask's ``distributed``; tasks are sent with
+``client.submit`` and collected with ``as_completed`` as they finish, at most ``2 x`` the
+cluster's threads at a time. The scenario goes to the worker as text, so workers need no shared
+file system, but they must have this project installed (the same versions: numbers are
+compared across runs) and import ``uh_team``. Dask rather than Ray: Dask's packages are pure
+Python wheels, a ``LocalCluster`` starts in-process in a test in a couple of seconds, ``dask
+scheduler`` / ``dask worker`` start a real cluster from the command line, and its futures stream
+back one by one as they finish, so each run is committed at once; Ray brings a large native
+runtime (raylet, GCS, object store) that would compete with the runs for a small machine's cores.
+
+Stopping
+--------
+:func:`run_campaign` checks ``stop`` (a :class:`threading.Event`, set by the CLI on SIGINT) while
+it waits: it then submits nothing more, cancels the tasks not yet started, waits for those
+running, commits their rows and raises :class:`CampaignInterrupted`.
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+from . import store
+from .spec import CampaignSpec, resolve_scenario, scenario_file_name, scenario_yaml
+
+__all__ = ['run_campaign', 'run_task', 'CampaignError', 'CampaignInterrupted', 'CampaignOutcome', 'Progress',
+           'success_of', 'summary_lines', 'campaign_versions']
+
+#: Tasks in flight per worker (one running, one queued: a worker never waits for the main process).
+_IN_FLIGHT_PER_WORKER = 2
+
+#: Seconds between checks of the stop flag while waiting for results.
+_POLL = 0.2
+
+#: Largest wait for the tasks running when the campaign is stopped, s.
+_DRAIN_TIMEOUT = 120.0
+
+
+class CampaignError(RuntimeError):
+    """A campaign that cannot start or go on: the directory holds another campaign, the cluster
+    cannot be reached (``status`` 2: bad input, nothing ran), a worker process died (``status``
+    1: what is done is saved)."""
+
+    def __init__(self, message: str, status: int = 2):
+        self.status = status
+        super().__init__(message)
+
+
+class CampaignInterrupted(Exception):
+    """The campaign was stopped (``stop`` set): every finished run is committed."""
+
+    def __init__(self, outcome: 'CampaignOutcome'):
+        self.outcome = outcome
+        super().__init__(f'interrupted after {outcome.done} of {outcome.total} runs')
+
+
+@dataclass
+class CampaignOutcome:
+    """Counts of a campaign after :func:`run_campaign`: runs of the whole campaign (``total``),
+    stored now (``done``), stored before this call (``skipped``), and of those run now, not ``ok``
+    (``failures``)."""
+
+    directory: Path
+    total: int
+    done: int
+    skipped: int
+    failures: int
+    wall_time_s: float
+
+
+# ------------------------------------------------------------------------------------------------
+# Worker side
+
+
+_WARM = False
+
+
+def _warm_up() -> None:
+    """Once per process: import what a run needs, load the numba kernels (from the cache, or
+    compile them), then ``gc.freeze()`` everything alive (as the nodes do at start-up,
+    ``uh_runtime.runner``; ``UH_GC_FREEZE=0`` keeps the default). The imports and the kernels'
+    dispatchers are a large, permanent object graph that every full collection would walk again:
+    frozen, a 60 s run of the paper scenario takes about 0.39 s instead of 0.47 s."""
+    global _WARM
+    if _WARM:
+        return
+    import gc
+
+    import uh_team.metrics  # noqa: F401 - imported now, frozen below
+    import uh_team.team_simulation  # noqa: F401
+    from uh_team.compile_kernels import compile_all
+    from uh_topology.scenario import parse_scenario  # noqa: F401
+
+    compile_all()
+    if os.environ.get('UH_GC_FREEZE', '1').strip() not in ('0', 'false', 'no'):
+        gc.collect()
+        gc.freeze()
+    _WARM = True
+
+
+def _init_local_worker() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the main process's to handle
+    _warm_up()
+
+
+def run_task(task: dict) -> list:
+    """Run the cases of one resolved scenario (in a worker); one row per case.
+
+    ``task``: ``draw``, ``sweep_index``, ``sweep_value``, ``scenario_file`` (relative to the
+    campaign directory, for messages and the row), ``scenario_text`` (its YAML) and ``cases``.
+    The rows hold every :data:`~uh_team.campaign.store.RUN_COLUMNS` column but ``success``.
+    """
+    from uh_topology.scenario import parse_scenario
+
+    from uh_team.metrics import metrics_from_arrays
+    from uh_team.team_simulation import SimulationError, run_team_simulation
+
+    _warm_up()
+    key = {'draw': task['draw'], 'sweep_index': task['sweep_index'], 'sweep_value': task['sweep_value'],
+           'scenario_file': task['scenario_file']}
+    try:
+        scenario = parse_scenario(task['scenario_text'], source=task['scenario_file'])
+    except Exception as exc:   # noqa: BLE001 - any error of the scenario is the runs' outcome
+        return [dict(key, case_name=case, status='failed', reason=_reason(exc), wall_time_s=0.0)
+                for case in task['cases']]
+    rows = []
+    for case in task['cases']:
+        start = time.perf_counter()
+        row = dict(key, case_name=case, status='ok', reason=None)
+        try:
+            run = run_team_simulation(scenario, case, duration=scenario.duration)
+            row.update(store.metric_row(metrics_from_arrays(run.arrays(), scenario, case)))
+        except SimulationError as exc:
+            row.update(status='diverged' if 'non-finite' in str(exc) else 'failed', reason=_reason(exc))
+        except Exception as exc:   # noqa: BLE001 - recorded, the campaign goes on
+            row.update(status='failed', reason=_reason(exc))
+        row['wall_time_s'] = time.perf_counter() - start
+        rows.append(row)
+    return rows
+
+
+def _reason(exc: BaseException) -> str:
+    return f'{type(exc).__name__}: {exc}'
+
+
+# ------------------------------------------------------------------------------------------------
+# Executors
+
+
+class _LocalPool:
+    """Tasks in a process pool on this machine."""
+
+    def __init__(self, workers: int):
+        import multiprocessing
+
+        from uh_team.compile_kernels import compile_all
+        compile_all()    # fill numba's cache once here, so the workers only load it
+        context = multiprocessing.get_context('spawn')
+        self.slots = workers * _IN_FLIGHT_PER_WORKER
+        self.pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_init_local_worker)
+        self.description = f'{workers} local worker process{"es" if workers != 1 else ""}'
+
+    def submit(self, task):
+        return self.pool.submit(run_task, task)
+
+    def wait(self, futures, timeout):
+        done, _ = cf.wait(futures, timeout=timeout, return_when=cf.FIRST_COMPLETED)
+        return done
+
+    def result(self, future):
+        try:
+            return future.result()
+        except cf.process.BrokenProcessPool as exc:
+            raise CampaignError(f'a worker process died ({exc}); the runs done so far are saved', status=1) from None
+
+    def cancel(self, futures):
+        for future in futures:
+            future.cancel()
+
+    def close(self):
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _DaskCluster:
+    """Tasks on a Dask ``distributed`` cluster (its scheduler at ``address``)."""
+
+    def __init__(self, address: str):
+        try:
+            from distributed import Client, as_completed
+        except ImportError as exc:
+            raise CampaignError(f'--cluster needs dask[distributed] ({exc}); install requirements.txt') from None
+        try:
+            self.client = Client(address, timeout='15s')
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise CampaignError(f'cannot reach the Dask scheduler at {address!r}: {exc}') from None
+        threads = sum(self.client.nthreads().values()) or 1
+        self.slots = threads * _IN_FLIGHT_PER_WORKER
+        self.completed = as_completed()
+        self.description = f'Dask cluster {address} ({threads} worker thread{"s" if threads != 1 else ""})'
+
+    def submit(self, task):
+        future = self.client.submit(run_task, task, pure=False)
+        self.completed.add(future)
+        return future
+
+    def wait(self, futures, timeout):
+        deadline = time.monotonic() + timeout
+        while not self.completed.has_ready() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        return set(self.completed.next_batch(block=False)) if self.completed.has_ready() else set()
+
+    def result(self, future):
+        return future.result()
+
+    def cancel(self, futures):
+        pending = [f for f in futures if not f.done()]
+        if pending:
+            self.client.cancel(pending)
+
+    def close(self):
+        self.client.close()
+
+
+# ------------------------------------------------------------------------------------------------
+# Main side
+
+
+def success_of(row: dict, thresholds: dict) -> int:
+    """1 when the run is ``ok`` and every thresholded metric is at most its threshold, else 0."""
+    if row.get('status') != 'ok':
+        return 0
+    for metric, threshold in thresholds.items():
+        value = row.get(metric)
+        if value is None or not math.isfinite(float(value)) or float(value) > threshold:
+            return 0
+    return 1
+
+
+def campaign_versions() -> dict:
+    """Versions of what produces the numbers: Python, numpy, numba and the project's packages."""
+    from importlib import metadata
+
+    out = {'python': sys.version.split()[0]}
+    for name in ('numpy', 'numba', 'uh_team', 'uh_topology', 'uh_core', 'uh_sim_node', 'uh_controller_node'):
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
+def _open_campaign_dir(spec: CampaignSpec, directory: Path):
+    """Open ``DIR/campaign.sqlite`` for ``spec``: new, or the same campaign (resume)."""
+    if directory.exists() and not directory.is_dir():
+        raise CampaignError(f'--out {str(directory)!r} exists and is not a directory')
+    db = directory / store.DB_NAME
+    if directory.is_dir() and not db.exists() and any(directory.iterdir()):
+        raise CampaignError(f'--out {str(directory)!r} is not empty and holds no campaign ({store.DB_NAME}); '
+                            'choose a new or empty directory')
+    (directory / 'scenarios').mkdir(parents=True, exist_ok=True)
+    try:
+        con = store.open_store(db)
+    except store.StoreError as exc:
+        raise CampaignError(str(exc)) from None
+    meta = store.read_meta(con)
+    if meta.get('spec_digest') not in (None, spec.digest):
+        con.close()
+        runs = f' with --runs {spec.runs_override}' if spec.runs_override is not None else ''
+        raise CampaignError(
+            f'{str(directory)!r} holds campaign {meta.get("name")!r} of another spec ({meta.get("spec_path")!r}, '
+            f'runs {meta.get("runs")}): its spec digest differs from that of {spec.source or "this spec"}{runs}. '
+            f'Resume it with the spec text and --runs it was started with, or give a new --out directory')
+    if 'spec_digest' not in meta:
+        values = dict(
+            name=spec.name, spec=spec.text, spec_digest=spec.digest, spec_path=str(spec.source or ''),
+            seed=spec.seed, runs=spec.runs, cases=list(spec.cases), success=dict(spec.success),
+            duration=spec.duration, created=datetime.now(timezone.utc).isoformat(timespec='seconds'),
+            versions=campaign_versions())
+        if spec.sweep is not None:
+            values.update(sweep_parameter=spec.sweep.parameter, sweep_values=list(spec.sweep.values))
+        store.write_meta(con, **values)
+    return con
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + '.tmp')
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _tasks(spec: CampaignSpec, directory: Path, done: set):
+    """``(task, failed_rows)`` per (draw, sweep point) with pending cases, in key order: the task
+    to run, or the failed rows of a scenario that could not be resolved."""
+    for draw in range(spec.runs):
+        for s, value in enumerate(spec.sweep_values):
+            cases = [case for case in spec.cases if (draw, s, case) not in done]
+            if not cases:
+                continue
+            sweep_value = None if value is None else float(value)
+            rel = scenario_file_name(spec, draw, s)
+            try:
+                mapping = resolve_scenario(spec, draw, s)
+            except Exception as exc:   # noqa: BLE001 - e.g. no valid graph for this draw
+                yield None, [dict(draw=draw, sweep_index=s, case_name=case, sweep_value=sweep_value, status='failed',
+                                  reason=_reason(exc), wall_time_s=0.0) for case in cases]
+                continue
+            header = (f'# Resolved scenario of campaign {spec.name!r}, draw {draw}'
+                      + (f', {spec.sweep.parameter} = {value!r}' if spec.sweep is not None else '')
+                      + f' (uh-campaign, seed {spec.seed}).\n'
+                      f'# Re-run from the campaign directory: uh-simulate --scenario {rel} --case {spec.cases[0]} '
+                      f'--out runs/draw{draw}\n')
+            text = scenario_yaml(mapping, header)
+            _write_atomic(directory / rel, text)    # saved before it runs
+            yield {'draw': draw, 'sweep_index': s, 'sweep_value': sweep_value, 'scenario_file': rel,
+                   'scenario_text': text, 'cases': cases}, None
+
+
+def run_campaign(spec: CampaignSpec, directory, *, workers: int | None = None, cluster: str | None = None,
+                 progress: 'Progress | None' = None, stop: threading.Event | None = None) -> CampaignOutcome:
+    """Run every run of ``spec`` not yet stored in ``directory`` (module docstring).
+
+    Parameters
+    ----------
+    spec : CampaignSpec
+    directory : path
+        The campaign directory (created; or one holding this campaign: resumed).
+    workers : int, optional
+        Local worker processes (default ``os.cpu_count()``); ignored with ``cluster``.
+    cluster : str, optional
+        Address of a Dask scheduler (``tcp://host:8786``).
+    progress : Progress, optional
+        Told about every stored run.
+    stop : threading.Event, optional
+        When set, the campaign stops (see module docstring).
+
+    Raises
+    ------
+    CampaignError
+        The directory holds another campaign or no campaign, the cluster cannot be reached, a
+        worker process died.
+    CampaignInterrupted
+        ``stop`` was set; finished runs are committed.
+    """
+    directory = Path(directory)
+    executor = _DaskCluster(cluster) if cluster else None     # an unreachable cluster: DIR stays untouched
+    try:
+        con = _open_campaign_dir(spec, directory)
+    except BaseException:
+        if executor is not None:
+            executor.close()
+        raise
+    start = time.monotonic()
+    done_before = store.done_keys(con)
+    total = spec.total_runs
+    skipped = sum(1 for key in spec.units() if key in done_before)
+    counts = {'done': skipped, 'failures': 0}
+    if progress is not None:
+        progress.start(total, skipped)
+
+    def commit(rows):
+        for row in rows:
+            row['success'] = success_of(row, spec.success)
+            store.write_run(con, row)
+            counts['done'] += 1
+            counts['failures'] += row['status'] != 'ok'
+            if progress is not None:
+                progress.update(counts['done'], counts['failures'])
+
+    def outcome():
+        return CampaignOutcome(directory=directory, total=total, done=counts['done'], skipped=skipped,
+                               failures=counts['failures'], wall_time_s=time.monotonic() - start)
+
+    inflight = {}
+    try:
+        if skipped < total:
+            if executor is None:
+                executor = _LocalPool(workers or os.cpu_count() or 1)
+            if progress is not None:
+                progress.note(f'running on {executor.description}')
+        tasks = _tasks(spec, directory, done_before)
+        exhausted = False
+        while skipped < total:
+            while not exhausted and len(inflight) < executor.slots and not (stop and stop.is_set()):
+                try:
+                    task, failed = next(tasks)
+                except StopIteration:
+                    exhausted = True
+                    break
+                if failed:
+                    commit(failed)
+                else:
+                    inflight[executor.submit(task)] = task
+            if stop is not None and stop.is_set():
+                raise _Stop
+            if not inflight:
+                break
+            for future in executor.wait(list(inflight), _POLL):
+                task = inflight.pop(future)
+                try:
+                    rows = _task_rows(executor, future, task)
+                except CampaignError:
+                    if stop is not None and stop.is_set():
+                        raise _Stop from None   # workers hit by the same Ctrl-C (a terminal's)
+                    raise
+                commit(rows)
+    except _Stop:
+        _drain(executor, inflight, commit)
+        raise CampaignInterrupted(outcome()) from None
+    finally:
+        if executor is not None:
+            executor.close()
+        con.close()
+    return outcome()
+
+
+class _Stop(Exception):
+    pass
+
+
+def _task_rows(executor, future, task) -> list:
+    """The rows a finished task returned; for a task the executor lost (e.g. a Dask worker killed
+    while running it), failed rows with the reason."""
+    try:
+        return executor.result(future)
+    except CampaignError:
+        raise
+    except Exception as exc:   # noqa: BLE001 - the executor's error is the runs' outcome
+        return [dict(draw=task['draw'], sweep_index=task['sweep_index'], case_name=case,
+                     sweep_value=task['sweep_value'], scenario_file=task['scenario_file'], status='failed',
+                     reason=_reason(exc), wall_time_s=0.0) for case in task['cases']]
+
+
+def _drain(executor, inflight: dict, commit) -> None:
+    """After a stop: cancel what has not started, commit what finishes within the drain time."""
+    if executor is None or not inflight:
+        return
+    executor.cancel(list(inflight))
+    deadline = time.monotonic() + _DRAIN_TIMEOUT
+    while inflight and time.monotonic() < deadline:
+        for future in [f for f in inflight if f.done()]:
+            task = inflight.pop(future)
+            if not future.cancelled():
+                try:
+                    commit(_task_rows(executor, future, task))
+                except CampaignError:
+                    return
+        if inflight:
+            executor.wait(list(inflight), _POLL)
+
+
+# ------------------------------------------------------------------------------------------------
+# Progress and summary
+
+
+class Progress:
+    """Progress of a campaign on a stream (stderr): runs done / total, failures, runs/s and ETA.
+    On a terminal one line rewritten in place (at most 5 times a second); otherwise a line at
+    every further 10 % of the runs. ``quiet`` writes nothing."""
+
+    def __init__(self, stream=None, quiet: bool = False, tty: bool | None = None, label: str = 'uh-campaign'):
+        self.stream = stream if stream is not None else sys.stderr
+        self.quiet = quiet
+        self.tty = bool(tty if tty is not None else getattr(self.stream, 'isatty', lambda: False)())
+        self.label = label
+        self.total = self.first = 0
+        self._t0 = time.monotonic()
+        self._last_write = 0.0
+        self._next_tenth = 1
+        self._open_line = False
+
+    def start(self, total: int, done: int) -> None:
+        self.total, self.first = total, done
+        self._t0 = time.monotonic()
+        if done:
+            self.note(f'resuming: {done} of {total} runs already stored')
+        self._next_tenth = (10 * done) // max(total, 1) + 1
+
+    def note(self, text: str) -> None:
+        if not self.quiet:
+            self._end_line()
+            print(f'{self.label}: {text}', file=self.stream, flush=True)
+
+    def update(self, done: int, failures: int) -> None:
+        if self.quiet:
+            return
+        now = time.monotonic()
+        finished = done >= self.total
+        if self.tty:
+            if not finished and now - self._last_write < 0.2:
+                return
+            self._last_write = now
+            self.stream.write('\r' + self._line(done, failures, now) + '\x1b[K')
+            self._open_line = True
+            if finished:
+                self._end_line()
+            self.stream.flush()
+        elif 10 * done >= self._next_tenth * self.total:
+            self._next_tenth = (10 * done) // max(self.total, 1) + 1
+            print(self._line(done, failures, now), file=self.stream, flush=True)
+
+    def _line(self, done, failures, now) -> str:
+        elapsed = max(now - self._t0, 1e-9)
+        rate = (done - self.first) / elapsed
+        left = self.total - done
+        eta = _duration(left / rate) if rate > 0 and left else ('0 s' if not left else '?')
+        pct = 100.0 * done / max(self.total, 1)
+        return (f'{self.label}: {done}/{self.total} runs ({pct:.0f} %), {failures} not ok, '
+                f'{rate:.2f} runs/s, ETA {eta}')
+
+    def _end_line(self) -> None:
+        if self._open_line:
+            self.stream.write('\n')
+            self._open_line = False
+
+
+def _duration(seconds: float) -> str:
+    seconds = int(round(seconds))
+    if seconds < 60:
+        return f'{seconds} s'
+    if seconds < 3600:
+        return f'{seconds // 60} min {seconds % 60:02d} s'
+    return f'{seconds // 3600} h {seconds % 3600 // 60:02d} min'
+
+
+def summary_lines(directory, spec: CampaignSpec) -> list:
+    """Per case (and sweep value): runs stored, success count and rate, median formation and
+    containment RMS of the ``ok`` runs (from the results file)."""
+    import numpy as np
+
+    runs = store.read_runs(Path(directory) / store.DB_NAME)
+    lines = []
+    sweep = spec.sweep is not None
+    for s, value in enumerate(spec.sweep_values):
+        if sweep:
+            lines.append(f'{spec.sweep.parameter} = {value}:')
+        for case in spec.cases:
+            mask = (runs['case_name'] == case) & (runs['sweep_index'] == s)
+            n = int(mask.sum())
+            ok = mask & (runs['status'] == 'ok')
+            wins = int((runs['success'][mask] == 1).sum())
+            rate = f'{100.0 * wins / n:.1f} %' if n else 'n/a'
+
+            def median(column):
+                values = runs[column][ok]
+                values = values[np.isfinite(values)]
+                return f'{np.median(values):.4g} m' if values.size else 'n/a'
+
+            bad = n - int(ok.sum())
+            lines.append(f'{"  " if sweep else ""}{case:9s} {wins}/{n} succeeded ({rate}), '
+                         f'median formation RMS {median("formation_rms_m")}, containment RMS '
+                         f'{median("containment_rms_m")}' + (f', {bad} not ok' if bad else ''))
+    return lines
+
+
+def success_text(spec: CampaignSpec) -> str:
+    """The spec's success criterion in words."""
+    return ', '.join(f'{m} <= {t:g}' for m, t in spec.success.items()) or 'status ok'
