@@ -117,6 +117,9 @@ def test_bad_specs_are_refused_with_file_line_and_key(tmp_path, tail, error, lin
     ('name: g\nruns: 1\ngenerator:\n  leaders: 3\n  followers: 1\n  reference_links: [0, 1]\n',
      E.InvalidValueError, 6, 'generator.reference_links[0]'),
     ('name: g\nruns: 0\ngenerator: {leaders: 2, followers: 2}\n', E.InvalidValueError, 2, 'runs'),
+    # a new graph per draw: a link named in the spec would exist in some draws only
+    ('name: g\nruns: 1\ngenerator: {leaders: 2, followers: 2}\nimpairments:\n  links: [{uh: 3, hears: 1}]\n',
+     E.InvalidValueError, 5, 'impairments.links'),
     ('name: g\nruns: 1\nscenario: paper\ngenerator: {leaders: 2, followers: 2}\n', E.InvalidValueError, 1, None),
     ('name: g\nruns: 1\nscenario: nowhere.yaml\n', E.ScenarioNotFoundError, 3, 'scenario'),
     ('name: g\nruns: 1\nscenario: paper\nduration: 4.005\n', E.InvalidValueError, 4, 'duration'),
@@ -314,3 +317,18 @@ def test_a_dask_cluster_gives_the_rows_of_the_local_pool(reference, tmp_path):
                            '--quiet'])
     assert status == 0
     _assert_same_rows(_rows(reference_out), _rows(out), draws=4)
+
+
+def test_runs_lost_by_the_executor_are_not_stored_so_a_resume_runs_them_again():
+    """A task the executor loses (a killed Dask worker) is not a failed run: no row, the reason kept."""
+    from uh_team.campaign.runner import _task_rows
+
+    class LosingExecutor:
+        def result(self, future):
+            raise RuntimeError('worker tcp://10.0.0.7:4321 was killed')
+
+    lost = []
+    task = {'draw': 3, 'sweep_index': 0, 'sweep_value': None, 'scenario_file': 'scenarios/draw_000003.yaml',
+            'cases': ['proposed', 'case1']}
+    assert _task_rows(LosingExecutor(), None, task, lost) == []
+    assert lost == [(2, 'RuntimeError: worker tcp://10.0.0.7:4321 was killed')]

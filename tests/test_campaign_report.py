@@ -20,8 +20,8 @@ def _row(draw, case, status='ok', sweep_index=0, sweep_value=None, formation=0.0
         success = 1 if status == 'ok' else None
     return {'draw': draw, 'sweep_index': sweep_index, 'case_name': case, 'sweep_value': sweep_value,
             'status': status, 'reason': reason, 'success': success,
-            'scenario_file': f'scenarios/draw_{draw:06d}' + (f'_s{sweep_index}' if sweep_value is not None else '')
-            + '.yaml',
+            'scenario_file': f'scenarios/draw_{draw:06d}' + (f'_s{sweep_index:02d}' if sweep_value is not None else '')
+            + '.yaml',   # the runner's names (uh_team.campaign.spec.scenario_file_name)
             'wall_time_s': 1.5, 'formation_rms_m': formation if status == 'ok' else None,
             'containment_rms_m': containment if status == 'ok' else None,
             'fault_error_w': fault_w if status == 'ok' else None, **metrics}
@@ -111,7 +111,11 @@ def test_paired_comparison_on_known_differences(tmp_path):
     assert result['pairs'] == 5
     assert result['first_better'] == pytest.approx(0.8)
     assert result['median_difference'] == pytest.approx(-0.005)
-    assert -0.020 - 1e-12 <= result['ci_low'] <= -0.005 <= result['ci_high'] <= 0.001 + 1e-12
+    assert result['excluded'] == 1                             # draw 5: run by both, diverged in one
+    # the percentile interval: the 2.5 and 97.5 % quantiles of the medians of the seeded resamples
+    rng = np.random.default_rng(C.BOOTSTRAP_SEED)
+    medians = np.median(diff[rng.integers(0, 5, size=(C.BOOTSTRAP_RESAMPLES, 5))], axis=1)
+    assert (result['ci_low'], result['ci_high']) == tuple(np.quantile(medians, [0.025, 0.975]))
     # exact two-sided signed-rank p: W+ = rank of +0.001 = 1 of 32 sign patterns -> 2 * 2/32
     assert result['wilcoxon_p'] == pytest.approx(0.125)
     again = C.paired_comparison(runs, 'proposed', 'case1', 'formation_rms_m')
@@ -150,8 +154,8 @@ def test_rerun_commands_name_the_stored_scenario_and_the_case():
                            '--clock lockstep --out runs/mc_run_draw42_case2')
     assert in_process == ('uh-simulate --scenario camps/a/scenarios/draw_000042.yaml --case case2 '
                           '--out runs/mc_run_draw42_case2_sim')
-    swept, _ = C.rerun_commands('c', 'scenarios/x.yaml', 'proposed', 'mc', 3, sweep_index=2, duration=30.0)
-    assert swept.endswith('--out runs/mc_draw3_s2_proposed --duration 30')
+    swept, _ = C.rerun_commands('c', 'scenarios/x.yaml', 'proposed', 'mc', 3, sweep_index=2)
+    assert swept.endswith('--out runs/mc_draw3_s2_proposed')   # the scenario file holds the duration
 
 
 def _sweep_rows():
@@ -200,10 +204,10 @@ def test_uh_report_writes_the_campaign_report_with_sweep(tmp_path, capsys):
     assert 'mc_test' in md and '18 of 18 runs done' in md
     assert 'timeout after N s' in md                      # failures grouped by reason
     # the failed run is the worst of case1, with its re-run commands
-    command = (f'scripts/run_formation.sh --scenario {directory}/scenarios/draw_000002_s2.yaml --case case1 '
+    command = (f'scripts/run_formation.sh --scenario {directory}/scenarios/draw_000002_s02.yaml --case case1 '
                '--clock lockstep --out runs/mc_test_draw2_s2_case1')
     assert command in md and command in (out / 'index.html').read_text()
-    assert f'uh-simulate --scenario {directory}/scenarios/draw_000002_s2.yaml --case case1' in md
+    assert f'uh-simulate --scenario {directory}/scenarios/draw_000002_s02.yaml --case case1' in md
     assert 'impairments.delay_steps' in md and 'Wilcoxon' in md
     with open(out / 'runs.csv') as f:
         rows = list(csv.DictReader(f))
@@ -261,3 +265,24 @@ def test_a_campaign_must_be_the_only_argument(tmp_path, capsys):
     other.mkdir()
     assert main([str(other), str(directory)]) == 2
     assert 'campaign directory' in capsys.readouterr().err
+
+
+def test_with_a_sweep_cases_are_compared_at_each_sweep_point(tmp_path):
+    """The draws of one sweep point are independent, those of several are not: one comparison per point."""
+    rows = [_row(d, c, sweep_index=k, sweep_value=float(v), formation=0.01 * (d + 1) * (1 + v) * (2 if c == 'case1' else 1))
+            for k, v in enumerate((0, 5)) for d in range(4) for c in ('proposed', 'case1')]
+    runs = _runs(rows, tmp_path)
+    at = [C.paired_comparison(runs, 'proposed', 'case1', 'formation_rms_m', sweep_index=k) for k in (0, 1)]
+    assert [r['pairs'] for r in at] == [4, 4] and [r['sweep_index'] for r in at] == [0, 1]
+    assert at[0]['median_difference'] == pytest.approx(-0.025)    # -0.01 (d + 1), d = 0..3
+    assert at[1]['median_difference'] == pytest.approx(-0.15)     # -0.06 (d + 1)
+    assert C.paired_comparison(runs, 'proposed', 'case1', 'formation_rms_m')['pairs'] == 8   # pooled: 8
+
+
+def test_a_draw_without_a_scenario_gets_no_rerun_command(tmp_path):
+    rows = [_row(0, 'proposed'), {**_row(1, 'proposed', 'failed', reason='InvalidValueError: no valid graph'),
+                                  'scenario_file': None}]
+    directory = _campaign(tmp_path / 'mc', rows, cases=['proposed'], runs=2)
+    assert main([str(directory)]) == 0
+    md = (directory / 'report' / 'report.md').read_text()
+    assert 'no scenario to re-run' in md and 'draw_000001' not in md

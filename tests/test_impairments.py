@@ -130,11 +130,28 @@ def test_bad_impairments_are_refused_with_line_and_key(block, error, where, word
 
 # -- the same received states everywhere -------------------------------------------------------------
 
-def test_zero_impairments_change_nothing():
+def test_zero_impairments_are_the_run_without_impairments():
     plain = run_team_simulation(load_scenario('paper'), 'proposed', duration=2.0)
-    zero = run_team_simulation(parse_scenario(_paper_with('impairments: {}'), source='zero'), 'proposed',
-                               duration=2.0)
+    zero_scenario = parse_scenario(_paper_with('impairments: {seed: 4, delay_steps: 0, loss: 0.0}'), source='zero')
+    assert zero_scenario.impairments is None   # so any clock runs it, and nothing extra is published
+    zero = run_team_simulation(zero_scenario, 'proposed', duration=2.0)
     assert np.array_equal(plain.states, zero.states) and np.array_equal(plain.commands, zero.commands)
+
+
+@pytest.mark.parametrize('block', [
+    'impairments:\n  dropouts:\n    - {uh: 1, time: 0.0}',     # only the initial state of UH 1, ever
+    'impairments: {delay_steps: 500}',                          # longer than the run: initial states only
+])
+def test_edge_cases_receive_the_same_states_in_the_kernel_and_the_object_loop(block):
+    scenario = parse_scenario(_paper_with(block), source='edge')
+    kernel = run_team_simulation(scenario, 'proposed', duration=0.5)
+    objects = run_team_simulation(scenario, 'proposed', duration=0.5, engine='objects')
+    assert np.array_equal(kernel.states, objects.states) and np.array_equal(kernel.commands, objects.commands)
+    received = ReceivedStates(2, (1,), scenario.impairments, scenario.dt)
+    initial = np.arange(12.0)
+    for k in range(60):
+        _, states = received.receive(k, np.zeros(12), {1: initial + k})
+        assert np.array_equal(states[1], initial) and received.sample_steps[1] == 0
 
 
 def test_the_kernel_and_the_object_loop_receive_the_same_states(impaired):

@@ -310,11 +310,15 @@ def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
     return x, np.arange(1, len(x) + 1) / max(len(x), 1)
 
 
-def paired_differences(runs: dict, first: str, second: str, metric: str) -> tuple[list, np.ndarray]:
+def paired_differences(runs: dict, first: str, second: str, metric: str,
+                       sweep_index: int | None = None) -> tuple[list, np.ndarray]:
     """``(keys, differences)``: for every (draw, sweep index) where both cases ran ok with a finite
-    ``metric``, ``metric(first) - metric(second)`` (negative: ``first`` is better), keys sorted."""
+    ``metric``, ``metric(first) - metric(second)`` (negative: ``first`` is better), keys sorted;
+    with ``sweep_index``, at that sweep point only."""
     def by_key(case):
         index = _ok_finite(runs, case, metric)
+        if sweep_index is not None:
+            index = [i for i in index if int(runs['sweep_index'][i]) == sweep_index]
         return {(int(runs['draw'][i]), int(runs['sweep_index'][i])): float(runs[metric][i]) for i in index}
     a, b = by_key(first), by_key(second)
     keys = sorted(a.keys() & b.keys())
@@ -356,16 +360,25 @@ def wilcoxon_p(differences) -> tuple[float, str]:
 
 
 def paired_comparison(runs: dict, first: str, second: str, metric: str, resamples: int = BOOTSTRAP_RESAMPLES,
-                      seed: int = BOOTSTRAP_SEED) -> dict:
+                      seed: int = BOOTSTRAP_SEED, sweep_index: int | None = None) -> dict:
     """Paired comparison of ``first`` and ``second`` on ``metric`` (lower is better) over the draws
-    and sweep points where both ran ok: ``{'first', 'second', 'metric', 'pairs', 'first_better'
-    (fraction with first < second), 'ties' (count), 'median_difference' (first - second),
-    'ci_low', 'ci_high' (:func:`bootstrap_median_ci`), 'wilcoxon_p', 'note'}``."""
-    _, d = paired_differences(runs, first, second, metric)
+    where both ran ok (at ``sweep_index`` only, if given: the draws of one sweep point are
+    independent, those of several sweep points are not): ``{'first', 'second', 'metric',
+    'sweep_index', 'pairs', 'excluded' (draws run by both cases that are not a pair: a run not ok
+    or without the metric), 'first_better' (fraction with first < second), 'ties' (count),
+    'median_difference' (first - second), 'ci_low', 'ci_high' (:func:`bootstrap_median_ci`),
+    'wilcoxon_p', 'note'}``."""
+    _, d = paired_differences(runs, first, second, metric, sweep_index)
     n = len(d)
+
+    def keys(case):
+        rows = np.flatnonzero(runs['case_name'] == case)
+        return {(int(runs['draw'][i]), int(runs['sweep_index'][i])) for i in rows
+                if sweep_index is None or int(runs['sweep_index'][i]) == sweep_index}
     low, high = bootstrap_median_ci(d, resamples, seed)
     p, note = wilcoxon_p(d)
-    return {'first': first, 'second': second, 'metric': metric, 'pairs': n,
+    return {'first': first, 'second': second, 'metric': metric, 'sweep_index': sweep_index, 'pairs': n,
+            'excluded': len(keys(first) & keys(second)) - n,
             'first_better': float(np.mean(d < 0.0)) if n else math.nan, 'ties': int(np.sum(d == 0.0)),
             'median_difference': float(np.median(d)) if n else math.nan, 'ci_low': low, 'ci_high': high,
             'wilcoxon_p': p, 'note': note if n else 'no pairs'}
@@ -393,23 +406,22 @@ def _safe_name(text: str) -> str:
 
 
 def rerun_commands(directory, scenario_file: str, case: str, campaign_name: str, draw: int,
-                   sweep_index: int | None = None, duration=None) -> tuple[str, str]:
+                   sweep_index: int | None = None) -> tuple[str, str]:
     """Shell commands that re-run one run: ``(distributed, in-process)``.
 
     The first runs it as a distributed lockstep run recorded to a bag
     (``scripts/run_formation.sh``, output ``runs/<campaign>_draw<draw>_<case>``, with
     ``_s<sweep index>`` before the case when the campaign sweeps), the second in one process
     (``uh-simulate``, output ``runs/<same>_sim``). The scenario is ``directory / scenario_file``
-    (``directory`` as given on the command line); ``duration`` (s, optional) is passed on.
+    (``directory`` as given on the command line), which holds everything, its duration included.
     """
     scenario = (Path(directory) / str(scenario_file)).as_posix()
     sweep = f'_s{int(sweep_index)}' if sweep_index is not None else ''
     out = f'runs/{_safe_name(campaign_name)}_draw{int(draw)}{sweep}_{case}'
-    tail = f' --duration {float(duration):g}' if duration is not None else ''
     q = shlex.quote
     distributed = (f'scripts/run_formation.sh --scenario {q(scenario)} --case {q(case)} --clock lockstep '
-                   f'--out {q(out)}{tail}')
-    in_process = f'uh-simulate --scenario {q(scenario)} --case {q(case)} --out {q(out + "_sim")}{tail}'
+                   f'--out {q(out)}')
+    in_process = f'uh-simulate --scenario {q(scenario)} --case {q(case)} --out {q(out + "_sim")}'
     return distributed, in_process
 
 
@@ -767,19 +779,27 @@ def _distribution_section(doc: _Document, campaign: Campaign, out: Path, labels)
 
 def _paired_section(doc: _Document, campaign: Campaign) -> list[dict]:
     doc.heading(2, 'Paired comparisons')
-    doc.paragraph('Each pair of cases over the same draws and sweep points where both runs ended ok. Difference = '
-                  'first − second (negative: the first is better, every metric is lower-is-better). '
+    swept = bool(campaign.sweep_parameter)
+    doc.paragraph('Each pair of cases over the same draws' + (' at each sweep point (the draws of one sweep point '
+                  'are independent, those of several are not)' if swept else '') + ', where both runs ended ok; '
+                  '"excluded": draws where one of the two did not. Difference = first − second (negative: the '
+                  'first is better, every metric is lower-is-better). '
                   f'"first better": fraction of pairs with a strictly lower value for the first case. CI: '
                   f'percentile bootstrap of the median difference ({BOOTSTRAP_RESAMPLES} resamples, seed '
                   f'{BOOTSTRAP_SEED}). p: two-sided Wilcoxon signed-rank test (zero differences dropped).')
-    results = [paired_comparison(campaign.runs, a, b, metric)
-               for a, b in combinations(campaign.cases, 2) for metric in PAIRED_METRICS]
+    points = list(range(len(campaign.sweep_values))) if swept else [None]
+    results = [paired_comparison(campaign.runs, a, b, metric, sweep_index=k)
+               for k in points for a, b in combinations(campaign.cases, 2) for metric in PAIRED_METRICS]
+    for r in results:
+        r['sweep_value'] = campaign.sweep_values[r['sweep_index']] if swept else None
     if not results:
         doc.paragraph('Only one case: nothing to compare.')
         return results
-    doc.table(['first vs second', 'metric', 'pairs', 'first better', 'median difference', '95 % CI', 'Wilcoxon p'],
-              [[f'{r["first"]} vs {r["second"]}', f'`{r["metric"]}` ({METRIC_UNITS.get(r["metric"], "-")})',
-                r['pairs'], _percent(r['first_better']), _num(r['median_difference']),
+    doc.table(['first vs second'] + ([campaign.sweep_parameter] if swept else []) +
+              ['metric', 'pairs', 'excluded', 'first better', 'median difference', '95 % CI', 'Wilcoxon p'],
+              [[f'{r["first"]} vs {r["second"]}'] + ([_num(r['sweep_value'])] if swept else []) +
+               [f'`{r["metric"]}` ({METRIC_UNITS.get(r["metric"], "-")})',
+                r['pairs'], r['excluded'], _percent(r['first_better']), _num(r['median_difference']),
                 _interval(r['ci_low'], r['ci_high']),
                 _num(r['wilcoxon_p']) if math.isfinite(r['wilcoxon_p']) else f'n/a ({r["note"]})'] for r in results])
     return results
@@ -791,7 +811,6 @@ def _worst_section(doc: _Document, campaign: Campaign) -> list[dict]:
     doc.paragraph(f'The {WORST_COUNT} worst runs of each case: failed, then diverged, then by `formation_rms_m` + '
                   '`containment_rms_m` (largest first). Each comes with the command that re-runs it as a '
                   'distributed lockstep run recorded to a bag, and the in-process equivalent.')
-    duration = _duration(campaign.meta)
     entries = []
     for case in campaign.cases:
         index = worst_runs(runs, case)
@@ -805,9 +824,13 @@ def _worst_section(doc: _Document, campaign: Campaign) -> list[dict]:
         for rank, i in enumerate(index, 1):
             draw = int(runs['draw'][i])
             sweep_index = int(runs['sweep_index'][i]) if campaign.sweep_parameter else None
-            scenario_file = runs['scenario_file'][i] or f'scenarios/draw_{draw:06d}.yaml'
-            distributed, in_process = rerun_commands(campaign.directory, scenario_file, case, campaign.name, draw,
-                                                     sweep_index, duration)
+            scenario_file = runs['scenario_file'][i]
+            if scenario_file:
+                distributed, in_process = rerun_commands(campaign.directory, scenario_file, case, campaign.name,
+                                                         draw, sweep_index)
+            else:   # the draw's scenario could not be made (e.g. no valid random graph): nothing to re-run
+                distributed = in_process = '# no scenario to re-run: the draw could not be resolved'
+                scenario_file = ''
             entry = {'case': case, 'rank': rank, 'draw': draw, 'sweep_index': int(runs['sweep_index'][i]),
                      'sweep_value': float(runs['sweep_value'][i]), 'status': str(runs['status'][i]),
                      'reason': ' '.join(str(runs['reason'][i] or '').split()), 'scenario_file': scenario_file,
@@ -860,7 +883,7 @@ def _write_csvs(out: Path, campaign: Campaign, success: list, summaries: dict, p
         rows.append(row)
     (out / 'summary.csv').write_text(_csv(head, rows))
 
-    paired_keys = ['first', 'second', 'metric', 'pairs', 'first_better', 'ties', 'median_difference', 'ci_low',
+    paired_keys = ['first', 'second', 'sweep_index', 'sweep_value', 'metric', 'pairs', 'excluded', 'first_better', 'ties', 'median_difference', 'ci_low',
                    'ci_high', 'wilcoxon_p', 'note']
     (out / 'paired.csv').write_text(_csv(paired_keys, [[r[k] for k in paired_keys] for r in paired]))
 

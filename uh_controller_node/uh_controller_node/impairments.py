@@ -141,7 +141,8 @@ class ReceivedStates:
         out = {}
         for j in self.neighbours:
             history = self.history[j]
-            if k < self.drop[j]:   # later states of a UH that dropped out are never delivered
+            if k < self.drop[j] or k == 0:   # later states of a UH that dropped out are never delivered;
+                # the initial state always is (a dropout at t = 0 leaves its neighbours with it)
                 history[k] = np.array(neighbours[j], dtype=float)   # a copy: the sender may reuse its array
             s = delivered_step(k, self.delay[j], self.loss[j], self.drop[j], self.seed, self.uh_id, j)
             state = np.empty(STATE_SIZE)

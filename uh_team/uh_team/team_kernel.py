@@ -111,7 +111,7 @@ class TeamArrays(NamedTuple):
     noise: np.ndarray
 
 
-def team_arrays(ids, controllers, plants, impairments=None, dt: float = 0.01) -> TeamArrays:
+def team_arrays(ids, controllers, plants, impairments=None, dt: float | None = None) -> TeamArrays:
     """Stack the kernel arrays of ``controllers`` and ``plants`` (both in the order of ``ids``),
     with the scenario's ``impairments`` (an ``ImpairmentSpec`` or None) on control period ``dt``.
 
@@ -143,6 +143,8 @@ def team_arrays(ids, controllers, plants, impairments=None, dt: float = 0.01) ->
     drop_step = np.zeros(n, dtype=np.int64)
     noise = np.zeros(STATE_SIZE)
     if impairments is not None:
+        if dt is None:
+            raise ValueError('team kernel: impairments need the control period dt (for the dropout steps)')
         for c, controller in enumerate(controllers):
             i = int(ids[c])
             drop_step[c] = impairments.drop_step(i, dt)

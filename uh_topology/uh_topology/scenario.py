@@ -190,7 +190,8 @@ class Scenario:
     gains : dict
         Raw gains mapping (a fresh copy per access); read lazily from the file named by ``gains:``.
     impairments : ImpairmentSpec or None
-        Communication and sensing impairments (None: none; docs/campaigns.md#impairments).
+        Communication and sensing impairments (docs/campaigns.md#impairments); None when the
+        scenario has none or all of them are zero.
     """
 
     name: str
@@ -741,6 +742,8 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
 
     impairments = (_impairments(ctx, top['impairments'], adjacency, known, duration)
                    if top.get('impairments') is not None else None)
+    if impairments is not None and not impairments.is_active:
+        impairments = None   # all zero: the run without impairments (any clock, no /uhN/received)
 
     adjacency.setflags(write=False)
     l1 = _ro(l1)

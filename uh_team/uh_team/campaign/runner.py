@@ -15,7 +15,10 @@ re-run skips every stored key.
 Outcome of a run: ``ok``; ``diverged`` when the simulation raised a
 :class:`~uh_team.team_simulation.SimulationError` about a non-finite state; ``failed`` with
 ``'<exception type>: <message>'`` for anything else (a scenario that does not load, a generated
-draw without a valid graph, an error in the metrics). No run stops the campaign. ``success`` is 1
+draw without a valid graph, an error in the metrics). No run stops the campaign. A task the
+executor itself loses (a Dask worker killed while running it) says nothing about its runs: they
+are not stored, the campaign goes on and then ends with exit status 1, and a resume runs them
+again; a local worker process that dies stops the campaign the same way. ``success`` is 1
 when the run is ``ok`` and every metric of the spec's ``success`` mapping is at most its
 threshold (a missing or NaN metric is not met), else 0.
 
@@ -217,8 +220,14 @@ class _LocalPool:
         for future in futures:
             future.cancel()
 
-    def close(self):
-        self.pool.shutdown(wait=True, cancel_futures=True)
+    def close(self, abort: bool = False):
+        """Shut the pool down; ``abort``: end the running workers instead of waiting for them."""
+        if abort:
+            # ProcessPoolExecutor has no public way to stop running tasks; its worker processes are
+            # in the (documented-as-internal) _processes mapping
+            for process in list(getattr(self.pool, '_processes', {}).values()):
+                process.terminate()
+        self.pool.shutdown(wait=not abort, cancel_futures=True)
 
 
 class _DaskCluster:
@@ -257,7 +266,7 @@ class _DaskCluster:
         if pending:
             self.client.cancel(pending)
 
-    def close(self):
+    def close(self, abort: bool = False):
         self.client.close()
 
 
@@ -411,6 +420,7 @@ def run_campaign(spec: CampaignSpec, directory, *, workers: int | None = None, c
                                failures=counts['failures'], wall_time_s=time.monotonic() - start)
 
     inflight = {}
+    lost = []    # (runs, reason) of tasks the executor lost
     try:
         if skipped < total:
             if executor is None:
@@ -437,18 +447,22 @@ def run_campaign(spec: CampaignSpec, directory, *, workers: int | None = None, c
             for future in executor.wait(list(inflight), _POLL):
                 task = inflight.pop(future)
                 try:
-                    rows = _task_rows(executor, future, task)
+                    rows = _task_rows(executor, future, task, lost)
                 except CampaignError:
                     if stop is not None and stop.is_set():
                         raise _Stop from None   # workers hit by the same Ctrl-C (a terminal's)
                     raise
                 commit(rows)
+        if lost:
+            raise CampaignError(f'{sum(n for n, _ in lost)} runs were lost by the executor, not run (e.g. '
+                                f'{lost[0][1]}); the rest is saved, and a resume runs them again', status=1)
     except _Stop:
         _drain(executor, inflight, commit)
         raise CampaignInterrupted(outcome()) from None
     finally:
         if executor is not None:
-            executor.close()
+            # a second Ctrl-C (KeyboardInterrupt) does not wait for the runs in flight
+            executor.close(abort=sys.exc_info()[0] is KeyboardInterrupt)
         con.close()
     return outcome()
 
@@ -457,17 +471,17 @@ class _Stop(Exception):
     pass
 
 
-def _task_rows(executor, future, task) -> list:
-    """The rows a finished task returned; for a task the executor lost (e.g. a Dask worker killed
-    while running it), failed rows with the reason."""
+def _task_rows(executor, future, task, lost: list) -> list:
+    """The rows a finished task returned. A task the executor lost (e.g. a Dask worker killed while
+    running it) says nothing about its runs: they are not stored, so a resume runs them again, and
+    the reason goes to ``lost``."""
     try:
         return executor.result(future)
     except CampaignError:
         raise
-    except Exception as exc:   # noqa: BLE001 - the executor's error is the runs' outcome
-        return [dict(draw=task['draw'], sweep_index=task['sweep_index'], case_name=case,
-                     sweep_value=task['sweep_value'], scenario_file=task['scenario_file'], status='failed',
-                     reason=_reason(exc), wall_time_s=0.0) for case in task['cases']]
+    except Exception as exc:   # noqa: BLE001 - an executor's error, not the runs' outcome
+        lost.append((len(task['cases']), _reason(exc)))
+        return []
 
 
 def _drain(executor, inflight: dict, commit) -> None:
@@ -481,7 +495,7 @@ def _drain(executor, inflight: dict, commit) -> None:
             task = inflight.pop(future)
             if not future.cancelled():
                 try:
-                    commit(_task_rows(executor, future, task))
+                    commit(_task_rows(executor, future, task, []))
                 except CampaignError:
                     return
         if inflight:

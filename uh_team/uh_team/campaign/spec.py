@@ -333,9 +333,12 @@ class CampaignSpec:
 
     @property
     def digest(self) -> str:
-        """sha256 of the spec text (and of the ``--runs`` override, if any): identifies the campaign
-        a results file belongs to."""
+        """sha256 of the spec text, of the base scenario it resolves to (with its gains, so editing the
+        scenario or gains file is a new campaign) and of the ``--runs`` override, if any: identifies
+        the campaign a results file belongs to."""
         h = hashlib.sha256(self.text.encode())
+        if self.base_mapping is not None:
+            h.update(b'\n' + yaml.safe_dump(self.base_mapping, sort_keys=True).encode())
         if self.runs_override is not None:
             h.update(f'\n--runs {self.runs_override}'.encode())
         return h.hexdigest()
@@ -448,6 +451,10 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
             raise ctx.error(E.InvalidValueError, ('impairments', 'seed'),
                             'the impairments seed is drawn for every draw from the campaign seed (so loss '
                             'and noise differ between draws); remove it, or change the campaign `seed`')
+        if generator is not None and impairments.get('links'):
+            raise ctx.error(E.InvalidValueError, ('impairments', 'links'),
+                            'per-link impairments need a fixed graph, and the generator draws a new one per '
+                            'draw; use delay_steps and loss (every link) with a generator')
         impairments = copy.deepcopy(impairments)
 
     n_uhs = (generator.leaders + generator.followers if generator is not None else len(base_mapping['uhs']))
