@@ -332,3 +332,16 @@ def test_runs_lost_by_the_executor_are_not_stored_so_a_resume_runs_them_again():
             'cases': ['proposed', 'case1']}
     assert _task_rows(LosingExecutor(), None, task, lost) == []
     assert lost == [(2, 'RuntimeError: worker tcp://10.0.0.7:4321 was killed')]
+
+
+def test_the_script_runs_the_campaign_and_writes_its_report(tmp_path):
+    """scripts/campaign.sh: the campaign, then (every run stored) uh-report DIR."""
+    spec = _write(tmp_path, 'name: script\nscenario: paper\nruns: 2\nduration: 2.0\ncases: [proposed]\n')
+    out = tmp_path / 'mc'
+    root = Path(__file__).resolve().parents[1]
+    proc = subprocess.run([str(root / 'scripts' / 'campaign.sh'), str(spec), f'--out={out}', '--workers', '1',
+                           '--quiet'], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert len(_rows(out)['draw']) == 2
+    report = (out / 'report' / 'report.md').read_text()
+    assert '2 of 2 runs done' in report
