@@ -900,6 +900,18 @@ def _write_csvs(out: Path, campaign: Campaign, success: list, summaries: dict, p
     (out / 'runs.csv').write_text(_csv(names, [[stored(n, i) for n in names] for i in range(campaign.done_runs)]))
 
 
+def make_writable_dir(out: Path, error=ValueError) -> None:
+    """Create ``out`` if needed and check that a file can be written in it; raise ``error`` with
+    the reason otherwise."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / '.write_test'
+        probe.write_text('')
+        probe.unlink()
+    except OSError as exc:
+        raise error(f'--out {out}: cannot write there ({exc.strerror})') from None
+
+
 def write_campaign_report(campaign, out, case_labels: dict | None = None) -> Path:
     """Write the campaign report (see the module docstring) into ``out``; returns ``out/report.md``.
 
@@ -920,13 +932,7 @@ def write_campaign_report(campaign, out, case_labels: dict | None = None) -> Pat
     if not isinstance(campaign, Campaign):
         campaign = load_campaign(campaign)
     out = Path(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / '.write_test'
-        probe.write_text('')
-        probe.unlink()
-    except OSError as exc:
-        raise CampaignReportError(f'--out {out}: cannot write there ({exc.strerror})') from None
+    make_writable_dir(out, CampaignReportError)
 
     doc = _Document()
     _header(doc, campaign, case_labels)

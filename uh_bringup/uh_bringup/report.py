@@ -523,14 +523,10 @@ def _notes(runs) -> list[str]:
 
 def write_report(runs, out: Path) -> Path:
     """Write the figures, ``report.md``, ``index.html`` and ``metrics_table.csv`` into ``out``."""
+    from .campaign_report import make_writable_dir
+
     _unique_names(runs)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / '.write_test'
-        probe.write_text('')
-        probe.unlink()
-    except OSError as exc:
-        raise ReportError(f'--out {out}: cannot write there ({exc.strerror})') from None
+    make_writable_dir(out, ReportError)
     figures = write_figures(runs, out)
     (out / 'metrics_table.csv').write_text(csv_table(runs))
 

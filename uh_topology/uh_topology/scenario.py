@@ -57,7 +57,7 @@ from .graph import (check_lemma1, containment_pattern, laplacian, laplacian_bloc
 
 __all__ = [
     'Scenario', 'FaultSpec', 'ReferenceSpec', 'DisturbanceSpec', 'ImpairmentSpec', 'load_scenario', 'parse_scenario',
-    'scenario_from_mapping', 'bundled_scenarios', 'CHANNEL_ALIASES',
+    'scenario_from_mapping', 'bundled_scenarios', 'read_config_file', 'CHANNEL_ALIASES',
 ]
 
 _CONFIG_DIR = Path(__file__).resolve().parent / 'config'
@@ -856,6 +856,14 @@ def load_scenario(path_or_name) -> Scenario:
     """
     if isinstance(path_or_name, Scenario):
         return path_or_name
+    path, content = read_config_file(path_or_name, 'scenario', bundled_scenarios)
+    return parse_scenario(content, source=str(path), base_dir=path.resolve().parent)
+
+
+def read_config_file(path_or_name, what: str, bundled_names) -> tuple[Path, str]:
+    """``(path, text)`` of a YAML file, or of the bundled file ``uh_topology/config/<name>.yaml``
+    when ``path_or_name`` is a bare name and no such file exists; ``what`` names the kind of file
+    and ``bundled_names()`` the bundled ones in the error message (:class:`ScenarioNotFoundError`)."""
     text = str(path_or_name)
     path = Path(text)
     if not path.is_file():
@@ -864,10 +872,9 @@ def load_scenario(path_or_name) -> Scenario:
             path = bundled
         else:
             raise E.ScenarioNotFoundError(
-                f'no scenario file {text!r}; give a path to a YAML file or a bundled name '
-                f'({", ".join(bundled_scenarios()) or "none"})')
+                f'no {what} file {text!r}; give a path to a YAML file or a bundled name '
+                f'({", ".join(bundled_names()) or "none"})')
     try:
-        content = path.read_text()
+        return path, path.read_text()
     except OSError as exc:
         raise E.ScenarioNotFoundError(f'cannot read {str(path)!r}: {exc.strerror}') from None
-    return parse_scenario(content, source=str(path), base_dir=path.resolve().parent)

@@ -184,7 +184,7 @@ import uh_topology
 from uh_controller_node.gains import CASES
 from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
 from uh_topology import errors as E
-from uh_topology.scenario import _Ctx, _fmt, _parse_yaml, scenario_from_mapping
+from uh_topology.scenario import _Ctx, _fmt, _parse_yaml, read_config_file, scenario_from_mapping
 
 from .store import METRIC_COLUMNS
 
@@ -376,20 +376,7 @@ def bundled_specs() -> tuple:
 def load_spec(path_or_name) -> CampaignSpec:
     """Load and validate a campaign spec: a YAML file, or the name of a bundled spec
     (``campaign_paper_faults``). Raises the :mod:`uh_topology.errors` types (module docstring)."""
-    text = str(path_or_name)
-    path = Path(text)
-    if not path.is_file():
-        bundled = _CONFIG_DIR / f'{text}.yaml'
-        if path.suffix == '' and path.parent == Path('.') and bundled.is_file():
-            path = bundled
-        else:
-            raise E.ScenarioNotFoundError(
-                f'no campaign spec file {text!r}; give a path to a YAML file or a bundled spec '
-                f'({", ".join(bundled_specs()) or "none"})')
-    try:
-        content = path.read_text()
-    except OSError as exc:
-        raise E.ScenarioNotFoundError(f'cannot read {str(path)!r}: {exc.strerror}') from None
+    path, content = read_config_file(path_or_name, 'campaign spec', bundled_specs)
     return parse_spec(content, source=str(path), base_dir=path.resolve().parent)
 
 
