@@ -345,3 +345,28 @@ def test_the_script_runs_the_campaign_and_writes_its_report(tmp_path):
     assert len(_rows(out)['draw']) == 2
     report = (out / 'report' / 'report.md').read_text()
     assert '2 of 2 runs done' in report
+
+
+def test_an_impaired_campaign_stores_what_its_resolved_scenarios_give(tmp_path):
+    """Impairments through the runner: fixed loss and noise, a swept delay, one seed per draw."""
+    from uh_team.metrics import metrics_from_arrays
+    from uh_team.team_simulation import run_team_simulation
+    from uh_topology.scenario import load_scenario
+
+    spec = _write(tmp_path, 'name: impaired\nscenario: paper\nruns: 2\nseed: 5\nduration: 3.0\ncases: [proposed]\n'
+                            'impairments: {loss: 0.2, noise: {position: 0.01}}\n'
+                            'sweep: {parameter: impairments.delay_steps, values: [0, 4]}\n')
+    out = tmp_path / 'mc'
+    run_campaign(load_spec(spec), out, workers=1)
+    runs = store.read_runs(out / store.DB_NAME)
+    assert list(runs['status']) == ['ok'] * 4
+    scenarios = {(d, s): load_scenario(out / 'scenarios' / f'draw_{d:06d}_s{s:02d}.yaml') for d in (0, 1) for s in (0, 1)}
+    imp = {key: sc.impairments for key, sc in scenarios.items()}
+    assert imp[(1, 1)].delays[(4, 1)] == 4 and imp[(1, 0)].delays[(4, 1)] == 0 and imp[(1, 1)].losses[(4, 1)] == 0.2
+    assert imp[(1, 0)].seed == imp[(1, 1)].seed != imp[(0, 0)].seed     # a seed per draw, the same across the sweep
+    for i in range(4):
+        scenario = scenarios[(int(runs['draw'][i]), int(runs['sweep_index'][i]))]
+        run = run_team_simulation(scenario, 'proposed', duration=scenario.duration)
+        row = store.metric_row(metrics_from_arrays(run.arrays(), scenario, 'proposed'))
+        assert row['formation_rms_m'] == runs['formation_rms_m'][i]
+    assert runs['formation_rms_m'][1] != runs['formation_rms_m'][0]      # the delay changes the run
