@@ -370,3 +370,18 @@ def test_an_impaired_campaign_stores_what_its_resolved_scenarios_give(tmp_path):
         row = store.metric_row(metrics_from_arrays(run.arrays(), scenario, 'proposed'))
         assert row['formation_rms_m'] == runs['formation_rms_m'][i]
     assert runs['formation_rms_m'][1] != runs['formation_rms_m'][0]      # the delay changes the run
+
+
+def test_an_attitude_spread_that_could_tip_a_base_attitude_past_pi_2_is_refused(tmp_path):
+    config = Path(__file__).resolve().parents[1] / 'uh_topology' / 'uh_topology' / 'config'
+    text = (config / 'paper.yaml').read_text().replace('gains: paper_gains.yaml', f'gains: {config / "paper_gains.yaml"}')
+    base = 'initial_state: {position: [2.0, -1.0, 8.0]}'
+    assert base in text
+    _write(tmp_path, text.replace(base, 'initial_state: {position: [2.0, -1.0, 8.0], euler: [1.2, 0.0, 0.0]}'),
+           'tilted.yaml')
+    spec = _write(tmp_path, 'name: t\nscenario: tilted.yaml\nruns: 1\ndraws:\n  attitude_spread: 0.5\n')
+    with pytest.raises(E.InvalidValueError) as info:
+        load_spec(spec)
+    assert info.value.line == 5 and 'draws.attitude_spread' in str(info.value) and 'below 0.3708' in str(info.value)
+    spec.write_text(spec.read_text().replace('0.5', '0.3'))
+    assert load_spec(spec).draws.attitude_spread == 0.3

@@ -86,7 +86,8 @@ are drawn uniformly in ``[low, high]``, integer ranges uniformly among ``low..hi
     m, >= 0, default 0: every UH's initial position moves by a uniform draw in
     ``[-spread, spread]`` per axis.
 ``attitude_spread``
-    rad, in [0, pi/2), default 0: roll and pitch move by a uniform draw in ``[-spread, spread]``.
+    rad, in [0, pi/2), default 0: roll and pitch move by a uniform draw in ``[-spread, spread]``
+    (the base scenario's largest roll or pitch plus the spread must stay below pi/2).
 ``yaw_spread``
     rad, >= 0, default 0: the initial yaw moves by a uniform draw in ``[-spread, spread]``.
 ``model_mismatch``
@@ -446,6 +447,12 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
 
     n_uhs = (generator.leaders + generator.followers if generator is not None else len(base_mapping['uhs']))
     draws = _draws(ctx, top.get('draws') or {}, n_uhs)
+    tilt = max((abs(float(a)) for uh in (base_mapping or {}).get('uhs', [])
+                for a in ((uh.get('initial_state') or {}).get('euler') or [0.0, 0.0])[:2]), default=0.0)
+    if draws.attitude_spread > 0.0 and tilt + draws.attitude_spread >= math.pi / 2:
+        raise ctx.error(E.InvalidValueError, ('draws', 'attitude_spread'),
+                        f'{draws.attitude_spread} rad on top of the base scenario\'s largest roll or pitch '
+                        f'({tilt} rad) can reach pi/2; allowed: below {math.pi / 2 - tilt:.4f} rad')
     sweep = _sweep(ctx, top['sweep'], draws) if top.get('sweep') is not None else None
 
     spec = CampaignSpec(
