@@ -3,6 +3,7 @@ re-run to the stored numbers, failure recording, resume after Ctrl-C, and a Dask
 the local pool's rows. Runs are short (12 s simulated, faults from 2-4 s so that the fault
 estimation is scored) so the file stays well under a minute."""
 import math
+import os
 import signal
 import sqlite3
 import subprocess
@@ -302,6 +303,29 @@ def test_sigint_saves_what_is_done_and_a_rerun_completes_it(reference, tmp_path,
     assert f'60/60 runs stored ({60 - stored} now' in again.stderr
     assert 'proposed ' in again.stderr and 'runs/s' in again.stderr      # progress lines and the summary
     _assert_same_rows(_rows(reference_out), _rows(out))
+
+
+def test_a_terminal_ctrl_c_while_the_workers_start_is_a_clean_interruption(tmp_path):
+    """A terminal sends Ctrl-C to the whole process group, workers included: one still starting (before
+    its initializer ignores SIGINT) must not die with a traceback; the main process handles it."""
+    spec = _write(tmp_path, 'name: early\nscenario: paper\nruns: 4\nduration: 2.0\ncases: [proposed]\n')
+    command = [str(Path(sys.executable).with_name('uh-campaign')), str(spec), '--out', str(tmp_path / 'out'),
+               '--workers', '2']
+    proc = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, cwd=tmp_path, start_new_session=True)
+    try:
+        seen = ''
+        while 'running on' not in seen:     # the pool is being started: the workers import and warm up
+            line = proc.stderr.readline()
+            assert line, 'the campaign ended before it started its workers'
+            seen += line
+        time.sleep(0.1)   # within the workers' start-up (about 2 s); without the fix, 0.05-0.15 s fail
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal does: to every process of the group
+        err = seen + proc.communicate(timeout=120)[1]
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, err
+    assert 'Traceback' not in err and 'KeyboardInterrupt' not in err, err
 
 
 # ----------------------------------------------------------------------------------------------

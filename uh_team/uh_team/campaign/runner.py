@@ -202,9 +202,23 @@ class _LocalPool:
         self.slots = workers * _IN_FLIGHT_PER_WORKER
         self.pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_init_local_worker)
         self.description = f'{workers} local worker process{"es" if workers != 1 else ""}'
+        self.unstarted = workers    # workers not started yet (the pool starts them as tasks come)
 
     def submit(self, task):
-        return self.pool.submit(run_task, task)
+        if not self.unstarted:
+            return self.pool.submit(run_task, task)
+        # The pool starts a worker per submit until it has them all. They inherit an ignored SIGINT,
+        # so a terminal's Ctrl-C never reaches one still starting (before its initializer): the main
+        # process handles it.
+        self.unstarted -= 1
+        try:
+            previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except ValueError:        # not the main thread: signals are not ours to change
+            return self.pool.submit(run_task, task)
+        try:
+            return self.pool.submit(run_task, task)
+        finally:
+            signal.signal(signal.SIGINT, previous)
 
     def wait(self, futures, timeout):
         done, _ = cf.wait(futures, timeout=timeout, return_when=cf.FIRST_COMPLETED)
