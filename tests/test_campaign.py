@@ -409,3 +409,26 @@ def test_an_attitude_spread_that_could_tip_a_base_attitude_past_pi_2_is_refused(
     assert info.value.line == 5 and 'draws.attitude_spread' in str(info.value) and 'below 0.3708' in str(info.value)
     spec.write_text(spec.read_text().replace('0.5', '0.3'))
     assert load_spec(spec).draws.attitude_spread == 0.3
+
+
+def test_progress_draws_a_bar_on_a_terminal_and_a_line_per_tenth_otherwise():
+    import io
+
+    from uh_team.campaign.runner import Progress
+
+    terminal = io.StringIO()
+    progress = Progress(terminal, tty=True)
+    progress.start(10, 0)
+    progress.update(10, 1)
+    assert '\r' + 'uh-campaign: [' + '#' * 30 + '] 10/10 runs (100 %), 1 not ok' in terminal.getvalue()
+    log = io.StringIO()
+    progress = Progress(log, tty=False)
+    progress.start(20, 0)
+    for done in range(1, 21):
+        progress.update(done, 0)
+    lines = log.getvalue().splitlines()
+    assert len(lines) == 10 and lines[0].startswith('uh-campaign: 2/20 runs (10 %), 0 not ok')
+    assert '[' not in log.getvalue() and '\r' not in log.getvalue()
+    quiet = io.StringIO()
+    Progress(quiet, quiet=True, tty=True).update(3, 0)
+    assert quiet.getvalue() == ''

@@ -520,10 +520,14 @@ def _drain(executor, inflight: dict, commit) -> None:
 # Progress and summary
 
 
+#: Characters of the progress bar drawn on a terminal.
+_BAR_WIDTH = 30
+
+
 class Progress:
     """Progress of a campaign on a stream (stderr): runs done / total, failures, runs/s and ETA.
-    On a terminal one line rewritten in place (at most 5 times a second); otherwise a line at
-    every further 10 % of the runs. ``quiet`` writes nothing."""
+    On a terminal a bar on one line rewritten in place (at most 5 times a second); otherwise a line
+    at every further 10 % of the runs. ``quiet`` writes nothing."""
 
     def __init__(self, stream=None, quiet: bool = False, tty: bool | None = None, label: str = 'uh-campaign'):
         self.stream = stream if stream is not None else sys.stderr
@@ -572,7 +576,9 @@ class Progress:
         left = self.total - done
         eta = _duration(left / rate) if rate > 0 and left else ('0 s' if not left else '?')
         pct = 100.0 * done / max(self.total, 1)
-        return (f'{self.label}: {done}/{self.total} runs ({pct:.0f} %), {failures} not ok, '
+        filled = int(_BAR_WIDTH * done / max(self.total, 1))
+        bar = f'[{"#" * filled}{"." * (_BAR_WIDTH - filled)}] ' if self.tty else ''
+        return (f'{self.label}: {bar}{done}/{self.total} runs ({pct:.0f} %), {failures} not ok, '
                 f'{rate:.2f} runs/s, ETA {eta}')
 
     def _end_line(self) -> None:
