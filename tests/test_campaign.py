@@ -432,3 +432,27 @@ def test_progress_draws_a_bar_on_a_terminal_and_a_line_per_tenth_otherwise():
     quiet = io.StringIO()
     Progress(quiet, quiet=True, tty=True).update(3, 0)
     assert quiet.getvalue() == ''
+
+
+def _task_that_kills_its_worker_on_draw_1(task):
+    """Run by the workers in place of run_task (pickled by name: the workers import this module)."""
+    from uh_team.campaign.runner import run_task
+
+    if task['draw'] == 1:
+        os._exit(7)          # as a crash does: no exception, the process is gone
+    return run_task(task)
+
+
+def test_a_run_that_kills_its_worker_is_recorded_as_failed_and_the_campaign_goes_on(tmp_path, monkeypatch):
+    from uh_team.campaign import runner
+
+    monkeypatch.setattr(runner, 'run_task', _task_that_kills_its_worker_on_draw_1)
+    spec = _write(tmp_path, 'name: crash\nscenario: paper\nruns: 4\nduration: 2.0\ncases: [proposed, case1]\n')
+    outcome = run_campaign(load_spec(spec), tmp_path / 'out', workers=2)
+    runs = store.read_runs(tmp_path / 'out' / store.DB_NAME)
+    assert outcome.done == 8 and len(runs['draw']) == 8
+    for draw, status, reason in zip(runs['draw'], runs['status'], runs['reason']):
+        if draw == 1:
+            assert status == 'failed' and 'a worker process died' in reason and 'while running it' in reason
+        else:
+            assert status == 'ok', reason

@@ -18,7 +18,9 @@ Outcome of a run: ``ok``; ``diverged`` when the simulation raised a
 draw without a valid graph, an error in the metrics). No run stops the campaign. A task the
 executor itself loses (a Dask worker killed while running it) says nothing about its runs: they
 are not stored, the campaign goes on and then ends with exit status 1, and a resume runs them
-again; a local worker process that dies stops the campaign the same way. ``success`` is 1
+again. A local worker process that dies (a crash, the system ending it) takes the tasks in flight
+with it: each of them is then run alone in a new pool, so the one that kills its worker is
+recorded as ``failed`` (``a worker process died ... while running it``) and the campaign goes on. ``success`` is 1
 when the run is ``ok`` and every metric of the spec's ``success`` mapping is at most its
 threshold (a missing or NaN metric is not met), else 0.
 
@@ -87,6 +89,10 @@ class CampaignError(RuntimeError):
     def __init__(self, message: str, status: int = 2):
         self.status = status
         super().__init__(message)
+
+
+class WorkerDied(CampaignError):
+    """A local worker process died (a crash, or the system ended it): every task in flight is lost."""
 
 
 class CampaignInterrupted(Exception):
@@ -198,11 +204,20 @@ class _LocalPool:
 
         from uh_team.compile_kernels import compile_all
         compile_all()    # fill numba's cache once here, so the workers only load it
-        context = multiprocessing.get_context('spawn')
+        self.context = multiprocessing.get_context('spawn')
+        self.workers = workers
         self.slots = workers * _IN_FLIGHT_PER_WORKER
-        self.pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_init_local_worker)
+        self.pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=self.context,
+                                           initializer=_init_local_worker)
         self.description = f'{workers} local worker process{"es" if workers != 1 else ""}'
         self.unstarted = workers    # workers not started yet (the pool starts them as tasks come)
+
+    def restart(self):
+        """A new pool in place of a broken one (after :class:`WorkerDied`)."""
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        self.pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=self.context,
+                                           initializer=_init_local_worker)
+        self.unstarted = self.workers
 
     def submit(self, task):
         if not self.unstarted:
@@ -228,7 +243,7 @@ class _LocalPool:
         try:
             return future.result()
         except cf.process.BrokenProcessPool as exc:
-            raise CampaignError(f'a worker process died ({exc}); the runs done so far are saved', status=1) from None
+            raise WorkerDied(f'a worker process died ({exc})', status=1) from None
 
     def cancel(self, futures):
         for future in futures:
@@ -399,8 +414,8 @@ def run_campaign(spec: CampaignSpec, directory, *, workers: int | None = None, c
     Raises
     ------
     CampaignError
-        The directory holds another campaign or no campaign, the cluster cannot be reached, a
-        worker process died.
+        The directory holds another campaign or no campaign, the cluster cannot be reached, or
+        the executor lost runs (they are not stored; a resume runs them).
     CampaignInterrupted
         ``stop`` was set; finished runs are committed.
     """
@@ -462,10 +477,20 @@ def run_campaign(spec: CampaignSpec, directory, *, workers: int | None = None, c
                 task = inflight.pop(future)
                 try:
                     rows = _task_rows(executor, future, task, lost)
-                except CampaignError:
+                except CampaignError as exc:
                     if stop is not None and stop.is_set():
                         raise _Stop from None   # workers hit by the same Ctrl-C (a terminal's)
-                    raise
+                    if not isinstance(exc, WorkerDied):
+                        raise
+                    # every task in flight is lost with the pool: run each alone in a new pool, so
+                    # the one that kills its worker is recorded as failed and the others run
+                    suspects = [task, *inflight.values()]
+                    inflight.clear()
+                    for suspect in suspects:
+                        executor.restart()
+                        commit(_run_alone(executor, suspect, stop))
+                    executor.restart()
+                    break
                 commit(rows)
         if lost:
             raise CampaignError(f'{sum(n for n, _ in lost)} runs were lost by the executor, not run (e.g. '
@@ -483,6 +508,21 @@ def run_campaign(spec: CampaignSpec, directory, *, workers: int | None = None, c
 
 class _Stop(Exception):
     pass
+
+
+def _run_alone(executor, task, stop) -> list:
+    """The rows of ``task`` run with nothing else in flight; failed rows if its worker dies."""
+    future = executor.submit(task)
+    while not future.done():
+        if stop is not None and stop.is_set():
+            raise _Stop
+        executor.wait([future], _POLL)
+    try:
+        return executor.result(future)
+    except WorkerDied as exc:
+        return [dict(draw=task['draw'], sweep_index=task['sweep_index'], case_name=case,
+                     sweep_value=task['sweep_value'], scenario_file=task['scenario_file'], status='failed',
+                     reason=f'{exc} while running it', wall_time_s=0.0) for case in task['cases']]
 
 
 def _task_rows(executor, future, task, lost: list) -> list:
