@@ -9,23 +9,8 @@
 # --cluster tcp://HOST:8786 runs on a Dask cluster whose workers run this project's .venv
 # (.venv/bin/dask scheduler, .venv/bin/dask worker tcp://HOST:8786).
 # Exit status: 0 done, 1 could not go on (what is done is saved), 2 bad input, 130 interrupted.
-# When every run is stored, writes the report too (uh-report DIR: DIR/report/report.md, index.html).
+# When every run is stored, writes the report too (uh-report DIR: DIR/report/; --no-report: not).
 # Sets up .venv on first use and compiles the numba kernels into its cache.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
-out=""
-previous=""
-for arg in "$@"; do
-  case "$arg" in
-    -h|--help) exec uh-campaign "$@" ;;
-    --out=*) out="${arg#--out=}" ;;
-  esac
-  [ "$previous" = "--out" ] && out="$arg"
-  previous="$arg"
-done
-status=0
-uh-campaign "$@" || status=$?
-if [ "$status" -eq 0 ] && [ -n "$out" ]; then
-  uh-report "$out"
-fi
-exit "$status"
+exec uh-campaign "$@"

@@ -359,7 +359,8 @@ def test_runs_lost_by_the_executor_are_not_stored_so_a_resume_runs_them_again():
 
 
 def test_the_script_runs_the_campaign_and_writes_its_report(tmp_path):
-    """scripts/campaign.sh: the campaign, then (every run stored) uh-report DIR."""
+    """scripts/campaign.sh (uh-campaign): the campaign, then (every run stored) uh-report DIR; not with
+    --no-report."""
     spec = _write(tmp_path, 'name: script\nscenario: paper\nruns: 2\nduration: 2.0\ncases: [proposed]\n')
     out = tmp_path / 'mc'
     root = Path(__file__).resolve().parents[1]
@@ -369,6 +370,11 @@ def test_the_script_runs_the_campaign_and_writes_its_report(tmp_path):
     assert len(_rows(out)['draw']) == 2
     report = (out / 'report' / 'report.md').read_text()
     assert '2 of 2 runs done' in report
+    bare = tmp_path / 'bare'
+    proc = subprocess.run([str(Path(sys.executable).with_name('uh-campaign')), str(spec), '--out', str(bare),
+                           '--workers', '1', '--quiet', '--no-report'], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert (bare / store.DB_NAME).is_file() and not (bare / 'report').exists()
 
 
 def test_an_impaired_campaign_stores_what_its_resolved_scenarios_give(tmp_path):

@@ -24,6 +24,7 @@ setup(
             'uh-run-formation = uh_bringup.run_formation:main',
             'uh-inject-fault = uh_bringup.inject_fault:main',
             'uh-report = uh_bringup.report:main',
+            'uh-campaign = uh_bringup.campaign_cli:main',
         ],
     },
 )

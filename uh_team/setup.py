@@ -19,7 +19,6 @@ setup(
     entry_points={
         'console_scripts': [
             'uh-simulate = uh_team.simulate_cli:main',
-            'uh-campaign = uh_team.campaign.cli:main',
         ],
     },
 )

@@ -52,6 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='run on the Dask cluster whose scheduler is at ADDRESS (e.g. tcp://host:8786) instead of '
                         'local processes. Every worker must have this project installed (same versions) and '
                         "be started from its environment, e.g. '.venv/bin/dask worker tcp://host:8786'")
+    p.add_argument('--no-report', action='store_true',
+                   help='do not write the report (uh-report DIR: DIR/report/) when every run is stored')
     p.add_argument('--quiet', action='store_true',
                    help='no progress and no summary on stderr (errors are still printed)')
     return p
@@ -73,8 +75,12 @@ def _resume_command(args) -> str:
     return ' '.join(shlex.quote(w) for w in words)
 
 
-def main(argv=None) -> int:
-    """Entry point of ``uh-campaign``; returns the exit status (see module docstring)."""
+def main(argv=None, on_complete=None) -> int:
+    """Entry point of ``uh-campaign``; returns the exit status (see module docstring).
+
+    ``on_complete(out_dir)``, if given, runs once every run is stored (unless ``--no-report``) and
+    its status is returned: the console script (:mod:`uh_bringup.campaign_cli`) writes the report
+    there, a layer above this package."""
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -138,6 +144,8 @@ def main(argv=None) -> int:
             print(f'  {line}', file=out)
         print(f'{PROG}: results {Path(args.out) / "campaign.sqlite"}, resolved scenarios '
               f'{Path(args.out) / "scenarios"}/; report: uh-report {args.out}', file=out)
+    if on_complete is not None and not args.no_report:
+        return on_complete(Path(args.out))
     return 0
 
 
