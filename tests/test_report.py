@@ -75,15 +75,17 @@ def assert_drawn(path: Path, size: tuple[int, int]) -> None:
 
 
 def damaged_chunk(path: Path) -> bytes:
-    """The bytes of MCAP file ``path`` with 64 bytes in the middle of its middle chunk zeroed
-    (a damaged disk block; the file keeps its size, footer and summary)."""
+    """The bytes of MCAP file ``path`` with 64 bytes in the middle of its middle chunk inverted
+    (a damaged disk block; the file keeps its size, footer and summary). Inverted, not zeroed:
+    the middle of a chunk may already be zeros (an odometry message's covariance is 576 of them),
+    and zeroing it would change nothing."""
     from mcap.reader import make_reader
     with open(path, 'rb') as f:
         chunks = make_reader(f).get_summary().chunk_indexes
     chunk = chunks[len(chunks) // 2]
     data = bytearray(path.read_bytes())
     middle = chunk.chunk_start_offset + chunk.chunk_length // 2
-    data[middle:middle + 64] = bytes(64)
+    data[middle:middle + 64] = bytes(b ^ 0xFF for b in data[middle:middle + 64])
     return bytes(data)
 
 
