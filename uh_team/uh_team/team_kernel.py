@@ -221,17 +221,18 @@ def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control
         for c in range(n):
             m = count[c]
             nb = np.empty((m, STATE_SIZE))
+            received = x[c]   # the own state as the controller receives it
             if impaired:
                 add_noise(x[c], noise, impairment_seed, ids[c], ids[c], k, own)
+                received = own
                 for j in range(m):
                     r = hears[c, j]
                     s = delivered_step(k, delay[c, j], loss[c, j], drop_step[r], impairment_seed, ids[c], ids[r])
                     add_noise(states[s, r], noise, impairment_seed, ids[c], ids[r], s, nb[j])
             else:
-                own[:] = x[c]
                 for j in range(m):
                     nb[j] = x[hears[c, j]]
-            done = uh_control_step(control_params[c], own, nb, nb_weights[c, :m], nb_offsets[c, :m],
+            done = uh_control_step(control_params[c], received, nb, nb_weights[c, :m], nb_offsets[c, :m],
                                    offsets[c], links[c], reference, dt, weights_p[c], weights_w[c],
                                    memory[c], commands[k, c], status)
             if done != STEP_DONE:

@@ -769,8 +769,7 @@ def _impairments(ctx, raw, adjacency, known, duration) -> ImpairmentSpec:
     delay = ctx.integer(raw.get('delay_steps', 0), path + ('delay_steps',), lo=0,
                         what='a whole number of steps >= 0')
     loss = ctx.number(raw.get('loss', 0.0), path + ('loss',), lo=0.0, hi=1.0, hi_open=True)
-    edges = [(int(i), int(j)) for i, j in zip(*np.nonzero(adjacency[:, 1:] > 0.0))]
-    edges = [(i, j + 1) for i, j in edges]
+    edges = [(int(i), int(j) + 1) for i, j in zip(*np.nonzero(adjacency[:, 1:] > 0.0))]   # (uh, hears)
     delays = {e: delay for e in edges}
     losses = {e: loss for e in edges}
     links = raw.get('links') or []
@@ -860,19 +859,23 @@ def load_scenario(path_or_name) -> Scenario:
     return parse_scenario(content, source=str(path), base_dir=path.resolve().parent)
 
 
-def read_config_file(path_or_name, what: str, bundled_names) -> tuple[Path, str]:
-    """``(path, text)`` of a YAML file, or of the bundled file ``uh_topology/config/<name>.yaml``
-    when ``path_or_name`` is a bare name and no such file exists; ``what`` names the kind of file
-    and ``bundled_names()`` the bundled ones in the error message (:class:`ScenarioNotFoundError`)."""
+def read_config_file(path_or_name, what: str, bundled_names, base_dir=None) -> tuple[Path, str]:
+    """``(path, text)`` of a YAML file (a relative name is taken relative to ``base_dir``, default
+    the current directory), or of the bundled file ``uh_topology/config/<name>.yaml`` when
+    ``path_or_name`` is a bare name and no such file exists; ``what`` names the kind of file and
+    ``bundled_names()`` the bundled ones in the error message (:class:`ScenarioNotFoundError`)."""
     text = str(path_or_name)
     path = Path(text)
+    if base_dir is not None and not path.is_absolute():
+        path = Path(base_dir) / path
     if not path.is_file():
         bundled = _CONFIG_DIR / f'{text}.yaml'
-        if path.suffix == '' and path.parent == Path('.') and bundled.is_file():
+        if Path(text).suffix == '' and Path(text).parent == Path('.') and bundled.is_file():
             path = bundled
         else:
+            where = f' (relative to {str(base_dir)!r})' if base_dir is not None else ''
             raise E.ScenarioNotFoundError(
-                f'no {what} file {text!r}; give a path to a YAML file or a bundled name '
+                f'no {what} file {text!r}{where}; give a path to a YAML file or a bundled name '
                 f'({", ".join(bundled_names()) or "none"})')
     try:
         return path, path.read_text()

@@ -492,22 +492,16 @@ def _tname(value) -> str:
 
 def _base_scenario(ctx, value, base: Path):
     """(absolute file, self-contained mapping) of the base scenario ``value``."""
-    from uh_topology.scenario import bundled_scenarios, load_scenario
+    from uh_topology.scenario import bundled_scenarios, parse_scenario
 
     name = ctx.string(value, ('scenario',))
-    path = Path(name)
-    path = path if path.is_absolute() else base / path
-    if not path.is_file():
-        bundled = _CONFIG_DIR / f'{name}.yaml'
-        if Path(name).suffix == '' and Path(name).parent == Path('.') and bundled.is_file():
-            path = bundled
-        else:
-            raise ctx.error(E.ScenarioNotFoundError, ('scenario',),
-                            f'no scenario file {name!r} (relative to {str(base)!r}) and no bundled scenario of '
-                            f'that name; allowed: a YAML file or {", ".join(bundled_scenarios())}')
-    scenario = load_scenario(path)       # its own errors name its own file and line
-    data, _ = _parse_yaml(path.read_text(), str(path))
-    data = copy.deepcopy(data)
+    try:
+        path, text = read_config_file(name, 'scenario', bundled_scenarios, base_dir=base)
+    except E.ScenarioNotFoundError as exc:
+        raise ctx.error(E.ScenarioNotFoundError, ('scenario',), exc.message) from None
+    # its own errors name its own file and line
+    scenario = parse_scenario(text, source=str(path), base_dir=path.resolve().parent)
+    data, _ = _parse_yaml(text, str(path))
     data['helicopter'] = scenario.helicopter           # a bundled name or an absolute path
     gains = scenario.gains
     if gains:
