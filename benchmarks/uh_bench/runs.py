@@ -27,6 +27,7 @@ __all__ = ['run_team', 'node_kind', 'RunError', 'parse_run_complete']
 _COMPLETE = re.compile(r'run complete: (\d+) steps, sim ([\d.]+) s in ([\d.]+) s wall '
                        r'\(real-time factor ([\d.]+)\)')
 _LATE = re.compile(r'\((\d+) late command\(s\) so far\)')
+_LATE_TOTAL = re.compile(r'; late commands: (\d+)')   # a simulator's closing summary
 
 
 class RunError(RuntimeError):
@@ -107,7 +108,8 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
         over the node processes), ``cpu_startup_s`` (their part before spinning) and ``cpu_run_s``
         (the rest: discovery, the run, shutdown), ``tree_cpu_s`` (supervisor and everything it waited for),
         ``processes`` (per process: nodes, cpu_s, peak_rss_kb), ``memory`` (peak resident set
-        summary, kB), ``late_commands_logged`` (the sims' late-command counters, realtime),
+        summary, kB), ``late_commands_logged`` (the largest late-command count a sim logged a
+        warning at, realtime), ``late_commands`` (the sims' closing counts, summed; realtime),
         ``abnormal_exits`` (node processes that did not exit with status 0, from ``run.json``),
         ``out`` (output directory).
     """
@@ -195,6 +197,7 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
         'processes': processes,
         'memory': _memory_summary(processes),
         'late_commands_logged': max(late) if late else 0,
+        'late_commands': sum(int(n) for text in texts for n in _LATE_TOTAL.findall(text)),
         'abnormal_exits': {name: code for name, code in exit_codes.items() if code not in (0, None)},
         'out': str(out),
     }

@@ -26,6 +26,9 @@ Sections (every figure is measured in the same invocation as the baseline it is 
     the DDS backend), lockstep and real time at rate 1: real-time factor, CPU per step (node
     processes after start-up), p99 latency, late and missed steps. rclpy is skipped, with the
     reason in the results, when this Python cannot import it (no ROS 2 sourced).
+    Then real time again on a busy machine (one busy-looping process per core, plus one), with the
+    control loop under SCHED_FIFO (``--realtime-priority``, the default) and at normal priority
+    (``--realtime-priority 0``): late and missed steps of each (docs/performance.md#real-time-scheduling).
     Also the CPU per received message of each executor (:mod:`uh_bench.executors`).
 ``campaign``
     ``uh-campaign`` throughput (:mod:`uh_bench.campaign`): runs per second of a campaign of
@@ -40,6 +43,7 @@ figures to compare.
 """
 from __future__ import annotations
 
+import contextlib
 import datetime
 import json
 import os
@@ -50,6 +54,7 @@ import sys
 import time
 from pathlib import Path
 
+from uh_runtime import scheduling
 from uh_runtime.network import release_domain_id, reserve_domain_id
 
 from . import campaign, executors, inprocess, runs, transport
@@ -204,7 +209,7 @@ def _scaling(cfg, workdir, results):
     results['scaling'] = rows
 
 
-def _realtime_run(scenario, size, d, workdir, layout='per-node', env_extra=None, name=None):
+def _realtime_run(scenario, size, d, workdir, layout='per-node', env_extra=None, name=None, extra_args=()):
     out = workdir / (name or f'realtime{size}-{layout}')
     out.mkdir(parents=True, exist_ok=True)
     domain = reserve_domain_id()
@@ -225,7 +230,7 @@ def _realtime_run(scenario, size, d, workdir, layout='per-node', env_extra=None,
         while not ready.exists() and probe.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)
         run = runs.run_team(str(scenario), out, layout=layout, clock='realtime', rate=1.0, duration=d,
-                            domain_id=domain, timeout=120 + 3 * d, env=env_extra)
+                            domain_id=domain, timeout=120 + 3 * d, env=env_extra, extra_args=extra_args)
     finally:
         if probe.poll() is None:
             time.sleep(0.5)
@@ -305,6 +310,22 @@ def _backends(cfg, workdir, results):
         section['realtime'][backend] = rt_run
         _log(f'  lockstep rtf {lock["rtf"]}, realtime p99 {rt_run["p99_ms_max"]} ms, late {rt_run["late_steps"]}, '
              f'missed {rt_run["missed_steps"]}, status {lock["status"]}/{rt_run["status"]}')
+    # the same real-time run while other processes want every core: what SCHED_FIFO buys
+    section['contention'] = {'busy_processes': _busy_count(), 'runs': {}}
+    for backend in backends:
+        env = {'UH_BACKEND': 'dds'} if backend == 'dds' else {}
+        for label, priority in (('fifo', scheduling.DEFAULT_PRIORITY), ('normal', 0)):
+            _log(f'backends: {backend}, real time with {_busy_count()} busy processes, '
+                 f'--realtime-priority {priority}, {d_rt:g} s')
+            with busy_load(_busy_count()):
+                run = _realtime_run('paper', 5, d_rt, workdir, 'per-node', env,
+                                    name=f'backend-{backend}-contention-{label}',
+                                    extra_args=('--realtime-priority', str(priority)))
+            run['priority'] = priority
+            run['priority_granted'] = priority > 0 and _granted(run)
+            section['contention']['runs'][f'{backend}/{label}'] = run
+            _log(f'  late {run["late_steps"]}, missed {run["missed_steps"]}, p99 {run["p99_ms_max"]} ms, '
+                 f'status {run["status"]}')
     section['executors'] = []
     for case in [c for c, (backend, _) in executors.CASES.items() if backend in backends]:
         _log(f'backends: CPU per received message, executor {case}')
@@ -312,6 +333,33 @@ def _backends(cfg, workdir, results):
     if skipped:
         _log(f'backends: rclpy skipped: {skipped}')
     results['backends'] = section
+
+
+def _busy_count() -> int:
+    return (os.cpu_count() or 1) + 1
+
+
+@contextlib.contextmanager
+def busy_load(n: int):
+    """``n`` processes that spin at normal priority for as long as the block runs: a machine whose
+    every core is wanted by someone else."""
+    procs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'], stdin=subprocess.DEVNULL)
+             for _ in range(n)]
+    try:
+        yield procs
+    finally:
+        for proc in procs:
+            proc.kill()
+        for proc in procs:
+            proc.wait()
+
+
+def _granted(run) -> bool:
+    """Whether the run's control loop got SCHED_FIFO (run.json records the priority it used)."""
+    try:
+        return json.loads((Path(run['out']) / 'run' / 'run.json').read_text()).get('realtime_priority', 0) > 0
+    except (OSError, ValueError, KeyError):
+        return False
 
 
 def _memory(results):
@@ -557,6 +605,18 @@ def markdown(results) -> str:
                       '|---|---|---|']
             lines += [f'| {e["case"]} ({e["executor"]}) | {e["backend"]} | {_f(e["cpu_us_per_message"], "{:.0f}")} |'
                       for e in backends['executors']]
+        contention = backends.get('contention')
+        if contention and contention['runs']:
+            lines += ['', f'Real time on a busy machine ({contention["busy_processes"]} busy-looping processes at '
+                      'normal priority during the run; docs/performance.md#real-time-scheduling):', '',
+                      '| backend | control loop scheduling | late steps | missed steps | late commands (sims) | '
+                      'p99 ms | runs ended with |', '|---|---|---|---|---|---|---|']
+            for key, run in contention['runs'].items():
+                backend, _ = key.split('/')
+                how = (f'SCHED_FIFO {run["priority"]}' if run['priority_granted'] else
+                       'normal' if run['priority'] == 0 else f'normal (SCHED_FIFO {run["priority"]} not permitted)')
+                lines.append(f'| {backend} | {how} | {run["late_steps"]} | {run["missed_steps"]} | '
+                             f'{run["late_commands"]} | {_f(run["p99_ms_max"])} | exit {run["status"]} |')
         if backends['skipped_rclpy']:
             lines.append(f'\nrclpy not measured: {backends["skipped_rclpy"]}')
         lines.append('')

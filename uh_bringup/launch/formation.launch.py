@@ -6,7 +6,9 @@
 The node list comes from :func:`uh_bringup.team_nodes.node_specs`, the same function the run script
 uses: a recorder (bag in ``out``), one simulator and one controller per helicopter, the
 visualisation node (``visualization:=false`` leaves it out), the virtual leader and the clock;
-``standard_views:=false`` switches off /tf, /uhN/odom and /diagnostics.
+``standard_views:=false`` switches off /tf, /uhN/odom and /diagnostics; in realtime the control loop's
+nodes run under SCHED_FIFO priority ``realtime_priority`` (default 20, 0 = normal scheduling) where
+the user may (docs/performance.md#real-time-scheduling).
 The launch ends when the clock ends (run complete), and in lockstep also when any node dies (every
 step needs every node); it exits with status 1 when the clock or (in lockstep) a node failed. The recorder and the visualisation run on the Cyclone DDS backend when its
 Python binding is installed (``uh_bringup.team_nodes.backend_environment``).
@@ -20,6 +22,7 @@ from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+from uh_runtime.scheduling import DEFAULT_PRIORITY, MAX_PRIORITY
 
 
 def _team(context):
@@ -32,12 +35,19 @@ def _team(context):
     scenario_arg, clock_mode, backend = arg('scenario'), arg('clock_mode'), arg('backend')
     if backend not in ('rclpy', 'dds'):
         raise ValueError(f"launch argument backend:={backend!r}; allowed: rclpy, dds")
+    try:
+        priority = int(arg('realtime_priority'))
+    except ValueError:
+        priority = -1
+    if not 0 <= priority <= MAX_PRIORITY:
+        raise ValueError(f"launch argument realtime_priority:={arg('realtime_priority')!r}; allowed an integer "
+                         f'0 (normal scheduling) .. {MAX_PRIORITY}')
     out = arg('out') or f'runs/launch_{datetime.datetime.now():%Y%m%d_%H%M%S}'
     duration = float(arg('duration')) if arg('duration') else None
     specs = node_specs(load_scenario(scenario_arg), scenario_arg, arg('case'), clock_mode, float(arg('rate')),
                        duration, f'{out}/bag', float(arg('startup_timeout')), float(arg('stale_timeout')),
                        visualization=arg('visualization') == 'true',
-                       standard_views=arg('standard_views') == 'true')
+                       standard_views=arg('standard_views') == 'true', realtime_priority=priority)
     actions = []
     for name, kind, ros_args in specs:
         # the namespace and parameters are in ros_args (--ros-args ...), as the run script passes them
@@ -93,5 +103,9 @@ def generate_launch_description():
         DeclareLaunchArgument('startup_timeout', default_value='60.0', description='s to wait for all nodes'),
         DeclareLaunchArgument('stale_timeout', default_value='0.25',
                               description='realtime: simulated s after which a neighbour is stale'),
+        DeclareLaunchArgument('realtime_priority', default_value=str(DEFAULT_PRIORITY),
+                              description='realtime: SCHED_FIFO priority of the clock, simulators, controllers and '
+                              'virtual leader (needs CAP_SYS_NICE (root has it) or an rtprio limit; each node logs '
+                              'whether it got it); 0: normal scheduling (docs/performance.md)'),
         OpaqueFunction(function=_team),
     ])

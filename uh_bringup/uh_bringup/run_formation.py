@@ -51,7 +51,7 @@ from uh_runtime.network import (MAX_DOMAIN_ID, default_cyclonedds_uri, environme
                                 reserve_domain_id)
 from uh_controller_node.gains import CASES
 from uh_bringup.team_nodes import NODES, backend_environment, node_specs
-from uh_runtime import live_view
+from uh_runtime import live_view, scheduling
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
            'EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED']
@@ -100,6 +100,11 @@ def build_parser() -> argparse.ArgumentParser:
                         'it rejoins the running team')
     p.add_argument('--stale-timeout', type=float, default=0.25,
                    help='realtime: simulated s after which a neighbour\'s data is stale and left out (default 0.25)')
+    p.add_argument('--realtime-priority', type=int, default=scheduling.DEFAULT_PRIORITY, metavar='N',
+                   help='realtime: run the clock, simulators, controllers and virtual leader under SCHED_FIFO '
+                        f'priority N (1..{scheduling.MAX_PRIORITY}), so they keep the control period on a busy '
+                        'machine; needs CAP_SYS_NICE (root has it) or an rtprio limit, else the run goes on at normal '
+                        f'priority and says so; 0: normal scheduling (default {scheduling.DEFAULT_PRIORITY})')
     p.add_argument('--hosts', default='local', choices=HOSTS,
                    help='local: every node on this host (default); netns: each UH\'s nodes in their own network '
                         'namespace, linked by a bridge (needs root and iproute2)')
@@ -119,6 +124,9 @@ def _check_args(args) -> None:
         raise UsageError(f'--startup-timeout {args.startup_timeout}: allowed > 0 .. 3600 s')
     if not 0 < args.stale_timeout <= 60:
         raise UsageError(f'--stale-timeout {args.stale_timeout}: allowed > 0 .. 60 s (simulated)')
+    if not 0 <= args.realtime_priority <= scheduling.MAX_PRIORITY:
+        raise UsageError(f'--realtime-priority {args.realtime_priority}: allowed 0 (normal scheduling) .. '
+                         f'{scheduling.MAX_PRIORITY}')
     if not 0 <= args.loss <= 100:
         raise UsageError(f'--loss {args.loss}: allowed 0 .. 100 (percent)')
     if args.loss > 0 and args.hosts != 'netns':
@@ -403,6 +411,14 @@ def run(args) -> int:
     duration = args.duration if args.duration is not None else scenario.duration
     print(f'[run] {scenario.name}: {len(scenario.leaders)} leaders, {len(scenario.followers)} followers, '
           f'case {args.case}, {args.clock} clock, {duration:g} s simulated, DDS domain {domain}', file=sys.stderr)
+    priority = args.realtime_priority if args.clock == 'realtime' else 0
+    if priority:
+        why_not = scheduling.permitted(priority)
+        print(f'[run] real-time scheduling: SCHED_FIFO priority {priority} for the clock, simulators, controllers '
+              'and virtual leader' if why_not is None else
+              f'[run] real-time scheduling not available, the control loop runs at normal priority and may miss '
+              f'steps on a busy machine: {why_not}', file=sys.stderr)
+        priority = priority if why_not is None else 0
     print(f'[run] output: {out}', file=sys.stderr)
     (out / 'env.sh').write_text(environment_script(env))
     print(f'[run] from another terminal: source {out / "env.sh"}   (then ros2 topic list, or uh topic list)',
@@ -423,7 +439,8 @@ def run(args) -> int:
             'rate': args.rate, 'processes': args.processes, 'visualization': not args.no_visualization,
             'standard_views': not args.no_standard_views, 'duration_s': duration, 'domain_id': domain,
             'foxglove': None if args.foxglove is None else f'ws://{args.foxglove_host}:{args.foxglove}',
-            'hosts': args.hosts, 'loss_pct': args.loss, 'respawn': args.respawn, 'exit_status': None}
+            'hosts': args.hosts, 'loss_pct': args.loss, 'respawn': args.respawn, 'realtime_priority': priority,
+            'exit_status': None}
 
     def write_info():
         info.update(pids={n.name: n.proc.pid for n in sup.nodes if n.proc},
@@ -445,7 +462,8 @@ def run(args) -> int:
                            out / 'bag', args.startup_timeout, args.stale_timeout,
                            visualization=not args.no_visualization,
                            standard_views=not args.no_standard_views,
-                           live_view=(args.foxglove_host, args.foxglove) if args.foxglove is not None else None)
+                           live_view=(args.foxglove_host, args.foxglove) if args.foxglove is not None else None,
+                           realtime_priority=priority)
         if args.foxglove is not None:
             print(f'[run] live view: {live_view.connect_hint(args.foxglove_host, args.foxglove)}', file=sys.stderr)
         for name, kind, cmd in _processes(specs, args.processes, out / 'logs'):

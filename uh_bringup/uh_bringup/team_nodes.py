@@ -90,12 +90,16 @@ def node_class(kind: str):
 def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, duration: float | None,
                bag_dir: Path, startup_timeout: float, stale_timeout: float | None = None,
                visualization: bool = True, standard_views: bool = True,
-               live_view: tuple | None = None) -> list[tuple[str, str, list]]:
+               live_view: tuple | None = None, realtime_priority: int = 0) -> list[tuple[str, str, list]]:
     """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last
     (the visualisation node only if ``visualization``; ``standard_views=False`` switches /tf, odom
     and /diagnostics off, docs/visualization.md; ``live_view=(host, port)`` adds the Foxglove live
-    view after the recorder)."""
+    view after the recorder). In realtime, ``realtime_priority`` > 0 runs the control loop's nodes
+    (every kind that is not infrastructure) under SCHED_FIFO at that priority
+    (docs/performance.md#real-time-scheduling)."""
     common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
+    loop = (['-p', f'realtime_priority:={int(realtime_priority)}']
+            if clock == 'realtime' and realtime_priority > 0 else [])
     views = [] if standard_views else ['-p', 'standard_views:=false']
     stale = ['-p', f'stale_timeout:={float(stale_timeout)}'] if stale_timeout is not None else []
     if duration is not None:
@@ -112,12 +116,12 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
                                                  '-p', f'port:={int(live_view[1])}']))
     for i in scenario.ids:
         ns = ['-r', f'__ns:={topics.uh_namespace(i)}', '-p', f'uh_id:={i}']
-        specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *stale, *views]))
-        specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, *stale, *views,
+        specs.append((f'uh{i}_sim', 'sim', ['--ros-args', *ns, *common, *loop, *stale, *views]))
+        specs.append((f'uh{i}_controller', 'controller', ['--ros-args', *ns, *common, *loop, *stale, *views,
                                                           '-p', f'case:={case}']))
     if visualization:
         specs.append(('visualization', 'visualization', ['--ros-args', *common]))
-    specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common, *views]))
-    specs.append(('clock', 'clock', ['--ros-args', *common, '-p', f'rate:={float(rate)}', '-p', 'expect_recorder:=true',
+    specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common, *loop, *views]))
+    specs.append(('clock', 'clock', ['--ros-args', *common, *loop, '-p', f'rate:={float(rate)}', '-p', 'expect_recorder:=true',
                                      '-p', f'startup_timeout:={float(startup_timeout)}']))
     return specs

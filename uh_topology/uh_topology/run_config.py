@@ -1,7 +1,9 @@
 """Parameters every node of a run declares, validated in one place.
 
 ``scenario`` (file or ``paper``), ``clock_mode`` (``lockstep`` | ``realtime``), ``duration``
-(s, 0 = the scenario's) and, for per-UH nodes, ``uh_id``. A bad value raises
+(s, 0 = the scenario's), ``realtime_priority`` (realtime mode: the SCHED_FIFO priority of the
+node's process, 0 = normal scheduling; docs/performance.md#real-time-scheduling) and, for per-UH
+nodes, ``uh_id``. A bad value raises
 :class:`RunConfigError` naming the parameter and what is allowed; the node entry point turns it into
 a one-line error and a non-zero exit.
 """
@@ -10,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import uh_runtime as rt
+from uh_runtime import scheduling
 from uh_topology.scenario import load_scenario
 
 __all__ = ['RunConfig', 'RunConfigError', 'ViewConfig', 'declare_run_parameters', 'declare_view_parameters',
@@ -53,6 +56,18 @@ def declare_run_parameters(node, per_uh: bool = True) -> RunConfig:
     mode = str(node.get_parameter('clock_mode').value)
     if mode not in CLOCK_MODES:
         raise RunConfigError(f"parameter 'clock_mode' is {mode!r}; allowed: {', '.join(CLOCK_MODES)}")
+    node.declare_parameter('realtime_priority', 0, _describe(
+        'realtime mode: SCHED_FIFO priority of this process, so the control loop keeps its period on a '
+        'busy machine (needs CAP_SYS_NICE (root has it) or an rtprio limit; docs/performance.md); '
+        '0 = the operating system\'s normal scheduling', read_only=True,
+        integer_range=[rt.IntegerRange(from_value=0, to_value=scheduling.MAX_PRIORITY, step=1)]))
+    priority = int(node.get_parameter('realtime_priority').value)
+    if mode == 'realtime' and priority > 0:
+        why_not = scheduling.set_realtime_priority(priority)
+        if why_not is None:
+            node.get_logger().info(f'real-time scheduling: SCHED_FIFO priority {priority}')
+        else:
+            node.get_logger().warn(f'real-time scheduling not used, the node runs at normal priority: {why_not}')
     scenario = load_scenario(str(node.get_parameter('scenario').value))
     if per_uh and uh_id not in scenario.ids:
         raise RunConfigError(f"parameter 'uh_id' is {uh_id}, but scenario {scenario.name!r} has UHs "
