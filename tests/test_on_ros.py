@@ -121,6 +121,30 @@ def test_ros2_launch_fails_with_status_1_when_a_lockstep_node_dies(domain_id, tm
     assert 'uh2_sim exited with status -9: the run did not complete' in out
 
 
+def test_ros2_launch_fails_with_status_1_when_no_node_can_start(domain_id, tmp_path):
+    """A node executable that cannot be executed (here: a script whose interpreter does not exist,
+    as a workspace built by another Python leaves it) gives launch no process-exit event; the launch
+    then ends idle, which without the clock's completion is a failed run."""
+    from uh_bringup.team_nodes import NODES
+    overlay = tmp_path / 'overlay'
+    for kind in NODES.values():   # shadow every node's package with an executable that cannot start
+        marker = overlay / 'share' / 'ament_index' / 'resource_index' / 'packages' / kind.package
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        marker.touch()
+        exe = overlay / 'lib' / kind.package / kind.executable
+        exe.parent.mkdir(parents=True, exist_ok=True)
+        exe.write_text('#!/nonexistent/python3\n')
+        exe.chmod(0o755)
+    env = {**os.environ, 'AMENT_PREFIX_PATH': f'{overlay}:{os.environ["AMENT_PREFIX_PATH"]}'}
+    run = subprocess.run(['ros2', 'launch', 'uh_bringup', 'formation.launch.py', f'out:={tmp_path / "launch"}',
+                          'clock_mode:=lockstep', 'duration:=1.0'], capture_output=True, text=True,
+                         timeout=120, env=env)
+    text = run.stdout + run.stderr
+    assert 'exception occurred while executing process' in text   # launch's own report of the exec error
+    assert run.returncode == 1, text[-3000:]
+    assert 'the clock never completed the run' in text
+
+
 def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain_id, tmp_path):
     """The team on rclpy (the launch's default backend) at rate 1, 20 s simulated, on this machine's
     cores while as many busy-looping processes plus one want them too: formation and containment

@@ -142,3 +142,24 @@ def test_the_ros_machine_requirements_agree_with_the_pinned_ones_and_keep_numpy_
         assert ros[name] == main[name], name
     assert 'numpy' not in ros and constraints['numpy'].startswith('1.26.')
     assert {'rosbags', 'mcap', 'mcap-ros2-support', 'numba'} <= set(ros)
+
+
+#: rosdep keys whose package the ROS machine takes from requirements-ros.txt instead (README): Ubuntu
+#: 24.04 has no python3-numba, and rosdep's pip keys install unpinned as root
+FROM_REQUIREMENTS_ROS = {'python3-numba': 'numba', 'python3-rosbags-pip': 'rosbags',
+                         'mcap-ros2-support': 'mcap-ros2-support'}
+
+
+def test_the_readme_ros_install_skips_exactly_the_keys_requirements_ros_provides():
+    readme = (ROOT / 'README.md').read_text()
+    block = readme[readme.index('## On a ROS 2 Jazzy machine'):]
+    block = block[block.index('```bash'):block.index('```', block.index('```bash') + 7)]
+    skipped = set(re.search(r'--skip-keys "([^"]+)"', block).group(1).split())
+    declared = {e.text for pkg in PYTHON_PACKAGES for e in ET.parse(ROOT / pkg / 'package.xml').getroot().iter()
+                if e.tag.endswith('depend')}
+    assert skipped == set(FROM_REQUIREMENTS_ROS) and skipped <= declared
+    assert {FROM_REQUIREMENTS_ROS[k] for k in skipped} <= set(_pins('requirements-ros.txt'))
+    # PEP 668: Ubuntu 24.04 refuses a pip install into the user site without it
+    pip_line = next(line for line in block.splitlines() if line.startswith('pip install'))
+    assert '--break-system-packages' in pip_line and '-c constraints-ros-jazzy.txt' in pip_line
+    assert '--break-system-packages' in (ROOT / 'requirements-ros.txt').read_text().split('\n\n')[0]

@@ -18,7 +18,7 @@ import os
 
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction, RegisterEventHandler
-from launch.event_handlers import OnProcessExit
+from launch.event_handlers import OnProcessExit, OnShutdown
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
@@ -49,6 +49,7 @@ def _team(context):
                        visualization=arg('visualization') == 'true',
                        standard_views=arg('standard_views') == 'true', realtime_priority=priority)
     actions = []
+    completed = []   # the clock's end with status 0: the run is complete
     for name, kind, ros_args in specs:
         # the namespace and parameters are in ros_args (--ros-args ...), as the run script passes them
         # backend:=dds: every node on the Cyclone DDS backend; else the recorder and the visualisation
@@ -59,7 +60,8 @@ def _team(context):
         actions.append(node)
         if kind == 'clock' or clock_mode == 'lockstep':
             actions.append(RegisterEventHandler(OnProcessExit(
-                target_action=node, on_exit=_on_exit(name, kind))))
+                target_action=node, on_exit=_on_exit(name, kind, completed))))
+    actions.append(RegisterEventHandler(OnShutdown(on_shutdown=_on_idle(completed))))
     return actions
 
 
@@ -67,13 +69,14 @@ class RunFailed(RuntimeError):
     """A node the run needs died: ``ros2 launch`` shuts everything down and exits with status 1."""
 
 
-def _on_exit(name, kind):
+def _on_exit(name, kind, completed):
     """What the end of node ``name`` does: the clock's end with status 0 ends the launch ('run
     complete'); a failed clock, or a lockstep node that fails before the shutdown, ends it with
     exit status 1 (launch turns an exception in an event handler into shutdown and status 1)."""
     def on_exit(event, context):
         status = event.returncode
         if kind == 'clock' and status == 0:
+            completed.append(name)
             return [EmitEvent(event=Shutdown(reason='run complete'))]
         if context.is_shutdown:
             return []
@@ -82,6 +85,18 @@ def _on_exit(name, kind):
                             '(its log is above)')
         return [EmitEvent(event=Shutdown(reason=f'{name} exited (lockstep needs every node)'))]
     return on_exit
+
+
+def _on_idle(completed):
+    """The launch also ends when nothing is left running ('idle'). That happens without a process
+    exit event when no node could be started at all (launch logs the exec error and sends none):
+    without the clock's completion, that is a failed run, status 1."""
+    def on_shutdown(event, context):
+        if event.reason == 'idle' and not completed:
+            raise RunFailed('every process has ended, and the clock never completed the run (a node that '
+                            'could not be started is logged above)')
+        return []
+    return on_shutdown
 
 
 def generate_launch_description():
