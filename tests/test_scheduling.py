@@ -204,3 +204,21 @@ def test_without_the_permission_a_run_and_a_node_say_why_and_go_on(tmp_path, dom
     finally:
         node.send_signal(signal.SIGINT)
         node.wait(timeout=30)
+
+
+def test_a_respawned_process_starts_under_sched_fifo_a_first_start_does_not(tmp_path):
+    """A restarted controller's start-up (imports, discovery) competes with a team already under
+    SCHED_FIFO; the supervisor starts it under the run's priority from its first instruction."""
+    from uh_bringup.supervisor import Supervisor
+    sup = Supervisor(tmp_path / 'logs', dict(os.environ), respawn_priority=PRIORITY)
+    show = [sys.executable, '-c', 'import os; print("policy", os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)']
+    node = sup.start('probe', show)
+    node.proc.wait(timeout=60)
+    sup.respawn(node)
+    node.proc.wait(timeout=60)
+    first, again = [line for line in node.log_path.read_text().splitlines() if line.startswith('policy')]
+    assert first == f'policy {os.SCHED_OTHER} 0'
+    if scheduling.permitted(PRIORITY) is None:
+        assert again == f'policy {os.SCHED_FIFO} {PRIORITY}'
+    else:   # not permitted: the restart still happens, at normal priority
+        assert again == f'policy {os.SCHED_OTHER} 0'

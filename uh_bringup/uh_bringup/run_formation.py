@@ -424,7 +424,7 @@ def run(args) -> int:
     print(f'[run] from another terminal: source {out / "env.sh"}   (then ros2 topic list, or uh topic list)',
           file=sys.stderr)
 
-    sup = Supervisor(out / 'logs', env)
+    sup = Supervisor(out / 'logs', env, respawn_priority=priority)
     interrupted = []
 
     def on_signal(signum, _frame):

@@ -76,6 +76,21 @@ class NodeProcess:
         return describe_exit(self.poll())
 
 
+def _fifo(priority: int):
+    """A ``preexec_fn`` that puts the child under SCHED_FIFO ``priority`` before it runs its
+    command (None for 0); the parameter is made here, so the child only makes the system call."""
+    if priority <= 0:
+        return None
+    param = os.sched_param(priority)
+
+    def set_fifo():
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, param)
+        except OSError:
+            pass    # not permitted: the node starts at normal priority and says so itself
+    return set_fifo
+
+
 @dataclass
 class Supervisor:
     log_dir: Path
@@ -86,6 +101,10 @@ class Supervisor:
     prefix: dict = field(default_factory=dict)
     #: per-process environment replacing ``env``: name -> dict
     envs: dict = field(default_factory=dict)
+    #: SCHED_FIFO priority a respawned process runs under from its first instruction (0: none).
+    #: Its start-up (imports, DDS discovery) competes with a running team whose control loop is
+    #: under SCHED_FIFO itself (docs/reliability.md#2-node-failures-realtime)
+    respawn_priority: int = 0
 
     def _popen(self, node: NodeProcess, mode: str) -> None:
         log = open(node.log_path, mode)
@@ -98,7 +117,8 @@ class Supervisor:
             env = {**self.envs.get(node.name, self.env), SUPERVISOR_ENV: str(os.getpid())}
             node.proc = subprocess.Popen([*self.prefix.get(node.name, []), *node.cmd], stdout=log,
                                          stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
-                                         start_new_session=True)
+                                         start_new_session=True,
+                                         preexec_fn=_fifo(self.respawn_priority) if mode == 'a' else None)
         finally:
             log.close()
         node.pids.append(node.proc.pid)
