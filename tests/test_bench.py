@@ -1,6 +1,7 @@
 """The benchmark harness (benchmarks/uh_bench) and the team generator it uses: a smoke test with tiny
 runs. Nothing here is timed: the assertions are about what the harness records, not how fast."""
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -131,6 +132,15 @@ def test_backends_section_measures_the_dds_backend_and_says_why_rclpy_is_not(tmp
     assert row.endswith('| exit 0 |')
     by_case = {e['case']: e for e in section['executors']}
     assert by_case['dds']['messages'] >= 200 and by_case['dds']['cpu_us_per_message'] > 0
+    # real time again while busy processes want every core, with and without SCHED_FIFO
+    from uh_runtime import scheduling
+    busy = section['contention']
+    assert busy['busy_processes'] == (os.cpu_count() or 1) + 1
+    fifo, normal = busy['runs']['dds/fifo'], busy['runs']['dds/normal']
+    assert fifo['status'] == 0 and normal['status'] == 0 and fifo['controller_steps'] > 0
+    assert fifo['priority_granted'] == (scheduling.permitted(scheduling.DEFAULT_PRIORITY) is None)
+    assert normal['priority'] == 0 and not normal['priority_granted']
+    assert 'Real time on a busy machine' in suite.markdown(results)
     if suite.rclpy_available() is None:      # a sourced ROS 2: both measured, the ratio printed
         assert set(section['lockstep']) == {'dds', 'rclpy'}
         assert section['lockstep']['rclpy']['steps'] == 20 and section['realtime']['rclpy']['status'] == 0
