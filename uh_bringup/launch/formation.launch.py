@@ -56,7 +56,7 @@ def _team(context):
         # there (where it is installed) and the team's nodes on rclpy
         env = {'UH_BACKEND': 'dds'} if backend == 'dds' else backend_environment(kind, os.environ)
         node = Node(package=NODES[kind].package, executable=NODES[kind].executable, arguments=ros_args,
-                    output='screen', additional_env=env)
+                    output='both', additional_env=env)
         actions.append(node)
         if kind == 'clock' or clock_mode == 'lockstep':
             actions.append(RegisterEventHandler(OnProcessExit(

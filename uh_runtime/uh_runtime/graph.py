@@ -15,7 +15,7 @@ from . import messages as _messages
 from .qos import (
     DDS_INFINITY, DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, from_dds_qos, to_dds_qos,
 )
-from .signals import wake_on_signals
+from .signals import sigint_deferred, wake_on_signals
 
 __all__ = ['Graph', 'EndpointInfo', 'BARE_DDS_NODE', 'format_gid', 'user_data_value']
 
@@ -141,6 +141,12 @@ class Graph:
         from cyclonedds.core import InstanceState
         return sample.sample_info.valid_data and sample.sample_info.instance_state == InstanceState.Alive
 
+    @staticmethod
+    def _take_builtin(reader) -> list:
+        # cyclonedds builds builtin samples through a Python callback: Ctrl-C must not land in it
+        with sigint_deferred():
+            return reader.take(N=1000)
+
     def update(self) -> bool:
         """Take everything discovery has delivered; True if anything changed.
 
@@ -150,7 +156,7 @@ class Graph:
         changed = False
         cond_part, cond_pub, cond_sub, cond_info = self._conditions
         if cond_part.is_triggered():
-            for sample in self._participants_reader.take(N=1000):
+            for sample in self._take_builtin(self._participants_reader):
                 changed = True
                 if self._alive(sample):
                     self.participants[sample.key] = sample.qos
@@ -161,7 +167,7 @@ class Graph:
                                     (cond_sub, self._sub_reader, self.readers)):
             if not cond.is_triggered():
                 continue
-            for sample in reader.take(N=1000):
+            for sample in self._take_builtin(reader):
                 changed = True
                 if self._alive(sample):
                     table[sample.key] = sample

@@ -5,14 +5,17 @@ signal's handler would only run at the next timeout. :func:`wake_on_signals` mak
 call ``wake()`` on the registered objects (the DDS backend's contexts and the discovery
 :class:`uh_runtime.graph.Graph`), which triggers their guard conditions: the wait returns and Python
 runs the handler at once. :func:`shut_down_on_sigterm` handles SIGTERM like rclpy does, by shutting
-the contexts down (spinning then raises ``ExternalShutdownException``).
+the contexts down (spinning then raises ``ExternalShutdownException``). :func:`sigint_deferred`
+holds Ctrl-C back while Cyclone DDS calls back into Python.
 """
+import contextlib
+import os
 import signal
 import socket
 import threading
 import weakref
 
-__all__ = ['wake_on_signals', 'shut_down_on_sigterm', 'restore_sigterm']
+__all__ = ['wake_on_signals', 'shut_down_on_sigterm', 'restore_sigterm', 'sigint_deferred']
 
 _wakeup_targets = weakref.WeakSet()   # objects with wake(), woken on every signal
 _sigterm_contexts = weakref.WeakSet()  # contexts with ok() and _request_shutdown(), shut down on SIGTERM
@@ -87,3 +90,35 @@ def _on_sigterm(signum, frame):
     # point's ``finally`` destroys the nodes and calls ``try_shutdown`` (nothing is cut off).
     for context in list(_sigterm_contexts):
         context._request_shutdown()
+
+
+@contextlib.contextmanager
+def sigint_deferred():
+    """Handle a SIGINT that arrives inside the block only once the block is done.
+
+    A builtin-topic reader's ``take`` calls back into Python from C (cyclonedds builds each
+    discovery sample with a Python constructor). A ``KeyboardInterrupt`` raised inside that callback
+    is swallowed there and comes out as ``Exception: Callfunc endpoint constructor errored.``: a
+    recorder stopped by Ctrl-C while endpoints were disappearing exited with status 1 that way (its
+    bag was closed all the same). Deferred, the interrupt is raised right after the take, where the
+    node's entry point handles it. Main thread only (elsewhere no Python handler runs anyway), and
+    only over a handler installed from Python.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is None:   # a handler not installed from Python: leave it alone
+        yield
+        return
+    pending = []
+    signal.signal(signal.SIGINT, lambda signum, frame: pending.append(frame))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if pending:
+            if callable(previous):
+                previous(signal.SIGINT, pending[0])
+            elif previous == signal.SIG_DFL:
+                os.kill(os.getpid(), signal.SIGINT)   # the default action, now that it is back
