@@ -222,6 +222,20 @@ def test_params_file_with_wildcard_and_node_keys(processes, domain_id, tmp_path,
     assert proc.returncode == 1 and "parameter 'uh_id': value 0 rejected" in err
 
 
+def test_a_second_sigint_does_not_cut_the_teardown_short(processes, domain_id, tmp_path, graph):
+    """Ctrl-C under ros2 launch: the terminal's SIGINT and launch's own reach each node at once. The
+    second one lands in ``destroy_node`` (here made to take 1 s) and must not interrupt it."""
+    import time
+    proc = _start(processes, 'talker.py', '-r', '__ns:=/uh3', '-p', 'teardown_s:=1.0', cwd=tmp_path)
+    _wait_discovered(graph, proc)
+    proc.send_signal(signal.SIGINT)
+    time.sleep(0.3)     # well inside the 1 s teardown (a failure only shows as the traceback below)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 0, err
+    assert 'teardown complete' in err and 'Traceback' not in err
+
+
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_sigint_and_sigterm_end_the_node_cleanly(processes, domain_id, tmp_path, graph, sig):
     proc = _start(processes, 'talker.py', '-r', '__ns:=/uh3', cwd=tmp_path)

@@ -24,6 +24,8 @@ class Talker(rt.Node):
             description='publication rate, Hz',
             floating_point_range=[rt.FloatingPointRange(from_value=1.0, to_value=1000.0)]))
         self.declare_parameter('frame_id', 'world', rt.ParameterDescriptor(read_only=True))
+        self.declare_parameter('teardown_s', 0.0, rt.ParameterDescriptor(
+            description='s that destroy_node takes (as a recorder finalising a bag)', read_only=True))
         self.uh_id = self.get_parameter('uh_id').value
         self.frame_id = self.get_parameter('frame_id').value
         self.step = 0
@@ -46,6 +48,12 @@ class Talker(rt.Node):
 
     def on_command(self, msg):
         self.get_logger().info(f'command step {msg.step}')
+
+    def destroy_node(self):
+        import time
+        time.sleep(float(self.get_parameter('teardown_s').value))
+        print('teardown complete', file=sys.stderr, flush=True)
+        return super().destroy_node()
 
 
 def main(args=None):

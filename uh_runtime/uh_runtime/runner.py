@@ -2,7 +2,9 @@
 import faulthandler
 import fnmatch
 import os
+import signal
 import sys
+import threading
 
 from . import facade as rt
 
@@ -190,9 +192,22 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
         print(f'{prog}: error: {exc}', file=sys.stderr)
         status = 1
     finally:
+        _ignore_further_interrupts()
         for node in nodes:
             node.destroy_node()
         rt.try_shutdown()
     if status:
         raise SystemExit(status)
     return 0
+
+
+def _ignore_further_interrupts() -> None:
+    """From here on the process is ending: a second SIGINT must not cut ``destroy_node`` short
+    (the recorder finalises its bag there). A node gets two at once in the ordinary case:
+    ``ros2 launch`` sends SIGINT to its nodes on top of the terminal's Ctrl-C, which reaches the
+    whole process group. SIGTERM already only marks the context shut down."""
+    if threading.current_thread() is threading.main_thread():
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except (ValueError, OSError):
+            pass
