@@ -11,6 +11,12 @@ from uh_runtime.network import loopback_environment, release_domain_id, reserve_
 
 ROOT = Path(__file__).resolve().parents[1]
 
+# The tests stop the nodes they start with SIGINT, as Ctrl-C does. A test session started in the
+# background by a non-interactive shell (`scripts/test.sh > log &` in a script) has SIGINT ignored,
+# and every process it starts would inherit that and never stop: give the session SIGINT back.
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 @pytest.fixture
 def domain_id(monkeypatch):

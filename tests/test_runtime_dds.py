@@ -188,7 +188,7 @@ def test_uh_echo_of_a_topic_nobody_publishes_waits_then_times_out(domain_id):
 
 @pytest.mark.parametrize('ros_args, expected', [
     (['-p', 'nope:=1'],
-     "node 'talker' does not declare parameter 'nope'; declared parameters: frame_id, rate, uh_id"),
+     "node 'talker' does not declare parameter 'nope'; declared parameters: frame_id, rate, teardown_s, uh_id"),
     (['-p', 'uh_id:=99'], "parameter 'uh_id': value 99 rejected: allowed range is [1, 20]"),
     (['-p', 'uh_id:=abc'],
      "parameter 'uh_id': value 'abc' has type STRING, allowed type is INTEGER"),

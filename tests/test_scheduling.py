@@ -222,3 +222,19 @@ def test_a_respawned_process_starts_under_sched_fifo_a_first_start_does_not(tmp_
         assert again == f'policy {os.SCHED_FIFO} {PRIORITY}'
     else:   # not permitted: the restart still happens, at normal priority
         assert again == f'policy {os.SCHED_OTHER} 0'
+
+
+def test_nodes_get_sigint_even_from_a_supervisor_that_ignores_it(tmp_path):
+    """A run started in the background by a script has SIGINT ignored (the shell does that), and
+    children inherit an ignored signal; the supervisor stops its nodes with SIGINT, so it gives
+    them the default back."""
+    from uh_bringup.supervisor import Supervisor
+    show = [sys.executable, '-c', 'import signal; print("sigint", signal.getsignal(signal.SIGINT).__name__)']
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)   # as under `run_formation.sh ... &`
+    try:
+        sup = Supervisor(tmp_path / 'logs', dict(os.environ))
+        node = sup.start('probe', show)
+        node.proc.wait(timeout=60)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert 'sigint default_int_handler' in node.log_path.read_text()

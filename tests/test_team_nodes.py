@@ -69,7 +69,7 @@ def _fake_launch_modules(monkeypatch):
              'launch_ros', 'launch_ros.actions')}
     classes = {'launch': ['LaunchDescription'],
                'launch.actions': ['DeclareLaunchArgument', 'EmitEvent', 'OpaqueFunction', 'RegisterEventHandler'],
-               'launch.event_handlers': ['OnProcessExit'], 'launch.events': ['Shutdown'],
+               'launch.event_handlers': ['OnProcessExit', 'OnShutdown'], 'launch.events': ['Shutdown'],
                'launch.substitutions': ['LaunchConfiguration'], 'launch_ros.actions': ['Node']}
     for mod, names in classes.items():
         for name in names:
@@ -95,7 +95,9 @@ def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkey
                           f'{tmp_path}/bag', 60.0, 0.25)
     assert [(n.kwargs['package'], n.kwargs['executable'], n.kwargs['arguments']) for n in nodes] == \
         [(NODES[kind].package, NODES[kind].executable, args) for _, kind, args in expected]
-    handlers = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
+    registered = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
+    handlers = [h for h in registered if isinstance(h, mods['launch.event_handlers'].OnProcessExit)]
+    [idle] = [h for h in registered if isinstance(h, mods['launch.event_handlers'].OnShutdown)]
     # lockstep: the death of any node ends the launch, the clock's with 'run complete'
     assert [h.kwargs['target_action'] for h in handlers] == nodes
     running, stopping = types.SimpleNamespace(is_shutdown=False), types.SimpleNamespace(is_shutdown=True)
@@ -113,10 +115,35 @@ def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkey
     # nodes stopped by the launch's own shutdown end quietly, whatever their status
     assert outcome(handlers[1], -2, stopping) == [] and outcome(handlers[-1], 1, stopping) == []
 
+    # a launch that ends idle (no node could even start: launch sends no exit event) failed,
+    # unless the clock completed the run; Ctrl-C is not a failure of the run
+    def ends(reason, handler=idle):
+        try:
+            return handler.kwargs['on_shutdown'](types.SimpleNamespace(reason=reason), stopping)
+        except launch_file['RunFailed'] as exc:
+            return f'failed: {exc}'
+    fresh = [a.args[0] for a in opaque.kwargs['function'](None)
+             if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
+    fresh_idle = next(h for h in fresh if isinstance(h, mods['launch.event_handlers'].OnShutdown))
+    assert ends('idle', fresh_idle).startswith('failed: every process has ended, and the clock never completed')
+    assert ends('ctrl-c (SIGINT)', fresh_idle) == []
+    assert ends('idle') == []   # this launch's clock completed above (outcome(handlers[-1], 0))
+
     arguments.update(clock_mode='realtime', visualization='false')
     actions = opaque.kwargs['function'](None)
-    handlers = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
+    handlers = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)
+                and isinstance(a.args[0], mods['launch.event_handlers'].OnProcessExit)]
     assert len(handlers) == 1 and handlers[0].kwargs['target_action'].kwargs['executable'] == 'lockstep_clock_node'
+    # realtime: the control loop's nodes get the SCHED_FIFO priority (default 20), the recorder not
+    priority = {n.kwargs['executable']: [a for a in n.kwargs['arguments'] if a.startswith('realtime_priority:=')]
+                for n in actions if isinstance(n, mods['launch_ros.actions'].Node)}
+    assert priority.pop('recorder_node') == []
+    assert set(map(tuple, priority.values())) == {('realtime_priority:=20',)}
+    for bad in ('99', '-1', 'high'):
+        arguments['realtime_priority'] = bad
+        with pytest.raises(ValueError, match=f"realtime_priority:='{bad}'; allowed an integer 0"):
+            opaque.kwargs['function'](None)
+    arguments['realtime_priority'] = '20'
     assert 'visualization_node' not in [a.kwargs.get('executable') for a in actions]
     # backend:=dds puts every node on the DDS backend; by default only the infrastructure may be
     nodes = [a for a in actions if isinstance(a, mods['launch_ros.actions'].Node)]

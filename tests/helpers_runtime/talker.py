@@ -51,8 +51,9 @@ class Talker(rt.Node):
 
     def destroy_node(self):
         import time
-        time.sleep(float(self.get_parameter('teardown_s').value))
-        print('teardown complete', file=sys.stderr, flush=True)
+        if self.has_parameter('teardown_s') and self.get_parameter('teardown_s').value > 0:
+            time.sleep(float(self.get_parameter('teardown_s').value))
+            print('teardown complete', file=sys.stderr, flush=True)
         return super().destroy_node()
 
 

@@ -76,19 +76,25 @@ class NodeProcess:
         return describe_exit(self.poll())
 
 
-def _fifo(priority: int):
-    """A ``preexec_fn`` that puts the child under SCHED_FIFO ``priority`` before it runs its
-    command (None for 0); the parameter is made here, so the child only makes the system call."""
-    if priority <= 0:
-        return None
-    param = os.sched_param(priority)
+def _child_setup(priority: int):
+    """The ``preexec_fn`` of a node process, run in the child before its command.
 
-    def set_fifo():
-        try:
-            os.sched_setscheduler(0, os.SCHED_FIFO, param)
-        except OSError:
-            pass    # not permitted: the node starts at normal priority and says so itself
-    return set_fifo
+    * SIGINT back to its default: the supervisor stops nodes with SIGINT, and a supervisor started
+      in the background by a non-interactive shell (``run_formation.sh ... &`` in a script) has
+      SIGINT ignored, which a child would inherit and keep (Python leaves an ignored SIGINT alone).
+    * ``priority`` > 0: SCHED_FIFO at that priority from the first instruction (respawns). The
+      parameter is made here, so the child only makes system calls.
+    """
+    param = os.sched_param(priority) if priority > 0 else None
+
+    def setup():
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        if param is not None:
+            try:
+                os.sched_setscheduler(0, os.SCHED_FIFO, param)
+            except OSError:
+                pass    # not permitted: the node starts at normal priority and says so itself
+    return setup
 
 
 @dataclass
@@ -118,7 +124,7 @@ class Supervisor:
             node.proc = subprocess.Popen([*self.prefix.get(node.name, []), *node.cmd], stdout=log,
                                          stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
                                          start_new_session=True,
-                                         preexec_fn=_fifo(self.respawn_priority) if mode == 'a' else None)
+                                         preexec_fn=_child_setup(self.respawn_priority if mode == 'a' else 0))
         finally:
             log.close()
         node.pids.append(node.proc.pid)
