@@ -74,3 +74,34 @@ def test_nothing_pending_nothing_raised_and_the_handler_is_given_back():
         assert seen == [signal.SIGINT] and handler is signal.getsignal(signal.SIGINT)
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def test_a_target_that_fails_to_wake_does_not_stop_later_wake_ups():
+    """The wake-up thread calls every registered target on every signal; one whose DDS entities are
+    gone (a closed graph of another node) raised there and ended the thread, so later signals
+    woke nothing."""
+    import threading
+    import time
+    from uh_runtime.signals import wake_on_signals
+
+    class Gone:
+        def wake(self):
+            raise RuntimeError('guard condition deleted')
+
+    class Counting:
+        def __init__(self):
+            self.woken = threading.Semaphore(0)
+
+        def wake(self):
+            self.woken.release()
+    gone, counting = Gone(), Counting()
+    wake_on_signals(gone)
+    wake_on_signals(counting)
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: None)
+    try:
+        for _ in range(2):
+            os.kill(os.getpid(), signal.SIGINT)
+            assert counting.woken.acquire(timeout=10), 'the wake-up thread did not wake the target'
+            time.sleep(0.05)
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -240,7 +240,9 @@ class Graph:
             self._guard.take()
 
     def wake(self):
-        """Make a blocked :meth:`wait_until` return (used on signals)."""
+        """Make a blocked :meth:`wait_until` return (used on signals); nothing once closed."""
+        if self.participant is None:   # closed: its guard condition went with the participant
+            return
         self._guard.set(True)
 
     # -- queries ---------------------------------------------------------------------------

@@ -50,7 +50,10 @@ def _install_signal_wakeup():
             if not data:
                 return
             for target in list(_wakeup_targets):
-                target.wake()
+                try:
+                    target.wake()
+                except Exception:   # noqa: BLE001 -- one target gone (its DDS entities deleted) must
+                    pass            # not end this thread: later signals would wake nothing
 
     threading.Thread(target=pump, name='uh-signal-wakeup', daemon=True).start()
 
