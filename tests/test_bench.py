@@ -122,7 +122,9 @@ def test_tiny_suite_records_every_section_and_prints_the_table(tmp_path, domain_
 @pytest.mark.slow
 def test_backends_section_measures_the_dds_backend_and_says_why_rclpy_is_not(tmp_path, monkeypatch):
     monkeypatch.delenv('UH_BACKEND', raising=False)
-    cfg = {'backend_lockstep_duration': 0.2, 'backend_realtime_duration': 0.5, 'executor_messages': 200}
+    # one contention run (at normal priority) checks the wiring; tests/test_scheduling.py checks SCHED_FIFO
+    cfg = {'backend_lockstep_duration': 0.2, 'backend_realtime_duration': 0.5, 'executor_messages': 200,
+           'contention_runs': ('normal',)}
     results = suite.run_suite(cfg, tmp_path, sections=('backends',))
     section = results['backends']
     lock, realtime = section['lockstep']['dds'], section['realtime']['dds']
@@ -132,14 +134,14 @@ def test_backends_section_measures_the_dds_backend_and_says_why_rclpy_is_not(tmp
     assert row.endswith('| exit 0 |')
     by_case = {e['case']: e for e in section['executors']}
     assert by_case['dds']['messages'] >= 200 and by_case['dds']['cpu_us_per_message'] > 0
-    # real time again while busy processes want every core, with and without SCHED_FIFO
-    from uh_runtime import scheduling
+    # real time again while busy processes want every core
     busy = section['contention']
     assert busy['busy_processes'] == (os.cpu_count() or 1) + 1
-    fifo, normal = busy['runs']['dds/fifo'], busy['runs']['dds/normal']
-    assert fifo['status'] == 0 and normal['status'] == 0 and fifo['controller_steps'] > 0
-    assert fifo['priority_granted'] == (scheduling.permitted(scheduling.DEFAULT_PRIORITY) is None)
+    assert list(busy['runs']) == ['dds/normal']
+    normal = busy['runs']['dds/normal']
+    assert normal['status'] == 0 and normal['controller_steps'] > 0
     assert normal['priority'] == 0 and not normal['priority_granted']
+    assert json.loads((Path(normal['out']) / 'run' / 'run.json').read_text())['realtime_priority'] == 0
     assert 'Real time on a busy machine' in suite.markdown(results)
     if suite.rclpy_available() is None:      # a sourced ROS 2: both measured, the ratio printed
         assert set(section['lockstep']) == {'dds', 'rclpy'}

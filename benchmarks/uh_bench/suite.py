@@ -67,12 +67,14 @@ MODES = {
               'component_steps': 500, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 3.0,
               'scaling_layouts': ('per-node', 'single'), 'realtime_duration': 8.0,
               'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node')),
-              'backend_lockstep_duration': 20.0, 'backend_realtime_duration': 20.0, 'campaign_runs': 100},
+              'backend_lockstep_duration': 20.0, 'backend_realtime_duration': 20.0, 'campaign_runs': 100,
+              'contention_runs': ('fifo', 'normal')},
     'full': {'transport_quick': False, 'paper_duration': 60.0, 'paper_layouts': ('per-node', 'per-uh', 'single'),
              'component_steps': 3000, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 20.0,
              'scaling_layouts': ('per-node', 'single'), 'realtime_duration': 60.0,
              'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'), (20, 'single')),
-             'backend_lockstep_duration': 60.0, 'backend_realtime_duration': 60.0, 'campaign_runs': 1000},
+             'backend_lockstep_duration': 60.0, 'backend_realtime_duration': 60.0, 'campaign_runs': 1000,
+             'contention_runs': ('fifo', 'normal')},
 }
 
 #: The goals of the performance issue: (key, description, target, comparison).
@@ -312,9 +314,11 @@ def _backends(cfg, workdir, results):
              f'missed {rt_run["missed_steps"]}, status {lock["status"]}/{rt_run["status"]}')
     # the same real-time run while other processes want every core: what SCHED_FIFO buys
     section['contention'] = {'busy_processes': _busy_count(), 'runs': {}}
+    schedulings = {'fifo': scheduling.DEFAULT_PRIORITY, 'normal': 0}
     for backend in backends:
         env = {'UH_BACKEND': 'dds'} if backend == 'dds' else {}
-        for label, priority in (('fifo', scheduling.DEFAULT_PRIORITY), ('normal', 0)):
+        for label in cfg.get('contention_runs', ('fifo', 'normal')):
+            priority = schedulings[label]
             _log(f'backends: {backend}, real time with {_busy_count()} busy processes, '
                  f'--realtime-priority {priority}, {d_rt:g} s')
             with busy_load(_busy_count()):
