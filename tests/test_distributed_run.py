@@ -381,8 +381,13 @@ def test_the_bag_holds_tf_odometry_and_diagnostics_that_follow_from_the_states(l
         linear, angular = frames.body_twist_of_state(x)
         assert (o.twist.twist.linear.x, o.twist.twist.linear.y, o.twist.twist.linear.z) == linear
         assert (o.twist.twist.angular.x, o.twist.twist.angular.y, o.twist.twist.angular.z) == angular
-    # 2 Hz of simulated time from 5 simulators and 5 controllers
-    assert len(diag) == 10 * (int(paper.duration * 2) + 1)
+    # 2 Hz of simulated time from 5 simulators and 5 controllers, the ten reports spread evenly
+    # over each half second (ViewConfig.diagnostics_phase): sim i at phase 10 (i-1), controller 5 later
+    report_every = 50
+    for i in paper.ids:
+        for kind, phase in (('sim', 10 * (i - 1)), ('controller', 10 * (i - 1) + 5)):
+            steps_of = sorted(round(t / dt) for _, name, _, t in diag if name == f'uh{i}/{kind}')
+            assert steps_of == list(range(phase, steps, report_every)), (i, kind, steps_of[:3])
     onset = 10.0  # every scheduled fault of the paper scenario starts at 10 s (docs/scenario.md)
     faulted = {2, 3, 5}
     for level, name, message, t in diag:

@@ -119,6 +119,7 @@ class ControllerNode(rt.Node):
             self.received_pub = self.create_publisher(m.ReceivedStates, topics.RECEIVED.name, qos)
             self.published['received'] = 0
         self.views = declare_view_parameters(self, self.dt)
+        self.diagnostics_phase = self.views.diagnostics_phase(scenario.ids, self.uh_id, controller=True)
         self.window = diagnostics.ControllerWindow()
         self._rejected_reported = 0
         if self.views.enabled:
@@ -247,7 +248,7 @@ class ControllerNode(rt.Node):
         for stats in self.sync.lag.values():
             if stats.last > w.max_input_lag:
                 w.max_input_lag = stats.last
-        if k % self.views.diagnostics_every:
+        if k % self.views.diagnostics_every != self.diagnostics_phase:
             return
         w.last_step = k
         w.stale_neighbours = tuple(inputs.stale_labels)

@@ -64,6 +64,7 @@ class SimNode(rt.Node):
         self.rejected_faults = 0
         self.published = {'state': 0, 'fault_truth': 0}
         self.views = declare_view_parameters(self, self.dt)
+        self.diagnostics_phase = self.views.diagnostics_phase(self.scenario.ids, self.uh_id, controller=False)
         qos = topics.qos_profile(topics.STEP_QOS)
         self.state_pub = self.create_publisher(m.UHState, topics.STATE.name, qos)
         self.truth_pub = self.create_publisher(m.FaultTruth, topics.FAULT_TRUTH.name, qos)
@@ -184,7 +185,7 @@ class SimNode(rt.Node):
             pose = frames.pose_of_state(x)
             self.tf_pub.publish(tf_msg([transform_msg(t, frames.WORLD_FRAME, frames.base_link(self.uh_id), *pose)]))
             self.odom_pub.publish(odometry_msg(self.uh_id, t, x, pose))
-        if self.step % self.views.diagnostics_every == 0:
+        if self.step % self.views.diagnostics_every == self.diagnostics_phase:
             seen = {'late': self.late_commands, 'rejected': self.rejected, 'rejected_faults': self.rejected_faults}
             since = {key: seen[key] - self._reported[key] for key in seen}
             self._reported = seen

@@ -85,6 +85,15 @@ class ViewConfig:
     pose_every: int         # steps between two /tf and odom messages
     diagnostics_every: int  # steps between two /diagnostics reports
 
+    def diagnostics_phase(self, ids, uh_id: int, controller: bool) -> int:
+        """The step within each ``diagnostics_every`` period at which UH ``uh_id``'s simulator (or
+        controller) reports on /diagnostics: the team's reports are spread evenly over the period,
+        not sent in one burst. A reader with a short history (``ros2 topic echo`` keeps 5) that
+        reads after the burst would keep only its last reports (docs/visualization.md#diagnostics)."""
+        ids = list(ids)
+        slot = 2 * ids.index(uh_id) + int(controller)
+        return (slot * self.diagnostics_every) // (2 * len(ids))
+
 
 def declare_view_parameters(node, dt: float) -> ViewConfig:
     """Declare ``standard_views`` (bool), ``pose_rate`` and ``diagnostics_rate`` (Hz of simulated
