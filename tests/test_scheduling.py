@@ -201,9 +201,14 @@ def test_without_the_permission_a_run_and_a_node_say_why_and_go_on(tmp_path, dom
         said = [line for line in lines if 'real-time scheduling' in line]
         assert said and 'real-time scheduling not used, the node runs at normal priority' in said[0], lines
         assert node.poll() is None   # and it runs on
-    finally:
+    finally:   # never leave the node running in the test's DDS domain
         node.send_signal(signal.SIGINT)
-        node.wait(timeout=30)
+        try:
+            node.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            node.kill()
+            node.wait()
+            raise
 
 
 def test_a_respawned_process_starts_under_sched_fifo_a_first_start_does_not(tmp_path):
