@@ -168,7 +168,7 @@ def _can_drop_the_permission() -> str | None:
 
 
 @pytest.mark.skipif(_can_drop_the_permission() is not None, reason=str(_can_drop_the_permission()))
-def test_without_the_permission_a_run_and_a_node_say_why_and_go_on(tmp_path, domain_id):
+def test_without_the_permission_a_run_and_a_node_say_why_and_go_on(tmp_path, domain_id, processes):
     """No CAP_SYS_NICE, rtprio limit 0: the run says so once and runs at normal priority; a node
     asked for the priority directly (as the launch file asks) logs why it did not get it and runs."""
     from uh_runtime.network import loopback_environment
@@ -183,10 +183,10 @@ def test_without_the_permission_a_run_and_a_node_say_why_and_go_on(tmp_path, dom
             in run.stderr)
     assert json.loads((out / 'run.json').read_text())['realtime_priority'] == 0
 
-    node = subprocess.Popen([*_UNPRIVILEGED, sys.executable, '-P', '-m', 'uh_sim_node.virtual_leader_node',
-                             '--ros-args', '-p', 'clock_mode:=realtime', '-p', f'realtime_priority:={PRIORITY}'],
-                            env=loopback_environment(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True)
+    node = processes.start([*_UNPRIVILEGED, sys.executable, '-P', '-m', 'uh_sim_node.virtual_leader_node',
+                            '--ros-args', '-p', 'clock_mode:=realtime', '-p', f'realtime_priority:={PRIORITY}'],
+                           env=loopback_environment(domain_id), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True)   # stopped at teardown, whatever the outcome
     lines = []
 
     def read():
@@ -194,21 +194,12 @@ def test_without_the_permission_a_run_and_a_node_say_why_and_go_on(tmp_path, dom
             lines.append(line)
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
-    try:
-        deadline = time.monotonic() + 60   # bounds a failure only; the node logs it within its start-up
-        while not any('real-time scheduling' in line for line in lines) and time.monotonic() < deadline:
-            time.sleep(0.1)
-        said = [line for line in lines if 'real-time scheduling' in line]
-        assert said and 'real-time scheduling not used, the node runs at normal priority' in said[0], lines
-        assert node.poll() is None   # and it runs on
-    finally:   # never leave the node running in the test's DDS domain
-        node.send_signal(signal.SIGINT)
-        try:
-            node.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            node.kill()
-            node.wait()
-            raise
+    deadline = time.monotonic() + 60   # bounds a failure only; the node logs it within its start-up
+    while not any('real-time scheduling' in line for line in lines) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    said = [line for line in lines if 'real-time scheduling' in line]
+    assert said and 'real-time scheduling not used, the node runs at normal priority' in said[0], lines
+    assert node.poll() is None   # and it runs on
 
 
 def test_a_respawned_process_starts_under_sched_fifo_a_first_start_does_not(tmp_path):

@@ -2,11 +2,10 @@
 import faulthandler
 import fnmatch
 import os
-import signal
 import sys
-import threading
 
 from . import facade as rt
+from .signals import sigint_ignored
 
 __all__ = ['check_parameter_overrides', 'run_node', 'declared_parameter_names', 'override_names',
            'log_on_exit']
@@ -192,32 +191,11 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
         print(f'{prog}: error: {exc}', file=sys.stderr)
         status = 1
     finally:
-        previous = _ignore_further_interrupts()
-        try:
+        with sigint_ignored():   # a second Ctrl-C must not cut the teardown short
             for node in nodes:
                 node.destroy_node()
             rt.try_shutdown()
-        finally:
-            if previous is not None:   # as it was: run_node may run inside a longer-lived process
-                signal.signal(signal.SIGINT, previous)
     if status:
         raise SystemExit(status)
     return 0
 
-
-def _ignore_further_interrupts():
-    """Ignore SIGINT while the nodes are torn down; returns the handler to put back (None: none
-    was replaced). A second SIGINT must not cut ``destroy_node`` short (the recorder finalises its
-    bag there), and a node gets two at once in the ordinary case: ``ros2 launch`` sends SIGINT to
-    its nodes on top of the terminal's Ctrl-C, which reaches the whole process group. SIGTERM
-    already only marks the context shut down."""
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is None:   # a handler not installed from Python could not be put back: leave it
-        return None
-    try:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except (ValueError, OSError):
-        return None
-    return previous

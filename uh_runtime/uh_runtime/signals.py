@@ -6,7 +6,8 @@ call ``wake()`` on the registered objects (the DDS backend's contexts and the di
 :class:`uh_runtime.graph.Graph`), which triggers their guard conditions: the wait returns and Python
 runs the handler at once. :func:`shut_down_on_sigterm` handles SIGTERM like rclpy does, by shutting
 the contexts down (spinning then raises ``ExternalShutdownException``). :func:`sigint_deferred`
-holds Ctrl-C back while Cyclone DDS calls back into Python.
+holds Ctrl-C back while Cyclone DDS calls back into Python; :func:`sigint_ignored` ignores it
+while a node is torn down.
 """
 import contextlib
 import os
@@ -15,7 +16,7 @@ import socket
 import threading
 import weakref
 
-__all__ = ['wake_on_signals', 'shut_down_on_sigterm', 'restore_sigterm', 'sigint_deferred']
+__all__ = ['wake_on_signals', 'shut_down_on_sigterm', 'restore_sigterm', 'sigint_deferred', 'sigint_ignored']
 
 _wakeup_targets = weakref.WeakSet()   # objects with wake(), woken on every signal
 _sigterm_contexts = weakref.WeakSet()  # contexts with ok() and _request_shutdown(), shut down on SIGTERM
@@ -96,6 +97,33 @@ def _on_sigterm(signum, frame):
 
 
 @contextlib.contextmanager
+def _sigint_handler(handler):
+    """Run the block with ``handler`` for SIGINT and put the previous one back after it; yields
+    the previous handler, or None when nothing was replaced: not the main thread (no Python
+    handler runs elsewhere), or a handler not installed from Python (it could not be put back)."""
+    previous = signal.getsignal(signal.SIGINT) if threading.current_thread() is threading.main_thread() else None
+    if previous is None:
+        yield None
+        return
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield previous
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def sigint_ignored():
+    """Ignore SIGINT inside the block (a node's teardown: :func:`uh_runtime.runner.run_node`).
+
+    A second SIGINT must not cut ``destroy_node`` short (the recorder finalises its bag there),
+    and a node gets two at once in the ordinary case: ``ros2 launch`` sends SIGINT to its nodes on
+    top of the terminal's Ctrl-C, which reaches the whole process group. SIGTERM already only
+    marks the context shut down.
+    """
+    return _sigint_handler(signal.SIG_IGN)
+
+
+@contextlib.contextmanager
 def sigint_deferred():
     """Handle a SIGINT that arrives inside the block only once the block is done.
 
@@ -104,24 +132,13 @@ def sigint_deferred():
     is swallowed there and comes out as ``Exception: Callfunc endpoint constructor errored.``: a
     recorder stopped by Ctrl-C while endpoints were disappearing exited with status 1 that way (its
     bag was closed all the same). Deferred, the interrupt is raised right after the take, where the
-    node's entry point handles it. Main thread only (elsewhere no Python handler runs anyway), and
-    only over a handler installed from Python.
+    node's entry point handles it.
     """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is None:   # a handler not installed from Python: leave it alone
-        yield
-        return
     pending = []
-    signal.signal(signal.SIGINT, lambda signum, frame: pending.append(frame))
-    try:
+    with _sigint_handler(lambda signum, frame: pending.append(frame)) as previous:
         yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        if pending:
-            if callable(previous):
-                previous(signal.SIGINT, pending[0])
-            elif previous == signal.SIG_DFL:
-                os.kill(os.getpid(), signal.SIGINT)   # the default action, now that it is back
+    if pending:
+        if callable(previous):
+            previous(signal.SIGINT, pending[0])
+        elif previous == signal.SIG_DFL:
+            os.kill(os.getpid(), signal.SIGINT)   # the default action, now that it is back
