@@ -22,7 +22,8 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
 def domain_id(monkeypatch):
     """A DDS domain id no other test, pytest session, benchmark or run on this machine holds
     (:func:`uh_runtime.network.reserve_domain_id`), with loopback config; ROS_DOMAIN_ID and
-    CYCLONEDDS_URI are set for this process and its children. Released after the test."""
+    CYCLONEDDS_URI are set for this process and its children. Released after the test.
+    """
     dom = reserve_domain_id()
     for key, value in loopback_environment(dom).items():
         if os.environ.get(key) != value:

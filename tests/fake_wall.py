@@ -1,5 +1,6 @@
 """Test doubles for the ROS-free node logic (input synchronisation, clock advancement): a wall clock
-that moves only when the test says so, and a logger that keeps the lines."""
+that moves only when the test says so, and a logger that keeps the lines.
+"""
 
 
 class FakeClock:
@@ -17,7 +18,8 @@ class FakeClock:
 
 class RecordingLogger:
     """Collects ``(level, text)`` of ``info``, ``warning`` and ``error``; :meth:`texts` gives the
-    lines of one level (all with ``level=None``)."""
+    lines of one level (all with ``level=None``).
+    """
 
     def __init__(self):
         self.lines = []

@@ -1,5 +1,6 @@
 """rosbag2 MCAP layout of the bag writer, checked against a bag recorded by ROS 2 Jazzy and read
-back with rosbags (an independent reader)."""
+back with rosbags (an independent reader).
+"""
 from pathlib import Path
 
 import numpy as np

@@ -1,5 +1,6 @@
 """The benchmark harness (benchmarks/uh_bench) and the team generator it uses: a smoke test with tiny
-runs. Nothing here is timed: the assertions are about what the harness records, not how fast."""
+runs. Nothing here is timed: the assertions are about what the harness records, not how fast.
+"""
 import json
 import os
 import sys
@@ -156,7 +157,8 @@ def test_backends_section_measures_the_dds_backend_and_says_why_rclpy_is_not(tmp
 
 def test_the_harness_gives_back_the_domain_ids_it_took(tmp_path, monkeypatch):
     """A benchmark run inside a test session must not keep a DDS domain id reserved after it
-    (the next test that needs that id would find it held)."""
+    (the next test that needs that id would find it held).
+    """
     from uh_runtime import network
     monkeypatch.setattr(runs.subprocess, 'Popen', lambda *a, **k: (_ for _ in ()).throw(OSError('no supervisor')))
     held_before = dict(network._held)

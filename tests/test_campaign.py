@@ -1,7 +1,8 @@
 """uh-campaign: spec validation (file, line, key), reproducible draws, resolved scenarios that
 re-run to the stored numbers, failure recording, resume after Ctrl-C, and a Dask cluster giving
 the local pool's rows. Runs are short (12 s simulated, faults from 2-4 s so that the fault
-estimation is scored) so the file stays well under a minute."""
+estimation is scored) so the file stays well under a minute.
+"""
 import math
 import os
 import signal
@@ -307,7 +308,8 @@ def test_sigint_saves_what_is_done_and_a_rerun_completes_it(reference, tmp_path,
 
 def test_a_terminal_ctrl_c_while_the_workers_start_is_a_clean_interruption(tmp_path):
     """A terminal sends Ctrl-C to the whole process group, workers included: one still starting (before
-    its initializer ignores SIGINT) must not die with a traceback; the main process handles it."""
+    its initializer ignores SIGINT) must not die with a traceback; the main process handles it.
+    """
     spec = _write(tmp_path, 'name: early\nscenario: paper\nruns: 4\nduration: 2.0\ncases: [proposed]\n')
     command = [str(Path(sys.executable).with_name('uh-campaign')), str(spec), '--out', str(tmp_path / 'out'),
                '--workers', '2']
@@ -360,7 +362,8 @@ def test_runs_lost_by_the_executor_are_not_stored_so_a_resume_runs_them_again():
 
 def test_the_script_runs_the_campaign_and_writes_its_report(tmp_path):
     """scripts/campaign.sh (uh-campaign): the campaign, then (every run stored) uh-report DIR; not with
-    --no-report."""
+    --no-report.
+    """
     spec = _write(tmp_path, 'name: script\nscenario: paper\nruns: 2\nduration: 2.0\ncases: [proposed]\n')
     out = tmp_path / 'mc'
     root = Path(__file__).resolve().parents[1]

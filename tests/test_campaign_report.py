@@ -1,6 +1,7 @@
 """uh-report on a campaign directory: the statistics of uh_bringup.campaign_report against values
 worked out by hand on small synthetic campaigns (written with uh_team.campaign.store), and the
-report files, re-run commands and error exits of ``uh-report DIR``."""
+report files, re-run commands and error exits of ``uh-report DIR``.
+"""
 import csv
 import math
 

@@ -1,6 +1,7 @@
 """The control-law kernels and their Python wrapper (docs/graph.md, docs/control_law.md): array layouts, the
 parameter vector, the documented way of calling the per-UH kernel from njit code, the degraded
-step, input checks that leave the controller unchanged, and the signatures the cache is warmed for."""
+step, input checks that leave the controller unchanged, and the signatures the cache is warmed for.
+"""
 import dataclasses
 import math
 
@@ -230,7 +231,8 @@ def test_degraded_step_with_every_input_equals_the_step(paper, uh):
 
 def test_a_rejected_step_changes_nothing(paper):
     """A NaN or a bad shape is reported before any internal state moves: the next good step is
-    the one a controller that never saw the bad input computes."""
+    the one a controller that never saw the bad input computes.
+    """
     a, b = UHController(5, paper), UHController(5, paper)
     for k in range(20):
         states, _ = _inputs(paper, k)

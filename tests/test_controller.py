@@ -1,5 +1,6 @@
 """Per-UH controller: gains and cases, filters, thrust/attitude extraction, consensus errors,
-input checks, equilibrium and determinism (docs/graph.md, docs/control_law.md)."""
+input checks, equilibrium and determinism (docs/graph.md, docs/control_law.md).
+"""
 import copy
 import dataclasses
 import math
@@ -134,7 +135,8 @@ def test_invalid_gains_are_rejected_with_the_offending_key(edit, match):
 
 def test_learning_phase_keys_are_optional_and_default_to_no_phase():
     """Without the keys the law is the one of before the learning phase existed: no phase, the
-    network's gains unchanged afterwards."""
+    network's gains unchanged afterwards.
+    """
     gains = copy.deepcopy(paper_gains()['/**']['ros__parameters'])
     del gains['learning_phase']
     for loop in ('outer', 'inner'):
@@ -194,7 +196,8 @@ def _rotation_e3(phi, theta, psi):
 
 def attitude(u_p, psi):
     """thrust_and_attitude of the kernels with MODEL, a 30 deg tilt limit and 2 m/s^2 minimum
-    vertical acceleration, as a record."""
+    vertical acceleration, as a record.
+    """
     params = control_parameters(ControllerGains.from_mapping(paper_gains()), MODEL)
     params[CP_TILT_LIMIT] = math.radians(30)
     params[CP_MIN_VERTICAL_ACCEL] = 2.0
@@ -348,7 +351,8 @@ def test_learning_phase_is_counted_in_run_time_so_a_late_joiner_estimates_faults
     """docs/control_law.md#learning-phase: the phase covers the run's first seconds, not a
     controller's first seconds. A controller started at step 0 holds its fault estimates at zero;
     one whose first step is after the phase (restarted in a running team) runs its observers from
-    its first step."""
+    its first step.
+    """
     scn = paper_like()
     phase = ControllerGains.from_mapping(paper_gains()).learning_phase
     own = state(p=(0.5, 0.2, 9.0), v=(0.3, -0.1, 0.05), euler=(0.02, -0.01, 0.1), omega=(0.01, 0.02, 0.1))

@@ -39,7 +39,8 @@ AMPLITUDE = np.array([0.02, 0.02, 0.01, 0.01])
 
 def estimates(delta, x=X, u=U_TRIM, params=NOMINAL):
     """``(Fhat_p, Fhat_w)`` that a deviation ``delta`` (4,) rad of the actual inputs from ``u``
-    produces, by the lumped-fault formulas of docs/model.md evaluated with ``params``."""
+    produces, by the lumped-fault formulas of docs/model.md evaluated with ``params``.
+    """
     u = np.asarray(u, dtype=float)
     return lumped_faults(params, x, u, u + np.asarray(delta, dtype=float))
 
@@ -313,7 +314,8 @@ def check_requirements(scenario, arrays, result):
     """Every faulted channel isolated within MAX_DELAY of its onset, nothing else isolated, every
     identifiable channel within the tolerances, every other isolated channel with a reason, the
     mean deviation of every isolated channel close to the truth. Returns
-    ``{(uh, channel): report}`` of the faulted channels."""
+    ``{(uh, channel): report}`` of the faulted channels.
+    """
     faulted = {}
     time = arrays['time']
     for j, uh in enumerate(scenario.ids):
@@ -389,7 +391,8 @@ def test_a_manoeuvring_team_gets_its_constant_faults_identified(tmp_path):
     """The bundled scenarios fly steady turns: no actuator moves enough for rho and b to be
     separated, and no channel is called identifiable there. Here the square team circles at
     0.3 rad/s without turning its nose, so the cyclics sweep about +-2 mrad, and the constant
-    faults of the cyclics are identified (the sinusoidal one is not)."""
+    faults of the cyclics are identified (the sinusoidal one is not).
+    """
     from uh_topology.scenario import load_scenario
 
     square = load_scenario('square')
@@ -430,7 +433,8 @@ def test_the_status_codes_are_the_messages_constants():
 def test_each_controller_publishes_what_isolate_run_computes_over_the_same_run():
     """The controllers (UHController, what the nodes run) stepped on the in-process run's inputs
     carry on their status records the verdicts isolate_run finds over that run's arrays, step for
-    step at the end; status_to_msg puts them on the message unchanged."""
+    step at the end; status_to_msg puts them on the message unchanged.
+    """
     from uh_controller_node.controller import UHController
     from uh_core.wire import status_to_msg
     from uh_sim_node.reference import VirtualLeaderReference

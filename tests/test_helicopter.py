@@ -182,7 +182,8 @@ def test_rotor_moments_are_the_flapping_and_tail_rotor_moments_of_docs_model():
 
 def test_plant_derivative_matches_the_vector_form_of_docs_model():
     """The plant's derivative (input chain, disturbance and rates in the kernels) against the
-    oracle's matrix form of m v' and J omega' at generic states, inputs and times."""
+    oracle's matrix form of m v' and J omega' at generic states, inputs and times.
+    """
     rng = np.random.default_rng(RNG_SEED + 2)
     dist = SinusoidalDisturbance([0.3, 0.3, 0.2], [0.5, 4.0, 3.0], [0.0, 1.0, 2.0])
     for _ in range(10):
@@ -288,7 +289,8 @@ def test_step_equals_textbook_rk4_with_faults_and_disturbance():
 
 def test_rk4_converges_with_order_four():
     """Halving the substep divides the error by ~16, also with time-varying faults/disturbance
-    (they are evaluated at the stage times; a zero-order hold per substep would give order 1)."""
+    (they are evaluated at the stage times; a zero-order hold per substep would give order 1).
+    """
     faults, dist, x0, u = _maneuver()
     t_end = 0.5
 

@@ -1,6 +1,7 @@
 """Deterministic communication and sensing impairments (docs/campaigns.md#impairments): the hash
 they draw from, the delivered step, the noise, the scenario's `impairments` key, and the same
-received states in the in-process kernel, the object loop and the lockstep distributed stack."""
+received states in the in-process kernel, the object loop and the lockstep distributed stack.
+"""
 import subprocess
 import sys
 from pathlib import Path
@@ -181,7 +182,8 @@ def test_realtime_runs_refuse_impairments(tmp_path):
 def test_a_lockstep_distributed_run_with_impairments_equals_the_in_process_run(tmp_path, impaired):
     """Delay, loss, noise and a dropout act in each receiving controller node with the functions the
     kernel calls, so the bag equals the in-process run to the bit, and its /uhN/received holds
-    exactly the states each controller used."""
+    exactly the states each controller used.
+    """
     from rosbags.rosbag2 import Reader
     from team_runs import start_run
 

@@ -5,7 +5,8 @@ of a restarted controller, rejection counting and its rate limit, lag statistics
 
 Deterministic: wall time comes from a fake clock, log lines go to a list; no sleeps, no DDS. The
 graph is the paper's (uh3 hears only uh2; uh4 hears uh1, uh2, uh5; uh1 hears uh3 and the virtual
-leader)."""
+leader).
+"""
 import numpy as np
 import pytest
 
@@ -49,7 +50,8 @@ def state(uh, k):
 
 def offer_step(sync, uh, k, keys=None):
     """Offer step k of the given inputs (default: every neighbour, then the own state);
-    returns everything released."""
+    returns everything released.
+    """
     out = []
     for key in (sync.input_keys if keys is None else keys):
         value = ('ref', k) if key == REFERENCE else state(key, k)
@@ -166,7 +168,8 @@ def test_realtime_nothing_beyond_the_last_step(paper):
 # -- realtime: staleness, start-up grace, hold --------------------------------------------------------
 def run_steps(sync, uh, clock, steps, keys):
     """Offer steps ``steps`` of ``keys`` and the own state, polling after the sync wait each time;
-    returns the released StepInputs."""
+    returns the released StepInputs.
+    """
     out = []
     for k in steps:
         out += offer_step(sync, uh, k, keys=keys)

@@ -1,7 +1,8 @@
 """Every run records /markers (visualization_msgs/MarkerArray in frame world), and what the markers
 show agrees with the recorded states and reference: a run's bag opened in Foxglove Studio or
 replayed to RViz2 shows the formation as it flew. Uses the shared 22 s lockstep run of
-tests/test_report.py; the bag is read with rosbags (an independent reader)."""
+tests/test_report.py; the bag is read with rosbags (an independent reader).
+"""
 from pathlib import Path
 
 import numpy as np

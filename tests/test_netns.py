@@ -2,7 +2,8 @@
 bridge, random loss with nftables (uh_bringup.netns, run_formation.sh --hosts netns --loss PCT).
 
 Needs root (CAP_NET_ADMIN) and iproute2; the loss tests also need nftables, which is installed with
-apt-get when missing. Elsewhere every test here is skipped with the reason."""
+apt-get when missing. Elsewhere every test here is skipped with the reason.
+"""
 import json
 import os
 import shutil

@@ -1,5 +1,6 @@
 """DDS domain reservation (uh_runtime/network.py): runs, test sessions and benchmarks started at
-the same time on one machine never share a domain id."""
+the same time on one machine never share a domain id.
+"""
 import subprocess
 import sys
 

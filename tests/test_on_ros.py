@@ -124,7 +124,8 @@ def test_ros2_launch_fails_with_status_1_when_a_lockstep_node_dies(domain_id, tm
 def test_ros2_launch_fails_with_status_1_when_no_node_can_start(domain_id, tmp_path):
     """A node executable that cannot be executed (here: a script whose interpreter does not exist,
     as a workspace built by another Python leaves it) gives launch no process-exit event; the launch
-    then ends idle, which without the clock's completion is a failed run."""
+    then ends idle, which without the clock's completion is a failed run.
+    """
     from uh_bringup.team_nodes import NODES
     overlay = tmp_path / 'overlay'
     for kind in NODES.values():   # shadow every node's package with an executable that cannot start
@@ -151,7 +152,8 @@ def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain
     within the acceptance thresholds (formation < 0.05 m, containment < 0.02 m; the lockstep run
     reaches 0.0138 m and 0.0028 m), and, where the control loop may run under SCHED_FIFO (the
     launch's default realtime_priority), at most 10 late commands in 10,000 simulator steps
-    (docs/performance.md#real-time-scheduling)."""
+    (docs/performance.md#real-time-scheduling).
+    """
     from uh_bringup.bag_metrics import write_metrics_from_bag
     from uh_topology.scenario import load_scenario
     from uh_runtime import scheduling
@@ -179,7 +181,8 @@ def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain
 
 def test_tf2_echo_and_diagnostics_of_a_running_team(domain_id, tmp_path):
     """docs/visualization.md on real ROS: tf2 resolves world -> uh1/base_link from /tf, and
-    /diagnostics carries the simulators' and controllers' reports."""
+    /diagnostics carries the simulators' and controllers' reports.
+    """
     launch = subprocess.Popen(['ros2', 'launch', 'uh_bringup', 'formation.launch.py', f'out:={tmp_path / "v"}',
                                'duration:=30.0', 'visualization:=false'],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)

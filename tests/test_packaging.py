@@ -1,5 +1,6 @@
 """The repository is a set of real ROS 2 Jazzy packages whose dependencies run one way
-(docs/architecture.md)."""
+(docs/architecture.md).
+"""
 import ast
 import re
 import xml.etree.ElementTree as ET
@@ -84,7 +85,8 @@ def test_every_package_is_in_a_layer():
 @pytest.mark.parametrize('pkg', PYTHON_PACKAGES)
 def test_dependencies_run_one_way(pkg):
     """package.xml names only lower layers, and the code imports only what package.xml names:
-    the simulator and the controller never import each other, nothing imports uh_bringup."""
+    the simulator and the controller never import each other, nothing imports uh_bringup.
+    """
     depends = _first_party_depends(pkg)
     upward = sorted(d for d in depends if LAYER_OF[d] >= LAYER_OF[pkg])
     assert not upward, f'{pkg}/package.xml depends on {upward}, which are not below it'

@@ -1,6 +1,7 @@
 """Parameter services, /parameter_events and /rosout of the Cyclone DDS backend (what ``ros2 param``
 and ``ros2 topic echo /rosout`` use), with rclpy's (Jazzy) answers; and the ``uh param`` CLI against a
-node in another process. Wire conventions: uh_runtime.dds_backend.services."""
+node in another process. Wire conventions: uh_runtime.dds_backend.services.
+"""
 import subprocess
 import sys
 from pathlib import Path
@@ -22,7 +23,8 @@ Parameter = messages.dds_message('rcl_interfaces/msg/Parameter')
 @pytest.fixture
 def served(domain_id):
     """A node ``/uh3/controller`` spinning in a thread with a few parameters, and a second context
-    (another participant, as ``ros2 param`` would be) to call it from."""
+    (another participant, as ``ros2 param`` would be) to call it from.
+    """
     ctx = rt.Context()
     ctx.init(args=['node'])
     node = rt.Node('controller', namespace='/uh3', context=ctx)

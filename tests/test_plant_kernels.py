@@ -133,7 +133,8 @@ def test_a_fault_switches_on_at_the_first_substep_start_after_its_onset():
 def test_kernel_onset_test_is_the_schedules_within_the_tolerance():
     """An onset a fraction of ONSET_TOLERANCE after the switch time still acts (a k*dt time that
     rounding put just short of the onset), two tolerances after it does not: the same answer as
-    ActuatorFault.started, whose tolerance the fault table carries into the kernels."""
+    ActuatorFault.started, whose tolerance the fault table carries into the kernels.
+    """
     params = K.params_vector(load_helicopter_params())
     uc, ua = np.zeros(4), np.zeros(4)
     u = np.full(4, 0.01)

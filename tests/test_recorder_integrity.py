@@ -2,7 +2,8 @@
 MCAP file readable up to its last complete chunk (at most the chunk being filled is lost, see
 uh_runtime.bag.CHUNK_SIZE), which recover_bag completes; SIGINT and SIGTERM leave a complete bag;
 in lockstep the bag holds exactly what every node published; a run whose recorder is killed says
-so and recovers the bag."""
+so and recovers the bag.
+"""
 import json
 import os
 import re
@@ -52,7 +53,8 @@ def _recorded(bag_dir: Path) -> int:
 @pytest.fixture
 def recording(tmp_path, domain_id, processes):
     """A recorder process recording /uh1/state and a talker that has published N messages to it (all
-    acknowledged): returns (recorder process, bag directory)."""
+    acknowledged): returns (recorder process, bag directory).
+    """
     bag = tmp_path / 'bag'
     recorder = processes.start([str(Path(sys.executable).with_name('recorder_node')), '--ros-args',
                                 '-p', f'output:={bag}', '-p', 'topics:=[/uh1/state]'],
@@ -198,7 +200,8 @@ def test_run_whose_recorder_is_killed_fails_and_recovers_the_bag(tmp_path):
 def test_a_one_shot_injection_is_recorded_when_the_topic_is_expected(tmp_path, domain_id, processes):
     """``ros2 topic pub --once`` publishes as soon as one subscription (the simulator's) matched, and
     leaves: the recorder must be subscribed before. With the fault topic in ``expected_topics`` it
-    is, and the injection is in the bag."""
+    is, and the injection is in the bag.
+    """
     from uh_runtime import dds_backend as rt_dds
     from uh_runtime import messages as m
     from uh_core import topics

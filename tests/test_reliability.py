@@ -9,7 +9,8 @@
 - a node dying in lockstep ends the run, naming the node.
 
 The realtime runs go at rate 2 (twice real time) to keep the test short: the point is the failure
-handling, not the control quality at full speed."""
+handling, not the control quality at full speed.
+"""
 import json
 import os
 import signal
@@ -38,7 +39,8 @@ STALE_STEPS = int(round(STALE_TIMEOUT / 0.01))
 
 def _run_and_kill(out: Path, domain: int, victim: str, at_step: int, *extra, timeout=300):
     """Start a realtime run, SIGKILL ``victim`` (a process name of run.json) once the clock has
-    logged step ``at_step`` (its progress lines come every 10 %), wait for the run to end."""
+    logged step ``at_step`` (its progress lines come every 10 %), wait for the run to end.
+    """
     proc = subprocess.Popen([str(RUN), '--out', str(out), '--domain-id', str(domain), '--clock', 'realtime',
                              *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
@@ -222,7 +224,8 @@ def test_a_death_in_lockstep_ends_the_run_naming_the_node(tmp_path):
 def test_no_node_outlives_a_killed_supervisor(tmp_path, domain_id):
     """SIGKILL to the run supervisor alone (no Ctrl-C, no clean-up): every node process it started
     gets SIGTERM from the kernel (parent-death signal) and ends, instead of running on in the DDS
-    domain (uh_runtime.runner.end_with_supervisor)."""
+    domain (uh_runtime.runner.end_with_supervisor).
+    """
     out = tmp_path / 'run'
     proc = start_run(out, domain_id, '--clock', 'realtime', '--duration', '60')
     try:

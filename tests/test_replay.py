@@ -132,7 +132,8 @@ def test_replay_of_a_team_run_sends_the_recorded_bytes_in_order_on_time(processe
 
 def test_replay_of_a_ros2_jazzy_bag(processes, domain_id, tmp_path):
     """A bag recorded by `ros2 bag record -s mcap` on ROS 2 Jazzy replays the same way, at its
-    own (wall-clock) log times, /clock included as recorded."""
+    own (wall-clock) log times, /clock included as recorded.
+    """
     topics = ['/uh1/chatter', '/uh1/arr', '/uh1/header', '/clock']
     rate = 2.0
     expected, received, _ = replay_to_listener(processes, tmp_path, domain_id, JAZZY, topics, rate)
@@ -149,7 +150,8 @@ def test_replay_of_a_ros2_jazzy_bag(processes, domain_id, tmp_path):
 
 def test_clock_is_synthesised_from_log_times_and_qos_is_the_recorded_one(processes, domain_id, tmp_path):
     """A bag without /clock: the replay publishes Clock(log time) before each new log time; the
-    replayed topic offers the QoS of the bag's offered_qos_profiles (here transient-local, depth 5)."""
+    replayed topic offers the QoS of the bag's offered_qos_profiles (here transient-local, depth 5).
+    """
     from rosbags.typesys import Stores, get_typestore
 
     from uh_runtime.bag import BagWriter

@@ -37,7 +37,8 @@ PER_RUN_FIGURES = (['states', 'trajectory_3d', 'xy_snapshots'] + [f'faults_uh{i}
 
 def shared_team_run(tmp_path_factory) -> Path:
     """Run directory of one 22 s lockstep run of the paper scenario (run_formation.sh), made once
-    per test session and shared by the test files that need a recorded team bag."""
+    per test session and shared by the test files that need a recorded team bag.
+    """
     base = tmp_path_factory.getbasetemp()
     out = base / 'shared_team_run'
     with open(base / 'shared_team_run.lock', 'w') as lock:
@@ -78,7 +79,8 @@ def damaged_chunk(path: Path) -> bytes:
     """The bytes of MCAP file ``path`` with 64 bytes in the middle of its middle chunk inverted
     (a damaged disk block; the file keeps its size, footer and summary). Inverted, not zeroed:
     the middle of a chunk may already be zeros (an odometry message's covariance is 576 of them),
-    and zeroing it would change nothing."""
+    and zeroing it would change nothing.
+    """
     from mcap.reader import make_reader
     with open(path, 'rb') as f:
         chunks = make_reader(f).get_summary().chunk_indexes
@@ -226,7 +228,8 @@ def _fault_metrics(uh3_truth_rms: float, uh3_nrmse) -> dict:
 
 def test_tables_mark_an_nrmse_below_the_floor_as_not_meaningful():
     """An NRMSE withheld below the floor shows 'n/m' (never a number, never 'n/a'), takes no part
-    in the bold of its row, and the absolute error next to it is still shown; false estimate rows."""
+    in the bold of its row, and the absolute error next to it is still shown; false estimate rows.
+    """
     from uh_bringup.report import csv_table, markdown_table as report_table
     runs = [_run_with_metrics('below', _fault_metrics(0.3, None)), _run_with_metrics('above', _fault_metrics(1.4, 0.5))]
     rows = {r[2].strip('`'): r[3:] for r in markdown_table(report_table(runs))[1:]}
@@ -245,7 +248,8 @@ def test_tables_mark_an_nrmse_below_the_floor_as_not_meaningful():
 
 def test_report_of_a_short_simulation_marks_undefined_metrics(tmp_path):
     """A 5 s run ends before the 20 s settle time: its after-settle metrics are null in
-    metrics.json and 'n/a' in the table; the default output directory is RUN_DIR/report."""
+    metrics.json and 'n/a' in the table; the default output directory is RUN_DIR/report.
+    """
     from uh_bringup.report import main
     from uh_team import simulate_cli
     run = tmp_path / 'short'

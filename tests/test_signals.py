@@ -16,7 +16,8 @@ from uh_runtime.signals import sigint_deferred
 
 class _SwallowingReader:
     """take() runs a Python constructor per sample and turns what it raises into a plain Exception,
-    as cyclonedds' builtin readers do; Ctrl-C arrives while the second sample is built."""
+    as cyclonedds' builtin readers do; Ctrl-C arrives while the second sample is built.
+    """
 
     def __init__(self):
         self.finished = False
@@ -79,7 +80,8 @@ def test_nothing_pending_nothing_raised_and_the_handler_is_given_back():
 def test_a_target_that_fails_to_wake_does_not_stop_later_wake_ups():
     """The wake-up thread calls every registered target on every signal; one whose DDS entities are
     gone (a closed graph of another node) raised there and ended the thread, so later signals
-    woke nothing."""
+    woke nothing.
+    """
     import threading
     import time
     from uh_runtime.signals import wake_on_signals

@@ -1,5 +1,6 @@
 """One table of nodes (uh_bringup.team_nodes) behind the entry points, the composition, the run script
-and the launch file, so they cannot drift apart."""
+and the launch file, so they cannot drift apart.
+"""
 import ast
 import importlib
 import runpy
@@ -63,7 +64,8 @@ class _Recorder:
 
 def _fake_launch_modules(monkeypatch):
     """Minimal ``launch`` and ``launch_ros`` (ROS 2 is not installed here): each class records how it
-    was built, so the launch file's own logic runs."""
+    was built, so the launch file's own logic runs.
+    """
     mods = {name: types.ModuleType(name) for name in
             ('launch', 'launch.actions', 'launch.event_handlers', 'launch.events', 'launch.substitutions',
              'launch_ros', 'launch_ros.actions')}

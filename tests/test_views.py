@@ -1,5 +1,6 @@
 """The ready-made views in views/ (docs/visualization.md#ready-made-views): generated from the paper
-scenario by uh_bringup.views, in sync with it, and naming only topics and frames the team has."""
+scenario by uh_bringup.views, in sync with it, and naming only topics and frames the team has.
+"""
 import json
 import re
 from pathlib import Path

@@ -77,7 +77,8 @@ def _subscribe(executor_name: str, messages: int) -> dict:
 
 def measure(case: str, messages: int = 2500) -> dict:
     """Run the publisher and the subscriber of ``case`` (a key of :data:`CASES`) in a DDS domain of
-    their own (reserved, loopback network, given back); their result."""
+    their own (reserved, loopback network, given back); their result.
+    """
     from uh_runtime.network import loopback_environment, release_domain_id, reserve_domain_id
     domain = reserve_domain_id()
     try:

@@ -37,7 +37,8 @@ def _percentile(sorted_values, q: float):
 
 def summarise(states: dict, commands: dict, last_step: int | None = None) -> dict:
     """Per-controller summary from ``{step: source_timestamp_ns}`` maps of one UH's states and
-    commands: latency percentiles (us), late and missed steps (see the module docstring)."""
+    commands: latency percentiles (us), late and missed steps (see the module docstring).
+    """
     lat = []
     late = []
     for k, t_cmd in sorted(commands.items()):

@@ -292,7 +292,8 @@ def rclpy_available() -> str | None:
 def _backends(cfg, workdir, results):
     """The paper scenario, one process per node, on the Cyclone DDS backend and on real rclpy, in
     lockstep (real-time factor, CPU per step) and in real time at rate 1 (p99 latency, late and
-    missed steps, CPU per step), in one run so the comparison is a ratio of this machine's numbers."""
+    missed steps, CPU per step), in one run so the comparison is a ratio of this machine's numbers.
+    """
     skipped = rclpy_available()
     backends = ['dds'] + ([] if skipped else ['rclpy'])
     section = {'skipped_rclpy': skipped, 'lockstep': {}, 'realtime': {}}
@@ -346,7 +347,8 @@ def _busy_count() -> int:
 @contextlib.contextmanager
 def busy_load(n: int):
     """``n`` processes that spin at normal priority for as long as the block runs: a machine whose
-    every core is wanted by someone else."""
+    every core is wanted by someone else.
+    """
     procs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'], stdin=subprocess.DEVNULL)
              for _ in range(n)]
     try:

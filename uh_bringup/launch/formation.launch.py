@@ -72,7 +72,8 @@ class RunFailed(RuntimeError):
 def _on_exit(name, kind, completed):
     """What the end of node ``name`` does: the clock's end with status 0 ends the launch ('run
     complete'); a failed clock, or a lockstep node that fails before the shutdown, ends it with
-    exit status 1 (launch turns an exception in an event handler into shutdown and status 1)."""
+    exit status 1 (launch turns an exception in an event handler into shutdown and status 1).
+    """
     def on_exit(event, context):
         status = event.returncode
         if kind == 'clock' and status == 0:
@@ -90,7 +91,8 @@ def _on_exit(name, kind, completed):
 def _on_idle(completed):
     """The launch also ends when nothing is left running ('idle'). That happens without a process
     exit event when no node could be started at all (launch logs the exec error and sends none):
-    without the clock's completion, that is a failed run, status 1."""
+    without the clock's completion, that is a failed run, status 1.
+    """
     def on_shutdown(event, context):
         if event.reason == 'idle' and not completed:
             raise RunFailed('every process has ended, and the clock never completed the run (a node that '

@@ -136,7 +136,8 @@ def read_team_bag(bag_dir, scenario) -> dict:
 def _isolation_of(status) -> dict:
     """The fault isolation fields of one ``ControllerStatus`` as plain lists (one entry per channel):
     ``step``, ``isolated``, ``detection_time`` (s), ``effectiveness``, ``bias`` (rad),
-    ``identification`` (codes)."""
+    ``identification`` (codes).
+    """
     return {'step': int(status.step), 'isolated': [bool(v) for v in status.fault_isolated],
             'detection_time': [float(v) for v in status.fault_detection_time],
             'effectiveness': [float(v) for v in status.identified_effectiveness],

@@ -1,6 +1,7 @@
 """``uh-campaign``: run a campaign (:mod:`uh_team.campaign.cli`, every option and exit status there)
 and, once every run is stored, write its report (``uh-report DIR``: ``DIR/report/``; docs/campaigns.md)
-unless ``--no-report``."""
+unless ``--no-report``.
+"""
 from __future__ import annotations
 
 import sys

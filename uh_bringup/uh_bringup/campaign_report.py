@@ -137,7 +137,8 @@ def is_campaign_dir(path) -> bool:
     """Whether ``path`` is a campaign: a directory holding ``campaign.sqlite`` or a ``scenarios/``
     folder (a campaign that has not stored a run yet; :func:`load_campaign` says so), or the
     ``.sqlite`` results file itself. Run directories (``bag/``, ``run.json``, ``timeseries.npz``)
-    are not."""
+    are not.
+    """
     path = Path(path)
     if path.is_file():
         return path.suffix == '.sqlite'
@@ -211,7 +212,8 @@ def load_campaign(path) -> Campaign:
 # ----------------------------------------------------------------------------------------------
 def wilson_interval(successes: int, trials: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
     """Wilson score interval ``(low, high)`` of a success probability from ``successes`` of
-    ``trials`` (fractions in [0, 1]); ``(nan, nan)`` for no trials."""
+    ``trials`` (fractions in [0, 1]); ``(nan, nan)`` for no trials.
+    """
     # With p = k/n and z the (1 + confidence)/2 normal quantile (1.96 for 95 %):
     #   centre = (p + z²/(2n)) / (1 + z²/n)
     #   half   = z / (1 + z²/n) * sqrt(p(1 - p)/n + z²/(4n²))
@@ -236,7 +238,8 @@ def status_counts(runs: dict, cases) -> dict:
 def success_rate(runs: dict, mask: np.ndarray, confidence: float = CONFIDENCE) -> dict:
     """Success rate of the runs selected by the boolean ``mask``: ``{'runs', 'successes', 'rate',
     'ci_low', 'ci_high'}`` (fractions). A run is successful only when its stored ``success`` is 1:
-    diverged and failed runs, and runs without a verdict, count as not successful."""
+    diverged and failed runs, and runs without a verdict, count as not successful.
+    """
     trials = int(np.sum(mask))
     successes = int(np.sum(runs['success'][mask] == 1))
     low, high = wilson_interval(successes, trials, confidence)
@@ -254,7 +257,8 @@ _NUMBER = re.compile(r'(?<![A-Za-z_])[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?')
 
 def reason_pattern(reason) -> str:
     """The reason of a run with its numbers (steps, times, values) replaced by ``N``, so that runs
-    failing the same way group together; UH names such as ``uh3`` are kept."""
+    failing the same way group together; UH names such as ``uh3`` are kept.
+    """
     text = ' '.join(str(reason or '').split())
     return _NUMBER.sub('N', text) if text else '(no reason stored)'
 
@@ -262,7 +266,8 @@ def reason_pattern(reason) -> str:
 def failure_groups(runs: dict, examples: int = 5) -> list[dict]:
     """The diverged and failed runs grouped by status and :func:`reason_pattern`, largest group
     first: ``{'status', 'pattern', 'count', 'cases': {case: count}, 'draws': [first draws],
-    'example': one full reason}``."""
+    'example': one full reason}``.
+    """
     groups = {}
     for i in np.flatnonzero(np.isin(runs['status'], _NOT_OK)):
         status, reason = str(runs['status'][i]), runs['reason'][i]
@@ -287,7 +292,8 @@ def _ok_finite(runs: dict, case: str, metric: str) -> np.ndarray:
 def distribution_summary(runs: dict, cases, metric: str) -> list[dict]:
     """Per case, over its ok runs with a finite ``metric``: ``{'case', 'n', 'median', 'p90', 'max',
     'max_draw', 'max_sweep_value'}`` (NaN / None when no run has a value). Percentiles interpolate
-    linearly between order statistics (numpy's default)."""
+    linearly between order statistics (numpy's default).
+    """
     rows = []
     for case in cases:
         index = _ok_finite(runs, case, metric)
@@ -305,7 +311,8 @@ def distribution_summary(runs: dict, cases, metric: str) -> list[dict]:
 
 def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
     """Empirical CDF of the finite ``values``: sorted values and the fraction ``i/n`` (i = 1..n) of
-    values at or below each."""
+    values at or below each.
+    """
     x = np.sort(np.asarray(values, dtype=float)[np.isfinite(values)])
     return x, np.arange(1, len(x) + 1) / max(len(x), 1)
 
@@ -314,7 +321,8 @@ def paired_differences(runs: dict, first: str, second: str, metric: str,
                        sweep_index: int | None = None) -> tuple[list, np.ndarray]:
     """``(keys, differences)``: for every (draw, sweep index) where both cases ran ok with a finite
     ``metric``, ``metric(first) - metric(second)`` (negative: ``first`` is better), keys sorted;
-    with ``sweep_index``, at that sweep point only."""
+    with ``sweep_index``, at that sweep point only.
+    """
     def by_key(case):
         index = _ok_finite(runs, case, metric)
         if sweep_index is not None:
@@ -329,7 +337,8 @@ def bootstrap_median_ci(differences, resamples: int = BOOTSTRAP_RESAMPLES, seed:
                         confidence: float = CONFIDENCE) -> tuple[float, float]:
     """Percentile bootstrap interval of the median of ``differences``: the median of ``resamples``
     resamples drawn with replacement (generator seeded with ``seed``), and the (1 - confidence)/2
-    and (1 + confidence)/2 quantiles of those medians; ``(nan, nan)`` for fewer than 2 values."""
+    and (1 + confidence)/2 quantiles of those medians; ``(nan, nan)`` for fewer than 2 values.
+    """
     d = np.asarray(differences, dtype=float)
     if len(d) < 2:
         return math.nan, math.nan
@@ -347,7 +356,8 @@ def bootstrap_median_ci(differences, resamples: int = BOOTSTRAP_RESAMPLES, seed:
 def wilcoxon_p(differences) -> tuple[float, str]:
     """Two-sided Wilcoxon signed-rank p-value of paired ``differences`` (zero differences dropped,
     scipy's default) and a note: ``(nan, why)`` for fewer than 2 pairs or all differences zero,
-    ``(p, '')`` otherwise."""
+    ``(p, '')`` otherwise.
+    """
     d = np.asarray(differences, dtype=float)
     if len(d) < 2:
         return math.nan, 'fewer than 2 pairs'
@@ -367,7 +377,8 @@ def paired_comparison(runs: dict, first: str, second: str, metric: str, resample
     'sweep_index', 'pairs', 'excluded' (draws run by both cases that are not a pair: a run not ok
     or without the metric), 'first_better' (fraction with first < second), 'ties' (count),
     'median_difference' (first - second), 'ci_low', 'ci_high' (:func:`bootstrap_median_ci`),
-    'wilcoxon_p', 'note'}``."""
+    'wilcoxon_p', 'note'}``.
+    """
     _, d = paired_differences(runs, first, second, metric, sweep_index)
     n = len(d)
 
@@ -387,7 +398,8 @@ def paired_comparison(runs: dict, first: str, second: str, metric: str, resample
 def worst_runs(runs: dict, case: str, count: int = WORST_COUNT) -> list[int]:
     """Row indices of the ``count`` worst runs of ``case``: failed ones first, then diverged ones,
     then ok runs without a score (a metric undefined), then the ok runs by ``formation_rms_m +
-    containment_rms_m`` largest first; ties in draw and sweep order."""
+    containment_rms_m`` largest first; ties in draw and sweep order.
+    """
     rank = {'failed': 0, 'diverged': 1}
     score = runs['formation_rms_m'] + runs['containment_rms_m']
 
@@ -430,7 +442,8 @@ def sweep_table(runs: dict, cases, sweep_values=(), confidence: float = CONFIDEN
     '<metric>_median', '<metric>_q25', '<metric>_q75', '<metric>_n'`` for each of
     :data:`SWEEP_METRICS` (over the ok runs with a finite value), and the :func:`success_rate`
     keys ``successes``, ``rate``, ``ci_low``, ``ci_high``}. The sweep value is the stored one, else
-    ``sweep_values[sweep_index]``."""
+    ``sweep_values[sweep_index]``.
+    """
     rows = []
     for case in cases:
         mine = runs['case_name'] == case
@@ -469,7 +482,8 @@ def _metric_axis_label(metric: str) -> str:
 def plot_distribution(runs: dict, cases, metric: str, path: Path, labels: dict | None = None) -> Path | None:
     """Empirical CDF of ``metric`` over the ok runs of each case, cases overlaid (legend: n and
     median); log x-axis when the positive values span :data:`LOG_SPAN_RATIO` or more. None (no file)
-    when no case has a value."""
+    when no case has a value.
+    """
     from matplotlib.figure import Figure
 
     series = {case: ecdf(runs[metric][_ok_finite(runs, case, metric)]) for case in cases}
@@ -500,7 +514,8 @@ def plot_distribution(runs: dict, cases, metric: str, path: Path, labels: dict |
 def plot_sweep(table: list[dict], cases, parameter: str, path: Path, labels: dict | None = None) -> Path:
     """Three panels against the swept value: median (line) and interquartile range (band) of
     ``formation_rms_m`` and ``containment_rms_m`` per case, and the success rate with its Wilson
-    interval (error bars, shifted slightly per case so they do not overlap) per case."""
+    interval (error bars, shifted slightly per case so they do not overlap) per case.
+    """
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=_SWEEP_SIZE, dpi=_DPI, layout='constrained')
@@ -585,7 +600,8 @@ def _csv(head, rows) -> str:
 
 class _Document:
     """A report as a list of blocks, rendered to Markdown and to HTML alike. Paragraph texts may hold
-    ``code`` spans (backticks) and **bold**."""
+    ``code`` spans (backticks) and **bold**.
+    """
 
     def __init__(self):
         self.blocks = []
@@ -902,7 +918,8 @@ def _write_csvs(out: Path, campaign: Campaign, success: list, summaries: dict, p
 
 def make_writable_dir(out: Path, error=ValueError) -> None:
     """Create ``out`` if needed and check that a file can be written in it; raise ``error`` with
-    the reason otherwise."""
+    the reason otherwise.
+    """
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = out / '.write_test'

@@ -285,7 +285,8 @@ def _table_unit(unit: str) -> str:
 
 def _fault_rows(runs) -> list[tuple[str, str, str, bool]]:
     """Rows of the fault metrics (docs/metrics.md): the false fault estimate's maximum over the UHs
-    per vector, then for every UH and vector any run scores its absolute RMS error and its NRMSE."""
+    per vector, then for every UH and vector any run scores its absolute RMS error and its NRMSE.
+    """
     from uh_team.metrics import LUMPED_FAULTS
 
     rows = [(f'false_fault_estimate.max.{v.key}',
@@ -323,7 +324,8 @@ def isolation_table(run) -> list[list[str]] | None:
     """Rows (cell texts, columns :data:`ISOLATION_HEAD`) of the fault isolation of ``run``: every
     faulted channel (isolation delay, identified ``rho`` and ``b`` against the truth, or why they
     are not identifiable) and every falsely isolated one; ``None`` if ``metrics.json`` has no
-    ``fault_isolation`` section (an older run, or one without commands)."""
+    ``fault_isolation`` section (an older run, or one without commands).
+    """
     section = run.metrics.get('fault_isolation')
     if not section:
         return None
@@ -360,7 +362,8 @@ def _html_paragraph(text: str) -> str:
 
 def _isolation_section(run, grid, paragraph) -> str:
     """The per-run fault isolation table rendered by ``grid`` (:func:`_markdown_grid` or
-    :func:`_html_grid`), or a sentence rendered by ``paragraph`` when there is none."""
+    :func:`_html_grid`), or a sentence rendered by ``paragraph`` when there is none.
+    """
     rows = isolation_table(run)
     if rows is None:
         return paragraph('No fault isolation in metrics.json.')
@@ -370,7 +373,8 @@ def _isolation_section(run, grid, paragraph) -> str:
 def _table_value(metrics: dict, key: str):
     """The value of ``key`` as the tables show it: that of ``metrics.json``, except an NRMSE
     withheld below its floor, which is :data:`uh_team.metrics.NOT_MEANINGFUL_MARK` (not ``n/a``:
-    it is defined, just not a measure of the estimator). A KeyError if absent."""
+    it is defined, just not a measure of the estimator). A KeyError if absent.
+    """
     from uh_team.metrics import NOT_MEANINGFUL_MARK, nrmse_below_floor
 
     value = _lookup(metrics, key)
@@ -547,7 +551,7 @@ def write_report(runs, out: Path) -> Path:
             md += [f'### {_figure_text(key)}', '', f'![{run.name} {key}]({rel(path)})', '']
     (out / 'report.md').write_text('\n'.join(md))
 
-    parts = [f'<h2>Metrics</h2>', html_table(runs)] + [f'<p>{html.escape(n).replace("`", "")}</p>' for n in _notes(runs)]
+    parts = ['<h2>Metrics</h2>', html_table(runs)] + [f'<p>{html.escape(n).replace("`", "")}</p>' for n in _notes(runs)]
     parts.append('<h2>Comparison figures</h2>')
     for key in ('errors', 'errors_per_uh'):
         parts.append(f'<figure><img src="{html.escape(rel(figures[key]))}" alt="{key}">'

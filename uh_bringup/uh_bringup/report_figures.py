@@ -217,7 +217,8 @@ def snapshot_times(t_end: float, count: int = 7) -> list[float]:
 
 def plot_xy_snapshots(run, path: Path, count: int = 7) -> Path:
     """XY plane (m): trajectories, and at ``count`` snapshot times the leaders' convex hull (filled
-    polygon), the followers (filled markers) and the virtual leader (star)."""
+    polygon), the followers (filled markers) and the virtual leader (star).
+    """
     from matplotlib.patches import Polygon
 
     t = run.arrays['time']
@@ -300,7 +301,8 @@ def _convex_hull_2d(points: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------------------------
 def plot_faults(run, uh: int, path: Path) -> Path:
     """Estimated (dashed) vs true (solid) lumped faults of UH ``uh``: F_p (m/s^2, inertial x, y, z)
-    left, F_w (rad/s^2, body roll, pitch, yaw) right, one row per axis; dotted line at the onset."""
+    left, F_w (rad/s^2, body roll, pitch, yaw) right, one row per axis; dotted line at the onset.
+    """
     from uh_team.metrics import faulted_uhs
 
     t = run.arrays['time']
@@ -338,7 +340,8 @@ def plot_faults(run, uh: int, path: Path) -> Path:
 
 def _robust_ylim(ax, t, true, est, skip: float) -> None:
     """y range holding the true fault everywhere and the estimate after ``skip`` s (start-up
-    spikes of the observers would otherwise squash the curves), with 8 % margins."""
+    spikes of the observers would otherwise squash the curves), with 8 % margins.
+    """
     late = t >= skip
     values = np.concatenate([np.asarray(true, dtype=float), np.asarray(est, dtype=float)[late]])
     values = values[np.isfinite(values)]
@@ -357,7 +360,8 @@ def _fault_free_steps(run, uh: int, faulted: dict) -> np.ndarray:
 
 def _log_ylim(ax, shown, threshold: float) -> float:
     """Log y range from below the scored values and a tenth of ``threshold`` up to the largest
-    value drawn; returns its bottom (curves are clipped to it, so a zero estimate stays visible)."""
+    value drawn; returns its bottom (curves are clipped to it, so a zero estimate stays visible).
+    """
     values = np.concatenate(shown) if shown else np.empty(0)
     values = values[np.isfinite(values) & (values > 0)]
     low = min(threshold / 10, 0.5 * float(np.percentile(values, 1))) if values.size else threshold / 10
@@ -423,7 +427,8 @@ def plot_false_fault_estimate(run, path: Path) -> Path:
 # ----------------------------------------------------------------------------------------------
 def uh_errors(run) -> np.ndarray:
     """(K+1, n) formation error ``|p_i - h_i - p_0|`` of each leader and containment error
-    ``|p_k - sum_j w_kj p_j|`` of each follower, m (docs/metrics.md), UH axis in ``scenario.ids`` order."""
+    ``|p_k - sum_j w_kj p_j|`` of each follower, m (docs/metrics.md), UH axis in ``scenario.ids`` order.
+    """
     from uh_team.metrics import containment_errors, formation_errors
 
     sc = run.scenario
@@ -452,7 +457,8 @@ def _settle_line(ax, runs) -> None:
 def plot_errors(runs, path: Path) -> Path:
     """RMS over the leaders of the formation errors and RMS over the followers of the containment
     errors (m, log scale) against time, one line per run (Figures 10-12), with an inset table of
-    the after-settle RMS from each run's metrics."""
+    the after-settle RMS from each run's metrics.
+    """
     with _style():
         fig = _figure('errors')
         axes = fig.subplots(2, 1, sharex=True)
@@ -486,7 +492,8 @@ def plot_errors(runs, path: Path) -> Path:
 
 def plot_errors_per_uh(runs, path: Path) -> Path:
     """Formation (leaders) or containment (followers) error of each UH (m, log scale) against time,
-    one panel per UH, one line per run."""
+    one panel per UH, one line per run.
+    """
     sc = runs[0].scenario
     ids = sc.ids
     cols = 2

@@ -155,7 +155,8 @@ def _config_errors() -> tuple:
 
 def validate_team(scenario, case: str) -> None:
     """Build what every node would build (each UH's controller and plant, the reference) so a bad
-    gains or airframe file is reported before any process starts; raises the node's own error."""
+    gains or airframe file is reported before any process starts; raises the node's own error.
+    """
     from uh_controller_node.controller import UHController
     from uh_controller_node.gains import ControllerGains
     from uh_core.airframe import load_helicopter_params
@@ -192,7 +193,8 @@ def _prepare_out(out: Path, force: bool) -> None:
 
 def _entry(package: str, executable: str) -> list:
     """Command that starts a node's entry point: ``ros2 run`` on a ROS 2 machine (the backend is
-    chosen by the node's ``UH_BACKEND``), else the venv script."""
+    chosen by the node's ``UH_BACKEND``), else the venv script.
+    """
     if shutil.which('ros2') and os.environ.get('ROS_DISTRO'):
         return ['ros2', 'run', package, executable]
     script = Path(sys.executable).with_name(executable)
@@ -205,7 +207,8 @@ LAYOUTS = ('per-node', 'per-uh', 'single')
 def process_commands(specs, layout: str, spec_dir: Path) -> list[tuple[str, list]]:
     """``[(process name, command), ...]``: one process per node (``per-node``, each through its entry
     point), one per UH (``per-uh``: its sim and controller; the team nodes and the recorder in one
-    more each) or everything in one (``single``). The process holding the clock is last."""
+    more each) or everything in one (``single``). The process holding the clock is last.
+    """
     return [(name, cmd) for name, _kind, cmd in _processes(specs, layout, spec_dir)]
 
 
@@ -218,7 +221,8 @@ def _group_kind(group: str) -> str:
 
 def _processes(specs, layout: str, spec_dir: Path) -> list[tuple[str, str, list]]:
     """As :func:`process_commands`, with the node kind of each process (for composed ones,
-    :func:`_group_kind`)."""
+    :func:`_group_kind`).
+    """
     if layout == 'per-node':
         return [(name, kind, _entry(NODES[kind].package, NODES[kind].executable) + args) for name, kind, args in specs]
     groups: dict[str, list] = {}

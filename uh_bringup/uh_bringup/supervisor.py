@@ -48,7 +48,8 @@ class NodeFailure(RuntimeError):
 @dataclass
 class NodeProcess:
     """One supervised process: its name, node kind (``sim``, ``controller``, ... or the kind that
-    decides for a group of nodes), command, log, the running ``Popen`` and its exit status."""
+    decides for a group of nodes), command, log, the running ``Popen`` and its exit status.
+    """
 
     name: str
     cmd: list
@@ -172,7 +173,8 @@ class Supervisor:
 
     def stop_all(self, last=()) -> dict:
         """SIGINT every running node (the ``last`` ones after the others have ended), wait, then
-        SIGKILL what is left; return the exit codes by node name."""
+        SIGKILL what is left; return the exit codes by node name.
+        """
         for group in ([n for n in self.nodes if n.name not in last], [n for n in self.nodes if n.name in last]):
             for node in group:
                 if node.poll() is None:

@@ -71,7 +71,8 @@ NODES = {
 def backend_environment(kind: str, env) -> dict:
     """Extra environment of a node of ``kind``: ``UH_BACKEND=dds`` for an infrastructure node when
     the user has not chosen a backend (``UH_BACKEND`` unset in ``env``) and the Cyclone DDS Python
-    binding is installed; nothing otherwise (the node then takes rclpy where it exists)."""
+    binding is installed; nothing otherwise (the node then takes rclpy where it exists).
+    """
     import importlib.util
     if NODES[kind].infrastructure and not env.get('UH_BACKEND') and importlib.util.find_spec('cyclonedds'):
         return {'UH_BACKEND': 'dds'}
@@ -96,7 +97,8 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
     and /diagnostics off, docs/visualization.md; ``live_view=(host, port)`` adds the Foxglove live
     view after the recorder). In realtime, ``realtime_priority`` > 0 runs the control loop's nodes
     (every kind that is not infrastructure) under SCHED_FIFO at that priority
-    (docs/performance.md#real-time-scheduling)."""
+    (docs/performance.md#real-time-scheduling).
+    """
     common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
     loop = (['-p', f'realtime_priority:={int(realtime_priority)}']
             if clock == 'realtime' and realtime_priority > 0 else [])

@@ -57,7 +57,8 @@ def foxglove_layout(scenario) -> str:
 
 def rviz_config(scenario) -> str:
     """An RViz2 configuration (YAML): fixed frame ``world``, grid, TF, ``/markers``, one Odometry
-    display per UH, the view following the virtual leader."""
+    display per UH, the view following the virtual leader.
+    """
     displays = [
         {'Class': 'rviz_default_plugins/Grid', 'Name': 'Grid', 'Enabled': True, 'Cell Size': 5,
          'Plane Cell Count': 40, 'Reference Frame': frames.WORLD_FRAME},

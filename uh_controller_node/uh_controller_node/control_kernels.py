@@ -385,7 +385,8 @@ def filter_advance(u, y, gain, wrap_last):
 @njit(cache=True)
 def rbf_centre(i, nodes, low, high):
     """Centre c_i of node ``i`` of ``nodes`` evenly spaced on ``[low, high]`` (as ``np.linspace``;
-    one node sits at ``(low + high) / 2``)."""
+    one node sits at ``(low + high) / 2``).
+    """
     if nodes == 1:
         return 0.5 * (low + high)
     if i == nodes - 1:
@@ -510,7 +511,8 @@ def fault_observer_update(fhat, z, zn, lambda_, gamma_f, sigma_f, dt, bound):
 @njit(cache=True)
 def _learning(params, memory):
     """True while the step's simulated time (``FLAG_TIME``) is within the learning phase
-    (``CP_LEARNING_PHASE``, counted from step 0 of the run)."""
+    (``CP_LEARNING_PHASE``, counted from step 0 of the run).
+    """
     return memory[M_FLAGS, FLAG_TIME] < params[CP_LEARNING_PHASE]
 
 
@@ -760,7 +762,8 @@ def thrust_and_attitude(params, u_p, psi_d):
 def achieved_acceleration(params, euler, thrust, out):
     """``(T / m) R(Theta) e3 - g e3`` (3,) m/s^2: the acceleration the limited thrust ``T`` (N)
     gives at the measured attitude ``euler`` (rad), the outer SPEM's input (anti-windup,
-    docs/control_law.md#anti-windup-and-projection)."""
+    docs/control_law.md#anti-windup-and-projection).
+    """
     cf, sf = math.cos(euler[0]), math.sin(euler[0])
     ct, st = math.cos(euler[1]), math.sin(euler[1])
     cp, sp = math.cos(euler[2]), math.sin(euler[2])
@@ -857,7 +860,8 @@ def inner_drift(params, omega, thrust, out):
 @njit(cache=True)
 def control_effectiveness(params, thrust, out):
     """Diagonal of ``G(T) = J^-1 diag((K_beta + T h_M) B_lat, (K_beta + T h_M) A_lon, K_tr)`` (3,),
-    rad/s^2 per rad, for ``u_m = (delta_lat, delta_lon, theta_tr)``; ``thrust`` T in N."""
+    rad/s^2 per rad, for ``u_m = (delta_lat, delta_lon, theta_tr)``; ``thrust`` T in N.
+    """
     k = params[CP_K_BETA] + thrust * params[CP_H_M]
     out[0] = k * params[CP_B_LAT] / params[CP_J_X]
     out[1] = k * params[CP_A_LON] / params[CP_J_Y]
@@ -999,7 +1003,8 @@ def frobenius_norm(weights):
 @njit(cache=True)
 def first_non_finite_state(own_state, nb_states):
     """``STEP_DONE`` (-1) when ``own_state`` (12,) and every row of ``nb_states`` (n_nb, 12) are
-    finite; otherwise 0 for the own state or ``1 + n`` for neighbour row ``n`` (the first found)."""
+    finite; otherwise 0 for the own state or ``1 + n`` for neighbour row ``n`` (the first found).
+    """
     for a in range(STATE_SIZE):
         if not math.isfinite(own_state[a]):
             return 0

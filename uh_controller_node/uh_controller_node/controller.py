@@ -141,7 +141,8 @@ class ControllerStatusData:
     def from_vector(cls, uh_id: int, step: int, stamp: float, status: np.ndarray) -> 'ControllerStatusData':
         """The record of the kernel's ``status`` vector (STATUS_SIZE,) (layout: ``S_*`` constants of
         :mod:`~uh_controller_node.control_kernels`). The vector fields are views of ``status``,
-        which the record then owns."""
+        which the record then owns.
+        """
         s = status.tolist()
         # positional, in field order (this runs every control step)
         return cls(uh_id, step, stamp, status[S_Z1:S_Z1 + 3], status[S_Z2:S_Z2 + 3], status[S_Z3:S_Z3 + 3],
@@ -331,7 +332,8 @@ class UHController:
     @property
     def inner(self) -> LoopState:
         """Live views of the inner loop's W_w, Fhat_w, omegahat and alpha_wf (Theta_df is
-        ``kernel_arrays().memory[M_THETA_DF]``)."""
+        ``kernel_arrays().memory[M_THETA_DF]``).
+        """
         m = self._memory
         return LoopState(self._weights_w, m[M_F_HAT_W], m[M_OMEGA_HAT], m[M_ALPHA_WF])
 
@@ -421,7 +423,8 @@ class UHController:
         """Whether this UH still has a directed path from the virtual leader when the UHs in ``lost``
         (ids; ``0`` = the virtual leader's reference) are gone: Assumption 1 for this UH on the
         remaining graph (docs/graph.md). Leaders never hear followers, so a follower reached from the
-        virtual leader is reached through a leader."""
+        virtual leader is reached through a leader.
+        """
         lost = {int(j) for j in lost}
         sources = () if 0 in lost else (0,)
         return self.uh_id in reachable_from(self._graph, sources, allowed=self._ids - lost)
@@ -494,7 +497,8 @@ class UHController:
 
         Only the shape is checked here; finiteness is checked by the kernel. On a bad input the
         inputs are checked one by one in the order the law reads them, so the error reported is
-        the first one (also when an earlier state holds NaN)."""
+        the first one (also when an earlier state holds NaN).
+        """
         try:
             x = own_state
             if type(x) is np.ndarray and x.shape == _STATE_SHAPE:

@@ -144,7 +144,8 @@ class ControllerNode(rt.Node):
     # -- gains as parameters (docs/control_law.md#gains-as-parameters) ---------------------------
     def _declare_gains(self, scenario) -> tuple:
         """Declare every gain of the scenario's gains file as a parameter (``beta``, ``outer.k`` ...):
-        the file's value is the default, ``--params-file`` (``/**:``) or ``-p`` override it."""
+        the file's value is the default, ``--params-file`` (``/**:``) or ``-p`` override it.
+        """
         names = []
         for g in gain_parameters(scenario.gains, source=f'gains of scenario {scenario.name!r}'):
             ranges = {}
@@ -159,7 +160,8 @@ class ControllerNode(rt.Node):
 
     def _gains_of(self, changes: dict) -> ControllerGains:
         """The controller's gains from the current parameter values with ``changes`` applied
-        (validated like the gains file; :class:`GainsError` says what is wrong)."""
+        (validated like the gains file; :class:`GainsError` says what is wrong).
+        """
         flat = {name: self.get_parameter(name).value for name in self.gain_names}
         flat.update(changes)
         return ControllerGains.from_mapping(nest_gains(flat), self.case, source=f'uh{self.uh_id} controller gains')
@@ -240,7 +242,8 @@ class ControllerNode(rt.Node):
 
     def _diagnose(self, k: int, t: float, inputs, status) -> None:
         """Add step k to the diagnostics window; publish it every ``views.diagnostics_every`` steps
-        (docs/visualization.md#diagnostics). Per step only counters; the rest at the report."""
+        (docs/visualization.md#diagnostics). Per step only counters; the rest at the report.
+        """
         w = self.window
         w.steps += 1
         if status.saturated_tilt or status.saturated_collective or status.saturated_cyclic:

@@ -289,7 +289,8 @@ def _constants(P) -> tuple:
 
 def _deviation(k, pq, u, euler, fp, fw):
     """:func:`input_deviation` on floats: ``k`` from :func:`_constants`, ``pq`` the body rates
-    ``(p, q)``; returns ``([d_col, d_tr, d_lat, d_lon], dT, kTa)``."""
+    ``(p, q)``; returns ``([d_col, d_tr, d_lat, d_lon], dT, kTa)``.
+    """
     m, jx, jy, jz, c_m1, c_m2, k_beta, h_m, b_lat, a_lon, tau_f, k_tr, c_q = k
     phi, theta, psi = euler
     cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
@@ -309,7 +310,8 @@ class _AffineFit:
     """Recursive least squares of ``d = theta_1 u + theta_2`` in its exact (sufficient-statistics)
     form: exponentially weighted mean and centred second moments, updated per sample (West's
     weighted Welford recursion). Equivalent to the covariance form of RLS started with an infinite
-    covariance (no prior), which that form only approximates with a large ``P_0``."""
+    covariance (no prior), which that form only approximates with a large ``P_0``.
+    """
 
     __slots__ = ('lam', 'w', 'mu', 'md', 'suu', 'sud', 'sdd', 't0', 't1')
 
@@ -556,7 +558,8 @@ class FaultIsolator:
 
     def _verdict(self, c: int) -> tuple:
         """Numbers and verdict code of isolated channel ``c`` (class docstring): ``(code, rho_fit,
-        bias_fit, fit_time, std u, std (u + d), residual RMS, rho_bound, bias_bound)``."""
+        bias_fit, fit_time, std u, std (u + d), residual RMS, rho_bound, bias_bound)``.
+        """
         s = self._s
         fit = self._fits[c]
         fit_time = 0.0 if fit.w == 0.0 else fit.t1 - fit.t0 + self._dt
@@ -581,7 +584,8 @@ class FaultIsolator:
 
     def status(self) -> IsolationStatus:
         """The per-step summary a controller publishes (:class:`IsolationStatus`; the same numbers
-        as :meth:`report`, without its texts: this runs every control step)."""
+        as :meth:`report`, without its texts: this runs every control step).
+        """
         rho, bias, code = [math.nan] * _N, [math.nan] * _N, [NOT_ISOLATED] * _N
         for c in range(_N):
             if self._isolated[c]:
@@ -593,7 +597,8 @@ class FaultIsolator:
 
 def _setup(arrays, scenario, case, settings):
     """Nominal model, settings (the scenario's learning phase by default) and the run's arrays
-    (float arrays, rows cut to the shortest)."""
+    (float arrays, rows cut to the shortest).
+    """
     from uh_core.airframe import load_helicopter_params
 
     from .gains import ControllerGains

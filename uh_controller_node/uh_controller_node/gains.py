@@ -312,7 +312,8 @@ STRUCTURAL_KEYS = ('rbf_nodes', 'rbf_low', 'rbf_high', 'rbf_width')
 @dataclass(frozen=True)
 class GainParameter:
     """One gain as a ROS parameter: ``name`` (``beta``, ``outer.k`` ...), default ``value``,
-    ``description``, lower bound ``minimum`` (None: none) and ``read_only``."""
+    ``description``, lower bound ``minimum`` (None: none) and ``read_only``.
+    """
 
     name: str
     value: object
@@ -324,7 +325,8 @@ class GainParameter:
 def gain_parameters(mapping, source: str = 'gains') -> list:
     """The gains of ``mapping`` (plain or ``/**: ros__parameters:``, validated as by
     :meth:`ControllerGains.from_mapping`) as a list of :class:`GainParameter`, dotted names for
-    the loops (``outer.k``), in file order."""
+    the loops (``outer.k``), in file order.
+    """
     ControllerGains.from_mapping(mapping, 'proposed', source)   # validate first: clear errors
     data = _unwrap(mapping, source)
     out = []

@@ -48,7 +48,8 @@ def _splitmix(z):
 @njit(cache=True)
 def hash_uniform(seed, receiver, sender, step, stream):
     """A uniform number in [0, 1) from ``(seed, receiver, sender, step, stream)`` (all ints >= 0):
-    SplitMix64 applied to each in turn, the top 53 bits scaled by 2^-53."""
+    SplitMix64 applied to each in turn, the top 53 bits scaled by 2^-53.
+    """
     z = _splitmix(np.uint64(seed))
     z = _splitmix(z ^ np.uint64(receiver))
     z = _splitmix(z ^ np.uint64(sender))
@@ -78,7 +79,8 @@ def delivered_step(k, delay, loss, drop_step, seed, receiver, sender):
     """Step of the state of ``sender`` that ``receiver`` uses at step ``k`` (see the module docstring).
 
     ``delay`` steps >= 0, ``loss`` probability in [0, 1), ``drop_step`` the sender's first step
-    nobody receives; ``receiver`` and ``sender`` are UH ids."""
+    nobody receives; ``receiver`` and ``sender`` are UH ids.
+    """
     s = k - delay
     if s >= drop_step:
         s = drop_step - 1
@@ -93,7 +95,8 @@ def delivered_step(k, delay, loss, drop_step, seed, receiver, sender):
 @njit(cache=True)
 def add_noise(state, sigma, seed, receiver, sender, step, out):
     """``out = state + sigma * g``, ``g`` standard normal per component (Box-Muller on two hashed
-    uniforms, keyed by the step the state was sent at); components with ``sigma == 0`` are copied."""
+    uniforms, keyed by the step the state was sent at); components with ``sigma == 0`` are copied.
+    """
     for c in range(STATE_SIZE):
         if sigma[c] == 0.0:
             out[c] = state[c]
@@ -135,7 +138,8 @@ class ReceivedStates:
     def receive(self, k: int, own, neighbours: dict):
         """The own state and neighbour states the controller uses at step ``k``, from those sent at
         step ``k``. Returns ``(own, {j: state})`` (new arrays); :attr:`sample_steps` then holds
-        the step each neighbour's state was sent at."""
+        the step each neighbour's state was sent at.
+        """
         own_out = np.empty(STATE_SIZE)
         add_noise(np.ascontiguousarray(own, dtype=float), self.sigma, self.seed, self.uh_id, self.uh_id, k, own_out)
         out = {}

@@ -177,7 +177,8 @@ class InputSynchroniser:
     # -- inputs ------------------------------------------------------------------------------------
     def offer(self, key, k: int, value) -> list:
         """Take in the valid value of input ``key`` (:data:`OWN`, a neighbour id or
-        :data:`REFERENCE`) for step ``k``; returns the :class:`StepInputs` now released, in order."""
+        :data:`REFERENCE`) for step ``k``; returns the :class:`StepInputs` now released, in order.
+        """
         if key != OWN and key not in self.input_keys:
             raise ValueError(f'uh{self.uh_id} does not hear {input_label(key)}')
         if self.lockstep:
@@ -196,12 +197,14 @@ class InputSynchroniser:
     def poll(self) -> list:
         """realtime timer: release the step waited for once its sync wait is over; report a silent
         own state. Call it after every message already received has been offered, so a backlog (a
-        process that was not scheduled for a while) is taken in before anything counts as stale."""
+        process that was not scheduled for a while) is taken in before anything counts as stale.
+        """
         return [] if self.lockstep else self._assemble(from_timer=True)
 
     def reject(self, what: str, reason) -> None:
         """Count a rejected message of input ``what`` and log why, at most once per
-        :data:`REJECT_LOG_PERIOD` wall seconds per input; the last valid value is kept."""
+        :data:`REJECT_LOG_PERIOD` wall seconds per input; the last valid value is kept.
+        """
         count = self.rejected[what] = self.rejected.get(what, 0) + 1
         now = self.now()
         last = self._reject_logged.get(what)

@@ -18,7 +18,8 @@ __all__ = ['view_publisher', 'transform_msg', 'tf_msg', 'odometry_msg', 'diagnos
 
 def view_publisher(node, spec):
     """``node``'s publisher of the standard view ``spec`` (:data:`uh_core.topics.TF`, ``ODOM``,
-    ``DIAGNOSTICS``) with its type and QoS from the topic registry."""
+    ``DIAGNOSTICS``) with its type and QoS from the topic registry.
+    """
     return node.create_publisher(m.get_message(spec.type), spec.name, topics.qos_profile(spec.qos))
 
 
@@ -56,7 +57,8 @@ def tf_msg(transforms):
 def odometry_msg(uh_id: int, t: float, x, pose=None):
     """``nav_msgs/Odometry`` of UH ``uh_id`` in state ``x`` (12,) at time ``t``: pose in ``world``,
     twist in ``uhN/base_link`` (REP 105); covariances zero (the simulator's state is exact).
-    ``pose``: :func:`uh_core.frames.pose_of_state` of ``x`` if already computed."""
+    ``pose``: :func:`uh_core.frames.pose_of_state` of ``x`` if already computed.
+    """
     position, q = pose or frames.pose_of_state(x)
     linear, angular = frames.body_twist_of_state(x)
     pose = m.Pose(position=m.Point(x=position[0], y=position[1], z=position[2]),

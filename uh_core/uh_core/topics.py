@@ -42,7 +42,8 @@ QosSpec = QoSWords
 @dataclass(frozen=True)
 class TopicSpec:
     """A topic: name (relative = in the UH's namespace), ROS type, QoS, whether it carries one
-    message per lockstep step, and who publishes/subscribes (for documentation and audits)."""
+    message per lockstep step, and who publishes/subscribes (for documentation and audits).
+    """
 
     name: str
     type: str
@@ -113,7 +114,8 @@ def uh_topic(uh_id: int, spec: TopicSpec) -> str:
 
 def team_topics(uh_ids, impaired: bool = False) -> list[tuple[str, TopicSpec]]:
     """Every recorded topic of a team with UHs ``uh_ids`` (with ``impaired``, of a scenario with
-    impairments): ``[(full name, spec), ...]``."""
+    impairments): ``[(full name, spec), ...]``.
+    """
     topics = [(spec.name, spec) for spec in TEAM]
     per_uh = PER_UH + (IMPAIRED_PER_UH if impaired else ())
     for uh_id in sorted(uh_ids):
@@ -123,5 +125,6 @@ def team_topics(uh_ids, impaired: bool = False) -> list[tuple[str, TopicSpec]]:
 
 def qos_profile(spec: QosSpec):
     """Build the node runtime's ``QoSProfile`` (rclpy's on a ROS 2 machine) from ``spec``
-    (:func:`uh_runtime.qos.profile_from_words`)."""
+    (:func:`uh_runtime.qos.profile_from_words`).
+    """
     return profile_from_words(spec)

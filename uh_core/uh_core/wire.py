@@ -93,7 +93,8 @@ def state_to_msg(uh_id: int, k: int, t: float, x: np.ndarray):
 def received_states_to_msg(uh_id: int, k: int, dt: float, own, neighbours: dict, sample_steps: dict):
     """``ReceivedStates`` of UH ``uh_id`` at step ``k``: its ``own`` state (sent at k) and the
     ``neighbours`` states ``{j: x}`` it used, each stamped with the step it was sent at
-    (``sample_steps[j]``, time ``step * dt``)."""
+    (``sample_steps[j]``, time ``step * dt``).
+    """
     states = [state_to_msg(uh_id, k, k * dt, own)]
     states += [state_to_msg(j, sample_steps[j], sample_steps[j] * dt, neighbours[j]) for j in sorted(neighbours)]
     return m.ReceivedStates(header=_header(k * dt), uh_id=int(uh_id), step=int(k), states=states)
@@ -160,7 +161,8 @@ _NAN4 = (math.nan,) * 4
 
 def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=()):
     """``ControllerStatus`` from the controller core's status record (same field names; the fault
-    isolation fields from its ``isolation``, or "nothing isolated" when that is None)."""
+    isolation fields from its ``isolation``, or "nothing isolated" when that is None).
+    """
     fields = {name: vector3(getattr(status, name)) for name in _STATUS_VECTORS}
     fields.update((name, float(getattr(status, name))) for name in _STATUS_SCALARS)
     fields.update((name, bool(getattr(status, name))) for name in _STATUS_FLAGS)

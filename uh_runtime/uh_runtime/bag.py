@@ -82,7 +82,8 @@ class TopicInfo:
 
 class _DirectFile:
     """A write-only binary file without a user-space buffer: every ``write`` is handed to the
-    operating system at once (so what the MCAP writer wrote survives a SIGKILL of the process)."""
+    operating system at once (so what the MCAP writer wrote survives a SIGKILL of the process).
+    """
 
     def __init__(self, path: Path):
         self._raw = open(path, 'wb', buffering=0)
@@ -137,7 +138,8 @@ class BagWriter:
 
     def add_topic(self, name: str, type_name: str, offered_qos_profiles: str) -> TopicInfo:
         """Register topic ``name`` of ``type_name`` with its offered QoS (rosbag2 YAML, see
-        :func:`uh_runtime.qos.qos_profile_yaml`)."""
+        :func:`uh_runtime.qos.qos_profile_yaml`).
+        """
         if name in self.topics:
             return self.topics[name]
         definition, type_hash = message_definition(type_name)
@@ -164,7 +166,8 @@ class BagWriter:
 
     def flush(self) -> None:
         """Close the chunk being filled and hand it to the file: everything written so far survives a
-        crash of this process (a chunk with no messages is not written)."""
+        crash of this process (a chunk with no messages is not written).
+        """
         if not self._closed:
             self._writer.flush()
 

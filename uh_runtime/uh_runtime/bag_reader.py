@@ -124,7 +124,8 @@ def _open_mcap(path: Path):
 def _crc_mismatch(chunk) -> bool | None:
     """Whether an uncompressed chunk's bytes differ from the CRC its writer stored (one C-speed pass
     checks everything); None if there is nothing to compare (no CRC, as rosbag2 on Jazzy writes
-    it, or compressed)."""
+    it, or compressed).
+    """
     if chunk.compression != '' or not chunk.uncompressed_crc:
         return None
     return zlib.crc32(chunk.data) != chunk.uncompressed_crc
@@ -306,7 +307,8 @@ def iter_bag_messages(info: BagInfo, topics=None):
 @dataclass
 class ReadResult:
     """What :func:`read_messages` found: schemas and channels by id, message count per topic, and
-    whether (and where) the file ended early or was damaged."""
+    whether (and where) the file ended early or was damaged.
+    """
 
     path: Path
     schemas: dict = field(default_factory=dict)

@@ -82,7 +82,8 @@ class _Gen:
     # ------------------------------------------------------------------ serialiser
     def ser_function(self, typename, top=False):
         """Emit ``_s_<T>(m, b)`` appending ``m`` (at payload offset 0 if ``top``, else at an
-        unknown offset); return its name."""
+        unknown offset); return its name.
+        """
         name = f"_s{'top' if top else ''}_{self.fname(typename)}"
         if name in self.functions:
             return name
@@ -201,7 +202,8 @@ class _Gen:
     # ------------------------------------------------------------------ deserialiser
     def de_function(self, typename, top=False):
         """Emit ``_d_<T>(d, p) -> (msg, p)`` reading at payload offset 0 if ``top``, else at an
-        unknown offset; return its name."""
+        unknown offset; return its name.
+        """
         name = f"_d{'top' if top else ''}_{self.fname(typename)}"
         if name in self.functions:
             return name

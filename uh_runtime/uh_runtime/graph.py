@@ -202,7 +202,8 @@ class Graph:
         """True once other participants are known and, for each participant with ROS endpoints
         (``rt/``, ``rq/``, ``rr/`` topics), its ``ros_discovery_info`` and every reader and writer
         listed there. (A participant without ROS endpoints, e.g. another ``uh`` command, never
-        publishes ``ros_discovery_info``.)"""
+        publishes ``ros_discovery_info``.)
+        """
         others = [key for key in self.participants if key != self.own_key]
         if not others:
             return False

@@ -40,7 +40,8 @@ def enabled() -> bool:
 
 def compatible(writer_qos, reader_qos) -> bool:
     """True when a DDS writer with ``writer_qos`` would match a reader with ``reader_qos``
-    (reliability and durability, the policies this project varies)."""
+    (reliability and durability, the policies this project varies).
+    """
     if reader_qos.reliability == ReliabilityPolicy.RELIABLE and \
             writer_qos.reliability != ReliabilityPolicy.RELIABLE:
         return False
@@ -161,7 +162,8 @@ class IntraProcess:
 
     def take_pending(self, wanted) -> list:
         """The pending subscriptions for which ``wanted(sub)`` holds, removed from the pending list
-        (the others stay pending, e.g. those of nodes another executor spins)."""
+        (the others stay pending, e.g. those of nodes another executor spins).
+        """
         if not self.pending:
             return []
         with self._lock:

@@ -83,7 +83,8 @@ def connect_hint(host: str, port: int) -> str:
 
 def add_arguments(parser, what: str) -> None:
     """``--foxglove [PORT]`` and ``--foxglove-host HOST`` of the command-line tools that offer the
-    live view; ``what`` names what is served (e.g. 'the team')."""
+    live view; ``what`` names what is served (e.g. 'the team').
+    """
     parser.add_argument('--foxglove', nargs='?', type=int, const=DEFAULT_PORT, default=None, metavar='PORT',
                         help=f'serve {what} live over the Foxglove WebSocket protocol on ws://HOST:PORT '
                              f'(default port {DEFAULT_PORT}; docs/visualization.md#live-view-in-foxglove); '

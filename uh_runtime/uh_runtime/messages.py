@@ -93,7 +93,8 @@ class MessageError(LookupError):
 
 def _normalise(name: str) -> str:
     """``'uh_msgs/UHState'`` or ``'uh_msgs/msg/UHState'`` -> ``'uh_msgs/msg/UHState'``; a service
-    part ``'pkg/srv/<Service>_Request'`` (or ``_Response``) is kept as it is."""
+    part ``'pkg/srv/<Service>_Request'`` (or ``_Response``) is kept as it is.
+    """
     if _SRV_NAME_RE.match(str(name).strip()):
         return str(name).strip()
     match = _NAME_RE.match(str(name).strip())
@@ -301,7 +302,8 @@ def _field_type(types, spec):
 def _idl_class(name: str, consts, fields, module: str):
     """The ``IdlStruct`` dataclass of ROS type ``name`` with rosbags ``fields`` and ``consts``: DDS
     type name :func:`dds_type_name`, ROS-like defaults, constants as class attributes,
-    ``__ros_typename__`` and ``__ros_typehash__``, module ``<pkg>.<module>`` like rosidl's."""
+    ``__ros_typename__`` and ``__ros_typehash__``, module ``<pkg>.<module>`` like rosidl's.
+    """
     from cyclonedds.idl import IdlStruct, types
     from cyclonedds.idl._main import IdlMeta
     pkg, _, typ = name.split('/')

@@ -89,7 +89,8 @@ def default_cyclonedds_uri(env: dict | None = None) -> str | None:
 
 def apply_network_default(env: dict | None = None) -> dict:
     """Set ``CYCLONEDDS_URI`` in ``env`` (default ``os.environ``) to :func:`default_cyclonedds_uri`
-    when that is not None; returns ``env``. What ``uh``, the scripts and the runs do first."""
+    when that is not None; returns ``env``. What ``uh``, the scripts and the runs do first.
+    """
     env = os.environ if env is None else env
     uri = default_cyclonedds_uri(env)
     if uri is not None:
@@ -112,7 +113,8 @@ def loopback_environment(domain_id: int, base: dict | None = None) -> dict:
 def environment_script(env: dict) -> str:
     """A POSIX shell script that exports the ``ROS_DOMAIN_ID`` and ``CYCLONEDDS_URI`` of ``env``, so
     that a second terminal that sources it (``ros2 topic list``, ``uh topic list``) joins the same
-    DDS domain with the same discovery settings."""
+    DDS domain with the same discovery settings.
+    """
     import shlex
     lines = ['# source this file to reach the run from another terminal (ros2 CLI, uh CLI)']
     for key in ('ROS_DOMAIN_ID', 'CYCLONEDDS_URI', 'ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_STATIC_PEERS'):

@@ -221,7 +221,8 @@ def from_dds_qos(qos) -> QoSProfile:
 @dataclass(frozen=True)
 class QoSWords:
     """A QoS profile in words; the defaults are ROS 2's default profile (what ``system_default``
-    stands for in a bag)."""
+    stands for in a bag).
+    """
 
     reliability: str = 'reliable'      # reliable | best_effort
     durability: str = 'volatile'       # volatile | transient_local
@@ -269,7 +270,8 @@ def profile_from_words(words):
 def words_of(profile) -> QoSWords:
     """The words of a ``QoSProfile`` of either backend (e.g. a discovered publisher's). A policy
     value without a word (system default, unknown) gets the default profile's word, a depth of 0
-    the default depth."""
+    the default depth.
+    """
     def word(policy):
         value = getattr(profile, policy)
         return _WORDS[policy].get(int(getattr(value, 'value', value)), getattr(_DEFAULT_WORDS, policy))
@@ -281,7 +283,8 @@ def words_of(profile) -> QoSWords:
 def merge_offered(offered) -> QoSWords:
     """One profile that serves every publisher of a topic (``offered``: their :class:`QoSWords`),
     as ``ros2 bag`` chooses it: reliable only if every publisher is, transient-local only if every
-    publisher is, keep-all if any publisher keeps all, the largest depth."""
+    publisher is, keep-all if any publisher keeps all, the largest depth.
+    """
     return QoSWords(
         reliability='reliable' if all(w.reliability == 'reliable' for w in offered) else 'best_effort',
         durability='transient_local' if all(w.durability == 'transient_local' for w in offered) else 'volatile',

@@ -59,7 +59,8 @@ def stamp_of(data: bytes) -> int:
 
 class LogClock:
     """Log time of a raw message: its own stamp (or its Header's) when its type starts with one
-    (:func:`stamped_first`), else the simulation time of the latest ``/clock``, 0 before any."""
+    (:func:`stamped_first`), else the simulation time of the latest ``/clock``, 0 before any.
+    """
 
     def __init__(self):
         self.clock_ns = 0
@@ -74,7 +75,8 @@ class LogClock:
 def new_topics(node, followed, wanted=(), skip=()):
     """``[(name, type, [offered QoSWords of each publisher]), ...]`` of the topics in ``node``'s
     graph that have a publisher and are not ``followed`` yet (only ``wanted`` ones if given; never
-    hidden topics, ``ros_discovery_info`` or ``skip``)."""
+    hidden topics, ``ros_discovery_info`` or ``skip``).
+    """
     found = []
     for name, types in node.get_topic_names_and_types():
         if name in followed or name in skip or (wanted and name not in wanted):

@@ -52,7 +52,8 @@ WAIT_FOR_SUBSCRIBERS_TIMEOUT = 60.0
 # ----------------------------------------------------------------------------------------------
 def _register_types_from_bag(info: BagInfo, names) -> None:
     """Make types the runtime does not know (not uh_msgs, not a Jazzy standard type) known from the
-    bag's own ``ros2msg`` schemas (Cyclone DDS backend only; rclpy imports installed types)."""
+    bag's own ``ros2msg`` schemas (Cyclone DDS backend only; rclpy imports installed types).
+    """
     from rosbags.typesys import get_types_from_msg
 
     store = messages.typestore()
@@ -266,7 +267,6 @@ def _fail(message: str, status: int = 2) -> int:
 
 def main(args=None) -> int:
     """Entry point of ``replay_node`` / ``scripts/replay.sh``; returns the exit status."""
-
     argv = list(sys.argv if args is None else args)
 
     opts = build_parser().parse_args(rt.remove_ros_args(argv)[1:])
@@ -363,7 +363,8 @@ def main(args=None) -> int:
 
 def _start_live_view(host: str, port: int):
     """Start the live view node (:mod:`uh_runtime.live_view`) beside the replay, in its DDS domain;
-    return its process once it accepts connections."""
+    return its process once it accepts connections.
+    """
     viewer = subprocess.Popen([sys.executable, '-P', '-m', 'uh_runtime.live_view', '--ros-args',
                                '-p', f'host:={host}', '-p', f'port:={port}'], env=dict(os.environ))
     deadline = time.monotonic() + 30.0

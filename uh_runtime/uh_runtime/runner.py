@@ -25,7 +25,8 @@ def declared_parameter_names(node) -> list:
 def override_names(node) -> list:
     """Names of every parameter override that applies to ``node`` (``-p``, ``--params-file``,
     ``parameter_overrides``). Both rclpy's Node and the DDS Node keep them in
-    ``_parameter_overrides``."""
+    ``_parameter_overrides``.
+    """
     return sorted(getattr(node, '_parameter_overrides', {}) or {})
 
 

@@ -253,7 +253,8 @@ class HelicopterPlant:
     @staticmethod
     def _command(u_cmd) -> np.ndarray:
         """``u_cmd`` as a writable C-contiguous float64 (4,) array (no copy when it already is one;
-        a read-only array would make numba compile another specialisation of every kernel)."""
+        a read-only array would make numba compile another specialisation of every kernel).
+        """
         u = np.ascontiguousarray(u_cmd, dtype=np.float64)
         if u.shape != (INPUT_SIZE,):
             raise ValueError(f'command u_cmd must have 4 elements (theta_col, theta_tr, delta_lat, '
@@ -321,7 +322,8 @@ class HelicopterPlant:
 
 def plant_from_scenario(scenario, uh_id: int, params: HelicopterParams | None = None) -> HelicopterPlant:
     """The plant of UH ``uh_id`` of a ``uh_topology`` ``Scenario``: its initial state, faults,
-    disturbance and substeps; ``params`` default to the scenario's helicopter file."""
+    disturbance and substeps; ``params`` default to the scenario's helicopter file.
+    """
     if params is None:
         params = load_helicopter_params(scenario.helicopter)
     return HelicopterPlant(

@@ -217,7 +217,8 @@ def params_vector(params) -> np.ndarray:
 
 def fault_table(faults) -> np.ndarray:
     """``faults`` (NUM_CHANNELS, FAULT_FIELDS) float64 from a ``FaultSchedule`` or an iterable of
-    ``ActuatorFault`` (a later fault of a channel replaces an earlier one)."""
+    ``ActuatorFault`` (a later fault of a channel replaces an earlier one).
+    """
     out = np.zeros((NUM_CHANNELS, FAULT_FIELDS))
     for f in getattr(faults, 'faults', faults):
         row = out[f.channel]
@@ -232,7 +233,8 @@ def fault_table(faults) -> np.ndarray:
 
 def disturbance_table(disturbance) -> np.ndarray:
     """``disturbance`` (3, DISTURBANCE_FIELDS) float64 from a ``SinusoidalDisturbance`` (or any object
-    with ``amplitude``, ``frequency``, ``phase`` of 3 numbers); ``None`` gives zeros (no force)."""
+    with ``amplitude``, ``frequency``, ``phase`` of 3 numbers); ``None`` gives zeros (no force).
+    """
     out = np.zeros((3, DISTURBANCE_FIELDS))
     if disturbance is not None:
         out[:, D_AMPLITUDE] = disturbance.amplitude
@@ -284,7 +286,8 @@ def _actual_channel(params, faults, channel, u, t, t_switch):
 @njit(cache=True)
 def _actual(params, faults, uc, t, t_switch):
     """Tuple of 4 actual inputs, rad, for the tuple ``uc`` of limited commands at time ``t`` s,
-    the faults' activity decided at ``t_switch`` s."""
+    the faults' activity decided at ``t_switch`` s.
+    """
     return (_actual_channel(params, faults, U_COL, uc[0], t, t_switch),
             _actual_channel(params, faults, U_TR, uc[1], t, t_switch),
             _actual_channel(params, faults, U_LAT, uc[2], t, t_switch),
@@ -460,7 +463,8 @@ def state_derivative(x, u_actual, d_p, params, out):
 @njit(cache=True)
 def actual_inputs(u_cmd, t, t_switch, params, faults, out_cmd, out_actual):
     """The input chain at time ``t`` s: ``out_cmd`` (4,) = limited command, ``out_actual`` (4,) =
-    faulted (eq. 6, activity decided at ``t_switch`` s) and limited again; all rad."""
+    faulted (eq. 6, activity decided at ``t_switch`` s) and limited again; all rad.
+    """
     uc = _clip_command(params, u_cmd)
     ua = _actual(params, faults, uc, t, t_switch)
     for i in range(INPUT_SIZE):
@@ -502,7 +506,8 @@ def _lumped(params, x, uc, ua, out_p, out_w):
 @njit(cache=True)
 def lumped_faults_of_inputs(x, u_cmd_limited, u_actual, params, out_p, out_w):
     """True lumped faults at state ``x`` (12,) for given inputs (4,) rad: the limited command and
-    the actual (faulted, limited) inputs. ``out_p`` (3,) m/s^2 inertial, ``out_w`` (3,) rad/s^2 body."""
+    the actual (faulted, limited) inputs. ``out_p`` (3,) m/s^2 inertial, ``out_w`` (3,) rad/s^2 body.
+    """
     uc = (u_cmd_limited[0], u_cmd_limited[1], u_cmd_limited[2], u_cmd_limited[3])
     ua = (u_actual[0], u_actual[1], u_actual[2], u_actual[3])
     _lumped(params, x, uc, ua, out_p, out_w)

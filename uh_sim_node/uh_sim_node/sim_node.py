@@ -179,7 +179,8 @@ class SimNode(rt.Node):
 
     def _publish_views(self, t: float) -> None:
         """The state for generic tools (docs/visualization.md): /tf and odom every
-        ``views.pose_every`` steps, /diagnostics every ``views.diagnostics_every`` steps."""
+        ``views.pose_every`` steps, /diagnostics every ``views.diagnostics_every`` steps.
+        """
         x = self.plant.x
         if self.step % self.views.pose_every == 0:
             pose = frames.pose_of_state(x)

@@ -127,7 +127,8 @@ class FaultedUH:
     def scored_vectors(self) -> tuple:
         """The :data:`LUMPED_FAULTS` scored for this UH: ``F_p`` only with a collective fault (only
         the collective acts on the position loop), ``F_w`` always (every channel moves the rotor
-        moments)."""
+        moments).
+        """
         return tuple(v for v in LUMPED_FAULTS if v.key == 'w' or self.collective)
 
 
@@ -346,7 +347,8 @@ def rms_norm(vectors) -> float | None:
 
 def _finite_rows(*arrays) -> np.ndarray:
     """(k,) bool: the rows where every array holds finite values; a step a real-time run did not
-    record is NaN and is left out of the fault metrics."""
+    record is NaN and is left out of the fault metrics.
+    """
     keep = np.ones(arrays[0].shape[0], dtype=bool)
     for arr in arrays:
         keep &= np.isfinite(arr).all(axis=-1)
@@ -418,7 +420,8 @@ def nrmse_below_floor(entry) -> bool:
 
 def _fault_estimation(step_time, ids, faulted, fault_data, tolerance: float) -> dict:
     """``fault_estimation`` of docs/metrics.md: each faulted UH's scored vectors over
-    ``[onset + FAULT_WINDOW_DELAY, end]``; ``fault_data`` maps array names to (K, n, 3) or ``None``."""
+    ``[onset + FAULT_WINDOW_DELAY, end]``; ``fault_data`` maps array names to (K, n, 3) or ``None``.
+    """
     out = {}
     for uh, info in faulted.items():
         vectors = info.scored_vectors()
@@ -437,7 +440,8 @@ def _fault_estimation(step_time, ids, faulted, fault_data, tolerance: float) -> 
 def _false_fault_estimate(step_time, ids, faulted, fault_data, tolerance: float) -> dict:
     """``false_fault_estimate`` of docs/metrics.md: RMS of ``|Fhat|`` of every UH over
     ``[FALSE_ESTIMATE_START, end]`` if healthy, ``[FALSE_ESTIMATE_START, onset)`` if faulted (left
-    out if empty), the maximum over the UHs and the thresholds it is checked against."""
+    out if empty), the maximum over the UHs and the thresholds it is checked against.
+    """
     per_uh = {}
     for col, uh in enumerate(ids):
         end = faulted[uh].onset if uh in faulted else None
@@ -575,7 +579,8 @@ def compute_metrics(*, case: str, time, positions, reference_positions, leaders,
 
 def _channel_faults(scenario, end: float) -> dict:
     """``{uh id: {channel: (onset, rho, bias_constant)}}`` of the faults of ``scenario.faults``
-    whose onset is at or before ``end`` (s); the earliest fault of a channel counts."""
+    whose onset is at or before ``end`` (s); the earliest fault of a channel counts.
+    """
     out = {}
     for uh, specs in sorted(scenario.faults.items()):
         for spec in specs:
@@ -684,7 +689,8 @@ def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
 def _published_verdicts(published: dict, names) -> dict:
     """Per channel name, the verdict entries of :func:`fault_isolation_metrics` from the fault
     isolation fields of a controller's last ``ControllerStatus``
-    (``uh_bringup.bag_metrics.read_team_bag``'s ``isolation``)."""
+    (``uh_bringup.bag_metrics.read_team_bag``'s ``isolation``).
+    """
     from uh_controller_node.fault_isolation import IDENTIFIABLE, IDENTIFICATION_TEXT
 
     def finite(value):

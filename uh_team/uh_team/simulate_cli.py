@@ -86,7 +86,8 @@ def _number(value, spec: str = '.4g') -> str:
 def _fault_lines(metrics: dict) -> list[str]:
     """Console lines of the fault metrics (docs/metrics.md): the false fault estimate's maximum
     over the UHs against its threshold, then the absolute RMS error and NRMSE of every scored
-    vector (``n/m`` below the NRMSE floor)."""
+    vector (``n/m`` below the NRMSE floor).
+    """
     from .metrics import LUMPED_FAULTS, NOT_MEANINGFUL_MARK, nrmse_below_floor
 
     false_estimate = metrics['false_fault_estimate']

@@ -267,7 +267,8 @@ def refresh_cache() -> bool:
     (:data:`_DEPENDENCIES`: ``control_kernels.py``, ``plant_kernels.py``, ``faults.py``,
     ``uh_core/layout.py``, ``impairments.py``) changed since it was cached; the digest is kept next to the cache in
     ``team_kernel.dependencies.sha256``. Returns True when the cache was emptied
-    (:func:`uh_core.kernel_cache.refresh_cache`)."""
+    (:func:`uh_core.kernel_cache.refresh_cache`).
+    """
     return _kernel_cache.refresh_cache([run_team_steps], _DEPENDENCIES, 'team_kernel.dependencies.sha256')
 
 
@@ -276,7 +277,8 @@ refresh_cache()
 
 def compile_team_kernel() -> float:
     """Compile :func:`run_team_steps` for the signature :mod:`.team_simulation` uses (fills numba's
-    on-disk cache); returns the seconds spent."""
+    on-disk cache); returns the seconds spent.
+    """
     start = time.perf_counter()
     n, steps = 1, 1
     i64 = np.zeros((n, 1), dtype=np.int64)

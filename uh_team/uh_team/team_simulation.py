@@ -220,7 +220,8 @@ def _non_finite(K, dt, ids, states, k):
 def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False):
     """The step loop in :func:`~uh_team.team_kernel.run_team_steps` on the stacked arrays
     ``a``, in chunks of about 1 % of the steps so ``progress`` is called as often as by the object
-    loop (``load_only``: one call that runs no step, which loads or compiles the kernel)."""
+    loop (``load_only``: one call that runs no step, which loads or compiles the kernel).
+    """
     from .team_kernel import TEAM_DONE, run_team_steps
 
     for k0 in ([0] if load_only else range(0, K + 1, every)):
@@ -240,7 +241,8 @@ def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False
 def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, impairments=None):
     """The step loop in Python over the per-UH objects (what the distributed nodes run); ``samples``
     are the virtual leader's references of every step; with ``impairments`` every controller
-    receives through a :class:`~uh_controller_node.impairments.ReceivedStates`, as a node does."""
+    receives through a :class:`~uh_controller_node.impairments.ReceivedStates`, as a node does.
+    """
     from uh_controller_node.impairments import ReceivedStates
 
     col = {i: c for c, i in enumerate(ids)}

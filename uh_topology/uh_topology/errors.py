@@ -92,7 +92,8 @@ class DuplicateKeyError(SchemaError):
 class GainsError(ScenarioError):
     """Controller gains that cannot be used: the gains file named by the scenario cannot be read or
     is not a mapping, or an entry is unknown, missing or invalid, or the controller case is unknown
-    (raised by ``uh_controller_node.gains`` too)."""
+    (raised by ``uh_controller_node.gains`` too).
+    """
 
 
 class TopologyError(ScenarioError):
@@ -157,7 +158,8 @@ class UnreachableFollowerError(TopologyError):
 
 class LaplacianConditionError(TopologyError):
     """Lemma 1 fails: L1 has an eigenvalue with non-positive real part, or -L1^-1 L2 is not a
-    matrix of convex weights with the reachability pattern of the graph."""
+    matrix of convex weights with the reachability pattern of the graph.
+    """
 
 
 class DuplicateFaultError(SchemaError):

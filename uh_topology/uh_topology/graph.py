@@ -56,7 +56,8 @@ def laplacian_blocks(adjacency, leaders, followers) -> tuple:
 
 def leader_tracking_matrix(adjacency, leaders) -> np.ndarray:
     """``L[L, L] + diag(a_i0)`` (N, N): the leaders' consensus-tracking matrix (nonsingular under
-    Assumption 1 when leaders hear only leaders and the virtual leader)."""
+    Assumption 1 when leaders hear only leaders and the virtual leader).
+    """
     a = np.asarray(adjacency, dtype=float)
     li = [j - 1 for j in leaders]
     lap = laplacian(a)[np.ix_(li, li)]

@@ -89,7 +89,8 @@ class ViewConfig:
         """The step within each ``diagnostics_every`` period at which UH ``uh_id``'s simulator (or
         controller) reports on /diagnostics: the team's reports are spread evenly over the period,
         not sent in one burst. A reader with a short history (``ros2 topic echo`` keeps 5) that
-        reads after the burst would keep only its last reports (docs/visualization.md#diagnostics)."""
+        reads after the burst would keep only its last reports (docs/visualization.md#diagnostics).
+        """
         ids = list(ids)
         slot = 2 * ids.index(uh_id) + int(controller)
         return (slot * self.diagnostics_every) // (2 * len(ids))
@@ -97,7 +98,8 @@ class ViewConfig:
 
 def declare_view_parameters(node, dt: float) -> ViewConfig:
     """Declare ``standard_views`` (bool), ``pose_rate`` and ``diagnostics_rate`` (Hz of simulated
-    time) on ``node`` (control period ``dt`` s) and return them as steps."""
+    time) on ``node`` (control period ``dt`` s) and return them as steps.
+    """
     node.declare_parameter('standard_views', True, _describe(
         'publish /tf, odom and /diagnostics for RViz2, tf2, Foxglove and rqt (off for benchmarks)',
         read_only=True))

@@ -863,7 +863,8 @@ def read_config_file(path_or_name, what: str, bundled_names, base_dir=None) -> t
     """``(path, text)`` of a YAML file (a relative name is taken relative to ``base_dir``, default
     the current directory), or of the bundled file ``uh_topology/config/<name>.yaml`` when
     ``path_or_name`` is a bare name and no such file exists; ``what`` names the kind of file and
-    ``bundled_names()`` the bundled ones in the error message (:class:`ScenarioNotFoundError`)."""
+    ``bundled_names()`` the bundled ones in the error message (:class:`ScenarioNotFoundError`).
+    """
     text = str(path_or_name)
     path = Path(text)
     if base_dir is not None and not path.is_absolute():

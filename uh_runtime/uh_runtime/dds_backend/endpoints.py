@@ -73,7 +73,8 @@ class Publisher:
 
     def get_subscription_count(self) -> int:
         """Number of matched readers (DDS publication-matched status) plus the subscriptions of
-        this process it feeds directly."""
+        this process it feeds directly.
+        """
         return len(self._writer.get_matched_subscriptions()) + len(self._local)
 
     def wait_for_all_acked(self, timeout_sec=None) -> bool:
@@ -123,7 +124,8 @@ class Subscription:
 
     def _take_messages(self, from_dds=True):
         """Every available sample in one batch (raw CDR bytes or deserialised messages): those of
-        DDS (if ``from_dds``), then those delivered in process."""
+        DDS (if ``from_dds``), then those delivered in process.
+        """
         out = []
         if from_dds:
             ret = self._take(self._reader._ref, self._mask, _TAKE_BATCH)

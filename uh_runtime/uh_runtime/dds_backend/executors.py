@@ -56,7 +56,8 @@ _GUARD_ARG = 0
 def _wait_for_work(waitset_ref, triggered, timeout_ns) -> int:
     """Block in the wait set (at most ``timeout_ns``); fill ``triggered`` with the attach arguments
     of the ready entities and return how many there are. A function of its own so that profiles
-    (``UH_PROFILE_DIR``) show the time a node spends idle."""
+    (``UH_PROFILE_DIR``) show the time a node spends idle.
+    """
     return _WaitSetCalls.get()[2](waitset_ref, triggered, len(triggered), timeout_ns)
 
 
@@ -202,7 +203,8 @@ class Executor:
 
     def _dispatch(self, ready=None):
         """Run the callbacks of the subscriptions whose attach arguments are in ``ready`` (all
-        triggered ones if None), in node/subscription order, then the due timers."""
+        triggered ones if None), in node/subscription order, then the due timers.
+        """
         by_arg = self._by_arg
         attached = self._attached
         if ready is None:

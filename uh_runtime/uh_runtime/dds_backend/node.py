@@ -159,7 +159,8 @@ class Node:
     def _endpoint(self, msg_type, topic, qos_profile):
         """What a writer or reader of ``topic`` needs: resolved name, profile, the intra-process
         registry (None when off), the DDS topic and the DDS QoS (type hash in USER_DATA; local
-        endpoints ignored when intra-process delivery serves them)."""
+        endpoints ignored when intra-process delivery serves them).
+        """
         self._check_type(msg_type)
         profile = as_profile(qos_profile)
         name = self.resolve_topic_name(topic)
@@ -193,7 +194,8 @@ class Node:
 
     def create_service(self, srv_type, srv_name, callback, *, qos_profile=None, callback_group=None):
         """A service server (:class:`~uh_runtime.dds_backend.services.Service`); ``srv_type`` is
-        ``'pkg/srv/Name'``, one of :data:`uh_runtime.messages.SERVICE_DEFINITIONS`."""
+        ``'pkg/srv/Name'``, one of :data:`uh_runtime.messages.SERVICE_DEFINITIONS`.
+        """
         from .services import Service, qos_profile_parameters
         service = Service(self, srv_type, srv_name, callback, as_profile(qos_profile or qos_profile_parameters))
         self.services.append(service)
@@ -316,7 +318,8 @@ class Node:
 
     def get_publishers_info_by_topic(self, topic_name, no_mangle=False):
         """``rclpy``'s list of endpoint infos (node_name, node_namespace, topic_type,
-        endpoint_type, endpoint_gid, qos_profile) of the topic's writers."""
+        endpoint_type, endpoint_gid, qos_profile) of the topic's writers.
+        """
         name = topic_name if no_mangle else self.resolve_topic_name(topic_name)
         return self._graph().endpoints(name, writers=True)
 

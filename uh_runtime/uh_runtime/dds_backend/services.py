@@ -65,7 +65,8 @@ def _endpoints(context, srv_type: str, srv_name: str, qos_profile, role: str):
     """What the request and the reply endpoints of ``srv_name`` need: ``((publisher or subscriber
     entity, DDS topic, qos=...) arguments, sample class)`` each; the server reads requests and
     writes replies, the client the other way round. Both carry ``<role>=<id>;`` (``serviceid`` or
-    ``clientid``, an id unique to this pair) before the type hash in USER_DATA, as rmw_cyclonedds."""
+    ``clientid``, an id unique to this pair) before the type hash in USER_DATA, as rmw_cyclonedds.
+    """
     ident = '.'.join(f'{b:x}' for b in bytes(context.gid[:12]) + next(_service_ids).to_bytes(4, 'big'))
     extra = f'{role}={ident};'.encode()
     out = []
@@ -81,7 +82,8 @@ def _endpoints(context, srv_type: str, srv_name: str, qos_profile, role: str):
 class Service:
     """A service server (``rclpy.service.Service`` subset): ``callback(request, response)`` returns
     the response; ``srv_type`` is ``'pkg/srv/Name'`` (one of
-    :data:`uh_runtime.messages.SERVICE_DEFINITIONS`)."""
+    :data:`uh_runtime.messages.SERVICE_DEFINITIONS`).
+    """
 
     def __init__(self, node, srv_type: str, srv_name: str, callback, qos_profile):
         from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
@@ -110,7 +112,8 @@ class Service:
 
     def _client_reader_matched(self, publication_handle) -> bool | None:
         """Whether the reply writer has matched the reader of the client whose request writer is
-        ``publication_handle``; None if that client is gone or does not say who it is."""
+        ``publication_handle``; None if that client is gone or does not say who it is.
+        """
         try:
             writer = self._reader.get_matched_publication_data(publication_handle)
         except Exception:
@@ -207,7 +210,8 @@ def _result_msg(result: SetParametersResult):
 
 def _listed(name: str, prefixes: list, depth: int) -> bool:
     """Whether ``list_parameters`` with ``prefixes`` and ``depth`` (0: DEPTH_RECURSIVE) lists
-    parameter ``name``, by rclpy's rule (``Node.list_parameters``)."""
+    parameter ``name``, by rclpy's rule (``Node.list_parameters``).
+    """
     def shallow(part):
         return depth == 0 or part.count('.') < depth
     if not prefixes:
@@ -221,7 +225,8 @@ class ParameterServices:
     ``list_parameters``, ``set_parameters``, ``set_parameters_atomically``, answered as
     ``rclpy.parameter_service`` answers them, and a ``ParameterEvent`` on ``/parameter_events``
     for every declaration and every accepted change (``new_parameters`` /
-    ``changed_parameters``)."""
+    ``changed_parameters``).
+    """
 
     SERVICES = (('describe_parameters', 'DescribeParameters'), ('get_parameters', 'GetParameters'),
                 ('get_parameter_types', 'GetParameterTypes'), ('list_parameters', 'ListParameters'),
@@ -369,7 +374,8 @@ class ServiceClient:
 
     def call(self, request, timeout_sec: float = 5.0):
         """Send ``request`` and return the reply (a response of the service), or raise
-        :class:`TimeoutError`."""
+        :class:`TimeoutError`.
+        """
         self._sequence += 1
         request.client_guid, request.sequence_number = self._guid, self._sequence
         self._writer.write(request)

@@ -80,7 +80,8 @@ def main(argv=None, on_complete=None) -> int:
 
     ``on_complete(out_dir)``, if given, runs once every run is stored (unless ``--no-report``) and
     its status is returned: the console script (:mod:`uh_bringup.campaign_cli`) writes the report
-    there, a layer above this package."""
+    there, a layer above this package.
+    """
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -84,7 +84,8 @@ _DRAIN_TIMEOUT = 120.0
 class CampaignError(RuntimeError):
     """A campaign that cannot start or go on: the directory holds another campaign, the cluster
     cannot be reached (``status`` 2: bad input, nothing ran), a worker process died (``status``
-    1: what is done is saved)."""
+    1: what is done is saved).
+    """
 
     def __init__(self, message: str, status: int = 2):
         self.status = status
@@ -107,7 +108,8 @@ class CampaignInterrupted(Exception):
 class CampaignOutcome:
     """Counts of a campaign after :func:`run_campaign`: runs of the whole campaign (``total``),
     stored now (``done``), stored before this call (``skipped``), and of those run now, not ``ok``
-    (``failures``)."""
+    (``failures``).
+    """
 
     directory: Path
     total: int
@@ -129,7 +131,8 @@ def _warm_up() -> None:
     compile them), then ``gc.freeze()`` everything alive (as the nodes do at start-up,
     ``uh_runtime.runner``; ``UH_GC_FREEZE=0`` keeps the default). The imports and the kernels'
     dispatchers are a large, permanent object graph that every full collection would walk again:
-    frozen, a 60 s run of the paper scenario takes about 0.39 s instead of 0.47 s."""
+    frozen, a 60 s run of the paper scenario takes about 0.39 s instead of 0.47 s.
+    """
     global _WARM
     if _WARM:
         return
@@ -368,7 +371,8 @@ def _write_atomic(path: Path, text: str) -> None:
 
 def _tasks(spec: CampaignSpec, directory: Path, done: set):
     """``(task, failed_rows)`` per (draw, sweep point) with pending cases, in key order: the task
-    to run, or the failed rows of a scenario that could not be resolved."""
+    to run, or the failed rows of a scenario that could not be resolved.
+    """
     for draw in range(spec.runs):
         for s, value in enumerate(spec.sweep_values):
             cases = [case for case in spec.cases if (draw, s, case) not in done]
@@ -528,7 +532,8 @@ def _run_alone(executor, task, stop) -> list:
 def _task_rows(executor, future, task, lost: list) -> list:
     """The rows a finished task returned. A task the executor lost (e.g. a Dask worker killed while
     running it) says nothing about its runs: they are not stored, so a resume runs them again, and
-    the reason goes to ``lost``."""
+    the reason goes to ``lost``.
+    """
     try:
         return executor.result(future)
     except CampaignError:
@@ -567,7 +572,8 @@ _BAR_WIDTH = 30
 class Progress:
     """Progress of a campaign on a stream (stderr): runs done / total, failures, runs/s and ETA.
     On a terminal a bar on one line rewritten in place (at most 5 times a second); otherwise a line
-    at every further 10 % of the runs. ``quiet`` writes nothing."""
+    at every further 10 % of the runs. ``quiet`` writes nothing.
+    """
 
     def __init__(self, stream=None, quiet: bool = False, tty: bool | None = None, label: str = 'uh-campaign'):
         self.stream = stream if stream is not None else sys.stderr
@@ -638,7 +644,8 @@ def _duration(seconds: float) -> str:
 
 def summary_lines(directory, spec: CampaignSpec) -> list:
     """Per case (and sweep value): runs stored, success count and rate, median formation and
-    containment RMS of the ``ok`` runs (from the results file)."""
+    containment RMS of the ``ok`` runs (from the results file).
+    """
     import numpy as np
 
     runs = store.read_runs(Path(directory) / store.DB_NAME)

@@ -226,7 +226,8 @@ _TOKEN = re.compile(r'([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]')
 @dataclass(frozen=True)
 class FaultDraws:
     """The fault draws of ``draws.faults`` (module docstring). Ranges are ``(low, high)``;
-    ``channels`` are channel indices, ``candidates`` UH ids (None: every UH)."""
+    ``channels`` are channel indices, ``candidates`` UH ids (None: every UH).
+    """
 
     faulted_uhs: tuple = (1, 1)
     candidates: tuple | None = None
@@ -242,7 +243,8 @@ class FaultDraws:
 @dataclass(frozen=True)
 class Draws:
     """The random draws of a campaign (module docstring): spreads in m and rad, ranges
-    ``(low, high)`` or None (not drawn)."""
+    ``(low, high)`` or None (not drawn).
+    """
 
     position_spread: float = 0.0        # m
     attitude_spread: float = 0.0        # rad, roll and pitch
@@ -267,7 +269,8 @@ class GeneratorSpec:
 @dataclass(frozen=True)
 class Sweep:
     """``parameter`` (the key path as written), ``path`` (its tokens: str keys, int list
-    indices) and ``values`` (numbers, as written)."""
+    indices) and ``values`` (numbers, as written).
+    """
 
     parameter: str
     path: tuple
@@ -336,7 +339,8 @@ class CampaignSpec:
     def digest(self) -> str:
         """sha256 of the spec text, of the base scenario it resolves to (with its gains, so editing the
         scenario or gains file is a new campaign) and of the ``--runs`` override, if any: identifies
-        the campaign a results file belongs to."""
+        the campaign a results file belongs to.
+        """
         h = hashlib.sha256(self.text.encode())
         if self.base_mapping is not None:
             h.update(b'\n' + yaml.safe_dump(self.base_mapping, sort_keys=True).encode())
@@ -346,7 +350,8 @@ class CampaignSpec:
 
     def with_runs(self, runs: int) -> 'CampaignSpec':
         """The spec with ``runs`` draws (the ``--runs`` override; the spec's own number changes
-        nothing, not even the digest)."""
+        nothing, not even the digest).
+        """
         if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
             raise E.InvalidValueError(f'--runs must be an integer >= 1, got {runs!r}')
         if runs == self.runs and self.runs_override is None:
@@ -376,14 +381,16 @@ def bundled_specs() -> tuple:
 
 def load_spec(path_or_name) -> CampaignSpec:
     """Load and validate a campaign spec: a YAML file, or the name of a bundled spec
-    (``campaign_paper_faults``). Raises the :mod:`uh_topology.errors` types (module docstring)."""
+    (``campaign_paper_faults``). Raises the :mod:`uh_topology.errors` types (module docstring).
+    """
     path, content = read_config_file(path_or_name, 'campaign spec', bundled_specs)
     return parse_spec(content, source=str(path), base_dir=path.resolve().parent)
 
 
 def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> CampaignSpec:
     """Parse and validate spec YAML text; ``base_dir`` resolves a relative ``scenario`` (default:
-    the current directory). Also validates the resolved scenarios of draw 0 (module docstring)."""
+    the current directory). Also validates the resolved scenarios of draw 0 (module docstring).
+    """
     data, lines = _parse_yaml(text, source)
     if data is None:
         raise E.MissingFieldError('the campaign spec is empty; required keys: ' + ', '.join(_TOP_REQUIRED)
@@ -681,14 +688,16 @@ def _drawn_by(tokens: tuple, draws: Draws) -> str | None:
 
 def draw_generators(seed: int, draw: int) -> dict:
     """The independent random streams of draw ``draw``: children of
-    ``numpy.random.default_rng([seed, draw])`` in a fixed order, by name."""
+    ``numpy.random.default_rng([seed, draw])`` in a fixed order, by name.
+    """
     children = np.random.default_rng([seed, draw]).spawn(len(_STREAMS))
     return dict(zip(_STREAMS, children))
 
 
 def scenario_file_name(spec: CampaignSpec, draw: int, sweep_index: int) -> str:
     """``scenarios/draw_000042.yaml`` (``..._s03.yaml`` with a sweep), relative to the campaign
-    directory."""
+    directory.
+    """
     suffix = f'_s{sweep_index:02d}' if spec.sweep is not None else ''
     return f'scenarios/draw_{draw:06d}{suffix}.yaml'
 
@@ -697,7 +706,8 @@ def resolve_scenario(spec: CampaignSpec, draw: int, sweep_index: int = 0) -> dic
     """The scenario mapping of (``draw``, ``sweep_index``) (module docstring, *The resolved
     scenarios*). Plain data, ready for :func:`scenario_yaml`. Raises a
     :class:`~uh_topology.errors.ScenarioError` when a generated draw finds no valid graph; the
-    mapping itself is validated when it is loaded."""
+    mapping itself is validated when it is loaded.
+    """
     rng = draw_generators(spec.seed, draw)
     if spec.generator is not None:
         data = _generated_team(spec, draw, rng['graph'])
@@ -762,7 +772,8 @@ def _draw_faults(fd: FaultDraws, ids: list, rng) -> list:
 
 def _generated_team(spec: CampaignSpec, draw: int, rng) -> dict:
     """A generated team (:func:`uh_topology.generate.team_mapping`) with a random graph that passes
-    the topology checks, redrawn at most ``generator.attempts`` times."""
+    the topology checks, redrawn at most ``generator.attempts`` times.
+    """
     from uh_topology.generate import GenerateError, team_mapping
 
     g = spec.generator
@@ -819,7 +830,8 @@ def _set_path(data, tokens: tuple, value) -> None:
 
 def scenario_yaml(mapping: dict, header: str = '') -> str:
     """The YAML text of a resolved scenario (floats written exactly: loading it gives the same
-    numbers), after ``header`` (comment lines)."""
+    numbers), after ``header`` (comment lines).
+    """
     dumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
     body = yaml.dump(mapping, Dumper=dumper, sort_keys=False, default_flow_style=None, width=110)
     return header + body
@@ -831,7 +843,8 @@ def scenario_yaml(mapping: dict, header: str = '') -> str:
 
 def _check_draw_zero(spec: CampaignSpec) -> None:
     """Build the resolved scenario of draw 0 for every sweep value, the gains of every case and the
-    airframe; report an error at the spec key it comes from."""
+    airframe; report an error at the spec key it comes from.
+    """
     from uh_controller_node.gains import ControllerGains, GainsError
     from uh_core.airframe import load_helicopter_params
 

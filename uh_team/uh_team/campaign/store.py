@@ -107,7 +107,8 @@ def done_keys(con: sqlite3.Connection) -> set:
 
 def write_run(con: sqlite3.Connection, row: dict) -> None:
     """Store one run (a dict with the columns of :data:`RUN_COLUMNS`; missing ones are NULL) and
-    commit, so it survives an interruption right after."""
+    commit, so it survives an interruption right after.
+    """
     names = [name for name, _ in RUN_COLUMNS]
     unknown = set(row) - set(names)
     if unknown:
@@ -131,7 +132,8 @@ def read_runs(path_or_con) -> dict:
     """Every stored run as ``{column: ndarray}`` in key order (draw, sweep_index, case_name).
 
     REAL columns are float arrays with NaN for NULL; INTEGER columns int arrays (``success`` -1
-    for NULL); TEXT columns object arrays (None for NULL)."""
+    for NULL); TEXT columns object arrays (None for NULL).
+    """
     con = path_or_con if isinstance(path_or_con, sqlite3.Connection) else open_store(path_or_con)
     names = [name for name, _ in RUN_COLUMNS]
     rows = con.execute(f'SELECT {", ".join(names)} FROM runs ORDER BY {", ".join(_KEY)}').fetchall()
