@@ -16,12 +16,16 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$VENV/.uh_stamp" 2>/dev/null)" != "$
   # the Python packages are editable so a change in the tree takes effect without reinstalling.
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps "$REPO_ROOT/uh_msgs"
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
-    -e "$REPO_ROOT/uh_runtime" -e "$REPO_ROOT/uh_core" -e "$REPO_ROOT/uh_topology" -e "$REPO_ROOT/uh_sim_node" \
-    -e "$REPO_ROOT/uh_controller_node"
+    -e "$REPO_ROOT/uh_runtime" -e "$REPO_ROOT/uh_core" -e "$REPO_ROOT/uh_topology" -e "$REPO_ROOT/uh_wire" \
+    -e "$REPO_ROOT/uh_sim_node" -e "$REPO_ROOT/uh_controller_node"
   # the packages above both sides in a second step: a .venv made before uh_team existed has
   # uh-simulate in uh_controller_node's record, and reinstalling that package removes the script
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
     -e "$REPO_ROOT/uh_team" -e "$REPO_ROOT/uh_bringup"
+  # uh-report and uh-campaign moved from uh_bringup to these two: installed after it, or reinstalling
+  # an older uh_bringup would remove their scripts again
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
+    -e "$REPO_ROOT/uh_report" -e "$REPO_ROOT/uh_campaign"
   stamp_src > "$VENV/.uh_stamp"
 fi
 # shellcheck disable=SC1091

@@ -2,7 +2,7 @@
 # Run a Monte Carlo campaign of in-process team runs: random draws of a scenario, each for every
 # controller case and sweep value, in parallel (docs/campaigns.md).
 #   scripts/campaign.sh SPEC --out DIR [--runs N] [--workers K] [--cluster ADDRESS] [--quiet]
-# SPEC: a campaign spec YAML file (keys: uh_team/uh_team/campaign/spec.py) or a bundled spec
+# SPEC: a campaign spec YAML file (keys: uh_campaign/uh_campaign/spec.py) or a bundled spec
 # (campaign_paper_faults, campaign_delay_sweep, campaign_random_graphs).
 # Output: DIR/campaign.sqlite (one row of metrics per run), DIR/scenarios/ (the resolved scenario of
 # every draw, loadable on its own). Re-running the same command on DIR resumes. Report: uh-report DIR.

@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from uh_bringup import inject_fault, run_formation
-from uh_bringup.bag_metrics import BagContentError, read_team_bag
+from uh_report.bag_metrics import BagContentError, read_team_bag
 from uh_runtime.bag import BagWriter
 from uh_runtime.qos import qos_profile_yaml
 from uh_topology.scenario import load_scenario
@@ -295,7 +295,7 @@ def small_bag(tmp_path_factory):
     """A complete team bag written by the project's bag writer: 40 steps of reference and states."""
     from uh_runtime import messages as m
     from uh_runtime.cdr import codec
-    from uh_core.wire import reference_to_msg, state_to_msg
+    from uh_wire.wire import reference_to_msg, state_to_msg
     from uh_sim_node.reference import VirtualLeaderReference
     import numpy as np
 
@@ -380,7 +380,7 @@ def test_invalid_messages_in_a_bag_are_left_out_and_counted(tmp_path):
     from uh_runtime import messages as m
     from uh_runtime.cdr import codec
     from uh_sim_node.reference import VirtualLeaderReference
-    from uh_core.wire import reference_to_msg, state_to_msg
+    from uh_wire.wire import reference_to_msg, state_to_msg
 
     paper = load_scenario('paper')
     ref = VirtualLeaderReference(paper.reference)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from uh_bringup.bag_metrics import read_team_bag
+from uh_report.bag_metrics import read_team_bag
 from uh_runtime.network import reserve_domain_id
 from uh_topology.scenario import load_scenario
 from team_runs import start_run, wait_for_log

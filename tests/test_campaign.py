@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from uh_team.campaign import cli, store
-from uh_team.campaign.runner import run_campaign
-from uh_team.campaign.spec import bundled_specs, load_spec, resolve_scenario, scenario_yaml
+from uh_campaign import cli
+from uh_team import campaign_store as store
+from uh_campaign.runner import run_campaign
+from uh_campaign.spec import bundled_specs, load_spec, resolve_scenario, scenario_yaml
 from uh_topology import errors as E
 
 # 10 draws x 2 sweep values x 3 cases = 60 runs of 12 s (settle time: half of it)
@@ -347,7 +348,7 @@ def test_a_dask_cluster_gives_the_rows_of_the_local_pool(reference, tmp_path):
 
 def test_runs_lost_by_the_executor_are_not_stored_so_a_resume_runs_them_again():
     """A task the executor loses (a killed Dask worker) is not a failed run: no row, the reason kept."""
-    from uh_team.campaign.runner import _task_rows
+    from uh_campaign.runner import _task_rows
 
     class LosingExecutor:
         def result(self, future):
@@ -423,7 +424,7 @@ def test_an_attitude_spread_that_could_tip_a_base_attitude_past_pi_2_is_refused(
 def test_progress_draws_a_bar_on_a_terminal_and_a_line_per_tenth_otherwise():
     import io
 
-    from uh_team.campaign.runner import Progress
+    from uh_campaign.runner import Progress
 
     terminal = io.StringIO()
     progress = Progress(terminal, tty=True)
@@ -445,7 +446,7 @@ def test_progress_draws_a_bar_on_a_terminal_and_a_line_per_tenth_otherwise():
 
 def _task_that_kills_its_worker_on_draw_1(task):
     """Run by the workers in place of run_task (pickled by name: the workers import this module)."""
-    from uh_team.campaign.runner import run_task
+    from uh_campaign.runner import run_task
 
     if task['draw'] == 1:
         os._exit(7)          # as a crash does: no exception, the process is gone
@@ -453,7 +454,7 @@ def _task_that_kills_its_worker_on_draw_1(task):
 
 
 def test_a_run_that_kills_its_worker_is_recorded_as_failed_and_the_campaign_goes_on(tmp_path, monkeypatch):
-    from uh_team.campaign import runner
+    from uh_campaign import runner
 
     monkeypatch.setattr(runner, 'run_task', _task_that_kills_its_worker_on_draw_1)
     spec = _write(tmp_path, 'name: crash\nscenario: paper\nruns: 4\nduration: 2.0\ncases: [proposed, case1]\n')

@@ -1,5 +1,5 @@
-"""uh-report on a campaign directory: the statistics of uh_bringup.campaign_report against values
-worked out by hand on small synthetic campaigns (written with uh_team.campaign.store), and the
+"""uh-report on a campaign directory: the statistics of uh_report.campaign_report against values
+worked out by hand on small synthetic campaigns (written with uh_team.campaign_store), and the
 report files, re-run commands and error exits of ``uh-report DIR``.
 """
 import csv
@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from uh_bringup import campaign_report as C
-from uh_bringup.report import main
-from uh_team.campaign import store
+from uh_report import campaign_report as C
+from uh_report.report import main
+from uh_team import campaign_store as store
 
 Z95 = 1.959963984540054   # standard normal quantile at 0.975
 
@@ -22,7 +22,7 @@ def _row(draw, case, status='ok', sweep_index=0, sweep_value=None, formation=0.0
     return {'draw': draw, 'sweep_index': sweep_index, 'case_name': case, 'sweep_value': sweep_value,
             'status': status, 'reason': reason, 'success': success,
             'scenario_file': f'scenarios/draw_{draw:06d}' + (f'_s{sweep_index:02d}' if sweep_value is not None else '')
-            + '.yaml',   # the runner's names (uh_team.campaign.spec.scenario_file_name)
+            + '.yaml',   # the runner's names (uh_campaign.spec.scenario_file_name)
             'wall_time_s': 1.5, 'formation_rms_m': formation if status == 'ok' else None,
             'containment_rms_m': containment if status == 'ok' else None,
             'fault_error_w': fault_w if status == 'ok' else None, **metrics}

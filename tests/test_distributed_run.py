@@ -14,10 +14,10 @@ import pytest
 import yaml
 from rosbags.rosbag2 import Reader
 
-from uh_bringup.bag_metrics import read_team_bag
+from uh_report.bag_metrics import read_team_bag
 from uh_team.team_simulation import run_team_simulation
 from uh_runtime.network import reserve_domain_id
-from uh_core import topics
+from uh_wire import topics
 from uh_topology.scenario import load_scenario
 from team_runs import start_run, wait_for_log
 
@@ -336,7 +336,7 @@ def test_the_bag_holds_tf_odometry_and_diagnostics_that_follow_from_the_states(l
     diagnostics report the scenario's faults.
     """
     from uh_core import frames
-    from uh_core.standard_msgs import level_of
+    from uh_wire.standard_msgs import level_of
     from uh_runtime.messages import typestore
     out, _, _ = lockstep_run
     store = typestore()

@@ -436,7 +436,7 @@ def test_each_controller_publishes_what_isolate_run_computes_over_the_same_run()
     step at the end; status_to_msg puts them on the message unchanged.
     """
     from uh_controller_node.controller import UHController
-    from uh_core.wire import status_to_msg
+    from uh_wire.wire import status_to_msg
     from uh_sim_node.reference import VirtualLeaderReference
     from uh_team.team_simulation import run_team_simulation
     from uh_topology.scenario import load_scenario

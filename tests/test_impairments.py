@@ -187,7 +187,7 @@ def test_a_lockstep_distributed_run_with_impairments_equals_the_in_process_run(t
     from rosbags.rosbag2 import Reader
     from team_runs import start_run
 
-    from uh_bringup.bag_metrics import read_team_bag
+    from uh_report.bag_metrics import read_team_bag
     from uh_runtime.messages import typestore
     from uh_runtime.network import reserve_domain_id
 

@@ -22,7 +22,7 @@ NAMESPACES = {'uh', 'label', 'trail', 'formation', 'hull', 'target', 'virtual_le
 
 @pytest.fixture(scope='module')
 def recorded(tmp_path_factory):
-    from uh_bringup.bag_metrics import read_team_bag
+    from uh_report.bag_metrics import read_team_bag
     from uh_runtime.messages import typestore
     from uh_topology.scenario import load_scenario
     run = shared_team_run(tmp_path_factory)

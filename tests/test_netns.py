@@ -155,7 +155,7 @@ def test_team_flies_over_a_lossy_network(tmp_path, nft):
     assert info['hosts'] == 'netns' and all(n > 0 for n in info['dropped_packets'].values()), info
     # data crossed the network: every controller (each hears a UH in another namespace) computed
     # commands up to the end, and they were recorded from the ground namespace
-    from uh_bringup.bag_metrics import read_team_bag
+    from uh_report.bag_metrics import read_team_bag
     from uh_topology.scenario import load_scenario
     import numpy as np
     bag = read_team_bag(out / 'bag', load_scenario('paper'))

@@ -154,7 +154,7 @@ def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain
     launch's default realtime_priority), at most 10 late commands in 10,000 simulator steps
     (docs/performance.md#real-time-scheduling).
     """
-    from uh_bringup.bag_metrics import write_metrics_from_bag
+    from uh_report.bag_metrics import write_metrics_from_bag
     from uh_topology.scenario import load_scenario
     from uh_runtime import scheduling
     sys.path.insert(0, str(ROOT / 'benchmarks'))

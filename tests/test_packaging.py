@@ -10,7 +10,8 @@ import pytest
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 ROOT = Path(__file__).resolve().parents[1]
-PYTHON_PACKAGES = ['uh_runtime', 'uh_core', 'uh_topology', 'uh_sim_node', 'uh_controller_node', 'uh_team', 'uh_bringup']
+PYTHON_PACKAGES = ['uh_runtime', 'uh_core', 'uh_topology', 'uh_wire', 'uh_sim_node', 'uh_controller_node', 'uh_team',
+                   'uh_report', 'uh_campaign', 'uh_bringup']
 ALL_PACKAGES = ['uh_msgs', *PYTHON_PACKAGES]
 
 
@@ -51,8 +52,8 @@ def test_every_msg_is_generated_and_parses():
 
 
 #: the layers of docs/architecture.md, lowest first: a package may depend only on lower layers
-LAYERS = [['uh_msgs'], ['uh_runtime'], ['uh_core'], ['uh_topology'], ['uh_sim_node', 'uh_controller_node'],
-          ['uh_team'], ['uh_bringup']]
+LAYERS = [['uh_msgs'], ['uh_runtime'], ['uh_core'], ['uh_topology'], ['uh_wire'], ['uh_sim_node', 'uh_controller_node'],
+          ['uh_team'], ['uh_report'], ['uh_campaign'], ['uh_bringup']]
 LAYER_OF = {pkg: n for n, layer in enumerate(LAYERS) for pkg in layer}
 
 

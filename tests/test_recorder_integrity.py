@@ -102,7 +102,7 @@ def test_sigkill_loses_at_most_the_chunk_being_filled(recording):
 
 def _state_msg(k):
     import numpy as np
-    from uh_core.wire import state_to_msg
+    from uh_wire.wire import state_to_msg
     return state_to_msg(1, k, k * 0.01, np.zeros(12))
 
 
@@ -187,7 +187,7 @@ def test_run_whose_recorder_is_killed_fails_and_recovers_the_bag(tmp_path):
     assert 'the recorder did not finalise the bag: recovered' in output
     info = json.loads((out / 'run.json').read_text())
     assert info['failed_node'] == 'recorder' and info['bag_recovery']['recovered'] is True
-    from uh_bringup.bag_metrics import read_team_bag
+    from uh_report.bag_metrics import read_team_bag
     from uh_topology.scenario import load_scenario
     bag = read_team_bag(out / 'bag', load_scenario('paper'))
     # the recovered bag reaches at least step 600 (the recorder had seen it when it was killed,
@@ -204,7 +204,7 @@ def test_a_one_shot_injection_is_recorded_when_the_topic_is_expected(tmp_path, d
     """
     from uh_runtime import dds_backend as rt_dds
     from uh_runtime import messages as m
-    from uh_core import topics
+    from uh_wire import topics
     bag = tmp_path / 'bag'
     recorder = processes.start([str(Path(sys.executable).with_name('recorder_node')), '--ros-args',
                                 '-p', f'output:={bag}', '-p', 'topics:=[/uh1/fault]',

@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
 
-from uh_bringup.bag_metrics import read_team_bag
+from uh_report.bag_metrics import read_team_bag
 from uh_runtime.messages import typestore
 from uh_runtime.network import reserve_domain_id
 from uh_topology.scenario import load_scenario

@@ -129,7 +129,7 @@ def simulated_runs(tmp_path_factory):
 
 @pytest.fixture(scope='module')
 def report(team_run, simulated_runs, tmp_path_factory):
-    from uh_bringup.report import main
+    from uh_report.report import main
     out = tmp_path_factory.mktemp('report') / 'out'
     runs = [team_run, *simulated_runs]
     assert main([str(r) for r in runs] + ['--out', str(out)]) == 0
@@ -139,7 +139,7 @@ def report(team_run, simulated_runs, tmp_path_factory):
 @pytest.mark.dds
 @pytest.mark.slow
 def test_every_figure_is_drawn_at_its_size(report):
-    from uh_bringup.report_figures import pixel_size
+    from uh_report.report_figures import pixel_size
     out, runs = report
     assert_drawn(out / 'errors.png', pixel_size('errors'))
     assert_drawn(out / 'errors_per_uh.png', pixel_size('errors_per_uh'))
@@ -208,7 +208,7 @@ def test_index_html_shows_every_figure_and_the_table(report):
 
 
 def _run_with_metrics(name: str, metrics: dict):
-    from uh_bringup.report import RunData
+    from uh_report.report import RunData
     return RunData(directory=Path('/runs') / name, name=name, label=name, source='timeseries', case='proposed',
                    scenario=None, arrays={}, metrics=metrics)
 
@@ -230,7 +230,7 @@ def test_tables_mark_an_nrmse_below_the_floor_as_not_meaningful():
     """An NRMSE withheld below the floor shows 'n/m' (never a number, never 'n/a'), takes no part
     in the bold of its row, and the absolute error next to it is still shown; false estimate rows.
     """
-    from uh_bringup.report import csv_table, markdown_table as report_table
+    from uh_report.report import csv_table, markdown_table as report_table
     runs = [_run_with_metrics('below', _fault_metrics(0.3, None)), _run_with_metrics('above', _fault_metrics(1.4, 0.5))]
     rows = {r[2].strip('`'): r[3:] for r in markdown_table(report_table(runs))[1:]}
     assert rows['fault_estimation.uh3.w.nrmse'] == ['n/m', '0.5']      # only one number: no bold
@@ -250,7 +250,7 @@ def test_report_of_a_short_simulation_marks_undefined_metrics(tmp_path):
     """A 5 s run ends before the 20 s settle time: its after-settle metrics are null in
     metrics.json and 'n/a' in the table; the default output directory is RUN_DIR/report.
     """
-    from uh_bringup.report import main
+    from uh_report.report import main
     from uh_team import simulate_cli
     run = tmp_path / 'short'
     assert simulate_cli.main(['--scenario', 'paper', '--out', str(run), '--duration', '5']) == 0
@@ -278,7 +278,7 @@ def _copy_run(team_run: Path, dest: Path) -> Path:
 
 
 def _report_error(capsys, *args) -> str:
-    from uh_bringup.report import main
+    from uh_report.report import main
     assert main([str(a) for a in args]) == 2
     err = capsys.readouterr().err
     assert 'uh-report: error:' in err and 'Traceback' not in err
@@ -330,7 +330,7 @@ def test_the_console_script_exits_2_without_traceback(tmp_path):
 
 
 def test_tables_show_the_fault_isolation_summary_and_a_per_run_table():
-    from uh_bringup.report import ISOLATION_HEAD, html_table, isolation_table, markdown_table as report_table
+    from uh_report.report import ISOLATION_HEAD, html_table, isolation_table, markdown_table as report_table
     entry = {'faulty': True, 'onset': 10.0, 'isolated': True, 'detected_at': 10.56, 'delay': 0.56, 'rho': None,
              'bias': None, 'identifiable': False, 'reason': 'actual input nearly constant', 'rho_true': 0.8,
              'bias_constant_true': 0.0}

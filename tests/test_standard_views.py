@@ -9,7 +9,7 @@ import pytest
 
 from uh_core import diagnostics as D
 from uh_core import frames
-from uh_core.standard_msgs import diagnostic_array_msg, level_of, odometry_msg, tf_msg, transform_msg
+from uh_wire.standard_msgs import diagnostic_array_msg, level_of, odometry_msg, tf_msg, transform_msg
 
 
 @pytest.mark.parametrize('angle', [0.0, 0.3, -1.2, math.pi, 5.0])

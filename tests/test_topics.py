@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from uh_core import topics as T
+from uh_wire import topics as T
 from uh_topology.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -9,7 +9,8 @@ import pytest
 import yaml
 
 from uh_bringup import views
-from uh_core import frames, topics
+from uh_core import frames
+from uh_wire import topics
 from uh_topology.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -14,11 +14,11 @@ setup(
         ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
     ],
     package_data={package_name: ['config/*.yaml']},
-    install_requires=['numpy', 'PyYAML', 'uh_runtime'],
+    install_requires=['numpy', 'PyYAML'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',
-    description='Interfaces shared by the simulator and the controller of the UH formation-containment stack: state, input and reference layouts, airframe parameters, the registry of topic names and QoS, and the wire conversions.',
+    description='What the simulator and the controller of the UH formation-containment stack share, free of any middleware: state, input and reference layouts, airframe parameters, records, frames and health windows.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

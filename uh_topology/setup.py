@@ -14,11 +14,11 @@ setup(
         ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
     ],
     package_data={package_name: ['config/*.yaml']},
-    install_requires=['numpy', 'PyYAML', 'uh_core', 'uh_runtime'],
+    install_requires=['numpy', 'PyYAML', 'uh_core'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',
-    description='Scenario loading and validation, communication graph and Laplacian maths and the run configuration every node reads, of the UH formation-containment stack.',
+    description='The team of the UH formation-containment stack: scenario loading and validation, the communication graph and its Laplacian maths, generated teams.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -6,7 +6,7 @@
   the kernels are loaded and the imports frozen out of the garbage collector as the campaign's
   workers do (:func:`run_team_simulation` and :func:`metrics_from_arrays`; median of a few runs).
   ``cores / t_one`` is the throughput of perfect parallelism on every core;
-- *the campaign*: :func:`uh_team.campaign.runner.run_campaign` of ``runs`` draws of the paper
+- *the campaign*: :func:`uh_campaign.runner.run_campaign` of ``runs`` draws of the paper
   scenario (one case, the paper's own draw: the work of ``runs`` such runs), with ``workers``
   local processes, from a cold start (worker start-up and kernel loading included).
 
@@ -41,7 +41,7 @@ def _one_run_seconds(duration: float, repeats: int) -> float:
     compile_all()
     scenario = load_scenario('paper')
     gc.collect()
-    gc.freeze()   # as the campaign's workers do (uh_team.campaign.runner._warm_up)
+    gc.freeze()   # as the campaign's workers do (uh_campaign.runner._warm_up)
     times = []
     for _ in range(repeats + 1):
         start = time.perf_counter()
@@ -57,8 +57,8 @@ def measure(workdir, runs: int = 200, workers: int | None = None, duration: floa
     """Throughput of a campaign of ``runs`` paper-scenario runs of ``duration`` s on ``workers``
     local processes (default: the machine's cores) against one run in process (module docstring).
     """
-    from uh_team.campaign.runner import run_campaign
-    from uh_team.campaign.spec import parse_spec
+    from uh_campaign.runner import run_campaign
+    from uh_campaign.spec import parse_spec
 
     cores = os.cpu_count() or 1
     workers = workers or cores

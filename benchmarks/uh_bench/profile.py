@@ -3,7 +3,7 @@
 Runs a lockstep team with ``UH_PROFILE_DIR`` set, so every node process dumps a :mod:`cProfile`
 profile (:mod:`uh_runtime.procstats`), and prints, per process, the share of its busy time
 (time not spent blocked in the wait set) in each part of the stack: the control law, the
-helicopter model, message conversions (``uh_core.wire``), the node runtime and its CDR
+helicopter model, message conversions (``uh_wire.wire``), the node runtime and its CDR
 codecs, Cyclone DDS's write and take, the bag writer, numpy, ... cProfile adds a roughly constant
 cost per Python call, so call-heavy parts look bigger than they are; the shares are for finding
 the heavy parts, the benchmark (``uh_bench``) for the figures. For a sampling profile with native
@@ -33,7 +33,7 @@ CATEGORIES = (
     ('node runtime, other', lambda f, fn: 'uh_runtime/uh_runtime/' in f and not any(
         x in f for x in ('recorder.py', 'bag.py'))),
     ('recorder and bag writer', lambda f, fn: 'recorder.py' in f or 'bag.py' in f or '/mcap/' in f),
-    ('message conversions (wire.py)', lambda f, fn: 'uh_core/wire.py' in f),
+    ('message conversions (wire.py)', lambda f, fn: 'uh_wire/wire.py' in f),
     ('controller node', lambda f, fn: any(x in f for x in ('controller_node.py', 'input_sync.py'))),
     ('simulator node', lambda f, fn: 'uh_sim_node/sim_node.py' in f),
     ('clock, virtual leader, visualisation', lambda f, fn: any(

@@ -92,7 +92,7 @@ def _spin_until_stopped(node) -> int:
 def _echo_main(domain: int) -> int:
     import uh_runtime as rt
     from uh_runtime import messages as m
-    from uh_core import topics
+    from uh_wire import topics
     rt.init(args=['uh_bench_echo'], domain_id=domain)
     node = rt.Node('echo')
     qos = topics.qos_profile(topics.STEP_QOS)
@@ -106,7 +106,7 @@ def dds_pingpong(domain: int, n: int = 5000) -> dict:
     import uh_runtime as rt
     from uh_runtime import messages as m
     from uh_runtime.network import loopback_environment
-    from uh_core import topics
+    from uh_wire import topics
     env = loopback_environment(domain)
     env['PYTHONPATH'] = str(Path(__file__).resolve().parents[1]) + (
         os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH') else '')
@@ -162,7 +162,7 @@ def inprocess_delivery(domain: int, n: int = 20000) -> dict:
     import uh_runtime as rt
     from uh_runtime import messages as m
     from uh_runtime.network import loopback_config
-    from uh_core import topics
+    from uh_wire import topics
     os.environ.setdefault('CYCLONEDDS_URI', loopback_config())
     context = rt.Context()
     rt.init(args=['uh_bench_local'], context=context, domain_id=domain)
@@ -195,7 +195,7 @@ def inprocess_delivery(domain: int, n: int = 20000) -> dict:
 def _reader_main(domain: int) -> int:
     import uh_runtime as rt
     from uh_runtime import messages as m
-    from uh_core import topics
+    from uh_wire import topics
     rt.init(args=['uh_bench_reader'], domain_id=domain)
     node = rt.Node('reader')
     node.create_subscription(m.UHState, '/bench/fanout', lambda msg: None, topics.qos_profile(topics.STEP_QOS))
@@ -207,7 +207,7 @@ def fanout(domain: int, counts=(0, 1, 3, 6), n: int = 2000) -> dict:
     import uh_runtime as rt
     from uh_runtime import messages as m
     from uh_runtime.network import loopback_environment
-    from uh_core import topics
+    from uh_wire import topics
     env = loopback_environment(domain)
     env['PYTHONPATH'] = str(Path(__file__).resolve().parents[1]) + (
         os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH') else '')

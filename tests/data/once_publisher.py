@@ -11,7 +11,7 @@ import time
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_core import topics
+from uh_wire import topics
 
 
 def main() -> int:

@@ -18,7 +18,7 @@ import time
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_core import topics
+from uh_wire import topics
 
 
 def _wait(node, topic: str, subscribers: int, deadline: float) -> None:
@@ -56,7 +56,7 @@ def main() -> int:
     fault(uh_id=3, rho=0.9)
     fault(rho=0.0, onset_time=1.0e6)
 
-    from uh_core.wire import command_to_msg, state_to_msg
+    from uh_wire.wire import command_to_msg, state_to_msg
     import numpy as np
     bad_state = state_to_msg(2, 100, 1.0, np.zeros(12))
     bad_state.position.x = math.nan

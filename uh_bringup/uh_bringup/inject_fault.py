@@ -94,7 +94,7 @@ def main(argv=None) -> int:
 
     import uh_runtime as rt
     from uh_runtime import messages as m
-    from uh_core import topics
+    from uh_wire import topics
 
     rt.init(args=[sys.argv[0]])
     node = rt.Node('inject_fault')

@@ -511,7 +511,7 @@ def run(args) -> int:
                 failed_node=fatal.name if fatal else None, bag_recovery=recovery, dropped_packets=dropped)
     write_info()
     if status in (EXIT_OK, EXIT_DEGRADED) and not args.no_metrics:
-        from uh_bringup.bag_metrics import write_metrics_from_bag
+        from uh_report.bag_metrics import write_metrics_from_bag
         metrics = write_metrics_from_bag(out / 'bag', scenario, args.case, out / 'metrics.json', wall_time_s=wall)
         print('[run] metrics: ' + ', '.join(f'{k} {v:.4g}' for k, v in metrics.items()
                                             if isinstance(v, float)), file=sys.stderr)

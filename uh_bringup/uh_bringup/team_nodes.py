@@ -16,7 +16,7 @@ import importlib
 from dataclasses import dataclass
 from pathlib import Path
 
-from uh_core import topics
+from uh_wire import topics
 
 __all__ = ['NodeKind', 'NODES', 'node_class', 'node_specs', 'backend_environment']
 

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import yaml
 
-from uh_core import frames, topics
+from uh_core import frames
+from uh_wire import topics
 
 __all__ = ['foxglove_layout', 'rviz_config', 'main', 'FOXGLOVE_FILE', 'RVIZ_FILE']
 

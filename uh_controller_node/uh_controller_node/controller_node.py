@@ -4,7 +4,7 @@ It subscribes to its own ``state``, to ``/uhj/state`` of exactly the UHs j with 
 neighbours in the scenario's graph, :mod:`uh_topology`), and to ``/reference`` only if a_i0 != 0,
 runs :class:`uh_controller_node.controller.UHController` and publishes ``command`` and ``status``.
 
-The node converts messages (:mod:`uh_core.wire`) and publishes; which inputs each step is computed
+The node converts messages (:mod:`uh_wire.wire`) and publishes; which inputs each step is computed
 from is decided by :class:`uh_controller_node.input_sync.InputSynchroniser` (docs/reliability.md
 section 2):
 
@@ -51,11 +51,12 @@ from uh_controller_node.gains import CASES, ControllerGains, GainsError, gain_pa
 from uh_controller_node.impairments import ReceivedStates, compile_impairment_kernels
 from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser
 from uh_runtime import messages as m
-from uh_topology.run_config import RunConfigError, declare_run_parameters, declare_view_parameters
-from uh_core.wire import (WireError, command_to_msg, msg_to_reference, msg_to_state, received_states_to_msg,
+from uh_wire.run_config import RunConfigError, declare_run_parameters, declare_view_parameters
+from uh_wire.wire import (WireError, command_to_msg, msg_to_reference, msg_to_state, received_states_to_msg,
                           status_to_msg)
-from uh_core import diagnostics, topics
-from uh_core.standard_msgs import diagnostic_array_msg, view_publisher
+from uh_core import diagnostics
+from uh_wire import topics
+from uh_wire.standard_msgs import diagnostic_array_msg, view_publisher
 
 __all__ = ['ControllerNode', 'main']
 

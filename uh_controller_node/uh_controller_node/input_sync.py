@@ -2,7 +2,7 @@
 
 :class:`InputSynchroniser` is the part of the controller node
 (:class:`uh_controller_node.controller_node.ControllerNode`) that decides *when* step k is computed
-and *with what*; the node converts the messages (:mod:`uh_core.wire`), offers the values here, runs
+and *with what*; the node converts the messages (:mod:`uh_wire.wire`), offers the values here, runs
 :class:`~uh_controller_node.controller.UHController` on the :class:`StepInputs` it gets back and
 publishes. The behaviour is that of docs/reliability.md section 2 (clock modes:
 docs/architecture.md, "Clock modes"):
@@ -32,7 +32,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable
 
-from uh_core import topics
+from uh_wire import topics
 from uh_core.layout import X_P, X_THETA, YAW
 
 __all__ = ['InputSynchroniser', 'StepInputs', 'LagStats', 'OWN', 'REFERENCE', 'input_label',

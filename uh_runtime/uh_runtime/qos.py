@@ -9,7 +9,7 @@ representation; USER_DATA ``typehash=RIHS01_<hex>;``.
 
 The project's QoS words are rosbag2's spelling of a profile in a bag's ``offered_qos_profiles``
 (``reliable``/``best_effort``, ``volatile``/``transient_local``, ``keep_last``/``keep_all``, a
-depth), which the topic registry (``uh_core.topics``) uses too. :class:`QoSWords` holds them;
+depth), which the topic registry (``uh_wire.topics``) uses too. :class:`QoSWords` holds them;
 :func:`profile_from_words` makes the active backend's ``QoSProfile`` of them, :func:`words_of` reads
 them from a profile, :func:`qos_profile_yaml` writes the ``offered_qos_profiles`` YAML and
 :func:`parse_offered_qos` reads it back.
@@ -250,7 +250,7 @@ def profile_from_words(words):
     """The active backend's ``QoSProfile`` (rclpy's on the rclpy backend) of a profile in words.
 
     ``words`` has ``reliability``, ``durability``, ``history`` and ``depth``: a :class:`QoSWords`
-    (``uh_core.topics.QosSpec`` is this record).
+    (``uh_wire.topics.QosSpec`` is this record).
     """
     if _BACKEND == 'rclpy':
         from rclpy import qos

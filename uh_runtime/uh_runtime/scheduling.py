@@ -14,7 +14,7 @@ Threads created later inherit the policy from the thread that creates them. It n
 ``CAP_SYS_NICE`` capability (root has it) or an ``rtprio`` limit (``ulimit -r``) of at least the
 priority; without, it changes nothing and says why, and the node runs on at normal priority.
 
-Pure standard library, no ROS: both backends call it (:mod:`uh_topology.run_config`).
+Pure standard library, no ROS: both backends call it (:mod:`uh_wire.run_config`).
 """
 from __future__ import annotations
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from uh_core import topics
+from uh_wire import topics
 
 __all__ = ['ClockAdvancer', 'REALTIME_START_WAIT_S', 'REALTIME_FINAL_WAIT_S']
 

@@ -2,7 +2,7 @@
 
 Integrates the helicopter model (:mod:`uh_sim_node.helicopter`) from the commands it receives,
 applies the scenario's fault schedule and faults injected at run time on ``fault``, and publishes
-``state`` and ``fault_truth`` (topic registry: :mod:`uh_core.topics`).
+``state`` and ``fault_truth`` (topic registry: :mod:`uh_wire.topics`).
 
 Clock modes (docs/architecture.md#clock-modes):
 
@@ -30,10 +30,11 @@ from uh_runtime import messages as m
 from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
-from uh_core.wire import (WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg)
-from uh_core import diagnostics, frames, topics
-from uh_core.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg, view_publisher
-from uh_topology.run_config import declare_run_parameters, declare_view_parameters
+from uh_wire.wire import (WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg)
+from uh_core import diagnostics, frames
+from uh_wire import topics
+from uh_wire.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg, view_publisher
+from uh_wire.run_config import declare_run_parameters, declare_view_parameters
 
 __all__ = ['SimNode', 'main']
 

@@ -6,10 +6,11 @@ from __future__ import annotations
 import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_sim_node.reference import VirtualLeaderReference
-from uh_topology.run_config import declare_run_parameters, declare_view_parameters
-from uh_core.wire import clock_step, reference_to_msg
-from uh_core import frames, topics
-from uh_core.standard_msgs import tf_msg, transform_msg, view_publisher
+from uh_wire.run_config import declare_run_parameters, declare_view_parameters
+from uh_wire.wire import clock_step, reference_to_msg
+from uh_core import frames
+from uh_wire import topics
+from uh_wire.standard_msgs import tf_msg, transform_msg, view_publisher
 
 __all__ = ['VirtualLeaderNode', 'main']
 

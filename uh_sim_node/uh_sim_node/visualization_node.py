@@ -22,9 +22,9 @@ import numpy as np
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_topology.run_config import declare_run_parameters
-from uh_core.wire import WireError, msg_to_state, stamp
-from uh_core import topics
+from uh_wire.run_config import declare_run_parameters
+from uh_wire.wire import WireError, msg_to_state, stamp
+from uh_wire import topics
 
 __all__ = ['VisualizationNode', 'main']
 

@@ -598,7 +598,7 @@ def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
     """``fault_isolation`` of docs/metrics.md: the verdicts of the isolator every controller runs
     step by step (docs/faults.md#isolation-and-identification), scored against the scenario's
     faults. The verdicts are those the controllers published when ``arrays`` has an
-    ``isolation`` entry for every UH (``uh_bringup.bag_metrics.read_team_bag``), else
+    ``isolation`` entry for every UH (``uh_report.bag_metrics.read_team_bag``), else
     ``uh_controller_node.fault_isolation.isolate_run`` over the arrays (the same computation).
 
     Parameters
@@ -689,7 +689,7 @@ def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
 def _published_verdicts(published: dict, names) -> dict:
     """Per channel name, the verdict entries of :func:`fault_isolation_metrics` from the fault
     isolation fields of a controller's last ``ControllerStatus``
-    (``uh_bringup.bag_metrics.read_team_bag``'s ``isolation``).
+    (``uh_report.bag_metrics.read_team_bag``'s ``isolation``).
     """
     from uh_controller_node.fault_isolation import IDENTIFIABLE, IDENTIFICATION_TEXT
 
@@ -719,7 +719,7 @@ def metrics_from_arrays(arrays, scenario, case: str, wall_time_s: float | None =
         ``fault_true_p``, ``fault_true_w``, ``fault_est_p``, ``fault_est_w`` (K or K+1, n, 3), and for
         ``fault_isolation`` ``commands`` (K or K+1, n, 4) rad; UH
         axis in ``scenario.ids`` order (the layout of ``TeamRun.arrays()`` and of
-        ``uh_bringup.bag_metrics.read_team_bag``). Per-step rows beyond K - 1 (a command at t_K that
+        ``uh_report.bag_metrics.read_team_bag``). Per-step rows beyond K - 1 (a command at t_K that
         is never applied) are ignored.
     scenario : uh_topology.scenario.Scenario
         Graph, offsets, containment weights, faults and settle time.

@@ -11,7 +11,7 @@ Step ``k`` (``t_k = k * dt``):
 
 After the last step the controllers run once more at ``t_K`` so the per-step arrays have a row for
 every state sample (that last command is not applied). The arrays follow the layout of
-``uh_bringup.bag_metrics.read_team_bag`` so the reference run and a recorded distributed run are
+``uh_report.bag_metrics.read_team_bag`` so the reference run and a recorded distributed run are
 compared and scored by the same code (:func:`uh_team.metrics.metrics_from_arrays`).
 """
 from __future__ import annotations

@@ -1,15 +1,15 @@
 """Running a campaign: work units in a local process pool or on a Dask cluster, resumably.
 
 A *run* (work unit) is ``(draw, sweep_index, case)``. The main process resolves the scenario of
-each (draw, sweep point) (:func:`uh_team.campaign.spec.resolve_scenario`), writes it to
+each (draw, sweep point) (:func:`uh_campaign.spec.resolve_scenario`), writes it to
 ``DIR/scenarios/`` before anything runs it, and hands the pending cases of that scenario to a
 worker as one *task* (so the scenario is parsed once for its cases). A worker loads the scenario
 from the YAML text, runs each case with
 :func:`uh_team.team_simulation.run_team_simulation`, scores it with
 :func:`uh_team.metrics.metrics_from_arrays` and returns one row per case
-(:func:`uh_team.campaign.store.metric_row` plus status, reason and wall time). Only the main
+(:func:`uh_team.campaign_store.metric_row` plus status, reason and wall time). Only the main
 process writes the results file, one committed row per run as soon as it arrives
-(:mod:`uh_team.campaign.store`), so an interruption loses at most the runs in flight and a
+(:mod:`uh_team.campaign_store`), so an interruption loses at most the runs in flight and a
 re-run skips every stored key.
 
 Outcome of a run: ``ok``; ``diverged`` when the simulation raised a
@@ -65,7 +65,7 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
-from . import store
+from uh_team import campaign_store as store
 from .spec import CampaignSpec, resolve_scenario, scenario_file_name, scenario_yaml
 
 __all__ = ['run_campaign', 'run_task', 'CampaignError', 'CampaignInterrupted', 'CampaignOutcome', 'Progress',
@@ -160,7 +160,7 @@ def run_task(task: dict) -> list:
 
     ``task``: ``draw``, ``sweep_index``, ``sweep_value``, ``scenario_file`` (relative to the
     campaign directory, for messages and the row), ``scenario_text`` (its YAML) and ``cases``.
-    The rows hold every :data:`~uh_team.campaign.store.RUN_COLUMNS` column but ``success``.
+    The rows hold every :data:`~uh_team.campaign_store.RUN_COLUMNS` column but ``success``.
     """
     from uh_topology.scenario import parse_scenario
 

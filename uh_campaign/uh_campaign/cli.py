@@ -3,8 +3,8 @@
 ``uh-campaign SPEC --out DIR [--runs N] [--workers K] [--cluster ADDRESS] [--quiet]``
 
 SPEC is a campaign spec file or the name of a bundled spec (``campaign_paper_faults``); its keys
-are documented in :mod:`uh_team.campaign.spec`. Results go to ``DIR/campaign.sqlite``
-(:mod:`uh_team.campaign.store`), the resolved scenario of every draw to ``DIR/scenarios/``.
+are documented in :mod:`uh_campaign.spec`. Results go to ``DIR/campaign.sqlite``
+(:mod:`uh_team.campaign_store`), the resolved scenario of every draw to ``DIR/scenarios/``.
 Running the same command again on the same DIR resumes: stored runs are skipped.
 
 Exit status: 0 every run stored (whatever their outcome), 1 the campaign could not go on (a
@@ -20,6 +20,12 @@ import signal
 import sys
 import threading
 from pathlib import Path
+
+from uh_report.report import main as report_main
+from uh_topology.errors import ScenarioError
+
+from .runner import CampaignError, CampaignInterrupted, Progress, run_campaign, success_text, summary_lines
+from .spec import load_spec
 
 __all__ = ['main', 'build_parser', 'PROG']
 
@@ -37,7 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
                'uh-campaign my_campaign.yaml --out runs/mc --runs 20 --workers 2; '
                'uh-campaign campaign_delay_sweep --out runs/mc_delay --cluster tcp://10.0.0.5:8786. '
                'Exit status: 0 done, 1 could not go on (what is done is saved), 2 bad input, 130 interrupted. '
-               'Spec keys: uh_team/uh_team/campaign/spec.py; report: uh-report DIR.')
+               'Spec keys: uh_campaign/uh_campaign/spec.py; report: uh-report DIR.')
     p.add_argument('spec', metavar='SPEC',
                    help='campaign spec YAML file, or the name of a bundled spec (campaign_paper_faults, '
                         'campaign_delay_sweep, campaign_random_graphs)')
@@ -75,12 +81,11 @@ def _resume_command(args) -> str:
     return ' '.join(shlex.quote(w) for w in words)
 
 
-def main(argv=None, on_complete=None) -> int:
+def main(argv=None) -> int:
     """Entry point of ``uh-campaign``; returns the exit status (see module docstring).
 
-    ``on_complete(out_dir)``, if given, runs once every run is stored (unless ``--no-report``) and
-    its status is returned: the console script (:mod:`uh_bringup.campaign_cli`) writes the report
-    there, a layer above this package.
+    Once every run is stored, the campaign's report is written (``uh-report DIR``: ``DIR/report/``)
+    unless ``--no-report``, and its status is returned.
     """
     parser = build_parser()
     try:
@@ -91,11 +96,6 @@ def main(argv=None, on_complete=None) -> int:
         return _fail(f'--workers must be >= 1, got {args.workers}')
     if args.runs is not None and args.runs < 1:
         return _fail(f'--runs must be >= 1, got {args.runs}')
-
-    from uh_topology.errors import ScenarioError
-
-    from .runner import CampaignError, CampaignInterrupted, Progress, run_campaign, success_text, summary_lines
-    from .spec import load_spec
 
     try:
         spec = load_spec(args.spec)
@@ -145,8 +145,8 @@ def main(argv=None, on_complete=None) -> int:
             print(f'  {line}', file=out)
         print(f'{PROG}: results {Path(args.out) / "campaign.sqlite"}, resolved scenarios '
               f'{Path(args.out) / "scenarios"}/; report: uh-report {args.out}', file=out)
-    if on_complete is not None and not args.no_report:
-        return on_complete(Path(args.out))
+    if not args.no_report:
+        return report_main([str(args.out)])
     return 0
 
 

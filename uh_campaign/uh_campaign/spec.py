@@ -53,7 +53,7 @@ Top-level keys
 ``success``
     Mapping ``metric: threshold``: a run succeeds when it ended ``ok`` and every named metric is
     ``<=`` its threshold (a metric without a value counts as not met). Metrics: the columns of
-    :data:`uh_team.campaign.store.METRIC_COLUMNS`. Default ``{formation_rms_m: 0.05,
+    :data:`uh_team.campaign_store.METRIC_COLUMNS`. Default ``{formation_rms_m: 0.05,
     containment_rms_m: 0.02}`` (m); a given mapping replaces the default (``{}``: every ``ok``
     run succeeds).
 ``impairments``
@@ -187,7 +187,7 @@ from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
 from uh_topology import errors as E
 from uh_topology.scenario import _Ctx, _fmt, _parse_yaml, read_config_file, scenario_from_mapping
 
-from .store import METRIC_COLUMNS
+from uh_team.campaign_store import METRIC_COLUMNS
 
 __all__ = ['CampaignSpec', 'Draws', 'FaultDraws', 'GeneratorSpec', 'Sweep', 'load_spec', 'parse_spec',
            'bundled_specs', 'resolve_scenario', 'scenario_yaml', 'scenario_file_name', 'draw_generators',

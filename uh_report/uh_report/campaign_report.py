@@ -1,6 +1,6 @@
 """``uh-report DIR`` on a campaign directory: statistics over the runs of a Monte Carlo campaign.
 
-A campaign directory holds ``campaign.sqlite`` (:mod:`uh_team.campaign.store`, one row per run:
+A campaign directory holds ``campaign.sqlite`` (:mod:`uh_team.campaign_store`, one row per run:
 a draw, a sweep point and a controller case). The same draw is run for every case and every sweep
 value, so cases can be compared *paired* over the draws. :func:`write_campaign_report` writes into
 the output directory:
@@ -19,8 +19,8 @@ the output directory:
   a sweep) and ``runs.csv`` (every stored row, full precision).
 
 The statistics are pure functions of the ``{column: ndarray}`` of
-:func:`uh_team.campaign.store.read_runs` (testable without plotting); the figures use Matplotlib's
-``Figure`` directly (no pyplot, hence no display), like :mod:`uh_bringup.report_figures`.
+:func:`uh_team.campaign_store.read_runs` (testable without plotting); the figures use Matplotlib's
+``Figure`` directly (no pyplot, hence no display), like :mod:`uh_report.report_figures`.
 """
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uh_team.campaign.store import DB_NAME, METRIC_COLUMNS, RUN_COLUMNS, StoreError, open_store, read_meta, read_runs
+from uh_team.campaign_store import DB_NAME, METRIC_COLUMNS, RUN_COLUMNS, StoreError, open_store, read_meta, read_runs
 
 __all__ = ['CampaignReportError', 'Campaign', 'is_campaign_dir', 'load_campaign', 'wilson_interval',
            'status_counts', 'success_rate', 'success_table', 'failure_groups', 'distribution_summary', 'ecdf',
@@ -104,7 +104,7 @@ class Campaign:
     meta : dict
         Campaign-level values of the store, JSON decoded where they are JSON.
     runs : dict
-        ``{column: ndarray}`` of :func:`uh_team.campaign.store.read_runs`.
+        ``{column: ndarray}`` of :func:`uh_team.campaign_store.read_runs`.
     cases : list of str
         Controller cases, in :data:`CASE_ORDER`.
     planned_runs : int or None
@@ -939,7 +939,7 @@ def write_campaign_report(campaign, out, case_labels: dict | None = None) -> Pat
     out : path
         Output directory (created).
     case_labels : dict, optional
-        Display names of the cases (e.g. ``uh_bringup.report.CASE_LABELS``), shown next to the names.
+        Display names of the cases (e.g. ``uh_report.report.CASE_LABELS``), shown next to the names.
 
     Raises
     ------

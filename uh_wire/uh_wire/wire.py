@@ -13,7 +13,7 @@ import numpy as np
 
 from uh_runtime import messages as m
 
-from .records import Reference
+from uh_core.records import Reference
 
 __all__ = [
     'WireError', 'stamp', 'stamp_seconds', 'state_to_msg', 'msg_to_state', 'received_states_to_msg',

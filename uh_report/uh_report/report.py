@@ -11,10 +11,10 @@
 - per run, in ``DIR/<run name>/``: ``states.png`` (Figures 4-7), ``trajectory_3d.png``
   (Figure 8), ``xy_snapshots.png`` (Figure 9), ``faults_uh<i>.png`` for every faulted UH and
   ``false_fault_estimate.png`` (the estimates where no fault acts, against the thresholds; see
-  :mod:`uh_bringup.report_figures`).
+  :mod:`uh_report.report_figures`).
 
 A run is a directory written by ``scripts/run_formation.sh`` (``bag/``, ``run.json``,
-``metrics.json``; the arrays are read from the bag with :func:`uh_bringup.bag_metrics.read_team_bag`),
+``metrics.json``; the arrays are read from the bag with :func:`uh_report.bag_metrics.read_team_bag`),
 a bare rosbag2 bag directory of such a run, or a directory written by ``uh-simulate``
 (``timeseries.npz``, ``metrics.json``). The scenario comes from ``run.json``; for the other kinds
 it is ``--scenario`` (default ``paper``). Without ``metrics.json`` the metrics are computed from
@@ -22,7 +22,7 @@ the arrays with :func:`uh_team.metrics.metrics_from_arrays` (and the table says 
 
 ``uh-report CAMPAIGN_DIR [--out DIR]`` on a campaign directory (it holds ``campaign.sqlite`` of
 ``uh-campaign``; it must be the only argument) writes the campaign report of
-:mod:`uh_bringup.campaign_report` instead (default ``DIR`` = ``CAMPAIGN_DIR/report``): success
+:mod:`uh_report.campaign_report` instead (default ``DIR`` = ``CAMPAIGN_DIR/report``): success
 rates with Wilson intervals, distributions, paired comparisons of the cases, the worst runs with
 their re-run commands and the sweep; a missing, damaged or empty results file exits 2.
 
@@ -168,7 +168,7 @@ def load_run(run_dir, scenario_name: str = 'paper', check_chunks: bool = True) -
         A missing or empty directory, one that holds no run, a bag that cannot be read (file and
         problem named), arrays that do not fit the scenario, a bad ``run.json``/``metrics.json``.
     """
-    from uh_bringup.bag_metrics import BagContentError, read_team_bag
+    from uh_report.bag_metrics import BagContentError, read_team_bag
     from uh_team.metrics import MetricsError, metrics_from_arrays
     from uh_runtime.bag_reader import BagError, open_bag
 
@@ -617,7 +617,7 @@ def _fail(message: str, status: int = 2) -> int:
 
 
 def _campaign_main(args, campaign_dir) -> int:
-    """``uh-report CAMPAIGN_DIR [--out DIR]``: the report of :mod:`uh_bringup.campaign_report`."""
+    """``uh-report CAMPAIGN_DIR [--out DIR]``: the report of :mod:`uh_report.campaign_report`."""
     from .campaign_report import CampaignReportError, write_campaign_report
 
     if len(args.runs) != 1:

@@ -10,14 +10,16 @@ import functools
 
 from uh_runtime import messages as m
 
-from . import frames, topics
+from uh_core import frames
+
+from . import topics
 from .wire import stamp
 
 __all__ = ['view_publisher', 'transform_msg', 'tf_msg', 'odometry_msg', 'diagnostic_array_msg', 'level_of']
 
 
 def view_publisher(node, spec):
-    """``node``'s publisher of the standard view ``spec`` (:data:`uh_core.topics.TF`, ``ODOM``,
+    """``node``'s publisher of the standard view ``spec`` (:data:`uh_wire.topics.TF`, ``ODOM``,
     ``DIAGNOSTICS``) with its type and QoS from the topic registry.
     """
     return node.create_publisher(m.get_message(spec.type), spec.name, topics.qos_profile(spec.qos))

@@ -43,7 +43,7 @@ def read_team_bag(bag_dir, scenario) -> dict:
     from rosbags.rosbag2 import Reader
     from rosbags.rosbag2.errors import ReaderError
 
-    from uh_core import topics
+    from uh_wire import topics
     from uh_runtime.messages import typestore
 
     bag_dir = Path(bag_dir)

@@ -1,7 +1,7 @@
 """Figures of a formation-containment run (the paper's Figures 4-12), drawn with Matplotlib's Agg backend.
 
-Each function takes :class:`uh_bringup.report.RunData` objects (the arrays of
-``uh_bringup.bag_metrics.read_team_bag`` or of ``timeseries.npz``, UH axis in ``scenario.ids``
+Each function takes :class:`uh_report.report.RunData` objects (the arrays of
+``uh_report.bag_metrics.read_team_bag`` or of ``timeseries.npz``, UH axis in ``scenario.ids``
 order) and writes one PNG of a fixed pixel size (:data:`FIGURE_SIZES` at :data:`DPI`), so a test
 can check what was drawn. Errors are computed with the one metrics module
 (:mod:`uh_team.metrics`, docs/metrics.md).
