@@ -18,7 +18,8 @@ setup(
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',
-    description='Node runtime of the UH stack: an rclpy-shaped node facade with an rclpy backend and a Cyclone DDS backend that follows ROS 2 wire conventions; the uh inspection CLI; the MCAP recorder and player.',
+    description=('Node runtime of the UH stack: an rclpy-shaped node facade with an rclpy backend and a Cyclone DDS '
+                 'backend that follows ROS 2 wire conventions; the uh inspection CLI; the MCAP recorder and player.'),
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

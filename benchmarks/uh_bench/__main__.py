@@ -8,7 +8,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .suite import MODES, markdown, run_suite
+from .suite import markdown, run_suite
 
 SECTIONS = ('transport', 'paper', 'components', 'scaling', 'realtime', 'backends', 'campaign')
 

@@ -54,8 +54,10 @@ def _one_run_seconds(duration: float, repeats: int) -> float:
 
 def measure(workdir, runs: int = 200, workers: int | None = None, duration: float = 60.0,
             repeats: int = 5) -> dict:
-    """Throughput of a campaign of ``runs`` paper-scenario runs of ``duration`` s on ``workers``
-    local processes (default: the machine's cores) against one run in process (module docstring).
+    """Measure the throughput of a campaign of paper-scenario runs against one run in process.
+
+    The campaign is ``runs`` paper-scenario runs of ``duration`` s on ``workers`` local processes (default: the
+    machine's cores); see the module docstring.
     """
     from uh_campaign.runner import run_campaign
     from uh_campaign.spec import parse_spec

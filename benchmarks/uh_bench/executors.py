@@ -76,8 +76,9 @@ def _subscribe(executor_name: str, messages: int) -> dict:
 
 
 def measure(case: str, messages: int = 2500) -> dict:
-    """Run the publisher and the subscriber of ``case`` (a key of :data:`CASES`) in a DDS domain of
-    their own (reserved, loopback network, given back); their result.
+    """Run the publisher and the subscriber of ``case`` in a DDS domain of their own; return their result.
+
+    ``case`` is a key of :data:`CASES`; the domain is reserved, on the loopback network, and given back.
     """
     from uh_runtime.network import loopback_environment, release_domain_id, reserve_domain_id
     domain = reserve_domain_id()

@@ -36,8 +36,10 @@ def _percentile(sorted_values, q: float):
 
 
 def summarise(states: dict, commands: dict, last_step: int | None = None) -> dict:
-    """Per-controller summary from ``{step: source_timestamp_ns}`` maps of one UH's states and
-    commands: latency percentiles (us), late and missed steps (see the module docstring).
+    """Return the per-controller summary of one UH's states and commands.
+
+    ``states`` and ``commands`` are ``{step: source_timestamp_ns}`` maps; the summary gives latency percentiles
+    (us), late and missed steps (see the module docstring).
     """
     lat = []
     late = []

@@ -40,7 +40,7 @@ def node_kind(name: str) -> str:
 
 
 def parse_run_complete(text: str):
-    """(steps, sim s, loop wall s, real-time factor) of the clock's last 'run complete' line, or None."""
+    """Return (steps, sim s, loop wall s, real-time factor) of the clock's last 'run complete' line, or None."""
     found = _COMPLETE.findall(text)
     if not found:
         return None

@@ -290,8 +290,9 @@ def rclpy_available() -> str | None:
 
 
 def _backends(cfg, workdir, results):
-    """The paper scenario, one process per node, on the Cyclone DDS backend and on real rclpy, in
-    lockstep (real-time factor, CPU per step) and in real time at rate 1 (p99 latency, late and
+    """Run the paper scenario, one process per node, on the Cyclone DDS backend and on real rclpy.
+
+    Both run in lockstep (real-time factor, CPU per step) and in real time at rate 1 (p99 latency, late and
     missed steps, CPU per step), in one run so the comparison is a ratio of this machine's numbers.
     """
     skipped = rclpy_available()
@@ -346,8 +347,9 @@ def _busy_count() -> int:
 
 @contextlib.contextmanager
 def busy_load(n: int):
-    """``n`` processes that spin at normal priority for as long as the block runs: a machine whose
-    every core is wanted by someone else.
+    """Keep ``n`` processes spinning at normal priority for as long as the block runs.
+
+    This makes a machine whose every core is wanted by someone else.
     """
     procs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'], stdin=subprocess.DEVNULL)
              for _ in range(n)]
@@ -476,7 +478,7 @@ def _f(value, fmt='{:.2f}', none='—'):
 
 
 def markdown(results) -> str:
-    """The results as markdown tables (what ``scripts/bench.sh`` prints)."""
+    """Return the results as markdown tables (what ``scripts/bench.sh`` prints)."""
     m = results['machine']
     lines = [f'## Benchmark ({results["mode"]}, {results["date"]}, commit {m.get("commit") or "?"})', '',
              f'Machine: {m.get("cpu_model")}, {m.get("nproc")} cores, {m.get("memory_mb")} MB; load average '
@@ -518,7 +520,8 @@ def markdown(results) -> str:
         views = paper.get('standard_views')
         if views:
             lines.append(lockstep_row('lockstep, per-node, `--no-standard-views`', views['without'], '—'))
-            lines.append(f'\n/tf, odom and /diagnostics: real-time factor with / without {_f(views["rtf_ratio"], "{:.3f}")}, '
+            lines.append(f'\n/tf, odom and /diagnostics: real-time factor with / without '
+                         f'{_f(views["rtf_ratio"], "{:.3f}")}, '
                          f'run CPU with / without {_f(views["cpu_ratio"], "{:.3f}")}')
         lines.append('')
     per_node = (paper or {}).get('lockstep', {}).get('per-node')

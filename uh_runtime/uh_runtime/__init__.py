@@ -18,5 +18,7 @@ from .facade import BACKEND
 from .parameters import UnknownParameterOverrideError
 from .runner import check_parameter_overrides, log_on_exit, run_node
 
-__all__ = sorted({*FACADE_NAMES, 'BACKEND', 'BackendError', 'select_backend', 'run_node', 'log_on_exit',
-                  'check_parameter_overrides', 'UnknownParameterOverrideError'})
+# The names imported above, re-exported: a literal list first so that linters see them, then with the facade's.
+__all__ = ['BACKEND', 'BackendError', 'select_backend', 'run_node', 'log_on_exit', 'check_parameter_overrides',
+           'UnknownParameterOverrideError']
+__all__ = sorted({*FACADE_NAMES, *__all__})

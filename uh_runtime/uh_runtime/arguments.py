@@ -71,7 +71,7 @@ def validate_full_topic_name(name: str) -> str:
 
 
 def normalise_namespace(namespace) -> str:
-    """rclpy's handling of the ``namespace`` argument: ``None``/'' -> '/', relative -> absolute."""
+    """Apply rclpy's handling of the ``namespace`` argument: ``None``/'' -> '/', relative -> absolute."""
     if not namespace:
         return '/'
     if not namespace.startswith('/'):
@@ -216,7 +216,7 @@ def load_params_file(path) -> list:
 
 
 def node_pattern_matches(pattern: str, fq_node_name: str) -> bool:
-    """True if a parameter-file node key matches the fully qualified node name (rcl rules)."""
+    """Return True if a parameter-file node key matches the fully qualified node name (rcl rules)."""
     if not pattern.startswith('/'):
         pattern = '/' + pattern
     if pattern in ('/**', '/*'):

@@ -81,8 +81,10 @@ class TopicInfo:
 
 
 class _DirectFile:
-    """A write-only binary file without a user-space buffer: every ``write`` is handed to the
-    operating system at once (so what the MCAP writer wrote survives a SIGKILL of the process).
+    """A write-only binary file without a user-space buffer.
+
+    Every ``write`` is handed to the operating system at once (so what the MCAP writer wrote survives a SIGKILL
+    of the process).
     """
 
     def __init__(self, path: Path):
@@ -137,8 +139,9 @@ class BagWriter:
         self._writer.add_metadata('rosbag2', {'serialized_metadata': self._metadata_yaml(indent=0)})
 
     def add_topic(self, name: str, type_name: str, offered_qos_profiles: str) -> TopicInfo:
-        """Register topic ``name`` of ``type_name`` with its offered QoS (rosbag2 YAML, see
-        :func:`uh_runtime.qos.qos_profile_yaml`).
+        """Register topic ``name`` of ``type_name`` with its offered QoS.
+
+        ``offered_qos_profiles`` is rosbag2 YAML, see :func:`uh_runtime.qos.qos_profile_yaml`.
         """
         if name in self.topics:
             return self.topics[name]
@@ -165,8 +168,9 @@ class BagWriter:
             info.last_ns = int(log_time_ns)
 
     def flush(self) -> None:
-        """Close the chunk being filled and hand it to the file: everything written so far survives a
-        crash of this process (a chunk with no messages is not written).
+        """Close the chunk being filled and hand it to the file.
+
+        Everything written so far survives a crash of this process (a chunk with no messages is not written).
         """
         if not self._closed:
             self._writer.flush()

@@ -90,7 +90,7 @@ def find_bag_files(path) -> tuple[Path, list]:
 
 
 def bag_file(bag_dir) -> Path:
-    """The one MCAP file of a bag (see :func:`find_bag_files`; ``bag_dir`` may also be the file).
+    """Return the one MCAP file of a bag (see :func:`find_bag_files`; ``bag_dir`` may also be the file).
 
     Raises
     ------
@@ -122,9 +122,10 @@ def _open_mcap(path: Path):
 
 
 def _crc_mismatch(chunk) -> bool | None:
-    """Whether an uncompressed chunk's bytes differ from the CRC its writer stored (one C-speed pass
-    checks everything); None if there is nothing to compare (no CRC, as rosbag2 on Jazzy writes
-    it, or compressed).
+    """Return whether an uncompressed chunk's bytes differ from the CRC its writer stored.
+
+    One C-speed pass checks everything. None if there is nothing to compare (no CRC, as rosbag2 on Jazzy
+    writes it, or compressed).
     """
     if chunk.compression != '' or not chunk.uncompressed_crc:
         return None
@@ -306,8 +307,10 @@ def iter_bag_messages(info: BagInfo, topics=None):
 # ----------------------------------------------------------------------------------------------
 @dataclass
 class ReadResult:
-    """What :func:`read_messages` found: schemas and channels by id, message count per topic, and
-    whether (and where) the file ended early or was damaged.
+    """What :func:`read_messages` found.
+
+    Schemas and channels by id, message count per topic, and whether (and where) the file ended early or
+    was damaged.
     """
 
     path: Path

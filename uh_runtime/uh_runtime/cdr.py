@@ -47,7 +47,7 @@ class _Alignment:
         self.mod, self.rem = mod, rem
 
     def pad_for(self, size):
-        """Static padding before an item of alignment ``size``, or None if not known."""
+        """Return the static padding before an item of alignment ``size``, or None if not known."""
         if size <= self.mod:
             return (-self.rem) % size
         return None
@@ -81,8 +81,9 @@ class _Gen:
 
     # ------------------------------------------------------------------ serialiser
     def ser_function(self, typename, top=False):
-        """Emit ``_s_<T>(m, b)`` appending ``m`` (at payload offset 0 if ``top``, else at an
-        unknown offset); return its name.
+        """Emit ``_s_<T>(m, b)`` appending ``m``; return its name.
+
+        ``m`` is appended at payload offset 0 if ``top``, else at an unknown offset.
         """
         name = f"_s{'top' if top else ''}_{self.fname(typename)}"
         if name in self.functions:
@@ -201,8 +202,9 @@ class _Gen:
 
     # ------------------------------------------------------------------ deserialiser
     def de_function(self, typename, top=False):
-        """Emit ``_d_<T>(d, p) -> (msg, p)`` reading at payload offset 0 if ``top``, else at an
-        unknown offset; return its name.
+        """Emit ``_d_<T>(d, p) -> (msg, p)``; return its name.
+
+        The emitted function reads at payload offset 0 if ``top``, else at an unknown offset.
         """
         name = f"_d{'top' if top else ''}_{self.fname(typename)}"
         if name in self.functions:
@@ -323,7 +325,7 @@ _codecs = {}
 
 
 def codec(cls) -> Codec:
-    """The (cached) codec of a DDS backend message class (``__ros_typename__`` set)."""
+    """Return the (cached) codec of a DDS backend message class (``__ros_typename__`` set)."""
     typename = cls.__ros_typename__
     found = _codecs.get(typename)
     if found is not None:

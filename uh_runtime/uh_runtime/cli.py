@@ -223,7 +223,7 @@ def _wait_for_type(graph, topic, timeout):
 
 
 def _reader(graph, topic, cls, pubs, depth, raw=False):
-    """A reader whose QoS suits every publisher (reliable/transient-local only if all are)."""
+    """Create a reader whose QoS suits every publisher (reliable/transient-local only if all are)."""
     from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
@@ -463,9 +463,11 @@ def cmd_param_describe(args):
     if d.dynamic_typing:
         print('    Dynamic typing: true')
     for r in d.floating_point_range:
-        print(f'    Min value: {r.from_value}\n    Max value: {r.to_value}' + (f'\n    Step: {r.step}' if r.step else ''))
+        print(f'    Min value: {r.from_value}\n    Max value: {r.to_value}'
+              + (f'\n    Step: {r.step}' if r.step else ''))
     for r in d.integer_range:
-        print(f'    Min value: {r.from_value}\n    Max value: {r.to_value}' + (f'\n    Step: {r.step}' if r.step else ''))
+        print(f'    Min value: {r.from_value}\n    Max value: {r.to_value}'
+              + (f'\n    Step: {r.step}' if r.step else ''))
     if d.additional_constraints:
         print(f'    {d.additional_constraints}')
     return 0

@@ -57,7 +57,7 @@ class EndpointInfo:
 
     @property
     def endpoint_gid(self) -> bytes:
-        """rclpy's name of :attr:`gid`."""
+        """Return :attr:`gid` (``endpoint_gid`` is rclpy's name of it)."""
         return self.gid
 
 
@@ -199,7 +199,9 @@ class Graph:
             self._guard.take()
 
     def complete(self) -> bool:
-        """True once other participants are known and, for each participant with ROS endpoints
+        """Return True once the other participants and their ROS endpoints are known.
+
+        That is, once other participants are known and, for each participant with ROS endpoints
         (``rt/``, ``rq/``, ``rr/`` topics), its ``ros_discovery_info`` and every reader and writer
         listed there. (A participant without ROS endpoints, e.g. another ``uh`` command, never
         publishes ``ros_discovery_info``.)
@@ -224,8 +226,9 @@ class Graph:
         return True
 
     def settle(self, spin_time: float, quiet: float = 0.2):
-        """Collect discovery for at most ``spin_time`` s (what ``ros2 ... --spin-time`` waits
-        for); return early once the graph is :meth:`complete` and nothing changed for ``quiet`` s.
+        """Collect discovery for at most ``spin_time`` s (what ``ros2 ... --spin-time`` waits for).
+
+        Return early once the graph is :meth:`complete` and nothing changed for ``quiet`` s.
         """
         end = time.monotonic() + spin_time
         last_change = time.monotonic()
@@ -296,7 +299,7 @@ class Graph:
         return [(name, list(types)) for name, types in result]
 
     def count(self, topic: str, writers: bool) -> int:
-        """Number of writers (or readers) of ROS topic ``topic``."""
+        """Return the number of writers (or readers) of ROS topic ``topic``."""
         dds_name = 'rt' + topic
         return sum(1 for _, sample in self._ros_endpoints(writers) if sample.topic_name == dds_name)
 

@@ -39,8 +39,9 @@ def enabled() -> bool:
 
 
 def compatible(writer_qos, reader_qos) -> bool:
-    """True when a DDS writer with ``writer_qos`` would match a reader with ``reader_qos``
-    (reliability and durability, the policies this project varies).
+    """Return True when a DDS writer with ``writer_qos`` would match a reader with ``reader_qos``.
+
+    Only reliability and durability are compared, the policies this project varies.
     """
     if reader_qos.reliability == ReliabilityPolicy.RELIABLE and \
             writer_qos.reliability != ReliabilityPolicy.RELIABLE:
@@ -140,7 +141,7 @@ class IntraProcess:
             sub._inbox.items.clear()
 
     def local_publisher_count(self, sub) -> int:
-        """Publishers of this process that feed ``sub``."""
+        """Count the publishers of this process that feed ``sub``."""
         with self._lock:
             return sum(1 for p in self._publishers.get(sub.topic_name, []) if sub in p._local)
 
@@ -161,8 +162,9 @@ class IntraProcess:
             self._wake()   # an executor may be blocked waiting in another thread
 
     def take_pending(self, wanted) -> list:
-        """The pending subscriptions for which ``wanted(sub)`` holds, removed from the pending list
-        (the others stay pending, e.g. those of nodes another executor spins).
+        """Remove from the pending list and return the pending subscriptions for which ``wanted(sub)`` holds.
+
+        The others stay pending, e.g. those of nodes another executor spins.
         """
         if not self.pending:
             return []

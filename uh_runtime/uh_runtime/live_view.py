@@ -1,5 +1,6 @@
-"""Live view node (``live_view``): the team's topics over the Foxglove WebSocket protocol
-(docs/visualization.md#live-view-in-foxglove).
+"""Live view node (``live_view``): the team's topics over the Foxglove WebSocket protocol.
+
+See docs/visualization.md#live-view-in-foxglove.
 
 Follows every topic of the DDS domain like the recorder (:func:`uh_runtime.recorder.new_topics`),
 subscribes to it raw, and logs each CDR payload unchanged to a channel of a ``foxglove-sdk``
@@ -76,14 +77,16 @@ def check_available(host: str, port: int) -> None:
 
 
 def connect_hint(host: str, port: int) -> str:
-    """What a user types into Foxglove to see the live view."""
+    """Return what a user types into Foxglove to see the live view."""
     return (f'ws://{host}:{port}   (Foxglove: Open connection, Foxglove WebSocket; '
             'docs/visualization.md#live-view-in-foxglove)')
 
 
 def add_arguments(parser, what: str) -> None:
-    """``--foxglove [PORT]`` and ``--foxglove-host HOST`` of the command-line tools that offer the
-    live view; ``what`` names what is served (e.g. 'the team').
+    """Add ``--foxglove [PORT]`` and ``--foxglove-host HOST`` to ``parser``.
+
+    These are the options of the command-line tools that offer the live view; ``what`` names what is served
+    (e.g. 'the team').
     """
     parser.add_argument('--foxglove', nargs='?', type=int, const=DEFAULT_PORT, default=None, metavar='PORT',
                         help=f'serve {what} live over the Foxglove WebSocket protocol on ws://HOST:PORT '

@@ -36,8 +36,8 @@ from .backend import select_backend
 
 __all__ = [
     'MessageError', 'get_message', 'dds_message', 'type_hash', 'ros_type_name', 'dds_type_name',
-    'ros_type_from_dds', 'dds_service_message', 'SERVICE_DEFINITIONS', 'typestore', 'msg_search_path', 'message_to_ordereddict',
-    'message_to_yaml', 'message_fields', 'BACKEND',
+    'ros_type_from_dds', 'dds_service_message', 'SERVICE_DEFINITIONS', 'typestore', 'msg_search_path',
+    'message_to_ordereddict', 'message_to_yaml', 'message_fields', 'BACKEND',
 ]
 
 #: Backend whose classes :func:`get_message` and the module attributes return.
@@ -92,8 +92,9 @@ class MessageError(LookupError):
 
 
 def _normalise(name: str) -> str:
-    """``'uh_msgs/UHState'`` or ``'uh_msgs/msg/UHState'`` -> ``'uh_msgs/msg/UHState'``; a service
-    part ``'pkg/srv/<Service>_Request'`` (or ``_Response``) is kept as it is.
+    """Normalise a type name: ``'uh_msgs/UHState'`` or ``'uh_msgs/msg/UHState'`` -> ``'uh_msgs/msg/UHState'``.
+
+    A service part ``'pkg/srv/<Service>_Request'`` (or ``_Response``) is kept as it is.
     """
     if _SRV_NAME_RE.match(str(name).strip()):
         return str(name).strip()
@@ -137,7 +138,7 @@ _classes: dict = {}
 
 
 def typestore():
-    """rosbags type store: ROS 2 Jazzy standard types plus every ``uh_msgs`` type.
+    """Return the rosbags type store: ROS 2 Jazzy standard types plus every ``uh_msgs`` type.
 
     Built once per process; it is the reference for type hashes and CDR bytes.
     """
@@ -233,7 +234,7 @@ def _holds_char(name: str) -> bool:
 
 
 def _char_as_uint8(field):
-    """A rosbags field description with every ``char`` (alone, in an array or a sequence) as ``uint8``."""
+    """Return a rosbags field description with every ``char`` (alone, in an array or a sequence) as ``uint8``."""
     from rosbags.interfaces import Nodetype
     kind, payload = field
     if kind == Nodetype.BASE and payload[0] == 'char':
@@ -258,7 +259,7 @@ def _hash_store():
 # IdlStruct generation
 # ----------------------------------------------------------------------------------------------
 def _base_type(types, base: str, bound: int):
-    """cyclonedds annotation and default value of a ROS primitive type."""
+    """Return the cyclonedds annotation and default value of a ROS primitive type."""
     table = {
         'bool': (bool, False),
         # rmw_cyclonedds describes ROS byte and char as DDS uint8 too (same CDR bytes)
@@ -300,8 +301,9 @@ def _field_type(types, spec):
 
 
 def _idl_class(name: str, consts, fields, module: str):
-    """The ``IdlStruct`` dataclass of ROS type ``name`` with rosbags ``fields`` and ``consts``: DDS
-    type name :func:`dds_type_name`, ROS-like defaults, constants as class attributes,
+    """Build the ``IdlStruct`` dataclass of ROS type ``name`` with rosbags ``fields`` and ``consts``.
+
+    It has DDS type name :func:`dds_type_name`, ROS-like defaults, constants as class attributes,
     ``__ros_typename__`` and ``__ros_typehash__``, module ``<pkg>.<module>`` like rosidl's.
     """
     from cyclonedds.idl import IdlStruct, types
@@ -323,7 +325,7 @@ def _idl_class(name: str, consts, fields, module: str):
 
 
 def dds_message(name: str):
-    """The Cyclone DDS (``IdlStruct``) class of message type ``name``, whatever the backend.
+    """Return the Cyclone DDS (``IdlStruct``) class of message type ``name``, whatever the backend.
 
     Raises
     ------
@@ -346,9 +348,10 @@ def dds_message(name: str):
 
 
 def dds_service_message(name: str):
-    """The Cyclone DDS class of a service's request or reply *sample* (``name`` =
-    ``'pkg/srv/<Service>_Request'`` or ``_Response``), as rmw_cyclonedds puts it on the wire: the
-    request header ``client_guid`` (uint64: the client's writer instance) and ``sequence_number``
+    """Return the Cyclone DDS class of a service's request or reply *sample*.
+
+    ``name`` is ``'pkg/srv/<Service>_Request'`` or ``_Response``. The class is as rmw_cyclonedds puts it on
+    the wire: the request header ``client_guid`` (uint64: the client's writer instance) and ``sequence_number``
     (int64) before the message's own fields. Its DDS type name is the message's
     (``rcl_interfaces::srv::dds_::ListParameters_Request_``) and its type hash the message's.
     """
@@ -374,7 +377,7 @@ def dds_service_message(name: str):
 
 
 def get_message(name: str):
-    """The message class of ``name`` (``'uh_msgs/msg/UHState'``) for the active backend."""
+    """Return the message class of ``name`` (``'uh_msgs/msg/UHState'``) for the active backend."""
     name = _normalise(name)
     if BACKEND == 'rclpy':
         pkg, _, typ = name.split('/')

@@ -48,9 +48,10 @@ DISCOVERY_RANGES = ('LOCALHOST', 'SUBNET', 'OFF', 'SYSTEM_DEFAULT')
 
 
 def default_cyclonedds_uri(env: dict | None = None) -> str | None:
-    """The ``CYCLONEDDS_URI`` the project's commands use when the user has not set one (an empty
-    value counts as not set), following ROS 2's discovery variables as rmw_cyclonedds maps them
-    (docs/architecture.md#isolation-of-runs):
+    """Return the ``CYCLONEDDS_URI`` the project's commands use when the user has not set one.
+
+    An empty value counts as not set. The choice follows ROS 2's discovery variables as rmw_cyclonedds
+    maps them (docs/architecture.md#isolation-of-runs):
 
     - ``ROS_AUTOMATIC_DISCOVERY_RANGE`` unset or ``LOCALHOST``: :func:`loopback_config` (loopback
       only, no multicast, unicast discovery on this machine), plus the ``ROS_STATIC_PEERS``
@@ -88,8 +89,9 @@ def default_cyclonedds_uri(env: dict | None = None) -> str | None:
 
 
 def apply_network_default(env: dict | None = None) -> dict:
-    """Set ``CYCLONEDDS_URI`` in ``env`` (default ``os.environ``) to :func:`default_cyclonedds_uri`
-    when that is not None; returns ``env``. What ``uh``, the scripts and the runs do first.
+    """Set ``CYCLONEDDS_URI`` in ``env`` (default ``os.environ``) to :func:`default_cyclonedds_uri`; return ``env``.
+
+    The variable is set only when that default is not None. What ``uh``, the scripts and the runs do first.
     """
     env = os.environ if env is None else env
     uri = default_cyclonedds_uri(env)
@@ -99,8 +101,9 @@ def apply_network_default(env: dict | None = None) -> dict:
 
 
 def loopback_environment(domain_id: int, base: dict | None = None) -> dict:
-    """Return a copy of ``base`` (default ``os.environ``) set up for DDS domain ``domain_id`` with
-    the project's network default (:func:`apply_network_default`: loopback only unless
+    """Return a copy of ``base`` (default ``os.environ``) set up for DDS domain ``domain_id``.
+
+    The copy has the project's network default (:func:`apply_network_default`: loopback only unless
     ``CYCLONEDDS_URI``, ``ROS_AUTOMATIC_DISCOVERY_RANGE`` or ``ROS_STATIC_PEERS`` say otherwise).
     """
     if not 0 <= int(domain_id) <= MAX_DOMAIN_ID:
@@ -111,9 +114,10 @@ def loopback_environment(domain_id: int, base: dict | None = None) -> dict:
 
 
 def environment_script(env: dict) -> str:
-    """A POSIX shell script that exports the ``ROS_DOMAIN_ID`` and ``CYCLONEDDS_URI`` of ``env``, so
-    that a second terminal that sources it (``ros2 topic list``, ``uh topic list``) joins the same
-    DDS domain with the same discovery settings.
+    """Return a POSIX shell script that exports the ``ROS_DOMAIN_ID`` and ``CYCLONEDDS_URI`` of ``env``.
+
+    A second terminal that sources it (``ros2 topic list``, ``uh topic list``) joins the same DDS domain
+    with the same discovery settings.
     """
     import shlex
     lines = ['# source this file to reach the run from another terminal (ros2 CLI, uh CLI)']

@@ -135,7 +135,7 @@ class ParameterType(enum.IntEnum):
             'or a list of one of those (not mixed)')
 
     def check(self, value) -> bool:
-        """True if ``value`` has this type."""
+        """Return True if ``value`` has this type."""
         try:
             return ParameterType.from_parameter_value(value) == self or (
                 self != ParameterType.NOT_SET and isinstance(value, (list, tuple)) and not value

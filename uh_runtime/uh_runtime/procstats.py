@@ -88,8 +88,9 @@ def set_nodes(nodes) -> None:
 
 
 def mark_spinning() -> None:
-    """Note the CPU seconds used so far as the start-up cost (imports, building the nodes): call it
-    once the nodes are built and the executor is about to spin.
+    """Note the CPU seconds used so far as the start-up cost (imports, building the nodes).
+
+    Call it once the nodes are built and the executor is about to spin.
     """
     if _state['spin_cpu'] is None:
         ru = resource.getrusage(resource.RUSAGE_SELF)

@@ -1,5 +1,6 @@
-"""QoS profiles of the Cyclone DDS backend (``rclpy.qos`` subset), their DDS mapping, and the one
-translation from the project's QoS words.
+"""QoS profiles of the Cyclone DDS backend, their DDS mapping, and the one translation from the project's QoS words.
+
+The profiles are an ``rclpy.qos`` subset.
 
 The DDS mapping is the one of rmw_cyclonedds_cpp's ``create_readwrite_qos`` (Jazzy): keep-last
 depth N or keep-all; reliable (max blocking time infinite) or best effort; volatile or
@@ -131,7 +132,7 @@ class QoSPresetProfiles(enum.Enum):
 
 
 def as_profile(qos) -> QoSProfile:
-    """rclpy accepts an int depth for a keep-last reliable volatile profile."""
+    """Return ``qos`` as a ``QoSProfile``: rclpy accepts an int depth for a keep-last reliable volatile profile."""
     if isinstance(qos, QoSProfile):
         return qos
     if isinstance(qos, int) and not isinstance(qos, bool):
@@ -220,8 +221,9 @@ def from_dds_qos(qos) -> QoSProfile:
 # ----------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class QoSWords:
-    """A QoS profile in words; the defaults are ROS 2's default profile (what ``system_default``
-    stands for in a bag).
+    """A QoS profile in words.
+
+    The defaults are ROS 2's default profile (what ``system_default`` stands for in a bag).
     """
 
     reliability: str = 'reliable'      # reliable | best_effort
@@ -247,7 +249,7 @@ _SPELLINGS = {
 
 
 def profile_from_words(words):
-    """The active backend's ``QoSProfile`` (rclpy's on the rclpy backend) of a profile in words.
+    """Make the active backend's ``QoSProfile`` (rclpy's on the rclpy backend) of a profile in words.
 
     ``words`` has ``reliability``, ``durability``, ``history`` and ``depth``: a :class:`QoSWords`
     (``uh_wire.topics.QosSpec`` is this record).
@@ -268,8 +270,9 @@ def profile_from_words(words):
 
 
 def words_of(profile) -> QoSWords:
-    """The words of a ``QoSProfile`` of either backend (e.g. a discovered publisher's). A policy
-    value without a word (system default, unknown) gets the default profile's word, a depth of 0
+    """Return the words of a ``QoSProfile`` of either backend (e.g. a discovered publisher's).
+
+    A policy value without a word (system default, unknown) gets the default profile's word, a depth of 0
     the default depth.
     """
     def word(policy):
@@ -281,9 +284,10 @@ def words_of(profile) -> QoSWords:
 
 
 def merge_offered(offered) -> QoSWords:
-    """One profile that serves every publisher of a topic (``offered``: their :class:`QoSWords`),
-    as ``ros2 bag`` chooses it: reliable only if every publisher is, transient-local only if every
-    publisher is, keep-all if any publisher keeps all, the largest depth.
+    """Return one profile that serves every publisher of a topic (``offered``: their :class:`QoSWords`).
+
+    The profile is chosen as ``ros2 bag`` chooses it: reliable only if every publisher is, transient-local
+    only if every publisher is, keep-all if any publisher keeps all, the largest depth.
     """
     return QoSWords(
         reliability='reliable' if all(w.reliability == 'reliable' for w in offered) else 'best_effort',
@@ -309,7 +313,7 @@ def qos_profile_yaml(reliability: str, durability: str, history: str, depth: int
 
 
 def parse_offered_qos(text: str | None) -> QoSWords:
-    """The QoS to replay a topic with, from its rosbag2 ``offered_qos_profiles`` YAML.
+    """Return the QoS to replay a topic with, from its rosbag2 ``offered_qos_profiles`` YAML.
 
     The text is a YAML list with one profile per publisher that was recorded (the layout of
     :func:`qos_profile_yaml`; rosbag2 writes the same), merged as ``ros2 bag play`` does
@@ -339,7 +343,7 @@ def parse_offered_qos(text: str | None) -> QoSWords:
 
 
 def _parse_profile(profile: dict) -> QoSWords:
-    """The words of one publisher's profile of ``offered_qos_profiles``."""
+    """Return the words of one publisher's profile of ``offered_qos_profiles``."""
     words = {}
     for policy, spellings in _SPELLINGS.items():
         raw = str(profile.get(policy, 'system_default')).strip().lower()

@@ -1,9 +1,9 @@
 """rclpy backend: re-exports of ROS 2 Jazzy's own rclpy objects under the facade's names.
 
 One addition: ``StaticSingleThreadedExecutor`` (``uh_runtime.rclpy_executor``), the executor the
-project's nodes spin in. Nothing is wrapped: ``rt.Node`` *is* ``rclpy.node.Node``, ``rt.init`` *is* ``rclpy.init`` (which
-returns ``None`` on Jazzy; there is no ``with rclpy.init():`` there). Only imported when
-:func:`uh_runtime.backend.select_backend` chose rclpy.
+project's nodes spin in. Nothing is wrapped: ``rt.Node`` *is* ``rclpy.node.Node``, ``rt.init`` *is*
+``rclpy.init`` (which returns ``None`` on Jazzy; there is no ``with rclpy.init():`` there). Only
+imported when :func:`uh_runtime.backend.select_backend` chose rclpy.
 """
 import rclpy
 from rcl_interfaces.msg import (  # noqa: F401

@@ -94,7 +94,7 @@ class StaticSingleThreadedExecutor(SingleThreadedExecutor):
         self._stale = True
 
     def wake(self) -> None:
-        """An entity or node was added or removed: rebuild the collection before the next wait.
+        """Note that an entity or node was added or removed: rebuild the collection before the next wait.
 
         May be called from any thread; only the spinning thread builds or destroys a collection.
         """

@@ -43,7 +43,7 @@ _RECORD_DEPTH = 10000
 
 
 def stamped_first(type_name: str) -> bool:
-    """True when the CDR payload of ``type_name`` starts with a Time (own stamp, or a Header's)."""
+    """Return True when the CDR payload of ``type_name`` starts with a Time (own stamp, or a Header's)."""
     if type_name in _STAMPED_FIRST:
         return True
     store = m.typestore()
@@ -58,8 +58,10 @@ def stamp_of(data: bytes) -> int:
 
 
 class LogClock:
-    """Log time of a raw message: its own stamp (or its Header's) when its type starts with one
-    (:func:`stamped_first`), else the simulation time of the latest ``/clock``, 0 before any.
+    """Log time of a raw message.
+
+    Its own stamp (or its Header's) when its type starts with one (:func:`stamped_first`), else the
+    simulation time of the latest ``/clock``, 0 before any.
     """
 
     def __init__(self):
@@ -73,9 +75,10 @@ class LogClock:
 
 
 def new_topics(node, followed, wanted=(), skip=()):
-    """``[(name, type, [offered QoSWords of each publisher]), ...]`` of the topics in ``node``'s
-    graph that have a publisher and are not ``followed`` yet (only ``wanted`` ones if given; never
-    hidden topics, ``ros_discovery_info`` or ``skip``).
+    """Return the topics in ``node``'s graph that have a publisher and are not ``followed`` yet.
+
+    The result is ``[(name, type, [offered QoSWords of each publisher]), ...]``; only ``wanted`` topics if
+    given; never hidden topics, ``ros_discovery_info`` or ``skip``.
     """
     found = []
     for name, types in node.get_topic_names_and_types():

@@ -51,8 +51,10 @@ WAIT_FOR_SUBSCRIBERS_TIMEOUT = 60.0
 # Message types the bag defines
 # ----------------------------------------------------------------------------------------------
 def _register_types_from_bag(info: BagInfo, names) -> None:
-    """Make types the runtime does not know (not uh_msgs, not a Jazzy standard type) known from the
-    bag's own ``ros2msg`` schemas (Cyclone DDS backend only; rclpy imports installed types).
+    """Make types the runtime does not know known from the bag's own ``ros2msg`` schemas.
+
+    Those are types that are not uh_msgs and not a Jazzy standard type. Cyclone DDS backend only; rclpy
+    imports installed types.
     """
     from rosbags.typesys import get_types_from_msg
 
@@ -239,7 +241,8 @@ def build_parser() -> argparse.ArgumentParser:
                     '--rate, its recorded QoS and its payload bytes as recorded, and /clock.',
         epilog='Example: scripts/replay.sh runs/proposed --rate 2 --topics /markers /uh1/state')
     p.add_argument('bag', metavar='RUN_DIR|BAG_DIR',
-                   help='a run directory of run_formation.sh (its bag/), a rosbag2 MCAP bag directory, or an .mcap file')
+                   help='a run directory of run_formation.sh (its bag/), a rosbag2 MCAP bag directory, '
+                        'or an .mcap file')
     p.add_argument('--rate', type=float, default=1.0,
                    help='bag seconds per wall second (default 1; 0.01 .. 1000)')
     p.add_argument('--loop', action='store_true', help='start again at the end (until Ctrl-C)')
@@ -362,8 +365,9 @@ def main(args=None) -> int:
 
 
 def _start_live_view(host: str, port: int):
-    """Start the live view node (:mod:`uh_runtime.live_view`) beside the replay, in its DDS domain;
-    return its process once it accepts connections.
+    """Start the live view node (:mod:`uh_runtime.live_view`) beside the replay, in its DDS domain.
+
+    Return its process once it accepts connections.
     """
     viewer = subprocess.Popen([sys.executable, '-P', '-m', 'uh_runtime.live_view', '--ros-args',
                                '-p', f'host:={host}', '-p', f'port:={port}'], env=dict(os.environ))

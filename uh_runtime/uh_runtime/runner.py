@@ -23,9 +23,10 @@ def declared_parameter_names(node) -> list:
 
 
 def override_names(node) -> list:
-    """Names of every parameter override that applies to ``node`` (``-p``, ``--params-file``,
-    ``parameter_overrides``). Both rclpy's Node and the DDS Node keep them in
-    ``_parameter_overrides``.
+    """Return the names of every parameter override that applies to ``node``.
+
+    The overrides come from ``-p``, ``--params-file`` and ``parameter_overrides``. Both rclpy's Node and
+    the DDS Node keep them in ``_parameter_overrides``.
     """
     return sorted(getattr(node, '_parameter_overrides', {}) or {})
 
@@ -105,8 +106,10 @@ SUPERVISOR_ENV = 'UH_SUPERVISOR_PID'
 
 
 def end_with_supervisor() -> None:
-    """Make this node process get SIGTERM (a clean shutdown) when the run supervisor that started it
-    dies, even by SIGKILL, so that no node is left running behind it (Linux's parent-death signal).
+    """Make this node process get SIGTERM (a clean shutdown) when the run supervisor that started it dies.
+
+    This holds even when it dies by SIGKILL, so that no node is left running behind it (Linux's
+    parent-death signal).
 
     Only when ``UH_SUPERVISOR_PID`` names this process's parent (a node started by ``ros2 run`` has
     the wrapper as parent; it is left alone).

@@ -98,8 +98,9 @@ def _on_sigterm(signum, frame):
 
 @contextlib.contextmanager
 def _sigint_handler(handler):
-    """Run the block with ``handler`` for SIGINT and put the previous one back after it; yields
-    the previous handler, or None when nothing was replaced: not the main thread (no Python
+    """Run the block with ``handler`` for SIGINT and put the previous one back after it.
+
+    Yields the previous handler, or None when nothing was replaced: not the main thread (no Python
     handler runs elsewhere), or a handler not installed from Python (it could not be put back).
     """
     previous = signal.getsignal(signal.SIGINT) if threading.current_thread() is threading.main_thread() else None

@@ -158,7 +158,7 @@ class Context:
             self._pub, topic, qos=to_dds_qos(profile, typehash_user_data(cls)))
 
     def topic(self, dds_name, cls):
-        """The (cached) DDS topic ``dds_name`` of type ``cls`` in this participant."""
+        """Return the (cached) DDS topic ``dds_name`` of type ``cls`` in this participant."""
         from cyclonedds.topic import Topic
         with self._lock:
             known = self._topics.get(dds_name)
@@ -204,7 +204,7 @@ class Context:
             self.publish_discovery_info()
 
     def discovery_info(self):
-        """The ``ParticipantEntitiesInfo`` message describing this process's nodes."""
+        """Return the ``ParticipantEntitiesInfo`` message describing this process's nodes."""
         info_cls = _messages.dds_message('rmw_dds_common/msg/ParticipantEntitiesInfo')
         node_cls = _messages.dds_message('rmw_dds_common/msg/NodeEntitiesInfo')
         gid_cls = _messages.dds_message('rmw_dds_common/msg/Gid')

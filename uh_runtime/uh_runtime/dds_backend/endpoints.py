@@ -72,8 +72,9 @@ class Publisher:
             self._intra.deliver(self._local, (msg, data))
 
     def get_subscription_count(self) -> int:
-        """Number of matched readers (DDS publication-matched status) plus the subscriptions of
-        this process it feeds directly.
+        """Return the number of matched readers plus the subscriptions of this process it feeds directly.
+
+        The matched readers are those of the DDS publication-matched status.
         """
         return len(self._writer.get_matched_subscriptions()) + len(self._local)
 
@@ -123,8 +124,9 @@ class Subscription:
             local.local_publisher_count(self) if local is not None else 0)
 
     def _take_messages(self, from_dds=True):
-        """Every available sample in one batch (raw CDR bytes or deserialised messages): those of
-        DDS (if ``from_dds``), then those delivered in process.
+        """Take every available sample in one batch (raw CDR bytes or deserialised messages).
+
+        Those of DDS (if ``from_dds``) come first, then those delivered in process.
         """
         out = []
         if from_dds:

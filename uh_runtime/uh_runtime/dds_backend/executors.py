@@ -54,9 +54,10 @@ _GUARD_ARG = 0
 
 
 def _wait_for_work(waitset_ref, triggered, timeout_ns) -> int:
-    """Block in the wait set (at most ``timeout_ns``); fill ``triggered`` with the attach arguments
-    of the ready entities and return how many there are. A function of its own so that profiles
-    (``UH_PROFILE_DIR``) show the time a node spends idle.
+    """Block in the wait set (at most ``timeout_ns``) and return the number of ready entities.
+
+    ``triggered`` is filled with the attach arguments of the ready entities. A function of its own so that
+    profiles (``UH_PROFILE_DIR``) show the time a node spends idle.
     """
     return _WaitSetCalls.get()[2](waitset_ref, triggered, len(triggered), timeout_ns)
 
@@ -202,8 +203,10 @@ class Executor:
         self._dispatch(ready)
 
     def _dispatch(self, ready=None):
-        """Run the callbacks of the subscriptions whose attach arguments are in ``ready`` (all
-        triggered ones if None), in node/subscription order, then the due timers.
+        """Run the callbacks of the ready subscriptions, then the due timers.
+
+        The ready subscriptions are those whose attach arguments are in ``ready`` (all triggered ones if None),
+        run in node/subscription order.
         """
         by_arg = self._by_arg
         attached = self._attached

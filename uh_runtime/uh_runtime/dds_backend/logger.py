@@ -106,7 +106,9 @@ def get_logger(name):
 
 
 def set_logger_level(name, level):
-    """``rclpy.logging.set_logger_level`` for a level name as ``--log-level`` gives it
-    (``DEBUG``, ``INFO``, ``WARN`` or ``WARNING``, ``ERROR``, ``FATAL``).
+    """Set the level of logger ``name`` as ``rclpy.logging.set_logger_level`` does.
+
+    ``level`` is a level name as ``--log-level`` gives it (``DEBUG``, ``INFO``, ``WARN`` or ``WARNING``,
+    ``ERROR``, ``FATAL``).
     """
     _log_levels[name] = _SEVERITY['WARN' if level == 'WARNING' else level]

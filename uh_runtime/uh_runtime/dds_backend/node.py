@@ -1,5 +1,6 @@
-"""``Node`` of the Cyclone DDS backend: names, parameters, publishers/subscriptions/timers, graph
-queries and sim time, with rclpy's (Jazzy) semantics for the subset listed in docs/runtime.md.
+"""``Node`` of the Cyclone DDS backend, with rclpy's (Jazzy) semantics for the subset listed in docs/runtime.md.
+
+Names, parameters, publishers/subscriptions/timers, graph queries and sim time.
 
 Mirrors ``rclpy.node``. ROS topic ``/uh1/state`` is DDS topic ``rt/uh1/state`` with type
 ``uh_msgs::msg::dds_::UHState_``; readers and writers get the QoS mapping of rmw_cyclonedds (see
@@ -157,9 +158,10 @@ class Node:
                 'uh_runtime.messages.get_message("pkg/msg/Type")')
 
     def _endpoint(self, msg_type, topic, qos_profile):
-        """What a writer or reader of ``topic`` needs: resolved name, profile, the intra-process
-        registry (None when off), the DDS topic and the DDS QoS (type hash in USER_DATA; local
-        endpoints ignored when intra-process delivery serves them).
+        """Return what a writer or reader of ``topic`` needs.
+
+        That is the resolved name, profile, the intra-process registry (None when off), the DDS topic and the
+        DDS QoS (type hash in USER_DATA; local endpoints ignored when intra-process delivery serves them).
         """
         self._check_type(msg_type)
         profile = as_profile(qos_profile)
@@ -193,8 +195,9 @@ class Node:
         return sub
 
     def create_service(self, srv_type, srv_name, callback, *, qos_profile=None, callback_group=None):
-        """A service server (:class:`~uh_runtime.dds_backend.services.Service`); ``srv_type`` is
-        ``'pkg/srv/Name'``, one of :data:`uh_runtime.messages.SERVICE_DEFINITIONS`.
+        """Create a service server (:class:`~uh_runtime.dds_backend.services.Service`).
+
+        ``srv_type`` is ``'pkg/srv/Name'``, one of :data:`uh_runtime.messages.SERVICE_DEFINITIONS`.
         """
         from .services import Service, qos_profile_parameters
         service = Service(self, srv_type, srv_name, callback, as_profile(qos_profile or qos_profile_parameters))
@@ -317,8 +320,9 @@ class Node:
         return self._graph().count(self.resolve_topic_name(topic_name), writers=False)
 
     def get_publishers_info_by_topic(self, topic_name, no_mangle=False):
-        """``rclpy``'s list of endpoint infos (node_name, node_namespace, topic_type,
-        endpoint_type, endpoint_gid, qos_profile) of the topic's writers.
+        """Return ``rclpy``'s list of endpoint infos of the topic's writers.
+
+        Each has node_name, node_namespace, topic_type, endpoint_type, endpoint_gid, qos_profile.
         """
         name = topic_name if no_mangle else self.resolve_topic_name(topic_name)
         return self._graph().endpoints(name, writers=True)

@@ -1,6 +1,8 @@
-"""Service servers of the Cyclone DDS backend, and the parameter services and ``/parameter_events``
-every node has, with rclpy's (Jazzy) behaviour, so ``ros2 param list/get/set/describe`` and
-``ros2 topic echo /parameter_events`` work on a node of either backend (docs/runtime.md#parameters).
+"""Service servers of the Cyclone DDS backend, and the parameter services every node has.
+
+The parameter services and ``/parameter_events`` have rclpy's (Jazzy) behaviour, so
+``ros2 param list/get/set/describe`` and ``ros2 topic echo /parameter_events`` work on a node of either
+backend (docs/runtime.md#parameters).
 
 Wire conventions (rmw_cyclonedds_cpp, Jazzy):
 
@@ -62,10 +64,12 @@ def _user_data_value(endpoint, key: str) -> str | None:
 
 
 def _endpoints(context, srv_type: str, srv_name: str, qos_profile, role: str):
-    """What the request and the reply endpoints of ``srv_name`` need: ``((publisher or subscriber
-    entity, DDS topic, qos=...) arguments, sample class)`` each; the server reads requests and
-    writes replies, the client the other way round. Both carry ``<role>=<id>;`` (``serviceid`` or
-    ``clientid``, an id unique to this pair) before the type hash in USER_DATA, as rmw_cyclonedds.
+    """Return what the request and the reply endpoints of ``srv_name`` need.
+
+    Each is ``((publisher or subscriber entity, DDS topic, qos=...) arguments, sample class)``; the
+    server reads requests and writes replies, the client the other way round. Both carry ``<role>=<id>;``
+    (``serviceid`` or ``clientid``, an id unique to this pair) before the type hash in USER_DATA, as
+    rmw_cyclonedds.
     """
     ident = '.'.join(f'{b:x}' for b in bytes(context.gid[:12]) + next(_service_ids).to_bytes(4, 'big'))
     extra = f'{role}={ident};'.encode()
@@ -80,8 +84,9 @@ def _endpoints(context, srv_type: str, srv_name: str, qos_profile, role: str):
 
 
 class Service:
-    """A service server (``rclpy.service.Service`` subset): ``callback(request, response)`` returns
-    the response; ``srv_type`` is ``'pkg/srv/Name'`` (one of
+    """A service server (``rclpy.service.Service`` subset).
+
+    ``callback(request, response)`` returns the response; ``srv_type`` is ``'pkg/srv/Name'`` (one of
     :data:`uh_runtime.messages.SERVICE_DEFINITIONS`).
     """
 
@@ -111,8 +116,10 @@ class Service:
         return [s for s in self._reader.take(N=64) if s.sample_info.valid_data]
 
     def _client_reader_matched(self, publication_handle) -> bool | None:
-        """Whether the reply writer has matched the reader of the client whose request writer is
-        ``publication_handle``; None if that client is gone or does not say who it is.
+        """Return whether the reply writer has matched the reader of a client.
+
+        The client is the one whose request writer is ``publication_handle``; None if that client is gone or
+        does not say who it is.
         """
         try:
             writer = self._reader.get_matched_publication_data(publication_handle)
@@ -209,8 +216,9 @@ def _result_msg(result: SetParametersResult):
 
 
 def _listed(name: str, prefixes: list, depth: int) -> bool:
-    """Whether ``list_parameters`` with ``prefixes`` and ``depth`` (0: DEPTH_RECURSIVE) lists
-    parameter ``name``, by rclpy's rule (``Node.list_parameters``).
+    """Return whether ``list_parameters`` with ``prefixes`` and ``depth`` lists parameter ``name``.
+
+    ``depth`` 0 is DEPTH_RECURSIVE; the rule is rclpy's (``Node.list_parameters``).
     """
     def shallow(part):
         return depth == 0 or part.count('.') < depth
@@ -220,8 +228,9 @@ def _listed(name: str, prefixes: list, depth: int) -> bool:
 
 
 class ParameterServices:
-    """rclpy's ``ParameterService`` and parameter-event publisher for a DDS-backend node: the six
-    services ``<node>/describe_parameters``, ``get_parameters``, ``get_parameter_types``,
+    """Counterpart of rclpy's ``ParameterService`` and parameter-event publisher for a DDS-backend node.
+
+    The six services ``<node>/describe_parameters``, ``get_parameters``, ``get_parameter_types``,
     ``list_parameters``, ``set_parameters``, ``set_parameters_atomically``, answered as
     ``rclpy.parameter_service`` answers them, and a ``ParameterEvent`` on ``/parameter_events``
     for every declaration and every accepted change (``new_parameters`` /
@@ -328,9 +337,10 @@ class ParameterServices:
 
 
 class ServiceClient:
-    """A blocking service client with rmw_cyclonedds' wire conventions (used by ``uh param`` and
-    the tests; any ROS 2 service server answers it): ``call(request)`` writes the request with a
-    header of this client's id and a sequence number and waits for the reply that echoes both.
+    """A blocking service client with rmw_cyclonedds' wire conventions.
+
+    Used by ``uh param`` and the tests; any ROS 2 service server answers it. ``call(request)`` writes the
+    request with a header of this client's id and a sequence number and waits for the reply that echoes both.
 
     Parameters
     ----------
@@ -356,11 +366,11 @@ class ServiceClient:
         self._sequence = 0
 
     def request(self, **fields):
-        """A request of this service with ``fields`` set."""
+        """Return a request of this service with ``fields`` set."""
         return self._request_cls(**fields)
 
     def service_is_ready(self) -> bool:
-        """A server's request reader and reply writer are both matched."""
+        """Return True when a server's request reader and reply writer are both matched."""
         return bool(self._writer.get_matched_subscriptions()) and bool(self._reader.get_matched_publications())
 
     def wait_for_service(self, timeout_sec: float) -> bool:
@@ -373,9 +383,7 @@ class ServiceClient:
         return True
 
     def call(self, request, timeout_sec: float = 5.0):
-        """Send ``request`` and return the reply (a response of the service), or raise
-        :class:`TimeoutError`.
-        """
+        """Send ``request`` and return the reply (a response of the service), or raise :class:`TimeoutError`."""
         self._sequence += 1
         request.client_guid, request.sequence_number = self._guid, self._sequence
         self._writer.write(request)
