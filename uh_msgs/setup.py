@@ -1,6 +1,8 @@
-"""pip path only: installs the .msg files to <prefix>/share/uh_msgs/msg, where a ROS 2 install
-keeps them too, so the Cyclone DDS backend of uh_runtime builds its message classes from the same
-files. colcon ignores this file: package.xml declares ament_cmake, and rosidl generates the code.
+"""pip path only: installs the .msg files to <prefix>/share/uh_msgs/msg.
+
+A ROS 2 install keeps them there too, so the Cyclone DDS backend of uh_runtime builds its message
+classes from the same files. colcon ignores this file: package.xml declares ament_cmake, and rosidl
+generates the code.
 """
 from pathlib import Path
 

@@ -1,5 +1,6 @@
-"""Causal fault isolation and identification per actuator channel from the lumped-fault estimates
-(docs/faults.md#isolation-and-identification).
+"""Causal fault isolation and identification per actuator channel from the lumped-fault estimates.
+
+Described in docs/faults.md#isolation-and-identification.
 
 The controller's observers estimate lumped faults, ``Fhat_p`` (m/s^2, inertial) and ``Fhat_w``
 (rad/s^2, body) (docs/control_law.md#learning-and-estimation); they do not say which actuator is
@@ -70,8 +71,9 @@ IDENTIFICATION_TEXT = {
 
 @dataclass(frozen=True)
 class IsolationSettings:
-    """Settings of a :class:`FaultIsolator`; the defaults are justified in
-    docs/faults.md#isolation-and-identification.
+    """Settings of a :class:`FaultIsolator`.
+
+    The defaults are justified in docs/faults.md#isolation-and-identification.
 
     Attributes
     ----------
@@ -198,7 +200,7 @@ class ChannelReport:
     mean_deviation: float
 
     def as_dict(self) -> dict:
-        """The report as a plain dict (JSON-ready: NaN and infinite floats as None)."""
+        """Return the report as a plain dict (JSON-ready: NaN and infinite floats as None)."""
         out = {}
         for key, value in self.__dict__.items():
             out[key] = None if isinstance(value, float) and not math.isfinite(value) else value
@@ -206,8 +208,9 @@ class ChannelReport:
 
 
 class IsolationStatus(NamedTuple):
-    """What a :class:`FaultIsolator` publishes each step (the fault-isolation fields of
-    ``uh_msgs/ControllerStatus``): one entry per channel, in :data:`CHANNELS` order.
+    """What a :class:`FaultIsolator` publishes each step: one entry per channel, in :data:`CHANNELS` order.
+
+    These are the fault-isolation fields of ``uh_msgs/ControllerStatus``.
 
     Attributes
     ----------
@@ -237,10 +240,10 @@ class IsolationStatus(NamedTuple):
 
 
 def input_deviation(nominal, x, u, fhat_p, fhat_w):
-    """The per-channel input deviations ``d ~ u_act - u`` (rad) that the lumped-fault estimates
-    imply under the nominal model.
+    """Return the per-channel input deviations ``d ~ u_act - u`` (rad) that the lumped-fault estimates imply.
 
-    Inverts docs/model.md#lumped-faults with the nominal parameters::
+    The deviations are those implied under the nominal model: this inverts docs/model.md#lumped-faults
+    with the nominal parameters::
 
         1. dT    = m (R e3 . Fhat_p)                         thrust deviation, N
         2. T     = c_M1 u_col + c_M2,  Ta = T + dT            commanded / actual thrust, N
@@ -281,15 +284,17 @@ def _floats(values) -> list:
 
 
 def _constants(P) -> tuple:
-    """The nominal constants :func:`_deviation` uses, as floats."""
+    """Return the nominal constants :func:`_deviation` uses, as floats."""
     jx, jy, jz = (float(v) for v in P.inertia)
     return (float(P.mass), jx, jy, jz, float(P.c_M1), float(P.c_M2), float(P.K_beta), float(P.h_M),
             float(P.B_lat), float(P.A_lon), float(P.tau_f), float(P.K_tr), float(P.c_Q))
 
 
 def _deviation(k, pq, u, euler, fp, fw):
-    """:func:`input_deviation` on floats: ``k`` from :func:`_constants`, ``pq`` the body rates
-    ``(p, q)``; returns ``([d_col, d_tr, d_lat, d_lon], dT, kTa)``.
+    """Compute :func:`input_deviation` on floats.
+
+    ``k`` from :func:`_constants`, ``pq`` the body rates ``(p, q)``; returns
+    ``([d_col, d_tr, d_lat, d_lon], dT, kTa)``.
     """
     m, jx, jy, jz, c_m1, c_m2, k_beta, h_m, b_lat, a_lon, tau_f, k_tr, c_q = k
     phi, theta, psi = euler
@@ -307,8 +312,9 @@ def _deviation(k, pq, u, euler, fp, fw):
 
 
 class _AffineFit:
-    """Recursive least squares of ``d = theta_1 u + theta_2`` in its exact (sufficient-statistics)
-    form: exponentially weighted mean and centred second moments, updated per sample (West's
+    """Recursive least squares of ``d = theta_1 u + theta_2`` in its exact (sufficient-statistics) form.
+
+    Exponentially weighted mean and centred second moments, updated per sample (West's
     weighted Welford recursion). Equivalent to the covariance form of RLS started with an infinite
     covariance (no prior), which that form only approximates with a large ``P_0``.
     """
@@ -524,7 +530,7 @@ class FaultIsolator:
         return tuple(self._t_iso)
 
     def channel(self, c: int) -> ChannelReport:
-        """The report of channel ``c`` (0..3) now (see the class docstring for the verdict)."""
+        """Return the report of channel ``c`` (0..3) now (see the class docstring for the verdict)."""
         c = int(c)
         if not 0 <= c < _N:
             raise ValueError(f'channel must be 0..3, got {c}')
@@ -557,8 +563,9 @@ class FaultIsolator:
                              fit.md if fit.w > 0.0 else nan)
 
     def _verdict(self, c: int) -> tuple:
-        """Numbers and verdict code of isolated channel ``c`` (class docstring): ``(code, rho_fit,
-        bias_fit, fit_time, std u, std (u + d), residual RMS, rho_bound, bias_bound)``.
+        """Return the numbers and verdict code of isolated channel ``c`` (class docstring).
+
+        ``(code, rho_fit, bias_fit, fit_time, std u, std (u + d), residual RMS, rho_bound, bias_bound)``.
         """
         s = self._s
         fit = self._fits[c]
@@ -583,8 +590,9 @@ class FaultIsolator:
         return tuple(self.channel(c) for c in range(_N))
 
     def status(self) -> IsolationStatus:
-        """The per-step summary a controller publishes (:class:`IsolationStatus`; the same numbers
-        as :meth:`report`, without its texts: this runs every control step).
+        """Return the per-step summary a controller publishes (:class:`IsolationStatus`).
+
+        The same numbers as :meth:`report`, without its texts: this runs every control step.
         """
         rho, bias, code = [math.nan] * _N, [math.nan] * _N, [NOT_ISOLATED] * _N
         for c in range(_N):
@@ -596,8 +604,10 @@ class FaultIsolator:
 
 
 def _setup(arrays, scenario, case, settings):
-    """Nominal model, settings (the scenario's learning phase by default) and the run's arrays
-    (float arrays, rows cut to the shortest).
+    """Return the nominal model, the settings and the run's arrays.
+
+    The settings default to the scenario's learning phase; the arrays are float arrays, rows cut to
+    the shortest.
     """
     from uh_core.airframe import load_helicopter_params
 
@@ -667,8 +677,9 @@ def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSet
 def healthy_deviation_statistics(arrays, scenario, case: str = 'proposed',
                                  settings: IsolationSettings | None = None,
                                  settle: float = 1.0) -> dict:
-    """The healthy deviation statistics the default thresholds and noise levels are set from
-    (docs/faults.md#isolation-and-identification): per channel, over every fault-free UH and over
+    """Return the healthy deviation statistics the default thresholds and noise levels are set from.
+
+    See docs/faults.md#isolation-and-identification. Per channel, over every fault-free UH and over
     every faulted UH before its earliest onset, after the learning phase.
 
     Parameters

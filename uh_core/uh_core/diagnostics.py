@@ -83,7 +83,7 @@ def _report(name: str, hardware_id: str, errors: list, warnings: list, values: d
 
 
 def controller_diagnostic(uh_id: int, w: ControllerWindow) -> Diagnostic:
-    """The report of controller ``uh_id`` over window ``w``."""
+    """Return the report of controller ``uh_id`` over window ``w``."""
     errors, warnings = [], []
     if w.holding:
         errors.append('holding position: no path from the virtual leader')
@@ -110,7 +110,7 @@ def controller_diagnostic(uh_id: int, w: ControllerWindow) -> Diagnostic:
 
 
 def simulator_diagnostic(uh_id: int, w: SimulatorWindow) -> Diagnostic:
-    """The report of simulator ``uh_id`` over window ``w``."""
+    """Return the report of simulator ``uh_id`` over window ``w``."""
     errors, warnings = [], []
     if w.stuck:
         errors.append('an actuator is stuck (rho = 0): not compensable')

@@ -30,8 +30,9 @@ def base_link(uh_id: int) -> str:
 
 
 def quaternion_from_euler_zyx(phi: float, theta: float, psi: float) -> tuple[float, float, float, float]:
-    """Unit quaternion ``(x, y, z, w)`` of ``R = Rz(psi) Ry(theta) Rx(phi)`` (rad), the product
-    ``q_z(psi) q_y(theta) q_x(phi)`` of the three half-angle rotations; ``w >= 0`` is not enforced
+    """Return the unit quaternion ``(x, y, z, w)`` of ``R = Rz(psi) Ry(theta) Rx(phi)`` (rad).
+
+    It is the product ``q_z(psi) q_y(theta) q_x(phi)`` of the three half-angle rotations; ``w >= 0`` is not enforced
     (the sign follows the angles, as tf2's ``Quaternion.setRPY`` does).
     """
     cr, sr = math.cos(0.5 * phi), math.sin(0.5 * phi)
@@ -61,8 +62,9 @@ def pose_of_state(x) -> tuple[tuple[float, float, float], tuple[float, float, fl
 
 
 def body_twist_of_state(x) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    """Linear velocity ``R^T v`` (m/s) and angular velocity ``omega`` (rad/s), both in
-    ``uhN/base_link``, of state ``x`` (12,): the twist of ``nav_msgs/Odometry``.
+    """Return the twist of ``nav_msgs/Odometry`` of state ``x`` (12,).
+
+    Linear velocity ``R^T v`` (m/s) and angular velocity ``omega`` (rad/s), both in ``uhN/base_link``.
     """
     euler = x[X_THETA:X_THETA + 3]
     v_body = rotation_from_euler_zyx(float(euler[0]), float(euler[1]), float(euler[2])).T @ np.asarray(

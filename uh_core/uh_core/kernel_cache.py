@@ -29,7 +29,7 @@ __all__ = ['module_dispatchers', 'dependency_digest', 'refresh_cache']
 
 
 def module_dispatchers(namespace: dict) -> list:
-    """The cached njit dispatchers defined in the module whose ``globals()`` is ``namespace``.
+    """Return the cached njit dispatchers defined in the module whose ``globals()`` is ``namespace``.
 
     Parameters
     ----------

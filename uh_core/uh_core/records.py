@@ -36,9 +36,10 @@ class Reference:
 
 @dataclass(frozen=True)
 class FaultSpec:
-    """One actuator fault (paper eq. 6) as plain data (docs/faults.md): what a scenario lists and a
-    fault injection carries. The simulator's ``uh_sim_node.faults.ActuatorFault`` is this record,
-    validated, with the fault model's arithmetic.
+    """One actuator fault (paper eq. 6) as plain data (docs/faults.md).
+
+    What a scenario lists and a fault injection carries. The simulator's
+    ``uh_sim_node.faults.ActuatorFault`` is this record, validated, with the fault model's arithmetic.
 
     ``channel`` 0..3 (theta_col, theta_tr, delta_lat, delta_lon); ``rho`` in [0, 1]; bias
     ``b(t) = bias_constant + bias_amplitude sin(bias_frequency t)`` rad (frequency rad/s);

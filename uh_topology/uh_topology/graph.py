@@ -55,8 +55,9 @@ def laplacian_blocks(adjacency, leaders, followers) -> tuple:
 
 
 def leader_tracking_matrix(adjacency, leaders) -> np.ndarray:
-    """``L[L, L] + diag(a_i0)`` (N, N): the leaders' consensus-tracking matrix (nonsingular under
-    Assumption 1 when leaders hear only leaders and the virtual leader).
+    """``L[L, L] + diag(a_i0)`` (N, N): the leaders' consensus-tracking matrix.
+
+    Nonsingular under Assumption 1 when leaders hear only leaders and the virtual leader.
     """
     a = np.asarray(adjacency, dtype=float)
     li = [j - 1 for j in leaders]
@@ -136,8 +137,10 @@ def unreachable_follower_message(ids) -> str:
 
 
 def check_assumption1(adjacency, leaders, followers, *, source=None, path=None) -> None:
-    """Assumption 1: a path from the virtual leader to every leader (through leaders), and from
-    the leaders to every follower.
+    """Check Assumption 1.
+
+    Assumption 1: a path from the virtual leader to every leader (through leaders), and from the
+    leaders to every follower.
 
     Raises
     ------
@@ -154,8 +157,10 @@ def check_assumption1(adjacency, leaders, followers, *, source=None, path=None) 
 
 
 def check_lemma1(l1, l2, pattern=None, *, source=None, path=None) -> np.ndarray:
-    """Lemma 1: eigenvalues of L1 with positive real parts; ``W = -L1^-1 L2`` non-negative with
-    rows summing to 1 and (if ``pattern`` (M, N) is given) positive exactly where it is True.
+    """Check Lemma 1 and return the containment weights ``W``.
+
+    Lemma 1: eigenvalues of L1 with positive real parts; ``W = -L1^-1 L2`` non-negative with rows
+    summing to 1 and (if ``pattern`` (M, N) is given) positive exactly where it is True.
 
     Returns
     -------
