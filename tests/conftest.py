@@ -2,7 +2,6 @@
 import os
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -20,8 +19,9 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
 
 @pytest.fixture
 def domain_id(monkeypatch):
-    """A DDS domain id no other test, pytest session, benchmark or run on this machine holds
-    (:func:`uh_runtime.network.reserve_domain_id`), with loopback config; ROS_DOMAIN_ID and
+    """Reserve a DDS domain id no other test, pytest session, benchmark or run on this machine holds.
+
+    The id comes from :func:`uh_runtime.network.reserve_domain_id`, with loopback config; ROS_DOMAIN_ID and
     CYCLONEDDS_URI are set for this process and its children. Released after the test.
     """
     dom = reserve_domain_id()

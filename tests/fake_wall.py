@@ -1,5 +1,6 @@
-"""Test doubles for the ROS-free node logic (input synchronisation, clock advancement): a wall clock
-that moves only when the test says so, and a logger that keeps the lines.
+"""Test doubles for the ROS-free node logic (input synchronisation, clock advancement).
+
+They are a wall clock that moves only when the test says so, and a logger that keeps the lines.
 """
 
 
@@ -17,8 +18,9 @@ class FakeClock:
 
 
 class RecordingLogger:
-    """Collects ``(level, text)`` of ``info``, ``warning`` and ``error``; :meth:`texts` gives the
-    lines of one level (all with ``level=None``).
+    """Collects ``(level, text)`` of ``info``, ``warning`` and ``error``.
+
+    :meth:`texts` gives the lines of one level (all with ``level=None``).
     """
 
     def __init__(self):

@@ -56,7 +56,7 @@ def euler_rate_matrix(euler) -> np.ndarray:
 
 
 def clip_inputs(params, u) -> np.ndarray:
-    """Inputs ``u`` (4,) rad limited to ``[input_lower, input_upper]`` (a new array)."""
+    """Return the inputs ``u`` (4,) rad limited to ``[input_lower, input_upper]`` (a new array)."""
     return np.clip(np.asarray(u, dtype=float), params.input_lower, params.input_upper)
 
 
@@ -118,7 +118,7 @@ def state_derivative(params, x, u_actual, d_p=None) -> np.ndarray:
 
 
 def lumped_faults(params, x, u_cmd, u_actual) -> tuple:
-    """True lumped faults written out as in docs/model.md, "Lumped faults".
+    """Return the true lumped faults written out as in docs/model.md, "Lumped faults".
 
     With ``DT = c_M1 (theta_col,act - theta_col,cmd)`` and ``T_cmd`` the thrust of ``u_cmd``::
 
@@ -156,7 +156,7 @@ def lumped_faults(params, x, u_cmd, u_actual) -> tuple:
 
 
 def reference_step(params, x, u_cmd, t, dt, substeps, schedule, disturbance=None) -> np.ndarray:
-    """The plant's step from ``t`` to ``t + dt`` s, by textbook RK4 on :func:`state_derivative`.
+    """Take the plant's step from ``t`` to ``t + dt`` s, by textbook RK4 on :func:`state_derivative`.
 
     The command is limited once; at every stage the faults (``schedule.apply``, paper eq. 6, their
     activity decided at the substep start) and the limits again give the actual inputs; the

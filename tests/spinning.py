@@ -22,8 +22,10 @@ def spin_for(executor, seconds):
 
 @contextlib.contextmanager
 def spinning_in_thread(executor, context, bound=10.0):
-    """Spin ``executor`` in a daemon thread while the ``with`` block runs (a node that must answer
-    while the test calls it); the thread stops at the end (joined within ``bound`` s).
+    """Spin ``executor`` in a daemon thread while the ``with`` block runs.
+
+    This is for a node that must answer while the test calls it; the thread stops at the end (joined within
+    ``bound`` s).
     """
     stop = threading.Event()
 

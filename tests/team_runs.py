@@ -7,8 +7,9 @@ RUN = Path(__file__).resolve().parents[1] / 'scripts' / 'run_formation.sh'
 
 
 def start_run(out, domain, *extra):
-    """The run supervisor writing to ``out`` on DDS domain ``domain``, in its own session (so a
-    test can kill the whole tree); stdout and stderr together as text.
+    """Start the run supervisor writing to ``out`` on DDS domain ``domain``, in its own session.
+
+    The session lets a test kill the whole tree; stdout and stderr come together as text.
     """
     return subprocess.Popen([str(RUN), '--out', str(out), '--domain-id', str(domain), *extra],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
@@ -27,9 +28,10 @@ def wait_for_log(path: Path, needle: str, proc, timeout: float) -> None:
 
 
 def stop_run(proc, timeout: float = 60.0) -> None:
-    """End a run supervisor started in its own session the way Ctrl-C does (SIGINT: it stops every
-    node it started), then kill what is left. Killing only the supervisor would orphan its nodes,
-    which live on in the test's DDS domain and meet the next test that takes that id.
+    """End a run supervisor started in its own session the way Ctrl-C does (SIGINT), then kill what is left.
+
+    SIGINT makes the supervisor stop every node it started. Killing only the supervisor would orphan its nodes, which
+    live on in the test's DDS domain and meet the next test that takes that id.
     """
     import os
     import signal

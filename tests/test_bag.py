@@ -1,5 +1,6 @@
-"""rosbag2 MCAP layout of the bag writer, checked against a bag recorded by ROS 2 Jazzy and read
-back with rosbags (an independent reader).
+"""rosbag2 MCAP layout of the bag writer, checked against a bag recorded by ROS 2 Jazzy.
+
+Both are read back with rosbags (an independent reader).
 """
 from pathlib import Path
 
@@ -28,8 +29,12 @@ def store():
 
 def _state(store, k):
     T = store.types
-    v = lambda x, y, z: T['geometry_msgs/msg/Vector3'](x=x, y=y, z=z)
-    header = T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](sec=k // 100, nanosec=(k % 100) * 10_000_000),
+
+    def v(x, y, z):
+        return T['geometry_msgs/msg/Vector3'](x=x, y=y, z=z)
+
+    header = T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](sec=k // 100,
+                                                                             nanosec=(k % 100) * 10_000_000),
                                       frame_id='world')
     return T['uh_msgs/msg/UHState'](header=header, uh_id=np.uint32(2), step=np.uint64(k), position=v(1.0 * k, 2.0, 3.0),
                                     velocity=v(0.5, -0.5, 0.0), euler=v(0.0, 0.1, 0.2), body_rates=v(0.0, 0.0, 0.01))
@@ -79,7 +84,8 @@ def test_written_bag_reads_back_with_rosbags(tmp_path, store):
     ours = yaml.safe_load((bag_dir / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     ref = yaml.safe_load((REFERENCE / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     assert set(ours) == set(ref) and ours['version'] == 9
-    assert set(ours['topics_with_message_count'][0]['topic_metadata']) == set(ref['topics_with_message_count'][0]['topic_metadata'])
+    assert (set(ours['topics_with_message_count'][0]['topic_metadata'])
+            == set(ref['topics_with_message_count'][0]['topic_metadata']))
     assert ours['message_count'] == 60 and ours['duration']['nanoseconds'] == 29 * 10_000_000
 
     # the MCAP header and schema encoding are those of ros2 bag record

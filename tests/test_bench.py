@@ -1,5 +1,6 @@
-"""The benchmark harness (benchmarks/uh_bench) and the team generator it uses: a smoke test with tiny
-runs. Nothing here is timed: the assertions are about what the harness records, not how fast.
+"""The benchmark harness (benchmarks/uh_bench) and the team generator it uses: a smoke test with tiny runs.
+
+Nothing here is timed: the assertions are about what the harness records, not how fast.
 """
 import json
 import os
@@ -113,8 +114,8 @@ def test_tiny_suite_records_every_section_and_prints_the_table(tmp_path, domain_
     text = suite.markdown(results)
     assert results['transport']['inprocess']['received'] > 0
     assert results['transport']['dds']['echo_cpu_us_per_message'] >= 0
-    for heading in ('### Cost of one message', '### Paper scenario', '### Per-step cost in process', '### Scaling, lockstep',
-                    '### Real time, rate 1', '### Goals'):
+    for heading in ('### Cost of one message', '### Paper scenario', '### Per-step cost in process',
+                    '### Scaling, lockstep', '### Real time, rate 1', '### Goals'):
         assert heading in text
     json.dumps(results, default=str)  # the results file is plain JSON
 
@@ -156,8 +157,9 @@ def test_backends_section_measures_the_dds_backend_and_says_why_rclpy_is_not(tmp
 
 
 def test_the_harness_gives_back_the_domain_ids_it_took(tmp_path, monkeypatch):
-    """A benchmark run inside a test session must not keep a DDS domain id reserved after it
-    (the next test that needs that id would find it held).
+    """A benchmark run inside a test session must not keep a DDS domain id reserved after it.
+
+    The next test that needs that id would find it held.
     """
     from uh_runtime import network
     monkeypatch.setattr(runs.subprocess, 'Popen', lambda *a, **k: (_ for _ in ()).throw(OSError('no supervisor')))

@@ -1,6 +1,7 @@
-"""uh-report on a campaign directory: the statistics of uh_report.campaign_report against values
-worked out by hand on small synthetic campaigns (written with uh_team.campaign_store), and the
-report files, re-run commands and error exits of ``uh-report DIR``.
+"""uh-report on a campaign directory: its statistics, report files, re-run commands and error exits.
+
+The statistics of uh_report.campaign_report are checked against values worked out by hand on small synthetic campaigns
+(written with uh_team.campaign_store); then the report files, re-run commands and error exits of ``uh-report DIR``.
 """
 import csv
 import math
@@ -270,7 +271,8 @@ def test_a_campaign_must_be_the_only_argument(tmp_path, capsys):
 
 def test_with_a_sweep_cases_are_compared_at_each_sweep_point(tmp_path):
     """The draws of one sweep point are independent, those of several are not: one comparison per point."""
-    rows = [_row(d, c, sweep_index=k, sweep_value=float(v), formation=0.01 * (d + 1) * (1 + v) * (2 if c == 'case1' else 1))
+    rows = [_row(d, c, sweep_index=k, sweep_value=float(v),
+                 formation=0.01 * (d + 1) * (1 + v) * (2 if c == 'case1' else 1))
             for k, v in enumerate((0, 5)) for d in range(4) for c in ('proposed', 'case1')]
     runs = _runs(rows, tmp_path)
     at = [C.paired_comparison(runs, 'proposed', 'case1', 'formation_rms_m', sweep_index=k) for k in (0, 1)]

@@ -53,7 +53,7 @@ def test_unknown_topic_and_bad_type_are_clear_errors(domain_id, capsys):
 
 @pytest.fixture
 def running(domain_id):
-    """A node in a thread of this process publishing a latched Reference and a stream of states."""
+    """Run a node in a thread of this process publishing a latched Reference and a stream of states."""
     ctx = rt.Context()
     ctx.init(args=['test'])
     node = rt.Node('leader', namespace='/team', context=ctx)

@@ -1,5 +1,6 @@
-"""The clock node's step advancement without ROS (uh_sim_node.clock_advance): lockstep waits for
-every UH's command and for the recorder, realtime starts ticking once the team is live and ticks
+"""The clock node's step advancement without ROS (uh_sim_node.clock_advance).
+
+Lockstep waits for every UH's command and for the recorder, realtime starts ticking once the team is live and ticks
 every dt / rate wall seconds.
 
 Deterministic: wall time comes from a fake clock, log lines go to a list; no sleeps, no DDS.
@@ -121,8 +122,9 @@ def test_realtime_ticks_anyway_after_the_start_wait():
 
 @pytest.mark.parametrize('rate', [1.0, 2.0, 0.5])
 def test_realtime_tick_schedule_follows_the_rate(rate):
-    """The node's timer calls tick() every tick_period = dt / rate wall seconds; each tick releases the
-    next step whatever the commands; the progress lines report the rate as the real-time factor.
+    """The node's timer calls tick() every tick_period = dt / rate wall seconds.
+
+    Each tick releases the next step whatever the commands; the progress lines report the rate as the real-time factor.
     """
     advancer, clock, logger = make('realtime', last_step=10, rate=rate, expect_recorder=True)
     assert advancer.tick_period == pytest.approx(DT / rate)

@@ -31,7 +31,7 @@ TOY = SimpleNamespace(
 
 
 def unknown(v):
-    """The nonlinear function to identify, one different shape per axis (m/s^2)."""
+    """Evaluate the nonlinear function to identify, one different shape per axis (m/s^2)."""
     return np.array([0.8 * math.sin(1.5 * v[0]), -0.6 * math.tanh(2.0 * v[1]), 0.4 * v[2] ** 2 - 0.3])
 
 

@@ -1,6 +1,7 @@
-"""The control-law kernels and their Python wrapper (docs/graph.md, docs/control_law.md): array layouts, the
-parameter vector, the documented way of calling the per-UH kernel from njit code, the degraded
-step, input checks that leave the controller unchanged, and the signatures the cache is warmed for.
+"""The control-law kernels and their Python wrapper (docs/graph.md, docs/control_law.md).
+
+The tests cover array layouts, the parameter vector, the documented way of calling the per-UH kernel from njit code, the
+degraded step, input checks that leave the controller unchanged, and the signatures the cache is warmed for.
 """
 import dataclasses
 import math
@@ -12,7 +13,6 @@ from numba import njit
 from uh_controller_node import control_kernels as ck
 from uh_controller_node.controller import ControllerError, ControllerStatusData, UHController
 from uh_controller_node.fault_isolation import IsolationStatus
-from uh_controller_node.gains import ControllerGains
 from uh_sim_node.reference import VirtualLeaderReference
 from uh_topology.scenario import load_scenario
 
@@ -131,7 +131,7 @@ def test_control_parameters_hold_every_model_constant_and_gain(paper):
 @njit(cache=True)
 def _team_control_step(states, reference, dt, hears, count, params, offsets, nb_weights, nb_offsets, links,
                        weights_p, weights_w, memory, u, status):
-    """A control-only team loop: the per-UH kernel on stacked arrays, as team_kernel.run_team_steps calls it."""
+    """Run a control-only team loop: the per-UH kernel on stacked arrays, as team_kernel.run_team_steps calls it."""
     for c in range(states.shape[0]):
         m = count[c]
         nb = np.empty((m, ck.STATE_SIZE))
@@ -230,8 +230,9 @@ def test_degraded_step_with_every_input_equals_the_step(paper, uh):
 
 
 def test_a_rejected_step_changes_nothing(paper):
-    """A NaN or a bad shape is reported before any internal state moves: the next good step is
-    the one a controller that never saw the bad input computes.
+    """A NaN or a bad shape is reported before any internal state moves.
+
+    The next good step is the one a controller that never saw the bad input computes.
     """
     a, b = UHController(5, paper), UHController(5, paper)
     for k in range(20):

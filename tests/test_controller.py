@@ -1,5 +1,7 @@
-"""Per-UH controller: gains and cases, filters, thrust/attitude extraction, consensus errors,
-input checks, equilibrium and determinism (docs/graph.md, docs/control_law.md).
+"""Per-UH controller (docs/graph.md, docs/control_law.md).
+
+The tests cover gains and cases, filters, thrust/attitude extraction, consensus errors, input checks, equilibrium and
+determinism.
 """
 import copy
 import dataclasses
@@ -134,8 +136,9 @@ def test_invalid_gains_are_rejected_with_the_offending_key(edit, match):
 
 
 def test_learning_phase_keys_are_optional_and_default_to_no_phase():
-    """Without the keys the law is the one of before the learning phase existed: no phase, the
-    network's gains unchanged afterwards.
+    """Without the keys the law is the one of before the learning phase existed.
+
+    There is no phase, and the network's gains are unchanged afterwards.
     """
     gains = copy.deepcopy(paper_gains()['/**']['ros__parameters'])
     del gains['learning_phase']
@@ -195,8 +198,9 @@ def _rotation_e3(phi, theta, psi):
 
 
 def attitude(u_p, psi):
-    """thrust_and_attitude of the kernels with MODEL, a 30 deg tilt limit and 2 m/s^2 minimum
-    vertical acceleration, as a record.
+    """Return thrust_and_attitude of the kernels as a record.
+
+    It is evaluated with MODEL, a 30 deg tilt limit and 2 m/s^2 minimum vertical acceleration.
     """
     params = control_parameters(ControllerGains.from_mapping(paper_gains()), MODEL)
     params[CP_TILT_LIMIT] = math.radians(30)
@@ -280,7 +284,8 @@ def test_followers_track_the_weighted_mean_yaw_the_short_way():
 
 
 @pytest.mark.parametrize('uh, neighbours, ref, match', [
-    (4, (1, 2), None, r'UH 4 controller: missing state of neighbour\(s\) \[5\]; expected exactly the neighbours \[1, 2, 5\]'),
+    (4, (1, 2), None,
+     r'UH 4 controller: missing state of neighbour\(s\) \[5\]; expected exactly the neighbours \[1, 2, 5\]'),
     (2, (1, 3), None, r'unexpected state of UH\(s\) \[3\] that UH 2 does not hear'),
     (1, (3,), None, r'UH 1 hears the virtual leader \(a_10 = 1\): a reference is required'),
     (2, (1,), 'ref', 'UH 2 does not hear the virtual leader: reference must be None'),
@@ -295,7 +300,8 @@ def test_step_rejects_inputs_that_do_not_match_the_graph(uh, neighbours, ref, ma
 def test_step_rejects_bad_states_and_construction_errors():
     scn = paper_like()
     ctl = UHController(2, scn, helicopter_params=PARAMS)
-    with pytest.raises(ControllerError, match=r'UH 2 own state must be a state vector of shape \(12,\), got shape \(9,\)'):
+    with pytest.raises(ControllerError,
+                       match=r'UH 2 own state must be a state vector of shape \(12,\), got shape \(9,\)'):
         ctl.step(0, np.zeros(9), {1: state()}, None, 0.01)
     bad = state()
     bad[4] = np.nan
@@ -348,10 +354,10 @@ def test_commands_stay_within_the_input_limits():
 
 
 def test_learning_phase_is_counted_in_run_time_so_a_late_joiner_estimates_faults_at_once():
-    """docs/control_law.md#learning-phase: the phase covers the run's first seconds, not a
-    controller's first seconds. A controller started at step 0 holds its fault estimates at zero;
-    one whose first step is after the phase (restarted in a running team) runs its observers from
-    its first step.
+    """The learning phase covers the run's first seconds, not a controller's first seconds.
+
+    See docs/control_law.md#learning-phase. A controller started at step 0 holds its fault estimates at zero; one whose
+    first step is after the phase (restarted in a running team) runs its observers from its first step.
     """
     scn = paper_like()
     phase = ControllerGains.from_mapping(paper_gains()).learning_phase

@@ -1,5 +1,6 @@
-"""The distributed stack end to end: scripts/run_formation.sh on the paper scenario, one process
-per node over Cyclone DDS, recorded to MCAP, read back with rosbags (an independent reader) and
+"""The distributed stack end to end: scripts/run_formation.sh on the paper scenario, one process per node.
+
+The nodes talk over Cyclone DDS; the run is recorded to MCAP, read back with rosbags (an independent reader) and
 compared with the in-process reference simulation.
 """
 import json
@@ -67,8 +68,9 @@ def _assert_no_process_left(out: Path) -> None:
 
 @pytest.fixture(scope='module')
 def lockstep_run(tmp_path_factory):
-    """One full 60 s lockstep run of the paper scenario; the controllers' subscriptions are read
-    from the live DDS graph while it runs.
+    """Make one full 60 s lockstep run of the paper scenario.
+
+    The controllers' subscriptions are read from the live DDS graph while it runs.
     """
     out = tmp_path_factory.mktemp('lockstep') / 'run'
     domain = reserve_domain_id()
@@ -252,9 +254,10 @@ def test_realtime_run_meets_the_thresholds(tmp_path, paper, reference_run):
 
 @pytest.mark.parametrize('layout, extra', [('per-uh', ()), ('single', ()), ('per-node', ('--no-visualization',))])
 def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layout, extra):
-    """Composition (several nodes in one process) changes nothing: the lockstep data flow does not
-    depend on which process a node lives in, so the bag equals the in-process run to the bit; nor
-    does leaving out the visualisation (which then records no markers).
+    """Composition (several nodes in one process) changes nothing, nor does leaving out the visualisation.
+
+    The lockstep data flow does not depend on which process a node lives in, so the bag equals the in-process run to the
+    bit; without the visualisation the run records no markers.
     """
     out = tmp_path / layout
     proc = start_run(out, reserve_domain_id(), '--processes', layout, '--duration', '3', *extra)
@@ -272,10 +275,11 @@ def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layou
 
 
 def test_a_second_terminal_sees_the_team_and_changes_a_gain_which_the_bag_records(tmp_path, monkeypatch):
-    """A run started with no ROS_DOMAIN_ID (and an empty CYCLONEDDS_URI, which counts as unset)
-    picks a free domain and a loopback configuration; the command it prints, sourced in a shell
-    that has neither, is all ``uh topic list`` needs to see the team, and ``uh param set`` to change
-    a controller gain live: the controller logs it and the bag's /parameter_events records it.
+    """A run started with no ROS_DOMAIN_ID picks a free domain and a loopback configuration.
+
+    Its CYCLONEDDS_URI is empty, which counts as unset. The command the run prints, sourced in a shell that has neither,
+    is all ``uh topic list`` needs to see the team, and ``uh param set`` to change a controller gain live: the
+    controller logs it and the bag's /parameter_events records it.
     """
     import shutil
     import sys
@@ -331,9 +335,10 @@ def test_a_second_terminal_sees_the_team_and_changes_a_gain_which_the_bag_record
 
 
 def test_the_bag_holds_tf_odometry_and_diagnostics_that_follow_from_the_states(lockstep_run, paper):
-    """/tf, /uhN/odom and /diagnostics (docs/visualization.md): every recorded transform and
-    odometry message equals the one recomputed from the recorded /uhN/state of its step, and the
-    diagnostics report the scenario's faults.
+    """/tf, /uhN/odom and /diagnostics (docs/visualization.md) agree with the recorded run.
+
+    Every recorded transform and odometry message equals the one recomputed from the recorded /uhN/state of its step,
+    and the diagnostics report the scenario's faults.
     """
     from uh_core import frames
     from uh_wire.standard_msgs import level_of

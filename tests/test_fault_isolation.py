@@ -1,5 +1,6 @@
-"""Fault isolation and identification from the lumped-fault estimates
-(uh_controller_node.fault_isolation, docs/faults.md#isolation-and-identification).
+"""Fault isolation and identification from the lumped-fault estimates.
+
+The code is uh_controller_node.fault_isolation; see docs/faults.md#isolation-and-identification.
 
 Synthetic tests build the estimates ``Fhat_p``, ``Fhat_w`` from a known input deviation with the
 lumped-fault formulas of docs/model.md (``model_oracle.lumped_faults``, and the plant's own kernel)
@@ -38,8 +39,9 @@ AMPLITUDE = np.array([0.02, 0.02, 0.01, 0.01])
 
 
 def estimates(delta, x=X, u=U_TRIM, params=NOMINAL):
-    """``(Fhat_p, Fhat_w)`` that a deviation ``delta`` (4,) rad of the actual inputs from ``u``
-    produces, by the lumped-fault formulas of docs/model.md evaluated with ``params``.
+    """Return the ``(Fhat_p, Fhat_w)`` that a deviation ``delta`` (4,) rad of the actual inputs from ``u`` produces.
+
+    They are computed by the lumped-fault formulas of docs/model.md evaluated with ``params``.
     """
     u = np.asarray(u, dtype=float)
     return lumped_faults(params, x, u, u + np.asarray(delta, dtype=float))
@@ -311,10 +313,11 @@ def bundled_runs():
 
 
 def check_requirements(scenario, arrays, result):
-    """Every faulted channel isolated within MAX_DELAY of its onset, nothing else isolated, every
-    identifiable channel within the tolerances, every other isolated channel with a reason, the
-    mean deviation of every isolated channel close to the truth. Returns
-    ``{(uh, channel): report}`` of the faulted channels.
+    """Check the requirements on one run; return the reports of the faulted channels.
+
+    Every faulted channel isolated within MAX_DELAY of its onset, nothing else isolated, every identifiable channel
+    within the tolerances, every other isolated channel with a reason, the mean deviation of every isolated channel
+    close to the truth. Returns ``{(uh, channel): report}`` of the faulted channels.
     """
     faulted = {}
     time = arrays['time']
@@ -388,10 +391,11 @@ def test_the_default_thresholds_and_noise_levels_follow_from_the_healthy_deviati
 
 
 def test_a_manoeuvring_team_gets_its_constant_faults_identified(tmp_path):
-    """The bundled scenarios fly steady turns: no actuator moves enough for rho and b to be
-    separated, and no channel is called identifiable there. Here the square team circles at
-    0.3 rad/s without turning its nose, so the cyclics sweep about +-2 mrad, and the constant
-    faults of the cyclics are identified (the sinusoidal one is not).
+    """Circling without turning the nose sweeps the cyclics enough to identify their constant faults.
+
+    The bundled scenarios fly steady turns: no actuator moves enough for rho and b to be separated, and no channel is
+    called identifiable there. Here the square team circles at 0.3 rad/s without turning its nose, so the cyclics sweep
+    about +-2 mrad, and the constant faults of the cyclics are identified (the sinusoidal one is not).
     """
     from uh_topology.scenario import load_scenario
 
@@ -431,9 +435,11 @@ def test_the_status_codes_are_the_messages_constants():
 
 
 def test_each_controller_publishes_what_isolate_run_computes_over_the_same_run():
-    """The controllers (UHController, what the nodes run) stepped on the in-process run's inputs
-    carry on their status records the verdicts isolate_run finds over that run's arrays, step for
-    step at the end; status_to_msg puts them on the message unchanged.
+    """The controllers' status records carry the verdicts isolate_run finds over the same run's arrays.
+
+    The controllers (UHController, what the nodes run) are stepped on the in-process run's inputs; their status records
+    carry the verdicts isolate_run finds over that run's arrays, step for step at the end; status_to_msg puts them on
+    the message unchanged.
     """
     from uh_controller_node.controller import UHController
     from uh_wire.wire import status_to_msg

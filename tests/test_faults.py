@@ -1,5 +1,6 @@
-"""Actuator faults of paper eq. 6 (docs/faults.md) and the true lumped faults (docs/model.md,
-"Lumped faults"); the plant is checked against the closed-form numpy model of ``model_oracle``.
+"""Actuator faults of paper eq. 6 (docs/faults.md) and the true lumped faults (docs/model.md, "Lumped faults").
+
+The plant is checked against the closed-form numpy model of ``model_oracle``.
 """
 import math
 
@@ -94,8 +95,9 @@ def test_plant_dynamics_use_the_faulted_input(case):
 
 
 def test_faulted_plant_equals_healthy_plant_driven_by_the_actual_input():
-    """A constant fault (LOE + constant bias): integrating the faulty plant with u_cmd is the same
-    as integrating a healthy plant with u_actual = rho u + b.
+    """A constant fault (LOE + constant bias) is the same as a healthy plant with u_actual = rho u + b.
+
+    Integrating the faulty plant with u_cmd is the same as integrating a healthy plant with u_actual = rho u + b.
     """
     faults = FaultSchedule([ActuatorFault(0, 0.8, 0.01), ActuatorFault(3, 0.75, -0.005)])
     faulty = HelicopterPlant(P, faults, X)

@@ -45,7 +45,7 @@ def _skew(w):
 
 
 def _kernel_derivative(x, u_actual, d_p=(0.0, 0.0, 0.0)):
-    """The kernel's state derivative (12,) for the inputs ``u_actual`` (not limited) and force ``d_p``."""
+    """Return the kernel's state derivative (12,) for the inputs ``u_actual`` (not limited) and force ``d_p``."""
     out = np.empty(12)
     K.state_derivative(np.asarray(x, dtype=float), np.asarray(u_actual, dtype=float),
                        np.asarray(d_p, dtype=float), K.params_vector(P), out)
@@ -181,8 +181,9 @@ def test_rotor_moments_are_the_flapping_and_tail_rotor_moments_of_docs_model():
 
 
 def test_plant_derivative_matches_the_vector_form_of_docs_model():
-    """The plant's derivative (input chain, disturbance and rates in the kernels) against the
-    oracle's matrix form of m v' and J omega' at generic states, inputs and times.
+    """The plant's derivative (input chain, disturbance and rates in the kernels) against the oracle's matrix form.
+
+    The matrix form is that of m v' and J omega'; they are compared at generic states, inputs and times.
     """
     rng = np.random.default_rng(RNG_SEED + 2)
     dist = SinusoidalDisturbance([0.3, 0.3, 0.2], [0.5, 4.0, 3.0], [0.0, 1.0, 2.0])
@@ -288,8 +289,9 @@ def test_step_equals_textbook_rk4_with_faults_and_disturbance():
 
 
 def test_rk4_converges_with_order_four():
-    """Halving the substep divides the error by ~16, also with time-varying faults/disturbance
-    (they are evaluated at the stage times; a zero-order hold per substep would give order 1).
+    """Halving the substep divides the error by ~16, also with time-varying faults/disturbance.
+
+    They are evaluated at the stage times; a zero-order hold per substep would give order 1.
     """
     faults, dist, x0, u = _maneuver()
     t_end = 0.5

@@ -1,5 +1,4 @@
-"""Structure of the first-party code: no import cycles between modules, and no oversized module in
-uh_runtime.
+"""Structure of the first-party code: no import cycles between modules, and no oversized module in uh_runtime.
 
 Every module of every first-party package (a top-level folder ``uh_*`` holding a folder of the same
 name; ``uh_msgs`` is not Python) is parsed with ``ast``; each import of a first-party module, at
@@ -53,11 +52,11 @@ def _imported(module: str, is_init: bool, tree: ast.AST):
 
 
 def import_graph() -> dict:
-    """``{module: set of first-party modules it imports}``."""
+    """Return ``{module: set of first-party modules it imports}``."""
     modules = _modules(_package_roots())
 
     def known(name):
-        """The module ``name`` refers to: itself, or its closest enclosing module."""
+        """Return the module ``name`` refers to: itself, or its closest enclosing module."""
         while name and name not in modules:
             name = name.rpartition('.')[0]
         return name or None

@@ -1,7 +1,8 @@
-"""The controller node's input synchronisation without ROS (uh_controller_node.input_sync,
-docs/reliability.md section 2): lockstep step assembly, realtime sync wait and latest values,
-staleness, start-up grace, the position hold when the remaining graph breaks Assumption 1, the join
-of a restarted controller, rejection counting and its rate limit, lag statistics.
+"""The controller node's input synchronisation without ROS (uh_controller_node.input_sync).
+
+The tests cover (docs/reliability.md section 2) lockstep step assembly, realtime sync wait and latest values, staleness,
+start-up grace, the position hold when the remaining graph breaks Assumption 1, the join of a restarted controller,
+rejection counting and its rate limit, lag statistics.
 
 Deterministic: wall time comes from a fake clock, log lines go to a list; no sleeps, no DDS. The
 graph is the paper's (uh3 hears only uh2; uh4 hears uh1, uh2, uh5; uh1 hears uh3 and the virtual
@@ -27,7 +28,7 @@ def paper():
 
 
 def make(paper, uh, mode='realtime', last_step=6000, **kwargs):
-    """A synchroniser of UH ``uh`` of the paper graph on a fake clock: (sync, clock, logger)."""
+    """Make a synchroniser of UH ``uh`` of the paper graph on a fake clock; return (sync, clock, logger)."""
     clock, logger = FakeClock(), RecordingLogger()
 
     def reachable(lost):
@@ -41,7 +42,7 @@ def make(paper, uh, mode='realtime', last_step=6000, **kwargs):
 
 
 def state(uh, k):
-    """A recognisable state: position (uh, k, 10), yaw 0.1 uh."""
+    """Return a recognisable state: position (uh, k, 10), yaw 0.1 uh."""
     x = np.zeros(12)
     x[0:3] = (uh, k, 10.0)
     x[8] = 0.1 * uh
@@ -49,9 +50,7 @@ def state(uh, k):
 
 
 def offer_step(sync, uh, k, keys=None):
-    """Offer step k of the given inputs (default: every neighbour, then the own state);
-    returns everything released.
-    """
+    """Offer step k of the given inputs (default: every neighbour, then the own state); return everything released."""
     out = []
     for key in (sync.input_keys if keys is None else keys):
         value = ('ref', k) if key == REFERENCE else state(key, k)
@@ -167,8 +166,9 @@ def test_realtime_nothing_beyond_the_last_step(paper):
 
 # -- realtime: staleness, start-up grace, hold --------------------------------------------------------
 def run_steps(sync, uh, clock, steps, keys):
-    """Offer steps ``steps`` of ``keys`` and the own state, polling after the sync wait each time;
-    returns the released StepInputs.
+    """Offer steps ``steps`` of ``keys`` and the own state, polling after the sync wait each time.
+
+    Returns the released StepInputs.
     """
     out = []
     for k in steps:

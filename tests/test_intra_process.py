@@ -148,8 +148,9 @@ def test_destroyed_subscription_gets_nothing_more(ctx):
 
 
 def test_other_processes_get_every_message_and_the_local_one_no_duplicate(ctx, processes, tmp_path):
-    """A listener in another process matches through DDS while a node of this process is fed in
-    process: both get each message exactly once.
+    """A listener in another process matches through DDS while a node of this process is fed in process.
+
+    Both get each message exactly once.
     """
     qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
     pub, _, got, executor = _pair(ctx, QoSProfile(depth=50), qos, topic='/uh3/state')

@@ -1,9 +1,9 @@
-"""The live view (``run_formation.sh --foxglove``, docs/visualization.md#live-view-in-foxglove) seen by a
-client of the Foxglove WebSocket protocol, written here from the protocol's specification with the
-``websockets`` package: advertise, subscribe, binary message data; the payloads decoded with
-rosbags and compared with the simulator's states in the bag. foxglove-sdk's server speaks the
-protocol as ``foxglove.sdk.v1``, the successor of ``foxglove.websocket.v1`` with the same
-operations and frames; it refuses the old name.
+"""The live view (``run_formation.sh --foxglove``) seen by a client of the Foxglove WebSocket protocol.
+
+See docs/visualization.md#live-view-in-foxglove. The client is written here from the protocol's specification with the
+``websockets`` package: advertise, subscribe, binary message data; the payloads are decoded with rosbags and compared
+with the simulator's states in the bag. foxglove-sdk's server speaks the protocol as ``foxglove.sdk.v1``, the successor
+of ``foxglove.websocket.v1`` with the same operations and frames; it refuses the old name.
 """
 import json
 import signal
@@ -118,8 +118,9 @@ def test_a_port_in_use_is_refused_before_any_node_starts(tmp_path, domain_id):
 
 
 def test_a_viewer_that_never_reads_or_leaves_does_not_stall_the_team(tmp_path, domain_id):
-    """Lockstep waits for every node: a publisher blocked by a viewer would stop the run. One client
-    subscribes to everything and never reads; another leaves mid-run.
+    """Lockstep waits for every node: a publisher blocked by a viewer would stop the run.
+
+    One client subscribes to everything and never reads; another leaves mid-run.
     """
     port, out = _free_port(), tmp_path / 'run'
     run = _start(out, domain_id, '--duration', '10', '--foxglove', str(port))

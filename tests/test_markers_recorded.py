@@ -1,10 +1,9 @@
-"""Every run records /markers (visualization_msgs/MarkerArray in frame world), and what the markers
-show agrees with the recorded states and reference: a run's bag opened in Foxglove Studio or
-replayed to RViz2 shows the formation as it flew. Uses the shared 22 s lockstep run of
-tests/test_report.py; the bag is read with rosbags (an independent reader).
-"""
-from pathlib import Path
+"""Every run records /markers (visualization_msgs/MarkerArray in frame world).
 
+What the markers show agrees with the recorded states and reference: a run's bag opened in Foxglove Studio or replayed
+to RViz2 shows the formation as it flew. Uses the shared 22 s lockstep run of tests/test_report.py; the bag is read with
+rosbags (an independent reader).
+"""
 import numpy as np
 import pytest
 import yaml

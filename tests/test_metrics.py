@@ -193,8 +193,9 @@ STEP_TIME = np.arange(K_FAULT) * DT_FAULT
 
 
 def _fault_metrics(faulted, est_p=None, est_w=None, true_p=None, true_w=None):
-    """compute_metrics of the 4-UH team of :func:`_team_run` (UHs 1, 2, 3 leaders, 4 follower) with
-    the given lumped-fault arrays (K, 4, 3); the ones not given are zero.
+    """Run compute_metrics on the 4-UH team of :func:`_team_run` with the given lumped-fault arrays (K, 4, 3).
+
+    UHs 1, 2, 3 are leaders, 4 a follower; the arrays not given are zero.
     """
     time, p0, offsets, pos, w = _team_run(K_FAULT, DT_FAULT)
     arrays = [np.zeros((K_FAULT, 4, 3)) if a is None else a for a in (est_p, est_w, true_p, true_w)]
@@ -344,9 +345,10 @@ def test_fault_isolation_is_null_without_commands(paper_run):
 
 
 def test_fault_isolation_of_a_recorded_run_scores_what_the_controllers_published(paper_run):
-    """With an ``isolation`` entry per UH (read off the last /uhN/status of a bag) the section is
-    built from those verdicts, not recomputed: a published false isolation on healthy UH1 and an
-    identified UH2 collective show up as published.
+    """With an ``isolation`` entry per UH the section is built from those verdicts, not recomputed.
+
+    The entries are read off the last /uhN/status of a bag. A published false isolation on healthy UH1 and an identified
+    UH2 collective show up as published.
     """
     from uh_controller_node.fault_isolation import IDENTIFIABLE, NOT_ISOLATED
     from uh_team.metrics import metrics_from_arrays

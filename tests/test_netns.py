@@ -1,5 +1,7 @@
-"""A team over a real (virtual) network: one network namespace per helicopter, veth pairs and a
-bridge, random loss with nftables (uh_bringup.netns, run_formation.sh --hosts netns --loss PCT).
+"""A team over a real (virtual) network, one network namespace per helicopter.
+
+The namespaces are joined by veth pairs and a bridge, with random loss by nftables (uh_bringup.netns,
+run_formation.sh --hosts netns --loss PCT).
 
 Needs root (CAP_NET_ADMIN) and iproute2; the loss tests also need nftables, which is installed with
 apt-get when missing. Elsewhere every test here is skipped with the reason.

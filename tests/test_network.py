@@ -1,5 +1,6 @@
-"""DDS domain reservation (uh_runtime/network.py): runs, test sessions and benchmarks started at
-the same time on one machine never share a domain id.
+"""DDS domain reservation (uh_runtime/network.py).
+
+Runs, test sessions and benchmarks started at the same time on one machine never share a domain id.
 """
 import subprocess
 import sys
@@ -23,7 +24,7 @@ def holder():
     started = []
 
     def hold(first, last):
-        """(the id a new process reserved in first..last, that process)"""
+        """Start a process reserving an id in first..last; return (the id it reserved, that process)."""
         proc = subprocess.Popen([sys.executable, '-P', '-c', HOLDER, str(first), str(last)],
                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         started.append(proc)

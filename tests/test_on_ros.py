@@ -1,5 +1,6 @@
-"""The stack on a real ROS 2 Jazzy: the ros2 CLI against nodes of both backends, the launch file,
-ros2 bag. Run in a shell where ROS 2 and the project's colcon workspace are sourced:
+"""The stack on a real ROS 2 Jazzy: the ros2 CLI against nodes of both backends, the launch file, ros2 bag.
+
+Run in a shell where ROS 2 and the project's colcon workspace are sourced:
 
     source /opt/ros/jazzy/setup.bash && source ros2_ws/install/setup.bash
     python3 -m pytest -m ros tests/test_on_ros.py
@@ -71,7 +72,8 @@ def test_ros2_param_changes_a_controller_gain_on_either_backend(node, backend):
     assert _ros2('param', 'get', '/uh3/controller', 'outer.k').stdout.strip() == 'Double value is: 1.0'
     assert 'Set parameter successful' in _ros2('param', 'set', '/uh3/controller', 'outer.k', '1.2').stdout
     refused = _ros2('param', 'set', '/uh3/controller', 'outer.k', '0.0')
-    assert 'Setting parameter failed' in refused.stdout + refused.stderr and 'k must be > 0' in refused.stdout + refused.stderr
+    assert ('Setting parameter failed' in refused.stdout + refused.stderr
+            and 'k must be > 0' in refused.stdout + refused.stderr)
     assert _ros2('param', 'get', '/uh3/controller', 'outer.k').stdout.strip() == 'Double value is: 1.2'
     described = _ros2('param', 'describe', '/uh3/controller', 'outer.k').stdout
     assert 'error gain' in described and 'Min value: 0.0' in described
@@ -122,8 +124,9 @@ def test_ros2_launch_fails_with_status_1_when_a_lockstep_node_dies(domain_id, tm
 
 
 def test_ros2_launch_fails_with_status_1_when_no_node_can_start(domain_id, tmp_path):
-    """A node executable that cannot be executed (here: a script whose interpreter does not exist,
-    as a workspace built by another Python leaves it) gives launch no process-exit event; the launch
+    """A node executable that cannot be executed gives launch no process-exit event.
+
+    Here it is a script whose interpreter does not exist, as a workspace built by another Python leaves it. The launch
     then ends idle, which without the clock's completion is a failed run.
     """
     from uh_bringup.team_nodes import NODES
@@ -147,12 +150,12 @@ def test_ros2_launch_fails_with_status_1_when_no_node_can_start(domain_id, tmp_p
 
 
 def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain_id, tmp_path):
-    """The team on rclpy (the launch's default backend) at rate 1, 20 s simulated, on this machine's
-    cores while as many busy-looping processes plus one want them too: formation and containment
-    within the acceptance thresholds (formation < 0.05 m, containment < 0.02 m; the lockstep run
-    reaches 0.0138 m and 0.0028 m), and, where the control loop may run under SCHED_FIFO (the
-    launch's default realtime_priority), at most 10 late commands in 10,000 simulator steps
-    (docs/performance.md#real-time-scheduling).
+    """The team on rclpy (the launch's default backend) at rate 1, 20 s simulated, on a fully loaded machine.
+
+    It runs on this machine's cores while as many busy-looping processes plus one want them too: formation and
+    containment within the acceptance thresholds (formation < 0.05 m, containment < 0.02 m; the lockstep run reaches
+    0.0138 m and 0.0028 m), and, where the control loop may run under SCHED_FIFO (the launch's default
+    realtime_priority), at most 10 late commands in 10,000 simulator steps (docs/performance.md#real-time-scheduling).
     """
     from uh_report.bag_metrics import write_metrics_from_bag
     from uh_topology.scenario import load_scenario
@@ -180,8 +183,9 @@ def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain
 
 
 def test_tf2_echo_and_diagnostics_of_a_running_team(domain_id, tmp_path):
-    """docs/visualization.md on real ROS: tf2 resolves world -> uh1/base_link from /tf, and
-    /diagnostics carries the simulators' and controllers' reports.
+    """Check docs/visualization.md on real ROS: tf2 and /diagnostics.
+
+    tf2 resolves world -> uh1/base_link from /tf, and /diagnostics carries the simulators' and controllers' reports.
     """
     launch = subprocess.Popen(['ros2', 'launch', 'uh_bringup', 'formation.launch.py', f'out:={tmp_path / "v"}',
                                'duration:=30.0', 'visualization:=false'],

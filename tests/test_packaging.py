@@ -1,6 +1,4 @@
-"""The repository is a set of real ROS 2 Jazzy packages whose dependencies run one way
-(docs/architecture.md).
-"""
+"""The repository is a set of real ROS 2 Jazzy packages whose dependencies run one way (docs/architecture.md)."""
 import ast
 import re
 import xml.etree.ElementTree as ET
@@ -85,8 +83,9 @@ def test_every_package_is_in_a_layer():
 
 @pytest.mark.parametrize('pkg', PYTHON_PACKAGES)
 def test_dependencies_run_one_way(pkg):
-    """package.xml names only lower layers, and the code imports only what package.xml names:
-    the simulator and the controller never import each other, nothing imports uh_bringup.
+    """Each package.xml names only lower layers, and the code imports only what package.xml names.
+
+    The simulator and the controller never import each other, nothing imports uh_bringup.
     """
     depends = _first_party_depends(pkg)
     upward = sorted(d for d in depends if LAYER_OF[d] >= LAYER_OF[pkg])
@@ -139,7 +138,8 @@ def _pins(path):
 
 
 def test_the_ros_machine_requirements_agree_with_the_pinned_ones_and_keep_numpy_1():
-    main, ros, constraints = _pins('requirements.txt'), _pins('requirements-ros.txt'), _pins('constraints-ros-jazzy.txt')
+    main, ros, constraints = (_pins('requirements.txt'), _pins('requirements-ros.txt'),
+                              _pins('constraints-ros-jazzy.txt'))
     assert all(version for version in ros.values()), 'every ROS-machine requirement is pinned'
     for name in set(main) & set(ros) - {'numba'}:     # numba: the release that supports numpy 1.26
         assert ros[name] == main[name], name

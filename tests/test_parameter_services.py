@@ -1,6 +1,7 @@
-"""Parameter services, /parameter_events and /rosout of the Cyclone DDS backend (what ``ros2 param``
-and ``ros2 topic echo /rosout`` use), with rclpy's (Jazzy) answers; and the ``uh param`` CLI against a
-node in another process. Wire conventions: uh_runtime.dds_backend.services.
+"""Parameter services, /parameter_events and /rosout of the Cyclone DDS backend, with rclpy's (Jazzy) answers.
+
+These are what ``ros2 param`` and ``ros2 topic echo /rosout`` use. Also the ``uh param`` CLI against a node in another
+process. Wire conventions: uh_runtime.dds_backend.services.
 """
 import subprocess
 import sys
@@ -22,8 +23,9 @@ Parameter = messages.dds_message('rcl_interfaces/msg/Parameter')
 
 @pytest.fixture
 def served(domain_id):
-    """A node ``/uh3/controller`` spinning in a thread with a few parameters, and a second context
-    (another participant, as ``ros2 param`` would be) to call it from.
+    """Spin a node ``/uh3/controller`` with a few parameters in a thread, with a second context to call it from.
+
+    The second context is another participant, as ``ros2 param`` would be.
     """
     ctx = rt.Context()
     ctx.init(args=['node'])

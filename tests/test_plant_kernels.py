@@ -1,5 +1,6 @@
-"""Compiled kernels of the helicopter model (uh_sim_node.plant_kernels; docs/model.md, docs/faults.md)
-and the guard of their on-disk cache (uh_core.kernel_cache).
+"""Compiled kernels of the helicopter model and the guard of their on-disk cache.
+
+The kernels are uh_sim_node.plant_kernels (docs/model.md, docs/faults.md); the guard is uh_core.kernel_cache.
 
 The reference here is independent of the kernels: the numpy matrix form of the dynamics and its
 written-out lumped faults (``model_oracle``), textbook RK4 on whole vectors, and eq. 6 evaluated by
@@ -112,7 +113,7 @@ def test_hover_trim_stays_trimmed_in_the_kernel():
 
 
 def test_a_fault_switches_on_at_the_first_substep_start_after_its_onset():
-    """dt = 10 ms, 5 substeps of 2 ms from t = 10 ms: substeps start at 10, 12, 14, 16, 18 ms."""
+    """With dt = 10 ms and 5 substeps of 2 ms from t = 10 ms, substeps start at 10, 12, 14, 16, 18 ms."""
     params, _, dist = _arrays()
 
     def step(onset):
@@ -131,8 +132,9 @@ def test_a_fault_switches_on_at_the_first_substep_start_after_its_onset():
 
 
 def test_kernel_onset_test_is_the_schedules_within_the_tolerance():
-    """An onset a fraction of ONSET_TOLERANCE after the switch time still acts (a k*dt time that
-    rounding put just short of the onset), two tolerances after it does not: the same answer as
+    """An onset a fraction of ONSET_TOLERANCE after the switch time still acts, two tolerances after it does not.
+
+    A fraction of a tolerance late is a k*dt time that rounding put just short of the onset. This is the same answer as
     ActuatorFault.started, whose tolerance the fault table carries into the kernels.
     """
     params = K.params_vector(load_helicopter_params())

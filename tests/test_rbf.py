@@ -1,6 +1,7 @@
-"""Gaussian RBF networks, composite learning step, projection and fault observer of the control
-kernels (docs/control_law.md#learning-and-estimation and #anti-windup-and-projection), against
-direct numpy evaluations of the formulas.
+"""Gaussian RBF networks, composite learning step, projection and fault observer of the control kernels.
+
+See docs/control_law.md#learning-and-estimation and #anti-windup-and-projection; checked against direct numpy
+evaluations of the formulas.
 """
 import math
 
@@ -132,8 +133,10 @@ def test_fault_observer_is_one_euler_step_then_clipped():
 
 
 def test_learning_phase_trains_the_network_and_holds_the_observer():
-    """estimator_advance: in the learning phase W takes one Euler step with (learning_rate, sigma)
-    and Fhat does not move; afterwards W uses (late_learning_rate, late_sigma) and Fhat its law.
+    """Check estimator_advance in and after the learning phase.
+
+    In the learning phase W takes one Euler step with (learning_rate, sigma) and Fhat does not move; afterwards W uses
+    (late_learning_rate, late_sigma) and Fhat its law.
     """
     from uh_controller_node import control_kernels as ck
     params = np.zeros(ck.CONTROL_PARAMS_SIZE)

@@ -1,8 +1,8 @@
-"""Recording integrity with real processes and real signals: a recorder killed with SIGKILL leaves an
-MCAP file readable up to its last complete chunk (at most the chunk being filled is lost, see
-uh_runtime.bag.CHUNK_SIZE), which recover_bag completes; SIGINT and SIGTERM leave a complete bag;
-in lockstep the bag holds exactly what every node published; a run whose recorder is killed says
-so and recovers the bag.
+"""Recording integrity with real processes and real signals.
+
+A recorder killed with SIGKILL leaves an MCAP file readable up to its last complete chunk (at most the chunk being
+filled is lost, see uh_runtime.bag.CHUNK_SIZE), which recover_bag completes; SIGINT and SIGTERM leave a complete bag; in
+lockstep the bag holds exactly what every node published; a run whose recorder is killed says so and recovers the bag.
 """
 import json
 import os
@@ -52,8 +52,9 @@ def _recorded(bag_dir: Path) -> int:
 
 @pytest.fixture
 def recording(tmp_path, domain_id, processes):
-    """A recorder process recording /uh1/state and a talker that has published N messages to it (all
-    acknowledged): returns (recorder process, bag directory).
+    """Start a recorder process recording /uh1/state and a talker that publishes N messages to it.
+
+    Every message is acknowledged. Returns (recorder process, bag directory).
     """
     bag = tmp_path / 'bag'
     recorder = processes.start([str(Path(sys.executable).with_name('recorder_node')), '--ros-args',
@@ -66,7 +67,7 @@ def recording(tmp_path, domain_id, processes):
 
 
 def _prefix_steps(bag_dir: Path) -> list:
-    """Steps of the /uh1/state messages readable in the bag's MCAP file, in file order."""
+    """Return the steps of the /uh1/state messages readable in the bag's MCAP file, in file order."""
     from uh_runtime import messages as m
     from uh_runtime.cdr import codec
     decode = codec(m.UHState).deserialize
@@ -198,9 +199,10 @@ def test_run_whose_recorder_is_killed_fails_and_recovers_the_bag(tmp_path):
 
 
 def test_a_one_shot_injection_is_recorded_when_the_topic_is_expected(tmp_path, domain_id, processes):
-    """``ros2 topic pub --once`` publishes as soon as one subscription (the simulator's) matched, and
-    leaves: the recorder must be subscribed before. With the fault topic in ``expected_topics`` it
-    is, and the injection is in the bag.
+    """``ros2 topic pub --once`` publishes as soon as one subscription (the simulator's) matched, and leaves.
+
+    The recorder must be subscribed before. With the fault topic in ``expected_topics`` it is, and the injection is in
+    the bag.
     """
     from uh_runtime import dds_backend as rt_dds
     from uh_runtime import messages as m

@@ -83,8 +83,9 @@ def test_comparison_cases_run_and_differ_from_the_proposed_law(full_run, paper, 
 
 
 def test_team_kernel_equals_the_per_uh_objects_bit_for_bit(full_run, paper):
-    """The native team loop and the Python loop over UHController/HelicopterPlant (what the nodes
-    run) call the same kernels: identical arrays, through the fault onset at t = 10 s.
+    """The native team loop and the Python loop over UHController/HelicopterPlant call the same kernels.
+
+    The Python loop is what the nodes run. Both give identical arrays, through the fault onset at t = 10 s.
     """
     kernel, _ = full_run
     objects = run_team_simulation(paper, 'proposed', duration=12.0, engine='objects')
@@ -202,9 +203,10 @@ def test_cli_survives_a_closed_stdout(tmp_path):
 
 
 def test_team_kernel_cache_is_emptied_when_the_kernels_it_calls_change():
-    """numba checks a cached kernel against its own file only; the team kernel's cache index is
-    emptied when control_kernels.py, plant_kernels.py, faults.py, impairments.py or uh_core/layout.py
-    no longer match its digest.
+    """Check that the team kernel's cache index is emptied when the kernels it calls change.
+
+    numba checks a cached kernel against its own file only; the team kernel's cache index is emptied when
+    control_kernels.py, plant_kernels.py, faults.py, impairments.py or uh_core/layout.py no longer match its digest.
     """
     from pathlib import Path
 
@@ -226,10 +228,11 @@ def test_team_kernel_cache_is_emptied_when_the_kernels_it_calls_change():
 
 @pytest.mark.parametrize('name', ['paper', 'square', 'wide'])
 def test_fault_estimates_tell_faults_from_model_error(name):
-    """docs/control_law.md#learning-phase, measured with docs/metrics.md on the three bundled
-    scenarios (one gains file): tracking within 0.02 m (formation) and 0.01 m (containment) after
-    the settle time; no false fault on a healthy UH or before an onset (the metric thresholds);
-    every scored fault vector whose truth is above the floor estimated with NRMSE < 0.25.
+    """Check docs/control_law.md#learning-phase, measured with docs/metrics.md on the three bundled scenarios.
+
+    With one gains file: tracking within 0.02 m (formation) and 0.01 m (containment) after the settle time; no false
+    fault on a healthy UH or before an onset (the metric thresholds); every scored fault vector whose truth is above the
+    floor estimated with NRMSE < 0.25.
     """
     from uh_team.metrics import (FALSE_ESTIMATE_THRESHOLD_P, FALSE_ESTIMATE_THRESHOLD_W, NRMSE_TARGET,
                                  nrmse_below_floor)

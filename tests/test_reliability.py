@@ -1,4 +1,4 @@
-"""Node failures in a realtime run, with real processes killed by SIGKILL (scripts/run_formation.sh):
+"""Node failures in a realtime run, with real processes killed by SIGKILL (scripts/run_formation.sh).
 
 - a simulator dies: the run script names it and goes on; the controllers that hear it report it
   stale on their status topic within the stale timeout and fly on without it where the remaining
@@ -38,8 +38,9 @@ STALE_STEPS = int(round(STALE_TIMEOUT / 0.01))
 
 
 def _run_and_kill(out: Path, domain: int, victim: str, at_step: int, *extra, timeout=300):
-    """Start a realtime run, SIGKILL ``victim`` (a process name of run.json) once the clock has
-    logged step ``at_step`` (its progress lines come every 10 %), wait for the run to end.
+    """Start a realtime run, SIGKILL ``victim`` once the clock has logged step ``at_step``, wait for the run to end.
+
+    ``victim`` is a process name of run.json; the clock's progress lines come every 10 %.
     """
     proc = subprocess.Popen([str(RUN), '--out', str(out), '--domain-id', str(domain), '--clock', 'realtime',
                              *extra], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
@@ -64,7 +65,7 @@ def _run_and_kill(out: Path, domain: int, victim: str, at_step: int, *extra, tim
 
 
 def _statuses(bag_dir: Path, uh: int) -> dict:
-    """step -> stale_neighbours of /uhN/status in the bag."""
+    """Return step -> stale_neighbours of /uhN/status in the bag."""
     store = typestore()
     out = {}
     with Reader(bag_dir) as reader:
@@ -133,7 +134,6 @@ def test_uh3_holds_position_and_uh4_keeps_following(sim_killed):
     out = sim_killed[0]
     paper = load_scenario('paper')
     bag = read_team_bag(out / 'bag', paper)
-    t = bag['time']
     status = _statuses(out / 'bag', 3)
     hold_from = min(k for k, names in status.items() if 'uh2' in names)
     p3 = bag['states'][:, 2, :3]
@@ -222,9 +222,10 @@ def test_a_death_in_lockstep_ends_the_run_naming_the_node(tmp_path):
 
 
 def test_no_node_outlives_a_killed_supervisor(tmp_path, domain_id):
-    """SIGKILL to the run supervisor alone (no Ctrl-C, no clean-up): every node process it started
-    gets SIGTERM from the kernel (parent-death signal) and ends, instead of running on in the DDS
-    domain (uh_runtime.runner.end_with_supervisor).
+    """SIGKILL to the run supervisor alone (no Ctrl-C, no clean-up) ends every node process it started.
+
+    Each gets SIGTERM from the kernel (parent-death signal) and ends, instead of running on in the DDS domain
+    (uh_runtime.runner.end_with_supervisor).
     """
     out = tmp_path / 'run'
     proc = start_run(out, domain_id, '--clock', 'realtime', '--duration', '60')

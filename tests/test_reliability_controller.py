@@ -1,5 +1,6 @@
-"""The controller core with part of its inputs (a neighbour or the reference stale, docs/graph.md):
-the remaining-graph check of Assumption 1, the degraded step on a subgraph and the position hold.
+"""The controller core with part of its inputs (a neighbour or the reference stale, docs/graph.md).
+
+The tests cover the remaining-graph check of Assumption 1, the degraded step on a subgraph and the position hold.
 """
 import numpy as np
 import pytest
@@ -15,8 +16,9 @@ def paper():
 
 
 class Subgraph:
-    """``base`` with the edges into ``uh`` restricted to ``keep`` (and its virtual-leader link dropped
-    unless ``link``): the graph a degraded step works on.
+    """``base`` with the edges into ``uh`` restricted to ``keep``: the graph a degraded step works on.
+
+    Its virtual-leader link is dropped unless ``link``.
     """
 
     def __init__(self, base, uh, keep, link=True):
@@ -77,8 +79,9 @@ def test_degraded_step_with_every_input_is_the_normal_step(paper):
 
 @pytest.mark.parametrize('uh, stale, link', [(4, 2, True), (5, 3, True), (1, 3, True), (1, 'ref', False)])
 def test_degraded_step_is_the_controller_of_the_remaining_graph(paper, uh, stale, link):
-    """Leaving out a stale neighbour (or the reference) gives exactly the controller built for the
-    graph without that edge: same weights, degree, yaw rule; the internal states carry on.
+    """Leaving out a stale neighbour (or the reference) gives the controller built for the graph without that edge.
+
+    It is exactly that controller: same weights, degree, yaw rule; the internal states carry on.
     """
     keep = tuple(j for j in paper.neighbours(uh) if j != stale)
     degraded = UHController(uh, paper)

@@ -131,8 +131,9 @@ def test_replay_of_a_team_run_sends_the_recorded_bytes_in_order_on_time(processe
 
 
 def test_replay_of_a_ros2_jazzy_bag(processes, domain_id, tmp_path):
-    """A bag recorded by `ros2 bag record -s mcap` on ROS 2 Jazzy replays the same way, at its
-    own (wall-clock) log times, /clock included as recorded.
+    """A bag recorded by `ros2 bag record -s mcap` on ROS 2 Jazzy replays the same way.
+
+    It replays at its own (wall-clock) log times, /clock included as recorded.
     """
     topics = ['/uh1/chatter', '/uh1/arr', '/uh1/header', '/clock']
     rate = 2.0
@@ -149,8 +150,9 @@ def test_replay_of_a_ros2_jazzy_bag(processes, domain_id, tmp_path):
 
 
 def test_clock_is_synthesised_from_log_times_and_qos_is_the_recorded_one(processes, domain_id, tmp_path):
-    """A bag without /clock: the replay publishes Clock(log time) before each new log time; the
-    replayed topic offers the QoS of the bag's offered_qos_profiles (here transient-local, depth 5).
+    """A bag without /clock: the replay publishes Clock(log time) before each new log time.
+
+    The replayed topic offers the QoS of the bag's offered_qos_profiles (here transient-local, depth 5).
     """
     from rosbags.typesys import Stores, get_typestore
 
@@ -162,7 +164,8 @@ def test_clock_is_synthesised_from_log_times_and_qos_is_the_recorded_one(process
     bag = tmp_path / 'noclock'
     times = [5_000_000_000 + k * 50_000_000 for k in range(12)]   # 12 messages, 50 ms apart
     with BagWriter(bag) as writer:
-        writer.add_topic('/talk', 'std_msgs/msg/String', qos_profile_yaml('reliable', 'transient_local', 'keep_last', 5))
+        writer.add_topic('/talk', 'std_msgs/msg/String',
+                         qos_profile_yaml('reliable', 'transient_local', 'keep_last', 5))
         for k, t in enumerate(times):
             writer.write('/talk', store.serialize_cdr(String(data=f'message {k}'), 'std_msgs/msg/String'), t)
     script = tmp_path / 'listener.py'

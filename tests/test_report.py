@@ -1,6 +1,7 @@
-"""uh-report: every figure of the paper's Figures 4-12 from a recorded run (MCAP bag) and from the
-reference simulation (timeseries.npz), the metrics table equal to each run's metrics.json with one
-column per run, and clear errors for unusable input.
+"""uh-report: every figure of the paper's Figures 4-12, the metrics table, and clear errors for unusable input.
+
+The figures come from a recorded run (MCAP bag) and from the reference simulation (timeseries.npz); the metrics table
+equals each run's metrics.json with one column per run.
 
 One short distributed run (22 s lockstep: the 20 s settle window of the after-settle metrics
 exists) is shared by this file, tests/test_replay.py and tests/test_markers_recorded.py through
@@ -10,7 +11,6 @@ import csv
 import fcntl
 import io
 import json
-import os
 import re
 import shutil
 import struct
@@ -36,8 +36,9 @@ PER_RUN_FIGURES = (['states', 'trajectory_3d', 'xy_snapshots'] + [f'faults_uh{i}
 
 
 def shared_team_run(tmp_path_factory) -> Path:
-    """Run directory of one 22 s lockstep run of the paper scenario (run_formation.sh), made once
-    per test session and shared by the test files that need a recorded team bag.
+    """Return the run directory of one 22 s lockstep run of the paper scenario (run_formation.sh).
+
+    It is made once per test session and shared by the test files that need a recorded team bag.
     """
     base = tmp_path_factory.getbasetemp()
     out = base / 'shared_team_run'
@@ -65,7 +66,7 @@ def png_size(path: Path) -> tuple[int, int]:
 
 
 def assert_drawn(path: Path, size: tuple[int, int]) -> None:
-    """The PNG has the expected pixel size and holds a drawing, not a blank canvas."""
+    """Assert that the PNG has the expected pixel size and holds a drawing, not a blank canvas."""
     import matplotlib.image as mpimg
     assert path.stat().st_size > 10_000, f'{path} is suspiciously small'
     assert png_size(path) == size, path
@@ -76,10 +77,10 @@ def assert_drawn(path: Path, size: tuple[int, int]) -> None:
 
 
 def damaged_chunk(path: Path) -> bytes:
-    """The bytes of MCAP file ``path`` with 64 bytes in the middle of its middle chunk inverted
-    (a damaged disk block; the file keeps its size, footer and summary). Inverted, not zeroed:
-    the middle of a chunk may already be zeros (an odometry message's covariance is 576 of them),
-    and zeroing it would change nothing.
+    """Return the bytes of MCAP file ``path`` with 64 bytes in the middle of its middle chunk inverted.
+
+    This is a damaged disk block; the file keeps its size, footer and summary. Inverted, not zeroed: the middle of a
+    chunk may already be zeros (an odometry message's covariance is 576 of them), and zeroing it would change nothing.
     """
     from mcap.reader import make_reader
     with open(path, 'rb') as f:
@@ -214,7 +215,7 @@ def _run_with_metrics(name: str, metrics: dict):
 
 
 def _fault_metrics(uh3_truth_rms: float, uh3_nrmse) -> dict:
-    """The fault part of a metrics.json: UH3's F_w below the NRMSE floor when ``uh3_nrmse`` is None."""
+    """Return the fault part of a metrics.json: UH3's F_w below the NRMSE floor when ``uh3_nrmse`` is None."""
     def vector(rms_error, truth_rms, nrmse):
         note = None if nrmse is not None else 'not meaningful: below the floor'
         return {'rms_error': rms_error, 'truth_rms': truth_rms, 'nrmse': nrmse, 'nrmse_note': note}
@@ -227,8 +228,9 @@ def _fault_metrics(uh3_truth_rms: float, uh3_nrmse) -> dict:
 
 
 def test_tables_mark_an_nrmse_below_the_floor_as_not_meaningful():
-    """An NRMSE withheld below the floor shows 'n/m' (never a number, never 'n/a'), takes no part
-    in the bold of its row, and the absolute error next to it is still shown; false estimate rows.
+    """An NRMSE withheld below the floor shows 'n/m' (never a number, never 'n/a').
+
+    It takes no part in the bold of its row, and the absolute error next to it is still shown; false estimate rows.
     """
     from uh_report.report import csv_table, markdown_table as report_table
     runs = [_run_with_metrics('below', _fault_metrics(0.3, None)), _run_with_metrics('above', _fault_metrics(1.4, 0.5))]
@@ -247,8 +249,10 @@ def test_tables_mark_an_nrmse_below_the_floor_as_not_meaningful():
 
 
 def test_report_of_a_short_simulation_marks_undefined_metrics(tmp_path):
-    """A 5 s run ends before the 20 s settle time: its after-settle metrics are null in
-    metrics.json and 'n/a' in the table; the default output directory is RUN_DIR/report.
+    """A 5 s run ends before the 20 s settle time.
+
+    Its after-settle metrics are null in metrics.json and 'n/a' in the table; the default output directory is
+    RUN_DIR/report.
     """
     from uh_report.report import main
     from uh_team import simulate_cli

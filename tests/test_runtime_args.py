@@ -1,5 +1,6 @@
-"""ROS names, ``--ros-args`` and parameter files as rcl handles them (uh_runtime.arguments),
-and the parameter value checks of uh_runtime.parameters. Pure: no DDS.
+"""ROS names, ``--ros-args`` and parameter files as rcl handles them (uh_runtime.arguments).
+
+Also the parameter value checks of uh_runtime.parameters. Pure: no DDS.
 """
 import pytest
 

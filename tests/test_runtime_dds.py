@@ -223,8 +223,9 @@ def test_params_file_with_wildcard_and_node_keys(processes, domain_id, tmp_path,
 
 
 def test_a_second_sigint_does_not_cut_the_teardown_short(processes, domain_id, tmp_path, graph):
-    """Ctrl-C under ros2 launch: the terminal's SIGINT and launch's own reach each node at once. The
-    second one lands in ``destroy_node`` (here made to take 1 s) and must not interrupt it.
+    """Ctrl-C under ros2 launch: the terminal's SIGINT and launch's own reach each node at once.
+
+    The second one lands in ``destroy_node`` (here made to take 1 s) and must not interrupt it.
     """
     import time
     proc = _start(processes, 'talker.py', '-r', '__ns:=/uh3', '-p', 'teardown_s:=1.0', cwd=tmp_path)

@@ -169,8 +169,9 @@ def _can_drop_the_permission() -> str | None:
 
 @pytest.mark.skipif(_can_drop_the_permission() is not None, reason=str(_can_drop_the_permission()))
 def test_without_the_permission_a_run_and_a_node_say_why_and_go_on(tmp_path, domain_id, processes):
-    """No CAP_SYS_NICE, rtprio limit 0: the run says so once and runs at normal priority; a node
-    asked for the priority directly (as the launch file asks) logs why it did not get it and runs.
+    """No CAP_SYS_NICE, rtprio limit 0: the run says so once and runs at normal priority.
+
+    A node asked for the priority directly (as the launch file asks) logs why it did not get it and runs.
     """
     from uh_runtime.network import loopback_environment
     out = tmp_path / 'run'
@@ -204,12 +205,14 @@ def test_without_the_permission_a_run_and_a_node_say_why_and_go_on(tmp_path, dom
 
 
 def test_a_respawned_process_starts_under_sched_fifo_a_first_start_does_not(tmp_path):
-    """A restarted controller's start-up (imports, discovery) competes with a team already under
-    SCHED_FIFO; the supervisor starts it under the run's priority from its first instruction.
+    """A restarted controller's start-up (imports, discovery) competes with a team already under SCHED_FIFO.
+
+    The supervisor starts it under the run's priority from its first instruction.
     """
     from uh_bringup.supervisor import Supervisor
     sup = Supervisor(tmp_path / 'logs', dict(os.environ), respawn_priority=PRIORITY)
-    show = [sys.executable, '-c', 'import os; print("policy", os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)']
+    show = [sys.executable, '-c',
+            'import os; print("policy", os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)']
     node = sup.start('probe', show)
     node.proc.wait(timeout=60)
     sup.respawn(node)
@@ -223,9 +226,9 @@ def test_a_respawned_process_starts_under_sched_fifo_a_first_start_does_not(tmp_
 
 
 def test_nodes_get_sigint_even_from_a_supervisor_that_ignores_it(tmp_path):
-    """A run started in the background by a script has SIGINT ignored (the shell does that), and
-    children inherit an ignored signal; the supervisor stops its nodes with SIGINT, so it gives
-    them the default back.
+    """A run started in the background by a script has SIGINT ignored (the shell does that).
+
+    Children inherit an ignored signal; the supervisor stops its nodes with SIGINT, so it gives them the default back.
     """
     from uh_bringup.supervisor import Supervisor
     show = [sys.executable, '-c', 'import signal; print("sigint", signal.getsignal(signal.SIGINT).__name__)']

@@ -15,8 +15,10 @@ from uh_runtime.signals import sigint_deferred
 
 
 class _SwallowingReader:
-    """take() runs a Python constructor per sample and turns what it raises into a plain Exception,
-    as cyclonedds' builtin readers do; Ctrl-C arrives while the second sample is built.
+    """A stand-in for a cyclonedds builtin reader, interrupted by Ctrl-C in the middle of take().
+
+    take() runs a Python constructor per sample and turns what it raises into a plain Exception, as cyclonedds' builtin
+    readers do; Ctrl-C arrives while the second sample is built.
     """
 
     def __init__(self):
@@ -78,8 +80,9 @@ def test_nothing_pending_nothing_raised_and_the_handler_is_given_back():
 
 
 def test_a_target_that_fails_to_wake_does_not_stop_later_wake_ups():
-    """The wake-up thread calls every registered target on every signal; one whose DDS entities are
-    gone (a closed graph of another node) raised there and ended the thread, so later signals
+    """The wake-up thread calls every registered target on every signal.
+
+    One whose DDS entities are gone (a closed graph of another node) raised there and ended the thread, so later signals
     woke nothing.
     """
     import threading

@@ -1,6 +1,7 @@
-"""The standard views for generic tools (docs/visualization.md): frames and quaternions against closed
-forms and an independent implementation, odometry twist, message builders, and every diagnostics
-level raised by the event that should raise it.
+"""The standard views for generic tools (docs/visualization.md).
+
+Checked: frames and quaternions against closed forms and an independent implementation, odometry twist, message
+builders, and every diagnostics level raised by the event that should raise it.
 """
 import math
 

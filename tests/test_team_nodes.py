@@ -1,5 +1,6 @@
-"""One table of nodes (uh_bringup.team_nodes) behind the entry points, the composition, the run script
-and the launch file, so they cannot drift apart.
+"""One table of nodes (uh_bringup.team_nodes) behind everything that starts nodes.
+
+The entry points, the composition, the run script and the launch file all use it, so they cannot drift apart.
 """
 import ast
 import importlib
@@ -18,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _console_scripts(pkg: str) -> dict:
-    """``{executable: 'module:function'}`` of a package's setup.py."""
+    """Return ``{executable: 'module:function'}`` of a package's setup.py."""
     tree = ast.parse((ROOT / pkg / 'setup.py').read_text())
     for node in ast.walk(tree):
         if isinstance(node, ast.Dict):
@@ -63,8 +64,9 @@ class _Recorder:
 
 
 def _fake_launch_modules(monkeypatch):
-    """Minimal ``launch`` and ``launch_ros`` (ROS 2 is not installed here): each class records how it
-    was built, so the launch file's own logic runs.
+    """Install minimal ``launch`` and ``launch_ros`` modules (ROS 2 is not installed here).
+
+    Each class records how it was built, so the launch file's own logic runs.
     """
     mods = {name: types.ModuleType(name) for name in
             ('launch', 'launch.actions', 'launch.event_handlers', 'launch.events', 'launch.substitutions',

@@ -1,5 +1,7 @@
-"""The ready-made views in views/ (docs/visualization.md#ready-made-views): generated from the paper
-scenario by uh_bringup.views, in sync with it, and naming only topics and frames the team has.
+"""The ready-made views in views/ (docs/visualization.md#ready-made-views).
+
+They are generated from the paper scenario by uh_bringup.views, in sync with it, and name only topics and frames the
+team has.
 """
 import json
 import re

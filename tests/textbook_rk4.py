@@ -2,8 +2,9 @@
 
 
 def rk4(f, x, t, dt, substeps):
-    """Integrate ``x' = f(tt, x, ts)`` from ``t`` over ``dt`` in ``substeps`` RK4 steps; ``ts`` is the
-    start time of the substep (the time at which fault activity is decided), ``tt`` the stage time.
+    """Integrate ``x' = f(tt, x, ts)`` from ``t`` over ``dt`` in ``substeps`` RK4 steps.
+
+    ``ts`` is the start time of the substep (the time at which fault activity is decided), ``tt`` the stage time.
     """
     h = dt / substeps
     for s in range(substeps):

@@ -18,7 +18,8 @@ def main() -> int:
     topic = sys.argv[1]
     rt.init(args=[sys.argv[0]])
     node = rt.Node('once_publisher')
-    pub = node.create_publisher(m.ActuatorFault, topic, topics.qos_profile(topics.QosSpec('reliable', 'volatile', 'keep_last', 7)))
+    pub = node.create_publisher(m.ActuatorFault, topic,
+                                topics.qos_profile(topics.QosSpec('reliable', 'volatile', 'keep_last', 7)))
     deadline = time.monotonic() + 30
     while pub.get_subscription_count() < 1:
         if time.monotonic() > deadline:

@@ -1,5 +1,7 @@
-"""A misbehaving participant for the reliability tests: joins a running team and publishes invalid
-messages on its topics, with the registry's QoS (so they reach every receiver), then exits.
+"""A misbehaving participant for the reliability tests.
+
+It joins a running team and publishes invalid messages on its topics, with the registry's QoS (so they reach every
+receiver), then exits.
 
     python reliability_rogue_publisher.py   (ROS_DOMAIN_ID and CYCLONEDDS_URI from the environment)
 
