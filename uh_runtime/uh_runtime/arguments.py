@@ -157,13 +157,19 @@ def _yaml_to_param(text, value):
     return text
 
 
-def _parse_rule(rule: str) -> RemapRule:
+def _split_rule(rule: str, form: str):
+    """Split ``[node:]name:=value`` into ``(node or None, name, value)``; ``form`` names the rule in errors."""
     if ':=' not in rule:
-        raise RosArgsError(f'remap rule {rule!r} must have the form [node:]from:=to')
-    left, replacement = rule.split(':=', 1)
+        raise RosArgsError(f'{form[0]} {rule!r} must have the form {form[1]}')
+    left, right = rule.split(':=', 1)
     node = None
     if ':' in left:
         node, left = left.split(':', 1)
+    return node, left, right
+
+
+def _parse_rule(rule: str) -> RemapRule:
+    node, left, replacement = _split_rule(rule, ('remap rule', '[node:]from:=to'))
     if not left or not replacement:
         raise RosArgsError(f'remap rule {rule!r} must have the form [node:]from:=to')
     return RemapRule(node, left, replacement)
@@ -258,12 +264,7 @@ def parse_ros_args(args) -> ParsedArguments:
 
         if arg in ('-p', '--param'):
             rule = value(arg)
-            if ':=' not in rule:
-                raise RosArgsError(f'parameter rule {rule!r} must have the form name:=value')
-            name, text = rule.split(':=', 1)
-            node = None
-            if ':' in name:
-                node, name = name.split(':', 1)
+            node, name, text = _split_rule(rule, ('parameter rule', 'name:=value'))
             if not name:
                 raise RosArgsError(f'parameter rule {rule!r} has an empty name')
             parsed.parameters.append(

@@ -29,6 +29,23 @@ _PAD = [b'\0' * n for n in range(8)]
 _HEADER = b'\x00\x01\x00\x00'
 
 
+
+def _align(size, out, ind, run, al, flush, runtime_line):
+    """Align the generated code to ``size`` bytes: padding in the pending ``run`` where the offset is known.
+
+    Where the offset is only known at run time, ``flush`` emits the pending run and ``runtime_line``
+    (the serialiser's or the deserialiser's padding statement) is added at indentation ``ind``.
+    """
+    pad = al.pad_for(size)
+    if pad is None:
+        flush(run, out, ind)
+        out.append('    ' * ind + runtime_line)
+        al.aligned(size)
+        return
+    if pad:
+        run['fmt'] += 'x' * pad
+        al.advance(pad)
+
 class Codec:
     """``serialize(msg) -> bytes`` (with the 4-byte header) and ``deserialize(data) -> msg``."""
 
@@ -100,15 +117,7 @@ class _Gen:
         run['fmt'], run['args'] = '', []
 
     def _align_runtime(self, size, out, ind, run, al):
-        pad = al.pad_for(size)
-        if pad is None:
-            self._flush(run, out, ind)
-            out.append(f"{'    ' * ind}b += _PAD[(4 - len(b)) % {size}]")
-            al.aligned(size)
-            return
-        if pad:
-            run['fmt'] += 'x' * pad
-            al.advance(pad)
+        _align(size, out, ind, run, al, self._flush, f"b += _PAD[(4 - len(b)) % {size}]")
 
     def _ser_body(self, typename, expr, out, al, ind, run=None):
         top = run is None
@@ -227,15 +236,7 @@ class _Gen:
         run['fmt'], run['vars'] = '', []
 
     def _dalign(self, size, out, ind, run, al):
-        pad = al.pad_for(size)
-        if pad is None:
-            self._dflush(run, out, ind)
-            out.append(f"{'    ' * ind}p += (4 - p) % {size}")
-            al.aligned(size)
-            return
-        if pad:
-            run['fmt'] += 'x' * pad
-            al.advance(pad)
+        _align(size, out, ind, run, al, self._dflush, f"p += (4 - p) % {size}")
 
     def _de_body(self, typename, out, al, ind, run):
         """Emit reads of every field; return the constructor expression of the message."""

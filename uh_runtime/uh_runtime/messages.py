@@ -333,17 +333,24 @@ def dds_message(name: str):
         ``name`` is malformed or not a known type.
     """
     name = _normalise(name)
-    with _lock:
-        cls = _classes.get(name)
-        if cls is not None:
-            return cls
+
+    def build():
         store = typestore()
         if name not in store.fielddefs:
             raise MessageError(
                 f'unknown message type {name!r}: not a uh_msgs type (.msg files in '
                 f'{_uh_msgs_dir()}) nor a ROS 2 Jazzy standard type')
-        cls = _idl_class(name, *store.fielddefs[name], module='msg')
-        _classes[name] = cls
+        return _idl_class(name, *store.fielddefs[name], module='msg')
+
+    return _cached_class(name, build)
+
+
+def _cached_class(key: str, build):
+    """Return the class cached under ``key``, building it with ``build()`` once (thread-safe)."""
+    with _lock:
+        cls = _classes.get(key)
+        if cls is None:
+            cls = _classes[key] = build()
         return cls
 
 
@@ -359,11 +366,8 @@ def dds_service_message(name: str):
     if not _SRV_NAME_RE.match(name):
         raise MessageError(f'{name!r} is not a service part name; expected "<package>/srv/<Service>_Request" '
                            'or "_Response"')
-    key = 'wrapped:' + name
-    with _lock:
-        cls = _classes.get(key)
-        if cls is not None:
-            return cls
+
+    def build():
         from rosbags.interfaces import Nodetype
         store = typestore()
         if name not in store.fielddefs:
@@ -371,9 +375,9 @@ def dds_service_message(name: str):
         consts, fields = store.fielddefs[name]
         header = [('client_guid', (Nodetype.BASE, ('uint64', 0))),
                   ('sequence_number', (Nodetype.BASE, ('int64', 0)))]
-        cls = _idl_class(name, consts, header + list(fields), module='srv')
-        _classes[key] = cls
-        return cls
+        return _idl_class(name, consts, header + list(fields), module='srv')
+
+    return _cached_class('wrapped:' + name, build)
 
 
 def get_message(name: str):
