@@ -40,7 +40,8 @@ Arrays
     ``FLAG_STARTED`` is 1.0 once the first step has initialised the filters and estimation models
     (all zeros = a fresh controller).
 
-* outputs: ``u`` (4,) and ``status`` (STATUS_SIZE = 37,): 3-vectors starting at ``S_Z1``, ``S_Z2``,
+* outputs: ``u`` (4,) and ``status`` (STATUS_SIZE = 37,), laid out by
+  :data:`uh_core.layout.STATUS_LAYOUT` (the fields of ``ControllerStatus.msg``): 3-vectors starting at ``S_Z1``, ``S_Z2``,
   ``S_Z3``, ``S_Z4``, ``S_F_HAT_P``, ``S_F_HAT_W`` (estimates used this step), ``S_ZN_P``,
   ``S_ZN_W`` (prediction errors), ``S_U_P``, ``S_EULER_D`` (attitude command before its filter);
   scalars ``S_THRUST`` (T_c before the collective limit, N), ``S_W_NORM_P``, ``S_W_NORM_W``
@@ -88,8 +89,10 @@ from numba import njit
 
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
-from uh_core.layout import (INPUT_SIZE, R_P, R_V, R_YAW, REFERENCE_SIZE, STATE_SIZE, U_COL, U_LAT, U_LON, U_TR,
-                            X_OMEGA, X_P, X_THETA, X_V, YAW)
+from uh_core.layout import (INPUT_SIZE, R_P, R_V, R_YAW, REFERENCE_SIZE, S_COST_RATE, S_EULER_D, S_F_HAT_P,
+                            S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_THRUST, S_U_P, S_W_NORM_P,
+                            S_W_NORM_W, S_Z1, S_Z2, S_Z3, S_Z4, S_ZN_P, S_ZN_W, STATE_SIZE, STATUS_SIZE,
+                            STATUS_VECTORS, U_COL, U_LAT, U_LON, U_TR, X_OMEGA, X_P, X_THETA, X_V, YAW)
 
 __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'YAW', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
@@ -178,26 +181,7 @@ FLAG_TIME = 1               # simulated time t_k of the step being computed, s (
                             # the first step, k dt; advanced by dt per step): ends the learning phase
 MEMORY_ROWS = 8
 
-# -- status vector ------------------------------------------------------------------------------
-S_Z1 = 0                    # consensus error e, m
-S_Z2 = 3                    # velocity error v - alpha_f, m/s
-S_Z3 = 6                    # attitude error Theta - Theta_df (yaw wrapped), rad
-S_Z4 = 9                    # body-rate error omega - alpha_wf, rad/s
-S_F_HAT_P = 12              # Fhat_p used this step, m/s^2
-S_F_HAT_W = 15              # Fhat_w used this step, rad/s^2
-S_ZN_P = 18                 # prediction error v - vhat, m/s
-S_ZN_W = 21                 # prediction error omega - omegahat, rad/s
-S_U_P = 24                  # designed acceleration (before the limits), m/s^2
-S_EULER_D = 27              # attitude command (phi_d, theta_d, psi_d) before its filter, rad
-STATUS_VECTORS = 10         # the 3-vectors above fill status[:3 * STATUS_VECTORS]
-S_THRUST = 30               # T_c before the collective limit, N
-S_W_NORM_P = 31             # Frobenius norm of W_p after the update
-S_W_NORM_W = 32             # Frobenius norm of W_w after the update
-S_SAT_TILT = 33             # 1.0: tilt limit or minimum vertical acceleration active
-S_SAT_COLLECTIVE = 34       # 1.0: collective limit active
-S_SAT_CYCLIC = 35           # 1.0: a cyclic or the tail-rotor limit active
-S_COST_RATE = 36            # |z1|^2 + |u_p|^2, integrand of the CPI (docs/metrics.md)
-STATUS_SIZE = 37
+# -- status vector: uh_core.layout (S_*, STATUS_SIZE, STATUS_VECTORS), the fields of ControllerStatus.msg --
 
 #: Return value of :func:`uh_control_step` when the step was taken.
 STEP_DONE = -1
