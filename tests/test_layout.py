@@ -134,3 +134,30 @@ def test_team_kernel_takes_its_arrays_in_groups():
     params = list(inspect.signature(team_kernel.run_team_steps.py_func).parameters)
     assert params == ['k0', 'k1', 'last', 'dt', 'references', 'team', 'links_impaired', 'live', 'record']
     assert team_kernel.TeamArrays._fields == ('config', 'impairments', 'state')
+
+
+def test_kernel_parameter_indices_have_one_home_each():
+    """CP_* and L_* are assigned only in control_kernels.py, P_* only in plant_kernels.py, each from its table."""
+    import ast
+    homes = {'CP_': 'control_kernels.py', 'L_': 'control_kernels.py', 'P_': 'plant_kernels.py'}
+    offenders = []
+    for pkg in ('uh_core', 'uh_wire', 'uh_sim_node', 'uh_controller_node', 'uh_team', 'uh_report'):
+        for path in (ROOT / pkg / pkg).rglob('*.py'):
+            for node in ast.parse(path.read_text()).body:
+                for target in (node.targets if isinstance(node, ast.Assign) else []):
+                    for e in (target.elts if isinstance(target, ast.Tuple) else [target]):
+                        prefix = next((p for p in homes if isinstance(e, ast.Name) and e.id.startswith(p)
+                                       and e.id[len(p):].isupper()), None)
+                        if prefix and path.name != homes[prefix]:
+                            offenders.append(f'{path.relative_to(ROOT)}: {e.id}')
+    assert not offenders
+
+
+def test_parameter_tables_tile_the_parameter_vectors():
+    from uh_controller_node import control_kernels as ck
+    from uh_sim_node import plant_kernels as pk
+    model = sum(count for _, count in ck.MODEL_ENTRIES)
+    assert list(ck.GAIN_INDEX.values()) == list(range(model, ck.CP_OUTER))
+    assert list(ck.LOOP_GAIN_OFFSET.values()) == list(range(ck.LOOP_GAINS_SIZE))
+    assert ck.CONTROL_PARAMS_SIZE == ck.CP_OUTER + 2 * ck.LOOP_GAINS_SIZE
+    assert pk.PARAMS_SIZE == pk.PARAMS_INDEX['input_upper'] + layout.INPUT_SIZE
