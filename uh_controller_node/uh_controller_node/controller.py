@@ -1,5 +1,6 @@
-"""The controller of one UH: consensus errors from neighbours' data, outer and inner loops
-(docs/graph.md, docs/control_law.md).
+"""The controller of one UH: consensus errors from neighbours' data, outer and inner loops.
+
+See docs/graph.md and docs/control_law.md.
 
 One :class:`UHController` per helicopter, built from the scenario only (its neighbours, weights,
 virtual-leader link and formation offsets come from the communication graph). Each control step
@@ -166,9 +167,10 @@ class ControllerStatusData:
 
     @classmethod
     def from_vector(cls, uh_id: int, step: int, stamp: float, status: np.ndarray) -> 'ControllerStatusData':
-        """The record of the kernel's ``status`` vector (STATUS_SIZE,) (layout:
-        :data:`uh_core.layout.STATUS_LAYOUT`, whose field names and order are those of this
-        record). The vector fields are views of ``status``, which the record then owns.
+        """Make the record of the kernel's ``status`` vector (STATUS_SIZE,).
+
+        Its layout is :data:`uh_core.layout.STATUS_LAYOUT`, whose field names and order are those of
+        this record. The vector fields are views of ``status``, which the record then owns.
         """
         return _read_status(cls, uh_id, step, stamp, status)
 
@@ -352,14 +354,15 @@ class UHController:
 
     @property
     def inner(self) -> LoopState:
-        """Live views of the inner loop's W_w, Fhat_w, omegahat and alpha_wf (Theta_df is
-        ``kernel_arrays().memory[M_THETA_DF]``).
+        """Live views of the inner loop's W_w, Fhat_w, omegahat and alpha_wf.
+
+        Theta_df is ``kernel_arrays().memory[M_THETA_DF]``.
         """
         m = self._memory
         return LoopState(self._weights_w, m[M_F_HAT_W], m[M_OMEGA_HAT], m[M_ALPHA_WF])
 
     def kernel_arrays(self) -> ControlArrays:
-        """The arrays :func:`~uh_controller_node.control_kernels.uh_control_step` needs for this UH.
+        """Return the arrays :func:`~uh_controller_node.control_kernels.uh_control_step` needs for this UH.
 
         These are the controller's own arrays, not copies: a kernel that updates ``weights_p``,
         ``weights_w`` and ``memory`` in place carries this controller on; stack copies of them
@@ -426,6 +429,7 @@ class UHController:
 
     def set_gains(self, gains: ControllerGains) -> None:
         """Use ``gains`` from the next step on (a live change, docs/control_law.md#gains-as-parameters).
+
         The internal states carry on; the RBF networks' size and centres cannot change.
 
         Raises
@@ -441,8 +445,9 @@ class UHController:
         self.gains = gains
 
     def reachable_without(self, lost) -> bool:
-        """Whether this UH still has a directed path from the virtual leader when the UHs in ``lost``
-        (ids; ``0`` = the virtual leader's reference) are gone: Assumption 1 for this UH on the
+        """Tell whether this UH still has a directed path from the virtual leader without the UHs ``lost``.
+
+        ``lost`` holds ids; ``0`` is the virtual leader's reference. This is Assumption 1 for this UH on the
         remaining graph (docs/graph.md). Leaders never hear followers, so a follower reached from the
         virtual leader is reached through a leader.
         """

@@ -161,8 +161,10 @@ _NAN4 = (math.nan,) * 4
 
 
 def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=()):
-    """``ControllerStatus`` from the controller core's status record (same field names; the fault
-    isolation fields from its ``isolation``, or "nothing isolated" when that is None).
+    """Build a ``ControllerStatus`` from the controller core's status record.
+
+    The fields of :data:`uh_core.layout.STATUS_LAYOUT` have the record's names; the fault isolation
+    fields come from its ``isolation``, or say "nothing isolated" when that is None.
     """
     fields = {name: vector3(getattr(status, name)) for name in _STATUS_VECTORS}
     fields.update((name, float(getattr(status, name))) for name in _STATUS_SCALARS)
