@@ -41,12 +41,13 @@ Arrays
     (all zeros = a fresh controller).
 
 * outputs: ``u`` (4,) and ``status`` (STATUS_SIZE = 37,), laid out by
-  :data:`uh_core.layout.STATUS_LAYOUT` (the fields of ``ControllerStatus.msg``): 3-vectors starting at ``S_Z1``, ``S_Z2``,
-  ``S_Z3``, ``S_Z4``, ``S_F_HAT_P``, ``S_F_HAT_W`` (estimates used this step), ``S_ZN_P``,
-  ``S_ZN_W`` (prediction errors), ``S_U_P``, ``S_EULER_D`` (attitude command before its filter);
-  scalars ``S_THRUST`` (T_c before the collective limit, N), ``S_W_NORM_P``, ``S_W_NORM_W``
-  (Frobenius norms after the update), ``S_SAT_TILT``, ``S_SAT_COLLECTIVE``, ``S_SAT_CYCLIC``
-  (1.0 when that limit was active, else 0.0), ``S_COST_RATE`` (``|z1|^2 + |u_p|^2``).
+  :data:`uh_core.layout.STATUS_LAYOUT` (the fields of ``ControllerStatus.msg``): 3-vectors starting
+  at ``S_Z1``, ``S_Z2``, ``S_Z3``, ``S_Z4``, ``S_F_HAT_P``, ``S_F_HAT_W`` (estimates used this
+  step), ``S_ZN_P``, ``S_ZN_W`` (prediction errors), ``S_U_P``, ``S_EULER_D`` (attitude command
+  before its filter); scalars ``S_THRUST`` (T_c before the collective limit, N), ``S_W_NORM_P``,
+  ``S_W_NORM_W`` (Frobenius norms after the update), ``S_SAT_TILT``, ``S_SAT_COLLECTIVE``,
+  ``S_SAT_CYCLIC`` (1.0 when that limit was active, else 0.0), ``S_COST_RATE``
+  (``|z1|^2 + |u_p|^2``).
 
 Calling the per-UH kernel from njit code
 ----------------------------------------
