@@ -50,3 +50,114 @@ def test_the_layout_has_one_home():
                     offenders += [f'{path.relative_to(ROOT)}: {e.id}' for e in elts
                                   if isinstance(e, ast.Name) and e.id in names]
     assert not offenders
+
+
+def _status_msg_fields():
+    """``(type, name)`` of the fields of ControllerStatus.msg, in order (constants and comments left out)."""
+    text = (ROOT / 'uh_msgs' / 'msg' / 'ControllerStatus.msg').read_text()
+    fields = []
+    for line in text.splitlines():
+        words = line.split('#', 1)[0].split()
+        if len(words) == 2:        # "type name"; a constant is "type NAME = value"
+            fields.append((words[0], words[1]))
+    return fields
+
+
+def test_status_layout_is_the_controller_status_msg_from_z1_to_cost_rate():
+    fields = _status_msg_fields()
+    names = [name for _, name in fields]
+    first = names.index(layout.STATUS_LAYOUT[0][0])
+    assert fields[first:first + len(layout.STATUS_LAYOUT)] == [(kind, name) for name, kind in layout.STATUS_LAYOUT]
+    assert names[:first] == ['header', 'uh_id', 'step']
+    assert names[first + len(layout.STATUS_LAYOUT)] == 'stale_neighbours'
+
+
+def test_status_indices_tile_the_status_vector_in_layout_order():
+    starts = [layout.STATUS_INDEX[name] for name, _ in layout.STATUS_LAYOUT]
+    widths = [layout.STATUS_WIDTH[kind] for _, kind in layout.STATUS_LAYOUT]
+    assert starts == [sum(widths[:i]) for i in range(len(widths))]
+    assert layout.STATUS_SIZE == sum(widths)
+    assert 3 * layout.STATUS_VECTORS == layout.STATUS_INDEX[layout.STATUS_LAYOUT[layout.STATUS_VECTORS][0]]
+    constants = {name: getattr(layout, name) for name in layout.__all__ if name.startswith('S_')}
+    assert sorted(constants.values()) == starts     # one S_* per field, none left over
+
+
+def test_status_record_and_wire_follow_the_status_layout():
+    import dataclasses
+
+    import numpy as np
+    from uh_controller_node.controller import ControllerStatusData
+    from uh_wire import wire
+
+    record_fields = [f.name for f in dataclasses.fields(ControllerStatusData)]
+    assert record_fields[3:3 + len(layout.STATUS_LAYOUT)] == [name for name, _ in layout.STATUS_LAYOUT]
+    status = np.arange(layout.STATUS_SIZE, dtype=float)
+    record = ControllerStatusData.from_vector(1, 2, 0.5, status)
+    msg = wire.status_to_msg(1, 2, 0.5, record)
+    for name, kind in layout.STATUS_LAYOUT:
+        i = layout.STATUS_INDEX[name]
+        value = getattr(msg, name)
+        if kind == layout.STATUS_VECTOR3:
+            assert [value.x, value.y, value.z] == [i, i + 1, i + 2]
+        elif kind == layout.STATUS_FLAG:
+            assert value is (i != 0.0)
+        else:
+            assert value == i
+
+
+def test_no_module_defines_its_own_status_index():
+    """The status vector's indices and field lists live in uh_core.layout only."""
+    import ast
+    offenders = []
+    for pkg in ('uh_core', 'uh_wire', 'uh_sim_node', 'uh_controller_node', 'uh_team', 'uh_report'):
+        for path in (ROOT / pkg / pkg).rglob('*.py'):
+            if path.name == 'layout.py':
+                continue
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.Assign):
+                    for target in node.targets:
+                        for e in (target.elts if isinstance(target, ast.Tuple) else [target]):
+                            if isinstance(e, ast.Name) and re.fullmatch(r'S_[A-Z0-9_]+', e.id):
+                                offenders.append(f'{path.relative_to(ROOT)}: {e.id}')
+                # a literal list of status field names (as wire.py once had) instead of STATUS_LAYOUT
+                if isinstance(node, ast.Tuple) and len(node.elts) > 2 and all(
+                        isinstance(e, ast.Constant) and e.value in layout.STATUS_INDEX for e in node.elts):
+                    offenders.append(f'{path.relative_to(ROOT)}:{node.lineno}: a literal list of status fields')
+    assert not offenders
+
+
+def test_team_kernel_takes_its_arrays_in_groups():
+    """run_team_steps takes the team's arrays as a few namedtuples, not one argument per array."""
+    import inspect
+
+    from uh_team import team_kernel
+    params = list(inspect.signature(team_kernel.run_team_steps.py_func).parameters)
+    assert params == ['k0', 'k1', 'last', 'dt', 'references', 'team', 'links_impaired', 'live', 'record']
+    assert team_kernel.TeamArrays._fields == ('config', 'impairments', 'state')
+
+
+def test_kernel_parameter_indices_have_one_home_each():
+    """CP_* and L_* are assigned only in control_kernels.py, P_* only in plant_kernels.py, each from its table."""
+    import ast
+    homes = {'CP_': 'control_kernels.py', 'L_': 'control_kernels.py', 'P_': 'plant_kernels.py'}
+    offenders = []
+    for pkg in ('uh_core', 'uh_wire', 'uh_sim_node', 'uh_controller_node', 'uh_team', 'uh_report'):
+        for path in (ROOT / pkg / pkg).rglob('*.py'):
+            for node in ast.parse(path.read_text()).body:
+                for target in (node.targets if isinstance(node, ast.Assign) else []):
+                    for e in (target.elts if isinstance(target, ast.Tuple) else [target]):
+                        prefix = next((p for p in homes if isinstance(e, ast.Name) and e.id.startswith(p)
+                                       and e.id[len(p):].isupper()), None)
+                        if prefix and path.name != homes[prefix]:
+                            offenders.append(f'{path.relative_to(ROOT)}: {e.id}')
+    assert not offenders
+
+
+def test_parameter_tables_tile_the_parameter_vectors():
+    from uh_controller_node import control_kernels as ck
+    from uh_sim_node import plant_kernels as pk
+    model = sum(count for _, count in ck.MODEL_ENTRIES)
+    assert list(ck.GAIN_INDEX.values()) == list(range(model, ck.CP_OUTER))
+    assert list(ck.LOOP_GAIN_OFFSET.values()) == list(range(ck.LOOP_GAINS_SIZE))
+    assert ck.CONTROL_PARAMS_SIZE == ck.CP_OUTER + 2 * ck.LOOP_GAINS_SIZE
+    assert pk.PARAMS_SIZE == pk.PARAMS_INDEX['input_upper'] + layout.INPUT_SIZE

@@ -40,12 +40,14 @@ Arrays
     ``FLAG_STARTED`` is 1.0 once the first step has initialised the filters and estimation models
     (all zeros = a fresh controller).
 
-* outputs: ``u`` (4,) and ``status`` (STATUS_SIZE = 37,): 3-vectors starting at ``S_Z1``, ``S_Z2``,
-  ``S_Z3``, ``S_Z4``, ``S_F_HAT_P``, ``S_F_HAT_W`` (estimates used this step), ``S_ZN_P``,
-  ``S_ZN_W`` (prediction errors), ``S_U_P``, ``S_EULER_D`` (attitude command before its filter);
-  scalars ``S_THRUST`` (T_c before the collective limit, N), ``S_W_NORM_P``, ``S_W_NORM_W``
-  (Frobenius norms after the update), ``S_SAT_TILT``, ``S_SAT_COLLECTIVE``, ``S_SAT_CYCLIC``
-  (1.0 when that limit was active, else 0.0), ``S_COST_RATE`` (``|z1|^2 + |u_p|^2``).
+* outputs: ``u`` (4,) and ``status`` (STATUS_SIZE = 37,), laid out by
+  :data:`uh_core.layout.STATUS_LAYOUT` (the fields of ``ControllerStatus.msg``): 3-vectors starting
+  at ``S_Z1``, ``S_Z2``, ``S_Z3``, ``S_Z4``, ``S_F_HAT_P``, ``S_F_HAT_W`` (estimates used this
+  step), ``S_ZN_P``, ``S_ZN_W`` (prediction errors), ``S_U_P``, ``S_EULER_D`` (attitude command
+  before its filter); scalars ``S_THRUST`` (T_c before the collective limit, N), ``S_W_NORM_P``,
+  ``S_W_NORM_W`` (Frobenius norms after the update), ``S_SAT_TILT``, ``S_SAT_COLLECTIVE``,
+  ``S_SAT_CYCLIC`` (1.0 when that limit was active, else 0.0), ``S_COST_RATE``
+  (``|z1|^2 + |u_p|^2``).
 
 Calling the per-UH kernel from njit code
 ----------------------------------------
@@ -80,6 +82,7 @@ file's cache (or touch it) whenever this file changes.
 from __future__ import annotations
 
 import math
+import operator
 import time
 from typing import NamedTuple
 
@@ -88,8 +91,10 @@ from numba import njit
 
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
-from uh_core.layout import (INPUT_SIZE, R_P, R_V, R_YAW, REFERENCE_SIZE, STATE_SIZE, U_COL, U_LAT, U_LON, U_TR,
-                            X_OMEGA, X_P, X_THETA, X_V, YAW)
+from uh_core.layout import (INPUT_SIZE, R_P, R_V, R_YAW, REFERENCE_SIZE, S_COST_RATE, S_EULER_D, S_F_HAT_P,
+                            S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_THRUST, S_U_P, S_W_NORM_P,
+                            S_W_NORM_W, S_Z1, S_Z2, S_Z3, S_Z4, S_ZN_P, S_ZN_W, STATE_SIZE, STATUS_SIZE,
+                            STATUS_VECTORS, U_COL, U_LAT, U_LON, U_TR, X_OMEGA, X_P, X_THETA, X_V, YAW)
 
 __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'YAW', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
@@ -101,7 +106,8 @@ __all__ = [
     'L_RBF_WIDTH', 'LOOP_GAINS_SIZE', 'R_P', 'R_V', 'R_YAW', 'REFERENCE_SIZE',
     'M_ALPHA_F', 'M_V_HAT', 'M_F_HAT_P', 'M_THETA_DF', 'M_ALPHA_WF', 'M_OMEGA_HAT', 'M_F_HAT_W',
     'M_FLAGS', 'FLAG_STARTED', 'FLAG_TIME', 'MEMORY_ROWS', 'CP_LEARNING_PHASE', 'L_LATE_LEARNING_RATE',
-    'L_LATE_SIGMA',
+    'L_LATE_SIGMA', 'MODEL_ENTRIES', 'GAIN_ENTRIES', 'LOOP_GAIN_ENTRIES', 'MODEL_INDEX', 'GAIN_INDEX',
+    'LOOP_GAIN_OFFSET',
     'S_Z1', 'S_Z2', 'S_Z3', 'S_Z4', 'S_F_HAT_P', 'S_F_HAT_W', 'S_ZN_P', 'S_ZN_W', 'S_U_P', 'S_EULER_D',
     'S_THRUST', 'S_W_NORM_P', 'S_W_NORM_W', 'S_SAT_TILT', 'S_SAT_COLLECTIVE', 'S_SAT_CYCLIC',
     'S_COST_RATE', 'STATUS_SIZE', 'STATUS_VECTORS', 'STEP_DONE', 'PROJECTION_TOLERANCE',
@@ -116,51 +122,88 @@ __all__ = [
 # -- state, input and reference layout: uh_core.layout ------------------------------------------
 _MOMENT_CHANNELS = (U_LAT, U_LON, U_TR)         # command channels of u_m = (delta_lat, delta_lon, theta_tr)
 
-# -- control parameters: nominal model (docs/model.md#what-the-controller-knows) --------------
-CP_MASS = 0                 # m, kg
-CP_GRAVITY = 1              # g, m/s^2
-CP_J_X = 2                  # principal moments of inertia, kg m^2
-CP_J_Y = 3
-CP_J_Z = 4
-CP_C_M1 = 5                 # thrust map T = c_M1 theta_col + c_M2: N/rad
-CP_C_M2 = 6                 # N
-CP_K_BETA = 7               # hub stiffness, N m/rad
-CP_H_M = 8                  # hub height, m
-CP_B_LAT = 9                # lateral flapping gain, rad/rad
-CP_A_LON = 10               # longitudinal flapping gain, rad/rad
-CP_TAU_F = 11               # flapping lag per body rate, s
-CP_K_TR = 12                # tail-rotor gain, N m/rad
-CP_D_R = 13                 # yaw damping, N m s
-CP_C_Q = 14                 # torque reaction per thrust (after the model mismatch), m
-CP_D_V = 15                 # translational drag (after the model mismatch), N s/m
-CP_LOWER = 16               # input_lower[0..3] in command order (U_*), rad
-CP_UPPER = 20               # input_upper[0..3], rad
-# -- control parameters: gains (docs/control_law.md) ----------------------------------------------
-CP_BETA = 24                # inverse-optimal factor beta (-)
-CP_TILT_LIMIT = 25          # largest thrust tilt from vertical, rad
-CP_MIN_VERTICAL_ACCEL = 26  # smallest vertical specific thrust, m/s^2
-CP_LEARNING_PHASE = 27      # learning phase after the first step, s (docs/control_law.md#learning-phase)
-CP_OUTER = 28               # first entry of the outer loop's gains block
-# offsets inside one loop's block (outer units / inner units)
-L_K = 0                     # k1 / k3, 1/s
-L_R = 1                     # r_p / r_w, s
-L_TAU_COMMAND = 2           # tau_1 (filter of alpha_v) / tau_2 (filter of Theta_d), s
-L_TAU_RATE = 3              # inner: tau_w (filter of alpha_w), s; outer: unused (0)
-L_KAPPA = 4                 # SPEM gain, 1/s
-L_LEARNING_RATE = 5         # Gamma, 1/s
-L_GAMMA = 6                 # prediction-error weight in the weight law (-)
-L_GAMMA_F = 7               # prediction-error weight in the fault observer (-)
-L_SIGMA = 8                 # weight leakage (-)
-L_LAMBDA = 9                # fault observer gain, 1/s
-L_SIGMA_F = 10              # fault-estimate leakage (-)
-L_FAULT_BOUND = 11          # projection bound of each component of Fhat, m/s^2 / rad/s^2
-L_WEIGHT_BOUND = 12         # projection bound of each column norm of W, m/s^2 / rad/s^2
-L_RBF_LOW = 13              # first RBF centre, m/s / rad/s
-L_RBF_HIGH = 14             # last RBF centre
-L_RBF_WIDTH = 15            # Gaussian width b
-L_LATE_LEARNING_RATE = 16   # Gamma after the learning phase, 1/s
-L_LATE_SIGMA = 17           # weight leakage after the learning phase (-)
-LOOP_GAINS_SIZE = 18
+# -- control parameters: the one table of what params holds, in order ----------------------------
+#: Entries from the nominal model (docs/model.md#what-the-controller-knows), a ``HelicopterParams``:
+#: ``(field, number of entries)``. SI units: kg, m/s^2, kg m^2 (J_x, J_y, J_z), N/rad and N (thrust
+#: map T = c_M1 theta_col + c_M2), N m/rad (hub stiffness), m (hub height), rad/rad (flapping gains),
+#: s (flapping lag per body rate), N m/rad (tail rotor), N m s (yaw damping), m (torque reaction per
+#: thrust) and N s/m (drag), both after the model mismatch; input limits in command order (U_*), rad.
+MODEL_ENTRIES = (('mass', 1), ('gravity', 1), ('inertia', 3), ('c_M1', 1), ('c_M2', 1), ('K_beta', 1), ('h_M', 1),
+                 ('B_lat', 1), ('A_lon', 1), ('tau_f', 1), ('K_tr', 1), ('D_r', 1), ('c_Q', 1), ('D_v', 1),
+                 ('input_lower', INPUT_SIZE), ('input_upper', INPUT_SIZE))
+#: Entries from the gains of the case (docs/control_law.md), a ``ControllerGains``, after the model's:
+#: inverse-optimal factor beta (-), largest thrust tilt from vertical rad, smallest vertical specific
+#: thrust m/s^2, learning phase after the first step s (docs/control_law.md#learning-phase).
+GAIN_ENTRIES = ('beta', 'tilt_limit', 'min_vertical_accel', 'learning_phase')
+#: One loop's block of gains, a ``LoopGains`` (dotted: a field of its ``rbf``), at offsets 0, 1, ...
+#: Outer units / inner units: k1 / k3 1/s; r_p / r_w s; tau_1 (filter of alpha_v) / tau_2 (filter of
+#: Theta_d) s; tau_w (filter of alpha_w) s, outer unused (None: 0); SPEM gain kappa 1/s; Gamma 1/s;
+#: prediction-error weights gamma (weight law) and gamma_F (fault observer) (-); weight leakage
+#: sigma (-); fault observer gain lambda 1/s; fault-estimate leakage sigma_F (-); projection bounds
+#: of each component of Fhat and of each column norm of W, m/s^2 / rad/s^2; first and last RBF
+#: centre and the Gaussian width b, m/s / rad/s; Gamma 1/s and sigma (-) after the learning phase.
+LOOP_GAIN_ENTRIES = ('k', 'r', 'tau_command', 'tau_rate', 'kappa', 'learning_rate', 'gamma', 'gamma_F', 'sigma',
+                     'lambda_', 'sigma_F', 'fault_bound', 'weight_bound', 'rbf.low', 'rbf.high', 'rbf.width',
+                     'late_learning_rate', 'late_sigma')
+
+
+def _first_indices(entries, start=0):
+    """``{name: first index}`` of ``entries`` (names, or ``(name, count)``) laid end to end from ``start``."""
+    out = {}
+    for entry in entries:
+        name, count = entry if isinstance(entry, tuple) else (entry, 1)
+        out[name] = start
+        start += count
+    return out
+
+
+MODEL_INDEX = _first_indices(MODEL_ENTRIES)
+GAIN_INDEX = _first_indices(GAIN_ENTRIES, start=sum(count for _, count in MODEL_ENTRIES))
+LOOP_GAIN_OFFSET = _first_indices(LOOP_GAIN_ENTRIES)
+# the indices the kernels use (plain ints: numba reads them as compile-time constants)
+CP_MASS = MODEL_INDEX['mass']
+CP_GRAVITY = MODEL_INDEX['gravity']
+CP_J_X = MODEL_INDEX['inertia']
+CP_J_Y = CP_J_X + 1
+CP_J_Z = CP_J_X + 2
+CP_C_M1 = MODEL_INDEX['c_M1']
+CP_C_M2 = MODEL_INDEX['c_M2']
+CP_K_BETA = MODEL_INDEX['K_beta']
+CP_H_M = MODEL_INDEX['h_M']
+CP_B_LAT = MODEL_INDEX['B_lat']
+CP_A_LON = MODEL_INDEX['A_lon']
+CP_TAU_F = MODEL_INDEX['tau_f']
+CP_K_TR = MODEL_INDEX['K_tr']
+CP_D_R = MODEL_INDEX['D_r']
+CP_C_Q = MODEL_INDEX['c_Q']
+CP_D_V = MODEL_INDEX['D_v']
+CP_LOWER = MODEL_INDEX['input_lower']
+CP_UPPER = MODEL_INDEX['input_upper']
+CP_BETA = GAIN_INDEX['beta']
+CP_TILT_LIMIT = GAIN_INDEX['tilt_limit']
+CP_MIN_VERTICAL_ACCEL = GAIN_INDEX['min_vertical_accel']
+CP_LEARNING_PHASE = GAIN_INDEX['learning_phase']
+CP_OUTER = CP_LEARNING_PHASE + 1            # first entry of the outer loop's gains block
+# offsets inside one loop's block
+L_K = LOOP_GAIN_OFFSET['k']
+L_R = LOOP_GAIN_OFFSET['r']
+L_TAU_COMMAND = LOOP_GAIN_OFFSET['tau_command']
+L_TAU_RATE = LOOP_GAIN_OFFSET['tau_rate']
+L_KAPPA = LOOP_GAIN_OFFSET['kappa']
+L_LEARNING_RATE = LOOP_GAIN_OFFSET['learning_rate']
+L_GAMMA = LOOP_GAIN_OFFSET['gamma']
+L_GAMMA_F = LOOP_GAIN_OFFSET['gamma_F']
+L_SIGMA = LOOP_GAIN_OFFSET['sigma']
+L_LAMBDA = LOOP_GAIN_OFFSET['lambda_']
+L_SIGMA_F = LOOP_GAIN_OFFSET['sigma_F']
+L_FAULT_BOUND = LOOP_GAIN_OFFSET['fault_bound']
+L_WEIGHT_BOUND = LOOP_GAIN_OFFSET['weight_bound']
+L_RBF_LOW = LOOP_GAIN_OFFSET['rbf.low']
+L_RBF_HIGH = LOOP_GAIN_OFFSET['rbf.high']
+L_RBF_WIDTH = LOOP_GAIN_OFFSET['rbf.width']
+L_LATE_LEARNING_RATE = LOOP_GAIN_OFFSET['late_learning_rate']
+L_LATE_SIGMA = LOOP_GAIN_OFFSET['late_sigma']
+LOOP_GAINS_SIZE = len(LOOP_GAIN_ENTRIES)
 CP_INNER = CP_OUTER + LOOP_GAINS_SIZE
 CONTROL_PARAMS_SIZE = CP_INNER + LOOP_GAINS_SIZE
 
@@ -178,26 +221,7 @@ FLAG_TIME = 1               # simulated time t_k of the step being computed, s (
                             # the first step, k dt; advanced by dt per step): ends the learning phase
 MEMORY_ROWS = 8
 
-# -- status vector ------------------------------------------------------------------------------
-S_Z1 = 0                    # consensus error e, m
-S_Z2 = 3                    # velocity error v - alpha_f, m/s
-S_Z3 = 6                    # attitude error Theta - Theta_df (yaw wrapped), rad
-S_Z4 = 9                    # body-rate error omega - alpha_wf, rad/s
-S_F_HAT_P = 12              # Fhat_p used this step, m/s^2
-S_F_HAT_W = 15              # Fhat_w used this step, rad/s^2
-S_ZN_P = 18                 # prediction error v - vhat, m/s
-S_ZN_W = 21                 # prediction error omega - omegahat, rad/s
-S_U_P = 24                  # designed acceleration (before the limits), m/s^2
-S_EULER_D = 27              # attitude command (phi_d, theta_d, psi_d) before its filter, rad
-STATUS_VECTORS = 10         # the 3-vectors above fill status[:3 * STATUS_VECTORS]
-S_THRUST = 30               # T_c before the collective limit, N
-S_W_NORM_P = 31             # Frobenius norm of W_p after the update
-S_W_NORM_W = 32             # Frobenius norm of W_w after the update
-S_SAT_TILT = 33             # 1.0: tilt limit or minimum vertical acceleration active
-S_SAT_COLLECTIVE = 34       # 1.0: collective limit active
-S_SAT_CYCLIC = 35           # 1.0: a cyclic or the tail-rotor limit active
-S_COST_RATE = 36            # |z1|^2 + |u_p|^2, integrand of the CPI (docs/metrics.md)
-STATUS_SIZE = 37
+# -- status vector: uh_core.layout (S_*, STATUS_SIZE, STATUS_VECTORS), the fields of ControllerStatus.msg --
 
 #: Return value of :func:`uh_control_step` when the step was taken.
 STEP_DONE = -1
@@ -258,7 +282,9 @@ class ControlArrays(NamedTuple):
 
 
 def control_parameters(gains, model) -> np.ndarray:
-    """``params`` (CONTROL_PARAMS_SIZE,) float64 from the gains of one case and the nominal model.
+    """Pack ``params`` (CONTROL_PARAMS_SIZE,) float64 from the gains of one case and the nominal model.
+
+    The entries follow :data:`MODEL_ENTRIES`, :data:`GAIN_ENTRIES` and, per loop, :data:`LOOP_GAIN_ENTRIES`.
 
     Parameters
     ----------
@@ -266,45 +292,15 @@ def control_parameters(gains, model) -> np.ndarray:
     model : uh_core.airframe.HelicopterParams
     """
     out = np.zeros(CONTROL_PARAMS_SIZE)
-    out[CP_MASS] = model.mass
-    out[CP_GRAVITY] = model.gravity
-    out[CP_J_X:CP_J_Z + 1] = model.inertia
-    out[CP_C_M1] = model.c_M1
-    out[CP_C_M2] = model.c_M2
-    out[CP_K_BETA] = model.K_beta
-    out[CP_H_M] = model.h_M
-    out[CP_B_LAT] = model.B_lat
-    out[CP_A_LON] = model.A_lon
-    out[CP_TAU_F] = model.tau_f
-    out[CP_K_TR] = model.K_tr
-    out[CP_D_R] = model.D_r
-    out[CP_C_Q] = model.c_Q
-    out[CP_D_V] = model.D_v
-    out[CP_LOWER:CP_LOWER + INPUT_SIZE] = model.input_lower
-    out[CP_UPPER:CP_UPPER + INPUT_SIZE] = model.input_upper
-    out[CP_BETA] = gains.beta
-    out[CP_TILT_LIMIT] = gains.tilt_limit
-    out[CP_MIN_VERTICAL_ACCEL] = gains.min_vertical_accel
-    out[CP_LEARNING_PHASE] = gains.learning_phase
+    for name, count in MODEL_ENTRIES:
+        at = MODEL_INDEX[name]
+        out[at:at + count] = getattr(model, name)
+    for name in GAIN_ENTRIES:
+        out[GAIN_INDEX[name]] = getattr(gains, name)
     for base, loop in ((CP_OUTER, gains.outer), (CP_INNER, gains.inner)):
-        out[base + L_K] = loop.k
-        out[base + L_R] = loop.r
-        out[base + L_TAU_COMMAND] = loop.tau_command
-        out[base + L_TAU_RATE] = 0.0 if loop.tau_rate is None else loop.tau_rate
-        out[base + L_KAPPA] = loop.kappa
-        out[base + L_LEARNING_RATE] = loop.learning_rate
-        out[base + L_GAMMA] = loop.gamma
-        out[base + L_GAMMA_F] = loop.gamma_F
-        out[base + L_SIGMA] = loop.sigma
-        out[base + L_LAMBDA] = loop.lambda_
-        out[base + L_SIGMA_F] = loop.sigma_F
-        out[base + L_FAULT_BOUND] = loop.fault_bound
-        out[base + L_WEIGHT_BOUND] = loop.weight_bound
-        out[base + L_RBF_LOW] = loop.rbf.low
-        out[base + L_RBF_HIGH] = loop.rbf.high
-        out[base + L_RBF_WIDTH] = loop.rbf.width
-        out[base + L_LATE_LEARNING_RATE] = loop.late_learning_rate
-        out[base + L_LATE_SIGMA] = loop.late_sigma
+        for path in LOOP_GAIN_ENTRIES:
+            value = operator.attrgetter(path)(loop)
+            out[base + LOOP_GAIN_OFFSET[path]] = 0.0 if value is None else value   # outer tau_rate: None
     return out
 
 

@@ -1,5 +1,6 @@
-"""The controller of one UH: consensus errors from neighbours' data, outer and inner loops
-(docs/graph.md, docs/control_law.md).
+"""The controller of one UH: consensus errors from neighbours' data, outer and inner loops.
+
+See docs/graph.md and docs/control_law.md.
 
 One :class:`UHController` per helicopter, built from the scenario only (its neighbours, weights,
 virtual-leader link and formation offsets come from the communication graph). Each control step
@@ -38,14 +39,14 @@ from typing import NamedTuple
 
 import numpy as np
 
+from uh_core.layout import STATUS_FLAG, STATUS_INDEX, STATUS_LAYOUT, STATUS_VECTOR3, STATUS_WIDTH
 from uh_topology.graph import reachable_from
 
 from .control_kernels import (
     FLAG_STARTED, FLAG_TIME, INPUT_SIZE, M_ALPHA_F, M_ALPHA_WF, M_F_HAT_P, M_F_HAT_W, M_FLAGS, M_OMEGA_HAT,
     M_V_HAT, MEMORY_ROWS,
-    R_P, R_V, R_YAW, REFERENCE_SIZE, S_COST_RATE, S_EULER_D, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE,
-    S_SAT_CYCLIC, S_SAT_TILT, S_THRUST, S_U_P, S_W_NORM_P, S_W_NORM_W, S_Z1, S_Z2, S_Z3, S_Z4, S_ZN_P, S_ZN_W,
-    STATE_SIZE, STATUS_SIZE, STEP_DONE, ControlArrays, control_parameters, uh_control_step)
+    R_P, R_V, R_YAW, REFERENCE_SIZE, STATE_SIZE, STATUS_SIZE, STEP_DONE, ControlArrays, control_parameters,
+    uh_control_step)
 from .fault_isolation import FaultIsolator, IsolationSettings, IsolationStatus
 from .gains import ControllerGains
 from .nominal_model import nominal_model
@@ -53,6 +54,33 @@ from .nominal_model import nominal_model
 __all__ = ['ControllerError', 'ControllerStatusData', 'LoopState', 'UHController']
 
 _STATE_SHAPE = (STATE_SIZE,)
+
+
+
+def _status_reader():
+    """Build the function that makes a status record of the kernel's status vector.
+
+    Its code is generated from :data:`uh_core.layout.STATUS_LAYOUT` once, at import: one positional
+    argument per field, a 3-vector as a view ``status[i:i + 3]``, a float as ``s[i]`` and a flag as
+    ``s[i] != 0.0`` (``s = status.tolist()``), exactly the call one would write by hand. This runs
+    every control step, where a loop over the fields costs about a third more.
+    """
+    args = []
+    for name, kind in STATUS_LAYOUT:
+        i = STATUS_INDEX[name]
+        if kind == STATUS_VECTOR3:
+            args.append(f'status[{i}:{i + STATUS_WIDTH[kind]}]')
+        else:
+            args.append(f's[{i}] != 0.0' if kind == STATUS_FLAG else f's[{i}]')
+    source = ('def read_status(cls, uh_id, step, stamp, status):\n'
+              '    s = status.tolist()\n'
+              f'    return cls(uh_id, step, stamp, {", ".join(args)})\n')
+    namespace = {}
+    exec(compile(source, '<status layout>', 'exec'), namespace)  # generated from the layout table alone
+    return namespace['read_status']
+
+
+_read_status = _status_reader()
 
 
 class ControllerError(ValueError):
@@ -139,17 +167,12 @@ class ControllerStatusData:
 
     @classmethod
     def from_vector(cls, uh_id: int, step: int, stamp: float, status: np.ndarray) -> 'ControllerStatusData':
-        """The record of the kernel's ``status`` vector (STATUS_SIZE,) (layout: ``S_*`` constants of
-        :mod:`~uh_controller_node.control_kernels`). The vector fields are views of ``status``,
-        which the record then owns.
+        """Make the record of the kernel's ``status`` vector (STATUS_SIZE,).
+
+        Its layout is :data:`uh_core.layout.STATUS_LAYOUT`, whose field names and order are those of
+        this record. The vector fields are views of ``status``, which the record then owns.
         """
-        s = status.tolist()
-        # positional, in field order (this runs every control step)
-        return cls(uh_id, step, stamp, status[S_Z1:S_Z1 + 3], status[S_Z2:S_Z2 + 3], status[S_Z3:S_Z3 + 3],
-                   status[S_Z4:S_Z4 + 3], status[S_F_HAT_P:S_F_HAT_P + 3], status[S_F_HAT_W:S_F_HAT_W + 3],
-                   status[S_ZN_P:S_ZN_P + 3], status[S_ZN_W:S_ZN_W + 3], status[S_U_P:S_U_P + 3],
-                   status[S_EULER_D:S_EULER_D + 3], s[S_THRUST], s[S_W_NORM_P], s[S_W_NORM_W],
-                   s[S_SAT_TILT] != 0.0, s[S_SAT_COLLECTIVE] != 0.0, s[S_SAT_CYCLIC] != 0.0, s[S_COST_RATE])
+        return _read_status(cls, uh_id, step, stamp, status)
 
 
 class LoopState(NamedTuple):
@@ -331,14 +354,15 @@ class UHController:
 
     @property
     def inner(self) -> LoopState:
-        """Live views of the inner loop's W_w, Fhat_w, omegahat and alpha_wf (Theta_df is
-        ``kernel_arrays().memory[M_THETA_DF]``).
+        """Live views of the inner loop's W_w, Fhat_w, omegahat and alpha_wf.
+
+        Theta_df is ``kernel_arrays().memory[M_THETA_DF]``.
         """
         m = self._memory
         return LoopState(self._weights_w, m[M_F_HAT_W], m[M_OMEGA_HAT], m[M_ALPHA_WF])
 
     def kernel_arrays(self) -> ControlArrays:
-        """The arrays :func:`~uh_controller_node.control_kernels.uh_control_step` needs for this UH.
+        """Return the arrays :func:`~uh_controller_node.control_kernels.uh_control_step` needs for this UH.
 
         These are the controller's own arrays, not copies: a kernel that updates ``weights_p``,
         ``weights_w`` and ``memory`` in place carries this controller on; stack copies of them
@@ -405,6 +429,7 @@ class UHController:
 
     def set_gains(self, gains: ControllerGains) -> None:
         """Use ``gains`` from the next step on (a live change, docs/control_law.md#gains-as-parameters).
+
         The internal states carry on; the RBF networks' size and centres cannot change.
 
         Raises
@@ -420,8 +445,9 @@ class UHController:
         self.gains = gains
 
     def reachable_without(self, lost) -> bool:
-        """Whether this UH still has a directed path from the virtual leader when the UHs in ``lost``
-        (ids; ``0`` = the virtual leader's reference) are gone: Assumption 1 for this UH on the
+        """Tell whether this UH still has a directed path from the virtual leader without the UHs ``lost``.
+
+        ``lost`` holds ids; ``0`` is the virtual leader's reference. This is Assumption 1 for this UH on the
         remaining graph (docs/graph.md). Leaders never hear followers, so a follower reached from the
         virtual leader is reached through a leader.
         """

@@ -8,7 +8,11 @@ One home for the index facts every side relies on (docs/model.md, "State and inp
 * the input vector ``u`` (4,) rad = ``(theta_col, theta_tr, delta_lat, delta_lon)``, which is also
   the order of the actuator-fault channels (the ``CHANNEL_*`` constants of
   ``uh_msgs/msg/ActuatorFault.msg``; a test checks they agree);
-* the reference vector (7,) = ``[p_0 (3) m, v_0 (3) m/s, psi_0 rad]`` of the virtual leader.
+* the reference vector (7,) = ``[p_0 (3) m, v_0 (3) m/s, psi_0 rad]`` of the virtual leader;
+* the controller's status vector (STATUS_SIZE,) float64: the fields of ``uh_msgs/msg/ControllerStatus.msg``
+  from ``z1`` to ``cost_rate``, in the order and with the names of the message (:data:`STATUS_LAYOUT`;
+  a test checks they agree). The control kernel writes it, the controller's status record and the
+  wire conversion read it by these names.
 
 The numba kernels read these module-level integers as compile-time constants.
 """
@@ -17,6 +21,10 @@ from __future__ import annotations
 __all__ = [
     'STATE_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'YAW', 'INPUT_SIZE', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
     'INPUT_NAMES', 'NUM_CHANNELS', 'CHANNEL_NAMES', 'CHANNEL_ALIASES', 'R_P', 'R_V', 'R_YAW', 'REFERENCE_SIZE',
+    'STATUS_VECTOR3', 'STATUS_FLOAT', 'STATUS_FLAG', 'STATUS_LAYOUT', 'STATUS_WIDTH', 'STATUS_INDEX', 'STATUS_SIZE',
+    'S_Z1', 'S_Z2', 'S_Z3', 'S_Z4', 'S_F_HAT_P', 'S_F_HAT_W', 'S_ZN_P', 'S_ZN_W', 'S_U_P', 'S_EULER_D',
+    'S_THRUST', 'S_W_NORM_P', 'S_W_NORM_W', 'S_SAT_TILT', 'S_SAT_COLLECTIVE', 'S_SAT_CYCLIC', 'S_COST_RATE',
+    'STATUS_VECTORS',
 ]
 
 # -- state -------------------------------------------------------------------------------------
@@ -38,3 +46,60 @@ CHANNEL_ALIASES = {alias: i for i in range(NUM_CHANNELS) for alias in (CHANNEL_N
 # -- reference of the virtual leader ----------------------------------------------------------
 R_P, R_V, R_YAW = 0, 3, 6                         # p_0 (3) m, v_0 (3) m/s, psi_0 rad
 REFERENCE_SIZE = 7
+
+# -- status vector of one controller step (uh_msgs/msg/ControllerStatus.msg) -----------------------
+#: Kinds of a status field: its ``.msg`` type and how many float64 entries of the vector it takes.
+STATUS_VECTOR3 = 'geometry_msgs/Vector3'   # 3 entries
+STATUS_FLOAT = 'float64'                   # 1 entry
+STATUS_FLAG = 'bool'                       # 1 entry, 1.0 when set, else 0.0
+#: ``(field of ControllerStatus.msg, kind)`` in the order of the message and of the vector: the one
+#: place a status field is declared (besides its ``.msg`` line). Units and frames are those of the
+#: message's comments.
+STATUS_LAYOUT = (
+    ('z1', STATUS_VECTOR3),                         # consensus error e, m
+    ('z2', STATUS_VECTOR3),                         # velocity error v - alpha_f, m/s
+    ('z3', STATUS_VECTOR3),                         # attitude error Theta - Theta_df (yaw wrapped), rad
+    ('z4', STATUS_VECTOR3),                         # body-rate error omega - alpha_wf, rad/s
+    ('fault_estimate_position', STATUS_VECTOR3),    # Fhat_p used this step, m/s^2
+    ('fault_estimate_attitude', STATUS_VECTOR3),    # Fhat_w used this step, rad/s^2
+    ('prediction_error_position', STATUS_VECTOR3),  # v - vhat, m/s
+    ('prediction_error_attitude', STATUS_VECTOR3),  # omega - omegahat, rad/s
+    ('u_p', STATUS_VECTOR3),                        # designed acceleration (before the limits), m/s^2
+    ('euler_desired', STATUS_VECTOR3),              # attitude command before its filter, rad
+    ('thrust_command', STATUS_FLOAT),               # T_c before the collective limit, N
+    ('weight_norm_position', STATUS_FLOAT),         # Frobenius norm of W_p after the update
+    ('weight_norm_attitude', STATUS_FLOAT),         # Frobenius norm of W_w after the update
+    ('saturated_tilt', STATUS_FLAG),                # tilt limit or minimum vertical acceleration active
+    ('saturated_collective', STATUS_FLAG),          # collective limit active
+    ('saturated_cyclic', STATUS_FLAG),              # a cyclic or the tail-rotor limit active
+    ('cost_rate', STATUS_FLOAT),                    # |z1|^2 + |u_p|^2, integrand of the CPI (docs/metrics.md)
+)
+#: Float64 entries a field of each kind takes.
+STATUS_WIDTH = {STATUS_VECTOR3: 3, STATUS_FLOAT: 1, STATUS_FLAG: 1}
+#: Field name -> first index of the field in the status vector.
+STATUS_INDEX = {}
+STATUS_SIZE = 0
+for _name, _kind in STATUS_LAYOUT:
+    STATUS_INDEX[_name] = STATUS_SIZE
+    STATUS_SIZE += STATUS_WIDTH[_kind]
+del _name, _kind
+# the indices the kernels use (plain ints: numba reads them as compile-time constants)
+S_Z1 = STATUS_INDEX['z1']
+S_Z2 = STATUS_INDEX['z2']
+S_Z3 = STATUS_INDEX['z3']
+S_Z4 = STATUS_INDEX['z4']
+S_F_HAT_P = STATUS_INDEX['fault_estimate_position']
+S_F_HAT_W = STATUS_INDEX['fault_estimate_attitude']
+S_ZN_P = STATUS_INDEX['prediction_error_position']
+S_ZN_W = STATUS_INDEX['prediction_error_attitude']
+S_U_P = STATUS_INDEX['u_p']
+S_EULER_D = STATUS_INDEX['euler_desired']
+S_THRUST = STATUS_INDEX['thrust_command']
+S_W_NORM_P = STATUS_INDEX['weight_norm_position']
+S_W_NORM_W = STATUS_INDEX['weight_norm_attitude']
+S_SAT_TILT = STATUS_INDEX['saturated_tilt']
+S_SAT_COLLECTIVE = STATUS_INDEX['saturated_collective']
+S_SAT_CYCLIC = STATUS_INDEX['saturated_cyclic']
+S_COST_RATE = STATUS_INDEX['cost_rate']
+#: Number of 3-vector fields; they come first and fill ``status[:3 * STATUS_VECTORS]``.
+STATUS_VECTORS = sum(kind == STATUS_VECTOR3 for _, kind in STATUS_LAYOUT)

@@ -55,7 +55,7 @@ those with the commanded inputs at the same state::
 Arrays describing one plant
 ---------------------------
 ``params`` (``PARAMS_SIZE`` = 24,) float64, built by :func:`params_vector` from a
-``HelicopterParams``; entries at the ``P_*`` indices::
+``HelicopterParams`` as the table :data:`PARAMS_ENTRIES` lays it out; entries at the ``P_*`` indices::
 
     P_MASS kg, P_GRAVITY m/s^2, P_D_V N s/m, P_C_M1 N/rad, P_C_M2 N, P_K_BETA N m/rad, P_H_M m,
     P_B_LAT, P_A_LON rad/rad, P_TAU_F s, P_K_TR N m/rad, P_D_R N m s, P_C_Q m,
@@ -126,6 +126,7 @@ __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
     'P_MASS', 'P_GRAVITY', 'P_D_V', 'P_C_M1', 'P_C_M2', 'P_K_BETA', 'P_H_M', 'P_B_LAT', 'P_A_LON',
     'P_TAU_F', 'P_K_TR', 'P_D_R', 'P_C_Q', 'P_J_X', 'P_J_Y', 'P_J_Z', 'P_LOWER', 'P_UPPER', 'PARAMS_SIZE',
+    'PARAMS_ENTRIES', 'PARAMS_INDEX',
     'F_PRESENT', 'F_RHO', 'F_BIAS_CONSTANT', 'F_BIAS_AMPLITUDE', 'F_BIAS_FREQUENCY', 'F_ACTS_FROM',
     'FAULT_FIELDS', 'D_AMPLITUDE', 'D_FREQUENCY', 'D_PHASE', 'DISTURBANCE_FIELDS', 'PlantArrays',
     'params_vector', 'fault_table', 'disturbance_table',
@@ -134,26 +135,37 @@ __all__ = [
 ]
 
 
-# -- params vector ----------------------------------------------------------------------------
-P_MASS = 0          # m, kg
-P_GRAVITY = 1       # g, m/s^2
-P_D_V = 2           # translational drag, N s/m
-P_C_M1 = 3          # thrust gain, N/rad
-P_C_M2 = 4          # thrust offset, N
-P_K_BETA = 5        # rotor hub spring stiffness, N m/rad
-P_H_M = 6           # hub height above the centre of gravity, m
-P_B_LAT = 7         # lateral flapping gain, rad/rad
-P_A_LON = 8         # longitudinal flapping gain, rad/rad
-P_TAU_F = 9         # flapping lag per body rate, s
-P_K_TR = 10         # tail-rotor yaw moment gain, N m/rad
-P_D_R = 11          # yaw damping, N m s
-P_C_Q = 12          # torque reaction per thrust, m
-P_J_X = 13          # principal moments of inertia, kg m^2
-P_J_Y = 14
-P_J_Z = 15
-P_LOWER = 16        # input_lower[0..3], rad
-P_UPPER = 20        # input_upper[0..3], rad
-PARAMS_SIZE = 24
+# -- params vector: the one table of what params holds, in order -------------------------------
+#: ``(HelicopterParams field, number of entries)``: m kg, g m/s^2, translational drag D_v N s/m,
+#: thrust gain c_M1 N/rad and offset c_M2 N, rotor hub spring stiffness K_beta N m/rad, hub height
+#: above the centre of gravity h_M m, flapping gains B_lat and A_lon rad/rad, flapping lag per body
+#: rate tau_f s, tail-rotor yaw moment gain K_tr N m/rad, yaw damping D_r N m s, torque reaction per
+#: thrust c_Q m, principal moments of inertia (J_x, J_y, J_z) kg m^2, input limits (channel order) rad.
+PARAMS_ENTRIES = (('mass', 1), ('gravity', 1), ('D_v', 1), ('c_M1', 1), ('c_M2', 1), ('K_beta', 1), ('h_M', 1),
+                  ('B_lat', 1), ('A_lon', 1), ('tau_f', 1), ('K_tr', 1), ('D_r', 1), ('c_Q', 1), ('inertia', 3),
+                  ('input_lower', INPUT_SIZE), ('input_upper', INPUT_SIZE))
+#: ``{field: first index}`` of :data:`PARAMS_ENTRIES`.
+PARAMS_INDEX = {name: sum(count for _, count in PARAMS_ENTRIES[:i]) for i, (name, _) in enumerate(PARAMS_ENTRIES)}
+# the indices the kernels use (plain ints: numba reads them as compile-time constants)
+P_MASS = PARAMS_INDEX['mass']
+P_GRAVITY = PARAMS_INDEX['gravity']
+P_D_V = PARAMS_INDEX['D_v']
+P_C_M1 = PARAMS_INDEX['c_M1']
+P_C_M2 = PARAMS_INDEX['c_M2']
+P_K_BETA = PARAMS_INDEX['K_beta']
+P_H_M = PARAMS_INDEX['h_M']
+P_B_LAT = PARAMS_INDEX['B_lat']
+P_A_LON = PARAMS_INDEX['A_lon']
+P_TAU_F = PARAMS_INDEX['tau_f']
+P_K_TR = PARAMS_INDEX['K_tr']
+P_D_R = PARAMS_INDEX['D_r']
+P_C_Q = PARAMS_INDEX['c_Q']
+P_J_X = PARAMS_INDEX['inertia']
+P_J_Y = P_J_X + 1
+P_J_Z = P_J_X + 2
+P_LOWER = PARAMS_INDEX['input_lower']
+P_UPPER = PARAMS_INDEX['input_upper']
+PARAMS_SIZE = sum(count for _, count in PARAMS_ENTRIES)
 
 # -- fault table (one row per channel) --------------------------------------------------------
 F_PRESENT = 0         # 1.0 when the channel carries a fault
@@ -196,22 +208,9 @@ class PlantArrays(NamedTuple):
 def params_vector(params) -> np.ndarray:
     """``params`` (PARAMS_SIZE,) float64 from a ``HelicopterParams`` (or any object with its fields)."""
     out = np.zeros(PARAMS_SIZE)
-    out[P_MASS] = params.mass
-    out[P_GRAVITY] = params.gravity
-    out[P_D_V] = params.D_v
-    out[P_C_M1] = params.c_M1
-    out[P_C_M2] = params.c_M2
-    out[P_K_BETA] = params.K_beta
-    out[P_H_M] = params.h_M
-    out[P_B_LAT] = params.B_lat
-    out[P_A_LON] = params.A_lon
-    out[P_TAU_F] = params.tau_f
-    out[P_K_TR] = params.K_tr
-    out[P_D_R] = params.D_r
-    out[P_C_Q] = params.c_Q
-    out[P_J_X:P_J_Z + 1] = params.inertia
-    out[P_LOWER:P_LOWER + INPUT_SIZE] = params.input_lower
-    out[P_UPPER:P_UPPER + INPUT_SIZE] = params.input_upper
+    for name, count in PARAMS_ENTRIES:
+        at = PARAMS_INDEX[name]
+        out[at:at + count] = getattr(params, name)
     return out
 
 

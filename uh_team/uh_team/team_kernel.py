@@ -11,9 +11,13 @@ in-process run and a distributed run give bit-identical trajectories (no fastmat
 arithmetic, whatever the inlining). Only the Python glue around them is gone, which is what made
 the in-process run cost ~12 us per UH-step on top of ~5 us of arithmetic.
 
-:class:`TeamArrays` stacks the per-UH arrays of the controllers and plants
-(``UHController.kernel_arrays()``, ``HelicopterPlant.kernel_arrays()``); neighbour lists are
-padded to the largest in-degree.
+:func:`team_arrays` stacks the per-UH arrays of the controllers and plants
+(``UHController.kernel_arrays()``, ``HelicopterPlant.kernel_arrays()``; neighbour lists padded to
+the largest in-degree) into a :class:`TeamArrays` of three groups, each a namedtuple of arrays that
+numba passes as one argument: :class:`TeamConfig` (what the run does not change),
+:class:`TeamImpairments` (what the links do to the received states) and :class:`TeamState` (what the
+steps update in place). The steps write a :class:`TeamRecord` (:func:`empty_record`). A new per-UH
+array is one field of its group, filled in :func:`team_arrays` and read in :func:`run_team_steps`.
 
 numba re-validates a cached kernel against its own source file only, so a cached
 :func:`run_team_steps` would keep an old control law, model or layout after ``control_kernels.py``,
@@ -40,25 +44,26 @@ from uh_controller_node import control_kernels as _ctl
 from uh_controller_node import impairments as _impairments
 from uh_controller_node.impairments import add_noise, delivered_step
 from uh_controller_node.control_kernels import (
-    S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_U_P, S_Z1, STATE_SIZE,
+    INPUT_SIZE, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_U_P, S_Z1, STATE_SIZE,
     STATUS_SIZE, STEP_DONE, uh_control_step,
 )
 
-__all__ = ['TeamArrays', 'team_arrays', 'run_team_steps', 'refresh_cache', 'compile_team_kernel',
-           'TEAM_DONE']
+__all__ = ['TeamConfig', 'TeamImpairments', 'TeamState', 'TeamRecord', 'TeamArrays', 'team_arrays',
+           'empty_record', 'run_team_steps', 'refresh_cache', 'compile_team_kernel', 'TEAM_DONE']
 
 #: :func:`run_team_steps` returns this when every step ran; otherwise the step at which a state
 #: was found non-finite (its row of ``states`` is recorded, nothing after it).
 TEAM_DONE = -1
 
 
-class TeamArrays(NamedTuple):
-    """Stacked per-UH arrays of a team of ``n`` UHs (UH axis in the order of ``ids``).
+class TeamConfig(NamedTuple):
+    """What a team run does not change: its graph, gains, offsets, airframes, faults, disturbances.
+
+    Stacked per UH of a team of ``n`` UHs (UH axis in the order of ``ids``); neighbour lists are
+    padded to the largest in-degree ``max_nb``.
 
     Attributes
     ----------
-    x : ndarray (n, 12)
-        Plant states, updated in place.
     hears : ndarray (n, max_nb) int64
         Rows (UH indices) of the neighbours of each UH, ascending id; padding unused.
     count : ndarray (n,) int64
@@ -66,19 +71,37 @@ class TeamArrays(NamedTuple):
     links : ndarray (n,)
         a_i0 (0 for a UH that does not hear the virtual leader).
     control_params, offsets, nb_weights, nb_offsets : ndarray
-        (n, CONTROL_PARAMS_SIZE), (n, 3), (n, max_nb), (n, max_nb, 3).
-    weights_p, weights_w, memory : ndarray
-        (n, mu_p, 3), (n, mu_w, 3), (n, MEMORY_ROWS, 3): controller state, updated in place.
+        (n, CONTROL_PARAMS_SIZE), (n, 3) m, (n, max_nb), (n, max_nb, 3) m.
     plant_params, faults, disturbance : ndarray
         (n, PARAMS_SIZE), (n, NUM_CHANNELS, FAULT_FIELDS), (n, 3, DISTURBANCE_FIELDS).
     substeps : int
         RK4 substeps per control period (one value for the team).
     ids : ndarray (n,) int64
         UH ids of the rows.
+    """
+
+    hears: np.ndarray
+    count: np.ndarray
+    links: np.ndarray
+    control_params: np.ndarray
+    offsets: np.ndarray
+    nb_weights: np.ndarray
+    nb_offsets: np.ndarray
+    plant_params: np.ndarray
+    faults: np.ndarray
+    disturbance: np.ndarray
+    substeps: int
+    ids: np.ndarray
+
+
+class TeamImpairments(NamedTuple):
+    """What the team's links do to the states a controller receives (docs/campaigns.md#impairments).
+
+    Attributes
+    ----------
     impaired : bool
-        Whether the scenario has impairments (docs/campaigns.md#impairments); when False the
-        fields below are not read.
-    impairment_seed : int
+        Whether the scenario has impairments; when False the fields below are not read.
+    seed : int
     delay, loss : ndarray (n, max_nb) int64, (n, max_nb)
         Per link (row, neighbour slot): delay in steps, loss probability.
     drop_step : ndarray (n,) int64
@@ -87,33 +110,65 @@ class TeamArrays(NamedTuple):
         Standard deviation of the noise on every received state, per component.
     """
 
-    x: np.ndarray
-    hears: np.ndarray
-    count: np.ndarray
-    links: np.ndarray
-    control_params: np.ndarray
-    offsets: np.ndarray
-    nb_weights: np.ndarray
-    nb_offsets: np.ndarray
-    weights_p: np.ndarray
-    weights_w: np.ndarray
-    memory: np.ndarray
-    plant_params: np.ndarray
-    faults: np.ndarray
-    disturbance: np.ndarray
-    substeps: int
-    ids: np.ndarray
     impaired: bool
-    impairment_seed: int
+    seed: int
     delay: np.ndarray
     loss: np.ndarray
     drop_step: np.ndarray
     noise: np.ndarray
 
 
+class TeamState(NamedTuple):
+    """What the team's steps update in place: the plants' states and the controllers' internal states.
+
+    Attributes
+    ----------
+    x : ndarray (n, 12)
+        Plant states.
+    weights_p, weights_w, memory : ndarray
+        (n, mu_p, 3), (n, mu_w, 3), (n, MEMORY_ROWS, 3).
+    """
+
+    x: np.ndarray
+    weights_p: np.ndarray
+    weights_w: np.ndarray
+    memory: np.ndarray
+
+
+class TeamRecord(NamedTuple):
+    """What the team's steps write, one row per step (the arrays of :class:`~uh_team.team_simulation.TeamRun`).
+
+    Attributes
+    ----------
+    states : ndarray (K+1, n, 12)
+    commands : ndarray (K+1, n, 4)
+    fault_true_p, fault_true_w, fault_est_p, fault_est_w, u_p, z1 : ndarray (K+1, n, 3)
+    saturated : ndarray (K+1, n) bool
+    """
+
+    states: np.ndarray
+    commands: np.ndarray
+    fault_true_p: np.ndarray
+    fault_true_w: np.ndarray
+    fault_est_p: np.ndarray
+    fault_est_w: np.ndarray
+    u_p: np.ndarray
+    z1: np.ndarray
+    saturated: np.ndarray
+
+
+class TeamArrays(NamedTuple):
+    """Stacked per-UH arrays of a team: its configuration, its impairments and its mutable state."""
+
+    config: TeamConfig
+    impairments: TeamImpairments
+    state: TeamState
+
+
 def team_arrays(ids, controllers, plants, impairments=None, dt: float | None = None) -> TeamArrays:
-    """Stack the kernel arrays of ``controllers`` and ``plants`` (both in the order of ``ids``),
-    with the scenario's ``impairments`` (an ``ImpairmentSpec`` or None) on control period ``dt``.
+    """Stack the kernel arrays of ``controllers`` and ``plants`` (both in the order of ``ids``).
+
+    The scenario's ``impairments`` (an ``ImpairmentSpec`` or None) apply on control period ``dt``.
 
     Raises
     ------
@@ -138,41 +193,41 @@ def team_arrays(ids, controllers, plants, impairments=None, dt: float | None = N
         hears[c, :m] = [row[int(j)] for j in controller.neighbours]
         nb_weights[c, :m] = arrays.neighbour_weights
         nb_offsets[c, :m] = arrays.neighbour_offsets
+    config = TeamConfig(
+        hears=hears, count=count, links=np.array([a.leader_link for a in ctl], dtype=float),
+        control_params=np.stack([a.params for a in ctl]), offsets=np.stack([a.offset for a in ctl]),
+        nb_weights=nb_weights, nb_offsets=nb_offsets, plant_params=np.stack([p.params for p in plant]),
+        faults=np.stack([p.faults for p in plant]), disturbance=np.stack([p.disturbance for p in plant]),
+        substeps=substeps.pop(), ids=np.array([int(i) for i in ids], dtype=np.int64))
+    state = TeamState(x=np.stack([p.x for p in plants]), weights_p=np.stack([a.weights_p for a in ctl]),
+                      weights_w=np.stack([a.weights_w for a in ctl]), memory=np.stack([a.memory for a in ctl]))
+    return TeamArrays(config, _team_impairments(ids, controllers, impairments, dt, max_nb), state)
+
+
+def _team_impairments(ids, controllers, impairments, dt, max_nb) -> TeamImpairments:
+    """Build the per-link impairments of the team (all zero, ``impaired`` False, when ``impairments`` is None)."""
+    n = len(ids)
     delay = np.zeros((n, max_nb), dtype=np.int64)
     loss = np.zeros((n, max_nb))
     drop_step = np.zeros(n, dtype=np.int64)
     noise = np.zeros(STATE_SIZE)
-    if impairments is not None:
-        if dt is None:
-            raise ValueError('team kernel: impairments need the control period dt (for the dropout steps)')
-        for c, controller in enumerate(controllers):
-            i = int(ids[c])
-            drop_step[c] = impairments.drop_step(i, dt)
-            for slot, j in enumerate(controller.neighbours):
-                delay[c, slot] = impairments.delays[(i, int(j))]
-                loss[c, slot] = impairments.losses[(i, int(j))]
-        noise[:] = impairments.noise
-    return TeamArrays(
-        x=np.stack([p.x for p in plants]), hears=hears, count=count,
-        links=np.array([a.leader_link for a in ctl], dtype=float),
-        control_params=np.stack([a.params for a in ctl]), offsets=np.stack([a.offset for a in ctl]),
-        nb_weights=nb_weights, nb_offsets=nb_offsets,
-        weights_p=np.stack([a.weights_p for a in ctl]), weights_w=np.stack([a.weights_w for a in ctl]),
-        memory=np.stack([a.memory for a in ctl]),
-        plant_params=np.stack([p.params for p in plant]), faults=np.stack([p.faults for p in plant]),
-        disturbance=np.stack([p.disturbance for p in plant]), substeps=substeps.pop(),
-        ids=np.array([int(i) for i in ids], dtype=np.int64), impaired=impairments is not None,
-        impairment_seed=int(impairments.seed) if impairments is not None else 0,
-        delay=delay, loss=loss, drop_step=drop_step, noise=noise)
+    if impairments is None:
+        return TeamImpairments(False, 0, delay, loss, drop_step, noise)
+    if dt is None:
+        raise ValueError('team kernel: impairments need the control period dt (for the dropout steps)')
+    for c, controller in enumerate(controllers):
+        i = int(ids[c])
+        drop_step[c] = impairments.drop_step(i, dt)
+        for slot, j in enumerate(controller.neighbours):
+            delay[c, slot] = impairments.delays[(i, int(j))]
+            loss[c, slot] = impairments.losses[(i, int(j))]
+    noise[:] = impairments.noise
+    return TeamImpairments(True, int(impairments.seed), delay, loss, drop_step, noise)
 
 
 @njit(cache=True)
-def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control_params, offsets,
-                   nb_weights, nb_offsets, weights_p, weights_w, memory, plant_params, faults,
-                   disturbance, substeps, ids, impaired, impairment_seed, delay, loss, drop_step, noise,
-                   states, commands, fault_true_p, fault_true_w, fault_est_p, fault_est_w, u_p, z1,
-                   saturated):
-    """Steps ``k0 .. k1-1`` of the team (see :mod:`uh_team.team_simulation` for the order).
+def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, record):
+    """Run steps ``k0 .. k1-1`` of the team (see :mod:`uh_team.team_simulation` for the order).
 
     Parameters
     ----------
@@ -185,20 +240,32 @@ def run_team_steps(k0, k1, last, dt, references, x, hears, count, links, control
         Control period, s.
     references : ndarray (K+1, 7)
         Virtual leader ``[p_0 m, v_0 m/s, psi_0 rad]`` at every step.
-    x ... noise
-        The :class:`TeamArrays` fields; ``x``, ``weights_p``, ``weights_w`` and ``memory`` are
-        updated in place. With ``impaired``, every controller receives its own and its neighbours'
-        states as :mod:`uh_controller_node.impairments` defines (neighbours' from ``states``, the
+    team : TeamConfig
+    links_impaired : TeamImpairments
+        With ``impaired``, every controller receives its own and its neighbours' states as
+        :mod:`uh_controller_node.impairments` defines (neighbours' from ``record.states``, the
         recorded history).
-    states ... saturated
-        Output rows of :class:`~uh_team.team_simulation.TeamRun`, written for the steps run:
-        (K+1, n, 12), (K+1, n, 4), five (K+1, n, 3) and (K+1, n) bool.
+    live : TeamState
+        Updated in place.
+    record : TeamRecord
+        Written for the steps run.
 
     Returns
     -------
     int
         :data:`TEAM_DONE`, or the step at which a state was not finite (its states are recorded).
     """
+    # the groups' fields as locals: the loop below reads them as it read separate arguments
+    hears, count, links, ids = team.hears, team.count, team.links, team.ids
+    control_params, offsets, nb_weights, nb_offsets = team.control_params, team.offsets, team.nb_weights, \
+        team.nb_offsets
+    plant_params, faults, disturbance, substeps = team.plant_params, team.faults, team.disturbance, team.substeps
+    impaired, impairment_seed, noise = links_impaired.impaired, links_impaired.seed, links_impaired.noise
+    delay, loss, drop_step = links_impaired.delay, links_impaired.loss, links_impaired.drop_step
+    x, weights_p, weights_w, memory = live.x, live.weights_p, live.weights_w, live.memory
+    states, commands, saturated = record.states, record.commands, record.saturated
+    fault_true_p, fault_true_w = record.fault_true_p, record.fault_true_w
+    fault_est_p, fault_est_w, u_p, z1 = record.fault_est_p, record.fault_est_w, record.u_p, record.z1
     n = x.shape[0]
     u = np.empty(4)
     status = np.empty(STATUS_SIZE)
@@ -263,9 +330,10 @@ _DEPENDENCIES = (Path(_ctl.__file__), Path(_plant.__file__), Path(_faults.__file
 
 
 def refresh_cache() -> bool:
-    """Empty :func:`run_team_steps`' numba cache index if the files it depends on
-    (:data:`_DEPENDENCIES`: ``control_kernels.py``, ``plant_kernels.py``, ``faults.py``,
-    ``uh_core/layout.py``, ``impairments.py``) changed since it was cached; the digest is kept next to the cache in
+    """Empty :func:`run_team_steps`' numba cache index if the files it depends on changed since it was cached.
+
+    Those files are :data:`_DEPENDENCIES`: ``control_kernels.py``, ``plant_kernels.py``, ``faults.py``,
+    ``uh_core/layout.py``, ``impairments.py``; the digest is kept next to the cache in
     ``team_kernel.dependencies.sha256``. Returns True when the cache was emptied
     (:func:`uh_core.kernel_cache.refresh_cache`).
     """
@@ -276,25 +344,32 @@ refresh_cache()
 
 
 def compile_team_kernel() -> float:
-    """Compile :func:`run_team_steps` for the signature :mod:`.team_simulation` uses (fills numba's
-    on-disk cache); returns the seconds spent.
+    """Compile :func:`run_team_steps` for the signature :mod:`.team_simulation` uses.
+
+    Fills numba's on-disk cache; returns the seconds spent.
     """
     start = time.perf_counter()
-    n, steps = 1, 1
-    i64 = np.zeros((n, 1), dtype=np.int64)
+    n, steps, max_nb = 1, 1, 1
     params = np.ones((n, _ctl.CONTROL_PARAMS_SIZE))
     params[:, _ctl.CP_LOWER:_ctl.CP_LOWER + 4] = -1.0
-    plant_params = np.ones((n, _plant.PARAMS_SIZE))
-    vec3 = np.zeros((steps, n, 3))
-    run_team_steps(0, 0, 0, 0.01, np.zeros((steps, _ctl.REFERENCE_SIZE)), np.zeros((n, STATE_SIZE)), i64,
-                   np.zeros(n, dtype=np.int64), np.ones(n), params, np.zeros((n, 3)), np.zeros((n, 1)),
-                   np.zeros((n, 1, 3)), np.zeros((n, 3, 3)), np.zeros((n, 3, 3)),
-                   np.zeros((n, _ctl.MEMORY_ROWS, 3)), plant_params,
-                   np.zeros((n, _plant.NUM_CHANNELS, _plant.FAULT_FIELDS)),
-                   np.zeros((n, 3, _plant.DISTURBANCE_FIELDS)), 1, np.ones(n, dtype=np.int64), False, 0,
-                   np.zeros((n, 1), dtype=np.int64), np.zeros((n, 1)), np.zeros(n, dtype=np.int64),
-                   np.zeros(STATE_SIZE), np.zeros((steps, n, STATE_SIZE)),
-                   np.zeros((steps, n, 4)), vec3, vec3.copy(), vec3.copy(), vec3.copy(), vec3.copy(), vec3.copy(),
-                   np.zeros((steps, n), dtype=np.bool_))
+    team = TeamConfig(
+        hears=np.zeros((n, max_nb), dtype=np.int64), count=np.zeros(n, dtype=np.int64), links=np.ones(n),
+        control_params=params, offsets=np.zeros((n, 3)), nb_weights=np.zeros((n, max_nb)),
+        nb_offsets=np.zeros((n, max_nb, 3)), plant_params=np.ones((n, _plant.PARAMS_SIZE)),
+        faults=np.zeros((n, _plant.NUM_CHANNELS, _plant.FAULT_FIELDS)),
+        disturbance=np.zeros((n, 3, _plant.DISTURBANCE_FIELDS)), substeps=1, ids=np.ones(n, dtype=np.int64))
+    links_impaired = TeamImpairments(False, 0, np.zeros((n, max_nb), dtype=np.int64), np.zeros((n, max_nb)),
+                                     np.zeros(n, dtype=np.int64), np.zeros(STATE_SIZE))
+    live = TeamState(np.zeros((n, STATE_SIZE)), np.zeros((n, 3, 3)), np.zeros((n, 3, 3)),
+                     np.zeros((n, _ctl.MEMORY_ROWS, 3)))
+    run_team_steps(0, 0, 0, 0.01, np.zeros((steps, _ctl.REFERENCE_SIZE)), team, links_impaired, live,
+                   empty_record(steps, n))
     return time.perf_counter() - start
 
+
+def empty_record(rows: int, n: int) -> TeamRecord:
+    """Make a :class:`TeamRecord` of ``rows`` steps of ``n`` UHs, uninitialised (``saturated`` all False)."""
+    return TeamRecord(states=np.empty((rows, n, STATE_SIZE)), commands=np.empty((rows, n, INPUT_SIZE)),
+                      **{name: np.empty((rows, n, 3)) for name in ('fault_true_p', 'fault_true_w', 'fault_est_p',
+                                                                    'fault_est_w', 'u_p', 'z1')},
+                      saturated=np.zeros((rows, n), dtype=np.bool_))

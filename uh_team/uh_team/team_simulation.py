@@ -23,8 +23,16 @@ from typing import Callable
 
 import numpy as np
 
+from uh_core.airframe import load_helicopter_params
+from uh_sim_node.helicopter import plant_from_scenario
+from uh_sim_node.reference import VirtualLeaderReference
+
 from uh_controller_node.controller import UHController
 from uh_controller_node.gains import CASES, GainsError
+from uh_controller_node.impairments import ReceivedStates
+
+from .metrics import containment_errors, formation_errors
+from .team_kernel import TEAM_DONE, TeamRecord, run_team_steps, team_arrays
 
 __all__ = ['SimulationError', 'TeamRun', 'run_team_simulation', 'ENGINES']
 
@@ -96,26 +104,25 @@ class TeamRun:
                   'fault_est_p', 'fault_est_w', 'u_p', 'z1', 'saturated', 'errors')
 
     def arrays(self) -> dict:
-        """The time series as a dict (``timeseries.npz`` content, plus ``ids``)."""
+        """Return the time series as a dict (``timeseries.npz`` content, plus ``ids``)."""
         out = {k: getattr(self, k) for k in self.ARRAY_KEYS}
         out['ids'] = np.array(self.ids)
         return out
 
     def all_finite(self) -> bool:
-        """True when no array holds NaN or infinity."""
+        """Tell whether no array holds NaN or infinity."""
         return all(np.isfinite(getattr(self, k)).all() for k in self.ARRAY_KEYS if k != 'saturated')
 
 
 def _errors(states, reference, scenario):
-    leaders, followers = tuple(scenario.leaders), tuple(scenario.followers)
-    n_lead = len(leaders)
+    """Compute the formation errors of the leaders, then the containment errors of the followers (K+1, n), m."""
+    n_lead = len(tuple(scenario.leaders))
     pos = states[:, :, 0:3]
     out = np.empty(states.shape[:2])
-    h = np.array([scenario.offsets[i] for i in leaders])
-    out[:, :n_lead] = np.linalg.norm(pos[:, :n_lead] - h[None] - reference[:, None, 0:3], axis=-1)
-    if followers:
-        target = np.einsum('mn,knc->kmc', np.asarray(scenario.containment_weights), pos[:, :n_lead])
-        out[:, n_lead:] = np.linalg.norm(pos[:, n_lead:] - target, axis=-1)
+    offsets = np.array([scenario.offsets[i] for i in scenario.leaders])
+    out[:, :n_lead] = formation_errors(pos[:, :n_lead], reference[:, 0:3], offsets)
+    if tuple(scenario.followers):
+        out[:, n_lead:] = containment_errors(pos[:, n_lead:], pos[:, :n_lead], scenario.containment_weights)
     return out
 
 
@@ -148,10 +155,6 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         Unknown case, a duration that is not a positive finite number of at least one step, or a
         state that became non-finite (the step and UH are named).
     """
-    from uh_core.airframe import load_helicopter_params
-    from uh_sim_node.helicopter import plant_from_scenario
-    from uh_sim_node.reference import VirtualLeaderReference
-
     if case not in CASES:
         raise SimulationError(f'unknown controller case {case!r}; allowed: {", ".join(CASES)}')
     if engine not in ENGINES:
@@ -177,7 +180,6 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     reference = VirtualLeaderReference(scenario.reference)
     arrays = None
     if engine == 'kernel':
-        from .team_kernel import team_arrays
         arrays = team_arrays(ids, controllers, plants, scenario.impairments, dt)
 
     out = {key: np.empty((K + 1, n, size)) for key, size in (
@@ -218,20 +220,15 @@ def _non_finite(K, dt, ids, states, k):
 
 
 def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False):
-    """The step loop in :func:`~uh_team.team_kernel.run_team_steps` on the stacked arrays
-    ``a``, in chunks of about 1 % of the steps so ``progress`` is called as often as by the object
+    """Run the step loop in :func:`~uh_team.team_kernel.run_team_steps` on the stacked arrays ``a``.
+
+    It runs in chunks of about 1 % of the steps so ``progress`` is called as often as by the object
     loop (``load_only``: one call that runs no step, which loads or compiles the kernel).
     """
-    from .team_kernel import TEAM_DONE, run_team_steps
-
+    record = TeamRecord(**{name: out[name] for name in TeamRecord._fields})
     for k0 in ([0] if load_only else range(0, K + 1, every)):
         k1 = k0 if load_only else min(K + 1, k0 + every)
-        failed = run_team_steps(
-            k0, k1, K, dt, references, a.x, a.hears, a.count, a.links, a.control_params, a.offsets,
-            a.nb_weights, a.nb_offsets, a.weights_p, a.weights_w, a.memory, a.plant_params, a.faults,
-            a.disturbance, a.substeps, a.ids, a.impaired, a.impairment_seed, a.delay, a.loss, a.drop_step,
-            a.noise, out['states'], out['commands'], out['fault_true_p'], out['fault_true_w'],
-            out['fault_est_p'], out['fault_est_w'], out['u_p'], out['z1'], out['saturated'])
+        failed = run_team_steps(k0, k1, K, dt, references, a.config, a.impairments, a.state, record)
         if failed != TEAM_DONE:
             _non_finite(K, dt, ids, out['states'], failed)
         if progress is not None and k1 > k0:
@@ -239,12 +236,11 @@ def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False
 
 
 def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, impairments=None):
-    """The step loop in Python over the per-UH objects (what the distributed nodes run); ``samples``
-    are the virtual leader's references of every step; with ``impairments`` every controller
-    receives through a :class:`~uh_controller_node.impairments.ReceivedStates`, as a node does.
-    """
-    from uh_controller_node.impairments import ReceivedStates
+    """Run the step loop in Python over the per-UH objects (what the distributed nodes run).
 
+    ``samples`` are the virtual leader's references of every step; with ``impairments`` every
+    controller receives through a :class:`~uh_controller_node.impairments.ReceivedStates`, as a node does.
+    """
     col = {i: c for c, i in enumerate(ids)}
     received = ([ReceivedStates(i, ctl.neighbours, impairments, dt) for i, ctl in zip(ids, controllers)]
                 if impairments is not None else None)

@@ -13,6 +13,7 @@ import numpy as np
 
 from uh_runtime import messages as m
 
+from uh_core.layout import STATUS_FLAG, STATUS_FLOAT, STATUS_LAYOUT, STATUS_VECTOR3
 from uh_core.records import Reference
 
 __all__ = [
@@ -150,18 +151,20 @@ def fault_truth_to_msg(uh_id: int, k: int, t: float, f_p, f_w, u_actual, active:
                         fault_active=bool(active), stuck=bool(stuck))
 
 
-_STATUS_VECTORS = ('z1', 'z2', 'z3', 'z4', 'fault_estimate_position', 'fault_estimate_attitude',
-                   'prediction_error_position', 'prediction_error_attitude', 'u_p', 'euler_desired')
-_STATUS_SCALARS = ('thrust_command', 'weight_norm_position', 'weight_norm_attitude', 'cost_rate')
-_STATUS_FLAGS = ('saturated_tilt', 'saturated_collective', 'saturated_cyclic')
+# the status record's fields of ControllerStatus.msg, by kind (uh_core.layout.STATUS_LAYOUT)
+_STATUS_VECTORS = tuple(name for name, kind in STATUS_LAYOUT if kind == STATUS_VECTOR3)
+_STATUS_SCALARS = tuple(name for name, kind in STATUS_LAYOUT if kind == STATUS_FLOAT)
+_STATUS_FLAGS = tuple(name for name, kind in STATUS_LAYOUT if kind == STATUS_FLAG)
 
 
 _NAN4 = (math.nan,) * 4
 
 
 def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=()):
-    """``ControllerStatus`` from the controller core's status record (same field names; the fault
-    isolation fields from its ``isolation``, or "nothing isolated" when that is None).
+    """Build a ``ControllerStatus`` from the controller core's status record.
+
+    The fields of :data:`uh_core.layout.STATUS_LAYOUT` have the record's names; the fault isolation
+    fields come from its ``isolation``, or say "nothing isolated" when that is None.
     """
     fields = {name: vector3(getattr(status, name)) for name in _STATUS_VECTORS}
     fields.update((name, float(getattr(status, name))) for name in _STATUS_SCALARS)
