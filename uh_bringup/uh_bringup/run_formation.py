@@ -52,6 +52,7 @@ from uh_runtime.network import (MAX_DOMAIN_ID, default_cyclonedds_uri, environme
 from uh_controller_node.gains import CASES
 from uh_bringup.team_nodes import NODES, backend_environment, node_specs
 from uh_runtime import live_view, scheduling
+from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
            'EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED']
@@ -98,8 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--respawn', action='store_true',
                    help=f'realtime: restart a controller process that dies (up to {MAX_RESPAWNS} times each); '
                         'it rejoins the running team')
-    p.add_argument('--stale-timeout', type=float, default=0.25,
-                   help='realtime: simulated s after which a neighbour\'s data is stale and left out (default 0.25)')
+    p.add_argument('--stale-timeout', type=float, default=DEFAULT_STALE_TIMEOUT,
+                   help='realtime: simulated s after which a neighbour\'s data is stale and left out '
+                        f'(default {DEFAULT_STALE_TIMEOUT:g})')
     p.add_argument('--realtime-priority', type=int, default=scheduling.DEFAULT_PRIORITY, metavar='N',
                    help='realtime: run the clock, simulators, controllers and virtual leader under SCHED_FIFO '
                         f'priority N (1..{scheduling.MAX_PRIORITY}), so they keep the control period on a busy '

@@ -23,6 +23,7 @@ import os
 import sys
 import time
 
+from .names import ROS_TOPIC_PREFIX
 from .network import MAX_DOMAIN_ID
 
 __all__ = ['main', 'build_parser']
@@ -236,7 +237,7 @@ def _reader(graph, topic, cls, pubs, depth, raw=False):
         depth=depth,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
-    dds_topic = Topic(graph.participant, 'rt' + topic, cls)
+    dds_topic = Topic(graph.participant, ROS_TOPIC_PREFIX + topic, cls)
     reader = DataReader(graph.participant, dds_topic,
                         qos=to_dds_qos(profile, f'typehash={messages.type_hash(cls)};'.encode()))
     condition = ReadCondition(reader, SampleState.NotRead | ViewState.Any | InstanceState.Any)
