@@ -17,6 +17,7 @@ from pathlib import Path
 import yaml
 
 from uh_core import frames
+from uh_topology.scenario import load_scenario
 from uh_wire import topics
 
 __all__ = ['foxglove_layout', 'rviz_config', 'main', 'FOXGLOVE_FILE', 'RVIZ_FILE']
@@ -97,7 +98,6 @@ def main(argv=None) -> int:
     p.add_argument('--scenario', default='paper', help='scenario YAML, or "paper" (default)')
     p.add_argument('--out', default='views', help='directory to write the two files into (default views/)')
     args = p.parse_args(argv)
-    from uh_topology.scenario import load_scenario
     try:
         scenario = load_scenario(args.scenario)
     except (OSError, ValueError) as exc:
