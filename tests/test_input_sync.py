@@ -27,7 +27,7 @@ def paper():
 
 
 def make(paper, uh, mode='realtime', last_step=6000, **kwargs):
-    """A synchroniser of UH ``uh`` of the paper graph on a fake clock: (sync, clock, logger)."""
+    """Return a synchroniser of UH ``uh`` of the paper graph on a fake clock: (sync, clock, logger)."""
     clock, logger = FakeClock(), RecordingLogger()
 
     def reachable(lost):
@@ -41,7 +41,7 @@ def make(paper, uh, mode='realtime', last_step=6000, **kwargs):
 
 
 def state(uh, k):
-    """A recognisable state: position (uh, k, 10), yaw 0.1 uh."""
+    """Return a recognisable state: position (uh, k, 10), yaw 0.1 uh."""
     x = np.zeros(12)
     x[0:3] = (uh, k, 10.0)
     x[8] = 0.1 * uh

@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _console_scripts(pkg: str) -> dict:
-    """``{executable: 'module:function'}`` of a package's setup.py."""
+    """Return ``{executable: 'module:function'}`` of a package's setup.py."""
     tree = ast.parse((ROOT / pkg / 'setup.py').read_text())
     for node in ast.walk(tree):
         if isinstance(node, ast.Dict):

@@ -10,8 +10,9 @@ visualisation node (``visualization:=false`` leaves it out), the virtual leader 
 nodes run under SCHED_FIFO priority ``realtime_priority`` (default 20, 0 = normal scheduling) where
 the user may (docs/performance.md#real-time-scheduling).
 The launch ends when the clock ends (run complete), and in lockstep also when any node dies (every
-step needs every node); it exits with status 1 when the clock or (in lockstep) a node failed. The recorder and the visualisation run on the Cyclone DDS backend when its
-Python binding is installed (``uh_bringup.team_nodes.backend_environment``).
+step needs every node); it exits with status 1 when the clock or (in lockstep) a node failed. The
+recorder and the visualisation run on the Cyclone DDS backend when its Python binding is installed
+(``uh_bringup.team_nodes.backend_environment``).
 """
 import datetime
 import os

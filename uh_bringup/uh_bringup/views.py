@@ -31,7 +31,7 @@ def _status(uh: int, field: str) -> str:
 
 
 def foxglove_layout(scenario) -> str:
-    """The layout as Foxglove's JSON: 3-D scene | consensus errors, fault estimate vs truth, diagnostics."""
+    """Return the layout as Foxglove's JSON: 3-D scene | consensus errors, fault estimate vs truth, diagnostics."""
     import foxglove.layouts as fl
     faulted = [i for i in scenario.ids if scenario.faults.get(i)] or list(scenario.ids)
     errors = fl.PlotPanel(title='consensus error z1 (x, y) per UH (m)', config=fl.PlotConfig(
