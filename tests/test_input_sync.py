@@ -28,7 +28,7 @@ def paper():
 
 
 def make(paper, uh, mode='realtime', last_step=6000, **kwargs):
-    """Make a synchroniser of UH ``uh`` of the paper graph on a fake clock; return (sync, clock, logger)."""
+    """Return a synchroniser of UH ``uh`` of the paper graph on a fake clock: (sync, clock, logger)."""
     clock, logger = FakeClock(), RecordingLogger()
 
     def reachable(lost):

@@ -14,6 +14,7 @@ import pytest
 from uh_bringup import run_formation
 from uh_bringup.team_nodes import NODES, node_class, node_specs
 from uh_topology.scenario import load_scenario
+from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -96,7 +97,7 @@ def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkey
 
     nodes = [a for a in actions if isinstance(a, mods['launch_ros.actions'].Node)]
     expected = node_specs(load_scenario('paper'), 'paper', arguments['case'], 'lockstep', 1.0, None,
-                          f'{tmp_path}/bag', 60.0, 0.25)
+                          f'{tmp_path}/bag', 60.0, DEFAULT_STALE_TIMEOUT)
     assert [(n.kwargs['package'], n.kwargs['executable'], n.kwargs['arguments']) for n in nodes] == \
         [(NODES[kind].package, NODES[kind].executable, args) for _, kind, args in expected]
     registered = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)]

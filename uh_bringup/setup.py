@@ -13,11 +13,14 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
-    install_requires=['numpy', 'PyYAML', 'rosbags', 'uh_runtime', 'uh_core', 'uh_topology', 'uh_wire', 'uh_sim_node', 'uh_controller_node', 'uh_report'],
+    install_requires=['numpy', 'PyYAML', 'rosbags', 'uh_runtime', 'uh_core', 'uh_topology', 'uh_wire', 'uh_sim_node',
+                      'uh_controller_node', 'uh_report'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',
-    description='Bring-up of a UH formation-containment run: the table of a team\'s nodes, the launch file, the run supervisor behind scripts/run_formation.sh (one process per node, recording, metrics from the bag), composition, network namespaces and fault injection.',
+    description='Bring-up of a UH formation-containment run: the table of a team\'s nodes, the launch file, '
+                'the run supervisor behind scripts/run_formation.sh (one process per node, recording, metrics '
+                'from the bag), composition, network namespaces and fault injection.',
     license='Apache-2.0',
     entry_points={
         'console_scripts': [

@@ -10,8 +10,9 @@ visualisation node (``visualization:=false`` leaves it out), the virtual leader 
 nodes run under SCHED_FIFO priority ``realtime_priority`` (default 20, 0 = normal scheduling) where
 the user may (docs/performance.md#real-time-scheduling).
 The launch ends when the clock ends (run complete), and in lockstep also when any node dies (every
-step needs every node); it exits with status 1 when the clock or (in lockstep) a node failed. The recorder and the visualisation run on the Cyclone DDS backend when its
-Python binding is installed (``uh_bringup.team_nodes.backend_environment``).
+step needs every node); it exits with status 1 when the clock or (in lockstep) a node failed. The
+recorder and the visualisation run on the Cyclone DDS backend when its Python binding is installed
+(``uh_bringup.team_nodes.backend_environment``).
 """
 import datetime
 import os
@@ -22,13 +23,14 @@ from launch.event_handlers import OnProcessExit, OnShutdown
 from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+from uh_bringup.team_nodes import NODES, backend_environment, node_specs
 from uh_runtime.scheduling import DEFAULT_PRIORITY, MAX_PRIORITY
+from uh_topology.scenario import load_scenario
+# the default stale timeout from its one home (the nodes' parameter and the run script's option)
+from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
 
 def _team(context):
-    from uh_bringup.team_nodes import NODES, backend_environment, node_specs
-    from uh_topology.scenario import load_scenario
-
     def arg(name):
         return LaunchConfiguration(name).perform(context)
 
@@ -118,7 +120,7 @@ def generate_launch_description():
                               'dds: every node on the Cyclone DDS backend (for realtime on small machines, '
                               'docs/performance.md)'),
         DeclareLaunchArgument('startup_timeout', default_value='60.0', description='s to wait for all nodes'),
-        DeclareLaunchArgument('stale_timeout', default_value='0.25',
+        DeclareLaunchArgument('stale_timeout', default_value=str(DEFAULT_STALE_TIMEOUT),
                               description='realtime: simulated s after which a neighbour is stale'),
         DeclareLaunchArgument('realtime_priority', default_value=str(DEFAULT_PRIORITY),
                               description='realtime: SCHED_FIFO priority of the clock, simulators, controllers and '

@@ -19,8 +19,12 @@ import re
 import sys
 import time
 
+import uh_runtime as rt
 from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
+from uh_runtime import messages as m
 from uh_runtime.network import MAX_DOMAIN_ID, apply_network_default
+from uh_sim_node.faults import ActuatorFault, FaultError
+from uh_wire import topics
 
 __all__ = ['main']
 
@@ -76,7 +80,6 @@ def main(argv=None) -> int:
         parser.exit(2, f'{parser.prog}: error: --domain-id {args.domain_id}: allowed 0..{MAX_DOMAIN_ID}\n')
     if not 0 < args.timeout <= 3600:
         parser.exit(2, f'{parser.prog}: error: --timeout {args.timeout}: allowed > 0 .. 3600 s\n')
-    from uh_sim_node.faults import ActuatorFault, FaultError
     try:
         fault = ActuatorFault(channel=CHANNEL_ALIASES[args.channel], rho=args.rho, bias_constant=args.bias,
                               bias_amplitude=args.amplitude, bias_frequency=args.frequency, onset_time=args.onset)
@@ -91,10 +94,6 @@ def main(argv=None) -> int:
         apply_network_default()    # the runs' network default (uh_runtime.network.default_cyclonedds_uri)
     except ValueError as exc:      # a bad ROS_AUTOMATIC_DISCOVERY_RANGE
         parser.error(str(exc))
-
-    import uh_runtime as rt
-    from uh_runtime import messages as m
-    from uh_wire import topics
 
     rt.init(args=[sys.argv[0]])
     node = rt.Node('inject_fault')

@@ -265,7 +265,7 @@ class TeamNetwork:
         return ['ip', 'netns', 'exec', self.host(process_name).netns]
 
     def environment(self, process_name: str, base: dict) -> dict:
-        """``base`` with the Cyclone DDS configuration of the process's host."""
+        """Return ``base`` with the Cyclone DDS configuration of the process's host."""
         env = dict(base)
         env['CYCLONEDDS_URI'] = cyclone_config(self.host(process_name), [h.address for h in self.hosts.values()])
         return env

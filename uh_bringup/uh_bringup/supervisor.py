@@ -25,7 +25,7 @@ __all__ = ['NodeProcess', 'Supervisor', 'NodeFailure', 'describe_exit']
 
 
 def describe_exit(returncode: int | None) -> str:
-    """``'exited with status 1'``, ``'killed by SIGKILL'`` or ``'running'``."""
+    """Return ``'exited with status 1'``, ``'killed by SIGKILL'`` or ``'running'``."""
     if returncode is None:
         return 'running'
     if returncode < 0:
@@ -78,7 +78,7 @@ class NodeProcess:
 
 
 def _child_setup(priority: int):
-    """The ``preexec_fn`` of a node process, run in the child before its command.
+    """Return the ``preexec_fn`` of a node process, run in the child before its command.
 
     * SIGINT back to its default: the supervisor stops nodes with SIGINT, and a supervisor started
       in the background by a non-interactive shell (``run_formation.sh ... &`` in a script) has
@@ -157,7 +157,7 @@ class Supervisor:
         return out
 
     def failed(self, ignore=()) -> NodeProcess | None:
-        """The first node that exited (unless in ``ignore``)."""
+        """Return the first node that exited (unless in ``ignore``)."""
         for node in self.nodes:
             if node.poll() is not None and node.name not in ignore:
                 return node

@@ -80,7 +80,7 @@ def backend_environment(kind: str, env) -> dict:
 
 
 def node_class(kind: str):
-    """The node class of a node kind (imported on demand)."""
+    """Return the node class of a node kind (imported on demand)."""
     try:
         module, cls = NODES[kind].node_class.split(':')
     except KeyError:
@@ -124,6 +124,7 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
     if visualization:
         specs.append(('visualization', 'visualization', ['--ros-args', *common]))
     specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common, *loop, *views]))
-    specs.append(('clock', 'clock', ['--ros-args', *common, *loop, '-p', f'rate:={float(rate)}', '-p', 'expect_recorder:=true',
+    specs.append(('clock', 'clock', ['--ros-args', *common, *loop, '-p', f'rate:={float(rate)}',
+                                     '-p', 'expect_recorder:=true',
                                      '-p', f'startup_timeout:={float(startup_timeout)}']))
     return specs

@@ -17,6 +17,7 @@ from pathlib import Path
 import yaml
 
 from uh_core import frames
+from uh_topology.scenario import load_scenario
 from uh_wire import topics
 
 __all__ = ['foxglove_layout', 'rviz_config', 'main', 'FOXGLOVE_FILE', 'RVIZ_FILE']
@@ -30,7 +31,7 @@ def _status(uh: int, field: str) -> str:
 
 
 def foxglove_layout(scenario) -> str:
-    """The layout as Foxglove's JSON: 3-D scene | consensus errors, fault estimate vs truth, diagnostics."""
+    """Return the layout as Foxglove's JSON: 3-D scene | consensus errors, fault estimate vs truth, diagnostics."""
     import foxglove.layouts as fl
     faulted = [i for i in scenario.ids if scenario.faults.get(i)] or list(scenario.ids)
     errors = fl.PlotPanel(title='consensus error z1 (x, y) per UH (m)', config=fl.PlotConfig(
@@ -97,7 +98,6 @@ def main(argv=None) -> int:
     p.add_argument('--scenario', default='paper', help='scenario YAML, or "paper" (default)')
     p.add_argument('--out', default='views', help='directory to write the two files into (default views/)')
     args = p.parse_args(argv)
-    from uh_topology.scenario import load_scenario
     try:
         scenario = load_scenario(args.scenario)
     except (OSError, ValueError) as exc:

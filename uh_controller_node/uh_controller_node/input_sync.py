@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from uh_wire import topics
+from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 from uh_core.layout import X_P, X_THETA, YAW
 
 __all__ = ['InputSynchroniser', 'StepInputs', 'LagStats', 'OWN', 'REFERENCE', 'input_label',
@@ -149,7 +150,7 @@ class InputSynchroniser:
     """
 
     def __init__(self, uh_id: int, neighbours, linked: bool, *, mode: str, dt: float, last_step: int,
-                 reachable: Callable[[set], bool], logger, stale_timeout: float = 0.25,
+                 reachable: Callable[[set], bool], logger, stale_timeout: float = DEFAULT_STALE_TIMEOUT,
                  sync_wait: float = 0.004, startup_grace: float = 1.0,
                  now: Callable[[], float] = time.monotonic):
         if mode not in ('lockstep', 'realtime'):

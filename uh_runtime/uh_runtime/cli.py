@@ -23,7 +23,13 @@ import os
 import sys
 import time
 
-from .network import MAX_DOMAIN_ID
+from .arguments import parse_parameter_value
+from .names import ROS_TOPIC_PREFIX
+from .network import MAX_DOMAIN_ID, apply_network_default
+
+# The graph, the message classes, the QoS conversions and the DDS backend are imported inside the
+# commands that use them: they load Cyclone DDS and every message type, and ``uh --help`` and a
+# mistyped command must answer at once.
 
 __all__ = ['main', 'build_parser']
 
@@ -236,7 +242,7 @@ def _reader(graph, topic, cls, pubs, depth, raw=False):
         depth=depth,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
-    dds_topic = Topic(graph.participant, 'rt' + topic, cls)
+    dds_topic = Topic(graph.participant, ROS_TOPIC_PREFIX + topic, cls)
     reader = DataReader(graph.participant, dds_topic,
                         qos=to_dds_qos(profile, f'typehash={messages.type_hash(cls)};'.encode()))
     condition = ReadCondition(reader, SampleState.NotRead | ViewState.Any | InstanceState.Any)
@@ -425,7 +431,6 @@ def cmd_param_get(args):
 
 
 def cmd_param_set(args):
-    from .arguments import parse_parameter_value
     from .dds_backend.services import value_message
     from .messages import dds_message
     value = parse_parameter_value(args.value)
@@ -481,7 +486,6 @@ def main(argv=None) -> int:
     """Console script ``uh``; returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
-        from .network import apply_network_default
         apply_network_default()     # the runs' network default, unless CYCLONEDDS_URI says otherwise
     except ValueError as exc:
         print(f'uh: error: {exc}', file=sys.stderr)

@@ -12,6 +12,7 @@ import uuid
 from dataclasses import dataclass
 
 from . import messages as _messages
+from .names import ROS_PREFIXES, ROS_TOPIC_PREFIX
 from .qos import (
     DDS_INFINITY, DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, from_dds_qos, to_dds_qos,
 )
@@ -20,6 +21,9 @@ from .signals import sigint_deferred, wake_on_signals
 __all__ = ['Graph', 'EndpointInfo', 'BARE_DDS_NODE', 'format_gid', 'user_data_value']
 
 BARE_DDS_NODE = '_CREATED_BY_BARE_DDS_APP_'
+#: What the DDS topics of the ROS graph start with: ``rt/``, ``rq/``, ``rr/``.
+_ROS_PREFIXES_SLASH = tuple(prefix + '/' for prefix in ROS_PREFIXES)
+_TOPIC_PREFIX_SLASH = ROS_TOPIC_PREFIX + '/'
 
 
 def format_gid(gid: bytes) -> str:
@@ -212,7 +216,7 @@ class Graph:
         writers = {key.bytes for key in self.writers}
         readers = {key.bytes for key in self.readers}
         ros = {sample.participant_key for table in (self.writers, self.readers)
-               for sample in table.values() if sample.topic_name[:3] in ('rt/', 'rq/', 'rr/')}
+               for sample in table.values() if sample.topic_name[:3] in _ROS_PREFIXES_SLASH}
         for key in others:
             if key not in ros:
                 continue
@@ -278,7 +282,7 @@ class Graph:
         for key, sample in table.items():
             if self._own and sample.participant_key == self.own_key:
                 continue
-            if sample.topic_name.startswith('rt/'):
+            if sample.topic_name.startswith(_TOPIC_PREFIX_SLASH):
                 yield key, sample
 
     def topic_names_and_types(self):
@@ -292,7 +296,7 @@ class Graph:
         topics = {}
         for writers in (True, False):
             for _, sample in self._ros_endpoints(writers):
-                topics.setdefault(sample.topic_name[2:], set()).add(
+                topics.setdefault(sample.topic_name[len(ROS_TOPIC_PREFIX):], set()).add(
                     _messages.ros_type_from_dds(sample.type_name))
         result = [(name, sorted(types)) for name, types in sorted(topics.items())]
         self._topics_cache = (self.version, result)
@@ -300,14 +304,14 @@ class Graph:
 
     def count(self, topic: str, writers: bool) -> int:
         """Return the number of writers (or readers) of ROS topic ``topic``."""
-        dds_name = 'rt' + topic
+        dds_name = ROS_TOPIC_PREFIX + topic
         return sum(1 for _, sample in self._ros_endpoints(writers) if sample.topic_name == dds_name)
 
     def endpoints(self, topic: str, writers: bool):
         """Readers or writers of ROS topic ``topic`` as :class:`EndpointInfo`."""
         result = []
         for key, sample in self._ros_endpoints(writers):
-            if sample.topic_name != 'rt' + topic:
+            if sample.topic_name != ROS_TOPIC_PREFIX + topic:
                 continue
             name, namespace = self._node_of(key.bytes, writers)
             result.append(EndpointInfo(

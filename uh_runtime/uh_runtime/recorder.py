@@ -32,6 +32,7 @@ import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_runtime.bag import FLUSH_PERIOD_S, BagWriter
 from uh_runtime.bag_reader import BagError
+from uh_runtime.names import RECORDER_PROGRESS_TOPIC
 from uh_runtime.qos import QoSWords, merge_offered, profile_from_words, qos_profile_yaml, words_of
 
 __all__ = ['RecorderNode', 'LogClock', 'main', 'stamp_of', 'stamped_first', 'new_topics']
@@ -123,7 +124,7 @@ class RecorderNode(rt.Node):
         self.log_clock = LogClock()
         self.progress_ns = -1
         self.subscriptions_by_topic = {}
-        self.progress_pub = self.create_publisher(m.Time, '/recorder/progress', 10)
+        self.progress_pub = self.create_publisher(m.Time, RECORDER_PROGRESS_TOPIC, 10)
         for name, type_name in expected:
             words = QoSWords('reliable', 'volatile', 'keep_last', _RECORD_DEPTH)
             self._subscribe(name, type_name, words, qos_profile_yaml('reliable', 'volatile', 'keep_last', 10))
@@ -134,7 +135,7 @@ class RecorderNode(rt.Node):
     def discover(self) -> None:
         """Subscribe to every wanted topic that has appeared since the last look."""
         for name, type_name, offered in new_topics(self, self.subscriptions_by_topic, self.wanted,
-                                                    skip=('/recorder/progress',)):
+                                                    skip=(RECORDER_PROGRESS_TOPIC,)):
             first = offered[0]
             # reliable and transient-local only when every publisher offers it
             self._subscribe(name, type_name, dataclasses.replace(

@@ -268,11 +268,8 @@ def _fail(message: str, status: int = 2) -> int:
     return status
 
 
-def main(args=None) -> int:
-    """Entry point of ``replay_node`` / ``scripts/replay.sh``; returns the exit status."""
-    argv = list(sys.argv if args is None else args)
-
-    opts = build_parser().parse_args(rt.remove_ros_args(argv)[1:])
+def _prepare(opts):
+    """Check the options, open the bag and set the network up; return ``(domain, bag info)`` or an exit status."""
     if not (math.isfinite(opts.rate) and 0.01 <= opts.rate <= 1000):
         return _fail(f'--rate {opts.rate:g}: allowed 0.01 .. 1000 (bag seconds per wall second)')
     if not (math.isfinite(opts.delay) and opts.delay >= 0):
@@ -299,6 +296,76 @@ def main(args=None) -> int:
         os.environ.update(loopback_environment(domain))
     except ValueError as exc:    # a bad ROS_AUTOMATIC_DISCOVERY_RANGE
         return _fail(str(exc))
+    return domain, info
+
+
+class _Session:
+    """What a replay has started: its node, progress line and live view (None until started)."""
+
+    def __init__(self):
+        self.node = self.progress = self.viewer = None
+
+    def close_progress(self) -> None:
+        """End the progress line, if one is shown."""
+        if self.progress:
+            self.progress.close()
+        self.progress = None
+
+    def stop(self) -> None:
+        """Destroy the node, shut the runtime down and stop the live view."""
+        if self.node is not None:
+            self.node.destroy_node()
+        rt.try_shutdown()
+        if self.viewer is not None:
+            self.viewer.send_signal(signal.SIGINT)
+            try:
+                self.viewer.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.viewer.kill()
+
+
+def _play(opts, info, domain: int, session: _Session) -> int:
+    """Replay the bag as ``opts`` say (after the delay, or once every topic has a subscriber); return the status."""
+    if opts.foxglove is not None:
+        session.viewer = _start_live_view(opts.foxglove_host, opts.foxglove)
+    node = session.node = ReplayNode(info, opts.topics, clock=not opts.no_clock)
+    selected = node.replay_topics
+    count = sum(info.topics[t].message_count for t in selected)
+    clock_note = ('/clock from the bag' if '/clock' in selected else
+                  'no /clock' if opts.no_clock else '/clock synthesised from log times')
+    print(f'[replay] {info.directory}: {count} messages on {len(selected)} topics, '
+          f'{info.duration_s:.2f} s of bag time at x{opts.rate:g} ({clock_note}), DDS domain {domain}',
+          file=sys.stderr, flush=True)
+    if opts.wait_for_subscribers:
+        lonely = node.wait_for_subscribers(WAIT_FOR_SUBSCRIBERS_TIMEOUT)
+        if lonely and rt.ok():
+            return _fail(f'no subscriber within {WAIT_FOR_SUBSCRIBERS_TIMEOUT:g} s on {", ".join(lonely)}', 1)
+    # the live view subscribes to what it discovers, every 0.2 s: give it a second
+    deadline = time.monotonic() + (max(opts.delay, 1.0) if session.viewer else opts.delay)
+    while rt.ok() and time.monotonic() < deadline:
+        time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
+    session.progress = _Progress(sys.stderr, count, info.duration_s, opts.rate)
+    started = time.monotonic()
+    finished = rt.ok() and node.play(opts.rate, opts.loop, session.progress)
+    session.close_progress()
+    if finished:
+        node.flush()
+        print(f'[replay] done: {node.sent} messages in {time.monotonic() - started:.2f} s wall',
+              file=sys.stderr, flush=True)
+        return 0
+    print(f'[replay] stopped after {node.sent} messages', file=sys.stderr, flush=True)
+    return 130
+
+
+def main(args=None) -> int:
+    """Entry point of ``replay_node`` / ``scripts/replay.sh``; returns the exit status."""
+    argv = list(sys.argv if args is None else args)
+
+    opts = build_parser().parse_args(rt.remove_ros_args(argv)[1:])
+    prepared = _prepare(opts)
+    if isinstance(prepared, int):
+        return prepared
+    domain, info = prepared
     # Ctrl-C stops the replay also when a shell started it in the background (which ignores SIGINT)
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
@@ -306,61 +373,19 @@ def main(args=None) -> int:
         rt.init(args=argv)
     except Exception as exc:  # bad --ros-args
         return _fail(str(exc))
-    node = None
-    status = 0
-    progress = None
-    viewer = None
+    session = _Session()
     try:
-        if opts.foxglove is not None:
-            viewer = _start_live_view(opts.foxglove_host, opts.foxglove)
-        node = ReplayNode(info, opts.topics, clock=not opts.no_clock)
-        selected = node.replay_topics
-        count = sum(info.topics[t].message_count for t in selected)
-        clock_note = ('/clock from the bag' if '/clock' in selected else
-                      'no /clock' if opts.no_clock else '/clock synthesised from log times')
-        print(f'[replay] {info.directory}: {count} messages on {len(selected)} topics, '
-              f'{info.duration_s:.2f} s of bag time at x{opts.rate:g} ({clock_note}), DDS domain {domain}',
-              file=sys.stderr, flush=True)
-        if opts.wait_for_subscribers:
-            lonely = node.wait_for_subscribers(WAIT_FOR_SUBSCRIBERS_TIMEOUT)
-            if lonely and rt.ok():
-                status = _fail(f'no subscriber within {WAIT_FOR_SUBSCRIBERS_TIMEOUT:g} s on {", ".join(lonely)}', 1)
-                return status
-        # the live view subscribes to what it discovers, every 0.2 s: give it a second
-        deadline = time.monotonic() + (max(opts.delay, 1.0) if viewer else opts.delay)
-        while rt.ok() and time.monotonic() < deadline:
-            time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
-        progress = _Progress(sys.stderr, count, info.duration_s, opts.rate)
-        started = time.monotonic()
-        finished = rt.ok() and node.play(opts.rate, opts.loop, progress)
-        progress.close()
-        progress = None
-        if finished:
-            node.flush()
-            print(f'[replay] done: {node.sent} messages in {time.monotonic() - started:.2f} s wall',
-                  file=sys.stderr, flush=True)
-        else:
-            print(f'[replay] stopped after {node.sent} messages', file=sys.stderr, flush=True)
-            status = 130
+        status = _play(opts, info, domain, session)
     except BagError as exc:
-        if progress:
-            progress.close()
+        session.close_progress()
         status = _fail(str(exc))
     except (KeyboardInterrupt, rt.ExternalShutdownException):
-        if progress:
-            progress.close()
+        session.close_progress()
+        node = session.node
         print(f'[replay] interrupted after {node.sent if node else 0} messages', file=sys.stderr, flush=True)
         status = 130
     finally:
-        if node is not None:
-            node.destroy_node()
-        rt.try_shutdown()
-        if viewer is not None:
-            viewer.send_signal(signal.SIGINT)
-            try:
-                viewer.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                viewer.kill()
+        session.stop()
     return status
 
 

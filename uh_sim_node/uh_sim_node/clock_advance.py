@@ -96,7 +96,7 @@ class ClockAdvancer:
         return self.dt / self.rate
 
     def start(self) -> list:
-        """The team is complete: release step 0 (returns ``[0]``)."""
+        """Release step 0 now that the team is complete (returns ``[0]``)."""
         self.started_wall = self.now()
         if not self.lockstep:
             self.live_deadline = self.started_wall + self.start_wait
@@ -119,7 +119,7 @@ class ClockAdvancer:
         return []
 
     def on_progress(self, recorded_step: int) -> list:
-        """The recorder has written everything up to ``recorded_step``; returns the steps now released."""
+        """Note that the recorder has written everything up to ``recorded_step``; return the steps now released."""
         self.recorded_step = recorded_step
         if self.lockstep:
             return self._advance()

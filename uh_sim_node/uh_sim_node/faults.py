@@ -120,7 +120,7 @@ class ActuatorFault(FaultSpec):
         return self.onset_time - ONSET_TOLERANCE
 
     def started(self, t: float) -> bool:
-        """True when the fault acts at time ``t`` s (``t >= acts_from``)."""
+        """Return True when the fault acts at time ``t`` s (``t >= acts_from``)."""
         return t >= self.acts_from
 
     def apply(self, u: float, t: float, switch_time: float | None = None) -> float:
@@ -192,7 +192,7 @@ class FaultSchedule:
         return self._revision
 
     def fault(self, channel: int) -> ActuatorFault | None:
-        """The fault of ``channel`` or ``None``."""
+        """Return the fault of ``channel`` or ``None``."""
         return self._faults[channel]
 
     @property
@@ -217,13 +217,13 @@ class FaultSchedule:
         return out
 
     def active(self, t: float) -> bool:
-        """True when any channel is past its onset time at ``t`` s."""
+        """Return True when any channel is past its onset time at ``t`` s."""
         return any(f.started(t) for f in self._list)
 
     def stuck(self, t: float) -> bool:
-        """True when any active channel has ``rho = 0`` (outside what the controller compensates)."""
+        """Return True when any active channel has ``rho = 0`` (outside what the controller compensates)."""
         return any(f.rho == 0.0 and f.started(t) for f in self._list)
 
     def active_channels(self, t: float) -> tuple:
-        """Indices of the channels whose fault acts at ``t`` s."""
+        """Return the indices of the channels whose fault acts at ``t`` s."""
         return tuple(f.channel for f in self._list if f.started(t))

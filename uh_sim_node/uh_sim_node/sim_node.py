@@ -26,15 +26,17 @@ rho = 0 (stuck actuator) is accepted with a warning that the controller cannot c
 from __future__ import annotations
 
 import uh_runtime as rt
+from uh_core import diagnostics, frames
 from uh_runtime import messages as m
+from uh_sim_node.command_watch import CommandWatch
 from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
-from uh_wire.wire import (WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg)
-from uh_core import diagnostics, frames
 from uh_wire import topics
+from uh_wire.run_config import (DEFAULT_STALE_TIMEOUT, declare_float_parameter, declare_run_parameters,
+                                declare_view_parameters)
 from uh_wire.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg, view_publisher
-from uh_wire.run_config import declare_run_parameters, declare_view_parameters
+from uh_wire.wire import WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg
 
 __all__ = ['SimNode', 'main']
 
@@ -52,17 +54,13 @@ class SimNode(rt.Node):
         # before the endpoints exist and the clock can start: a realtime run would lose those steps
         compile_plant_kernels()
         self.command = hover_trim(self.plant.params)
-        self.command_step = -1        # step the held command was computed for
-        self.late_commands = 0        # realtime: steps integrated with an older command
         self.step = 0                 # index of the state the plant holds
         self.published_step = -1      # last state index published
-        self.declare_parameter('stale_timeout', 0.25, rt.ParameterDescriptor(
-            description='realtime: simulated seconds after which a held command is reported stale',
-            read_only=True, floating_point_range=[rt.FloatingPointRange(from_value=0.0, to_value=60.0, step=0.0)]))
-        self.stale_steps = max(1, int(round(float(self.get_parameter('stale_timeout').value) / self.dt)))
-        self.command_stale = False
-        self.rejected = 0
-        self.rejected_faults = 0
+        stale_timeout = declare_float_parameter(
+            self, 'stale_timeout', DEFAULT_STALE_TIMEOUT, 60.0,
+            'realtime: simulated seconds after which a held command is reported stale')
+        self.watch = CommandWatch(self.uh_id, self.dt, max(1, int(round(stale_timeout / self.dt))),
+                                  self.get_logger())
         self.published = {'state': 0, 'fault_truth': 0}
         self.views = declare_view_parameters(self, self.dt)
         self.diagnostics_phase = self.views.diagnostics_phase(self.scenario.ids, self.uh_id, controller=False)
@@ -77,7 +75,6 @@ class SimNode(rt.Node):
             self.tf_pub = view_publisher(self, topics.TF)
             self.odom_pub = view_publisher(self, topics.ODOM)
             self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
-            self._reported = {'late': 0, 'rejected': 0, 'rejected_faults': 0}
         self.get_logger().info(
             f'uh{self.uh_id}: {self.mode} mode, dt {self.dt} s, {self.last_step} steps, '
             f'{len(self.plant.faults)} scheduled fault(s)')
@@ -99,19 +96,16 @@ class SimNode(rt.Node):
         try:
             u = msg_to_command(msg, expected_id=self.uh_id)
         except WireError as exc:
-            self.rejected += 1
+            self.watch.rejected += 1
             self.get_logger().error(f'rejected command: {exc}; keeping the last valid command '
-                                    f'({self.rejected} rejected so far)', throttle_duration_sec=1.0)
+                                    f'({self.watch.rejected} rejected so far)', throttle_duration_sec=1.0)
             return
         k = int(msg.step)
-        if self.mode != 'lockstep' and k < self.command_step:
+        if self.mode != 'lockstep' and k < self.watch.command_step:
             return  # older than the command held: reordered, or replayed history after a controller restart
         self.command = u
-        self.command_step = k
+        self.watch.taken(k, self.step)
         if self.mode != 'lockstep':
-            if self.command_stale:
-                self.command_stale = False
-                self.get_logger().info(f'commands arrive again (step {k}, plant at step {self.step})')
             if k == self.last_step == self.step:  # the final step's truth, as in lockstep
                 self._publish_truth(k)
             return
@@ -129,7 +123,7 @@ class SimNode(rt.Node):
         if int(msg.uh_id) != self.uh_id:
             self.get_logger().error(f'rejected fault injection: it names uh{msg.uh_id} but arrived on '
                                     f'/uh{self.uh_id}/fault; the plant keeps its current faults')
-            self.rejected_faults += 1
+            self.watch.rejected_faults += 1
             return
         try:
             fault = ActuatorFault(channel=int(msg.channel), rho=float(msg.rho),
@@ -137,7 +131,7 @@ class SimNode(rt.Node):
                                   bias_frequency=float(msg.bias_frequency), onset_time=float(msg.onset_time))
         except FaultError as exc:
             self.get_logger().error(f'rejected fault injection: {exc}; the plant keeps its current faults')
-            self.rejected_faults += 1
+            self.watch.rejected_faults += 1
             return
         self.plant.faults.add(fault)
         self.get_logger().warn(f'fault injected on uh{self.uh_id}: {fault}')
@@ -147,16 +141,7 @@ class SimNode(rt.Node):
 
     # -- outputs ----------------------------------------------------------------------------------
     def _integrate_one_step(self) -> None:
-        if self.command_step != self.step and self.step > 0:
-            self.late_commands += 1
-            if self.late_commands in (1, 10, 100, 1000):
-                self.get_logger().warn(f'step {self.step} integrated with the command of step {self.command_step} '
-                                       f'({self.late_commands} late command(s) so far)')
-            if self.step - self.command_step > self.stale_steps and not self.command_stale:
-                self.command_stale = True
-                self.get_logger().warn(f'no command since step {self.command_step} (plant at step {self.step}, '
-                                       f'timeout {self.stale_steps * self.dt:g} s): holding it; is '
-                                       f'/uh{self.uh_id}/controller running?')
+        self.watch.integrating(self.step)
         self._publish_truth(self.step)
         t = self.step * self.dt
         self.plant.step(self.command, t, self.dt)
@@ -179,8 +164,9 @@ class SimNode(rt.Node):
             self._publish_views(t)
 
     def _publish_views(self, t: float) -> None:
-        """The state for generic tools (docs/visualization.md): /tf and odom every
-        ``views.pose_every`` steps, /diagnostics every ``views.diagnostics_every`` steps.
+        """Publish the state for generic tools (docs/visualization.md).
+
+        /tf and odom every ``views.pose_every`` steps, /diagnostics every ``views.diagnostics_every`` steps.
         """
         x = self.plant.x
         if self.step % self.views.pose_every == 0:
@@ -188,13 +174,7 @@ class SimNode(rt.Node):
             self.tf_pub.publish(tf_msg([transform_msg(t, frames.WORLD_FRAME, frames.base_link(self.uh_id), *pose)]))
             self.odom_pub.publish(odometry_msg(self.uh_id, t, x, pose))
         if self.step % self.views.diagnostics_every == self.diagnostics_phase:
-            seen = {'late': self.late_commands, 'rejected': self.rejected, 'rejected_faults': self.rejected_faults}
-            since = {key: seen[key] - self._reported[key] for key in seen}
-            self._reported = seen
-            window = diagnostics.SimulatorWindow(
-                last_step=self.step, late_commands=since['late'], rejected_commands=since['rejected'],
-                rejected_faults=since['rejected_faults'], command_stale=self.command_stale,
-                fault_active=self.plant.fault_active(t), stuck=self.plant.stuck(t))
+            window = self.watch.window(self.step, self.plant.fault_active(t), self.plant.stuck(t))
             self.diag_pub.publish(diagnostic_array_msg(t, [diagnostics.simulator_diagnostic(self.uh_id, window)]))
 
     def destroy_node(self):
@@ -203,8 +183,8 @@ class SimNode(rt.Node):
                 self,
                 f"published: {topics.uh_topic(self.uh_id, topics.STATE)} {self.published['state']}, "
                 f"{topics.uh_topic(self.uh_id, topics.FAULT_TRUTH)} {self.published['fault_truth']}"
-                + (f'; late commands: {self.late_commands}' if self.mode == 'realtime' else '')
-                + (f'; rejected commands: {self.rejected}' if self.rejected else ''))
+                + (f'; late commands: {self.watch.late_commands}' if self.mode == 'realtime' else '')
+                + (f'; rejected commands: {self.watch.rejected}' if self.watch.rejected else ''))
         return super().destroy_node()
 
 

@@ -104,7 +104,7 @@ class VisualizationNode(rt.Node):
         self.pub.publish(self.markers(k, states, p0))
 
     def markers(self, k: int, states: dict, p0: np.ndarray):
-        """The MarkerArray of step ``k`` from the UH states {id: (12,)} and the reference position."""
+        """Return the MarkerArray of step ``k`` from the UH states {id: (12,)} and the reference position."""
         t = stamp(k * self.dt)
         out = m.MarkerArray()
         markers = []

@@ -16,9 +16,13 @@ from uh_runtime import scheduling
 from uh_topology.scenario import load_scenario
 
 __all__ = ['RunConfig', 'RunConfigError', 'ViewConfig', 'declare_run_parameters', 'declare_view_parameters',
-           'CLOCK_MODES']
+           'declare_float_parameter', 'CLOCK_MODES', 'DEFAULT_STALE_TIMEOUT']
 
 CLOCK_MODES = ('lockstep', 'realtime')
+#: realtime: simulated seconds a neighbour's state, the reference or a simulator's command may lag
+#: before it is stale (parameter ``stale_timeout`` of the controllers and simulators,
+#: ``--stale-timeout`` of the run, launch argument ``stale_timeout``; docs/reliability.md).
+DEFAULT_STALE_TIMEOUT = 0.25
 
 
 class RunConfigError(ValueError):
@@ -36,6 +40,14 @@ class RunConfig:
 
 def _describe(text: str, **kwargs):
     return rt.ParameterDescriptor(description=text, **kwargs)
+
+
+def declare_float_parameter(node, name: str, default: float, upper: float, description: str) -> float:
+    """Declare read-only float parameter ``name`` of ``node`` (0 .. ``upper``) and return its value."""
+    node.declare_parameter(name, default, _describe(
+        description, read_only=True,
+        floating_point_range=[rt.FloatingPointRange(from_value=0.0, to_value=upper, step=0.0)]))
+    return float(node.get_parameter(name).value)
 
 
 def declare_run_parameters(node, per_uh: bool = True) -> RunConfig:

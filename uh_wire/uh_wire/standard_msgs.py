@@ -36,7 +36,7 @@ def _level_value(level: int):
 
 
 def level_of(status) -> int:
-    """The level of a received ``DiagnosticStatus`` as an int, on either backend."""
+    """Return the level of a received ``DiagnosticStatus`` as an int, on either backend."""
     level = status.level
     return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from uh_runtime.names import RECORDER_PROGRESS_TOPIC
 from uh_runtime.qos import QoSWords, profile_from_words
 
 __all__ = [
@@ -76,7 +77,7 @@ CLOCK = TopicSpec('/clock', 'rosgraph_msgs/msg/Clock', STEP_QOS, True, 'clock',
 MARKERS = TopicSpec('/markers', 'visualization_msgs/msg/MarkerArray', EVENT_QOS, False, 'visualization',
                     'RViz2 / Foxglove; recorder',
                     'helicopter poses, trails, formation polygon, convex hull, containment targets (frame world)')
-RECORDER_PROGRESS = TopicSpec('/recorder/progress', 'builtin_interfaces/msg/Time', EVENT_QOS, False,
+RECORDER_PROGRESS = TopicSpec(RECORDER_PROGRESS_TOPIC, 'builtin_interfaces/msg/Time', EVENT_QOS, False,
                               'recorder', 'lockstep clock',
                               'sim time up to which every per-step topic has been written to the bag')
 

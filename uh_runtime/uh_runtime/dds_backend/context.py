@@ -17,6 +17,7 @@ import weakref
 from .. import arguments as _args
 from .. import intra_process as _intra
 from .. import messages as _messages
+from ..names import ROS_TOPIC_PREFIX
 from ..network import MAX_DOMAIN_ID
 from ..qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
 from ..signals import restore_sigterm, shut_down_on_sigterm
@@ -27,8 +28,6 @@ __all__ = ['Context', 'NotInitializedException', 'get_default_context', 'init', 
 
 #: DDS topic of the ROS graph information (rmw_dds_common).
 DISCOVERY_TOPIC = 'ros_discovery_info'
-#: Prefix rmw puts in front of a ROS topic name to get the DDS topic name.
-ROS_TOPIC_PREFIX = 'rt'
 
 
 class NotInitializedException(Exception):

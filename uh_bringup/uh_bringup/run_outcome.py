@@ -1,0 +1,94 @@
+"""What a team run leaves behind: ``run.json``, the exit status, the recovered bag, ``metrics.json``.
+
+Exit status: :data:`EXIT_OK` success; :data:`EXIT_FAILED` the run failed; :data:`EXIT_USAGE` bad
+input (nothing was started); :data:`EXIT_DEGRADED` the run completed but nodes failed during it;
+:data:`EXIT_INTERRUPTED` interrupted (Ctrl-C, SIGTERM).
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from uh_report.bag_metrics import write_metrics_from_bag
+from uh_runtime.bag import recover_bag
+from uh_runtime.bag_reader import BagError
+
+__all__ = ['EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED', 'RunRecord',
+           'run_info', 'recover_bag_if_needed', 'exit_status', 'write_metrics']
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DEGRADED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+
+def run_info(args, duration: float, domain: int, priority: int) -> dict:
+    """Return what was run, as ``run.json`` starts it (``exit_status`` None until the end)."""
+    return {'command': sys.argv, 'scenario': args.scenario, 'case': args.case, 'clock': args.clock,
+            'rate': args.rate, 'processes': args.processes, 'visualization': not args.no_visualization,
+            'standard_views': not args.no_standard_views, 'duration_s': duration, 'domain_id': domain,
+            'foxglove': None if args.foxglove is None else f'ws://{args.foxglove_host}:{args.foxglove}',
+            'hosts': args.hosts, 'loss_pct': args.loss, 'respawn': args.respawn, 'realtime_priority': priority,
+            'exit_status': None}
+
+
+class RunRecord:
+    """``run.json`` of a run in directory ``out``.
+
+    Written when the nodes have started (status "running", their pids), after every node failure
+    and at the end; ``info`` is what :func:`run_info` gives, updated at the end.
+    """
+
+    def __init__(self, out: Path, info: dict, sup):
+        self.out, self.info, self.sup = out, info, sup
+        self.watcher = None     # the run's RunWatcher once the nodes have started
+
+    def write(self) -> None:
+        """Write ``run.json`` with the processes' pids, respawns and failures so far (atomically)."""
+        sup = self.sup
+        self.info.update(pids={n.name: n.proc.pid for n in sup.nodes if n.proc},
+                         all_pids={n.name: n.pids for n in sup.nodes},
+                         respawns={n.name: n.restarts for n in sup.nodes if n.restarts},
+                         node_failures=self.watcher.failures if self.watcher else [])
+        tmp = self.out / 'run.json.tmp'
+        tmp.write_text(json.dumps(self.info, indent=2) + '\n')
+        tmp.replace(self.out / 'run.json')
+
+
+def recover_bag_if_needed(bag_dir: Path) -> dict | None:
+    """Complete a bag the recorder did not finalise (it was killed); report what was kept."""
+    if (bag_dir / 'metadata.yaml').exists() or not bag_dir.is_dir():
+        return None
+    try:
+        result = recover_bag(bag_dir)
+    except BagError as exc:
+        print(f'[run] the bag in {bag_dir} was not finalised and cannot be recovered: {exc}', file=sys.stderr)
+        return {'recovered': False, 'problem': str(exc)}
+    total = sum(result.counts.values())
+    print(f'[run] the recorder did not finalise the bag: recovered {total} messages up to the last complete '
+          f'chunk ({result.lost_bytes} bytes after it were unreadable); the damaged file is kept as '
+          f'{result.path.name}', file=sys.stderr)
+    return {'recovered': True, 'messages': total, 'lost_bytes': result.lost_bytes, 'problem': result.problem}
+
+
+def exit_status(interrupted: bool, fatal, failures: list, out: Path) -> int:
+    """Return the run's exit status from how it ended, and say it on stderr.
+
+    ``fatal`` is the node whose death ended the run (or None), ``failures`` every node death.
+    """
+    if interrupted:
+        print(f'\n[run] interrupted: every node stopped, bag finalised in {out / "bag"}', file=sys.stderr)
+        return EXIT_INTERRUPTED
+    if fatal is not None:
+        print(f'[run] FAILED: node {fatal.name} {fatal.describe()}; log {fatal.log_path}', file=sys.stderr)
+        return EXIT_FAILED
+    if failures:
+        print('[run] completed with node failures: ' + '; '.join(f'{f["node"]} {f["how"]} ({f["action"]})'
+                                                                 for f in failures), file=sys.stderr)
+        return EXIT_DEGRADED
+    return EXIT_OK
+
+
+def write_metrics(out: Path, scenario, case: str, wall: float) -> None:
+    """Compute ``out/metrics.json`` from the bag (docs/metrics.md) and print the scalar metrics."""
+    metrics = write_metrics_from_bag(out / 'bag', scenario, case, out / 'metrics.json', wall_time_s=wall)
+    print('[run] metrics: ' + ', '.join(f'{k} {v:.4g}' for k, v in metrics.items()
+                                        if isinstance(v, float)), file=sys.stderr)

@@ -1,0 +1,89 @@
+"""Setting a team run up: its DDS domain and environment, real-time scheduling, the network, the processes.
+
+Every run has a DDS domain of its own (``--domain-id``, else ``ROS_DOMAIN_ID``, else a free one
+held for the run), so runs started at once never see each other; ``env.sh`` in the output
+directory gives another terminal the same settings.
+"""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from uh_bringup import netns
+from uh_bringup.run_checks import UsageError
+from uh_bringup.run_processes import processes
+from uh_bringup.team_nodes import backend_environment, node_specs
+from uh_runtime import live_view, scheduling
+from uh_runtime.network import environment_script, loopback_environment, reserve_domain_id
+
+__all__ = ['run_environment', 'realtime_priority', 'write_environment_script', 'open_network', 'start_team']
+
+
+def run_environment(domain_id) -> tuple[int, dict]:
+    """Return ``(domain, environment of the run's processes)``; the domain is reserved if not given."""
+    domain = domain_id
+    if domain is None:
+        # held by this process for the run, so that runs started at once never share a domain
+        domain = int(os.environ['ROS_DOMAIN_ID']) if os.environ.get('ROS_DOMAIN_ID', '').isdigit() \
+            else reserve_domain_id()
+    try:
+        env = loopback_environment(domain)
+    except ValueError as exc:   # a bad ROS_AUTOMATIC_DISCOVERY_RANGE
+        raise UsageError(str(exc)) from None
+    env['PYTHONUNBUFFERED'] = '1'
+    return domain, env
+
+
+def realtime_priority(args) -> int:
+    """Return the SCHED_FIFO priority the control loop's nodes get (0: normal scheduling); say which."""
+    priority = args.realtime_priority if args.clock == 'realtime' else 0
+    if priority:
+        why_not = scheduling.permitted(priority)
+        print(f'[run] real-time scheduling: SCHED_FIFO priority {priority} for the clock, simulators, controllers '
+              'and virtual leader' if why_not is None else
+              f'[run] real-time scheduling not available, the control loop runs at normal priority and may miss '
+              f'steps on a busy machine: {why_not}', file=sys.stderr)
+        priority = priority if why_not is None else 0
+    return priority
+
+
+def write_environment_script(out: Path, env: dict) -> None:
+    """Write ``out/env.sh`` and say how another terminal uses it."""
+    print(f'[run] output: {out}', file=sys.stderr)
+    (out / 'env.sh').write_text(environment_script(env))
+    print(f'[run] from another terminal: source {out / "env.sh"}   (then ros2 topic list, or uh topic list)',
+          file=sys.stderr)
+
+
+def open_network(args, scenario):
+    """With ``--hosts netns``: the team's network namespaces (:class:`uh_bringup.netns.TeamNetwork`), else None."""
+    if args.hosts != 'netns':
+        return None
+    swept = netns.sweep_stale()
+    if swept:
+        print(f'[run] removed {len(swept)} network namespaces left by runs that were killed', file=sys.stderr)
+    network = netns.TeamNetwork(scenario.ids, args.loss).__enter__()
+    print(f'[run] network: {network.describe()}', file=sys.stderr)
+    return network
+
+
+def start_team(args, scenario, scenario_arg: str, out: Path, env: dict, priority: int, sup, network) -> None:
+    """Start every process of the team under supervisor ``sup`` (the clock's last)."""
+    specs = node_specs(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
+                       out / 'bag', args.startup_timeout, args.stale_timeout,
+                       visualization=not args.no_visualization,
+                       standard_views=not args.no_standard_views,
+                       live_view=(args.foxglove_host, args.foxglove) if args.foxglove is not None else None,
+                       realtime_priority=priority)
+    if args.foxglove is not None:
+        print(f'[run] live view: {live_view.connect_hint(args.foxglove_host, args.foxglove)}', file=sys.stderr)
+    for name, kind, cmd in processes(specs, args.processes, out / 'logs'):
+        # composed processes: only the recorder's own process (per-uh) is of an infrastructure kind
+        node_env = {**env, **backend_environment(kind, env)}
+        if network is not None:
+            sup.prefix[name] = network.prefix(name)
+            node_env = network.environment(name, node_env)
+        if node_env != env:
+            sup.envs[name] = node_env
+        sup.start(name, cmd, kind=kind)
