@@ -82,9 +82,6 @@ LAZY_IMPORTS = {
     'uh_team/uh_team/metrics.py:_published_verdicts': _NOT_YET_MOVED,
     'uh_team/uh_team/simulate_cli.py:_fault_lines': _NOT_YET_MOVED,
     'uh_team/uh_team/simulate_cli.py:_main': _NOT_YET_MOVED,
-    'uh_team/uh_team/team_simulation.py:run_team_simulation': _NOT_YET_MOVED,
-    'uh_team/uh_team/team_simulation.py:_run_kernel': _NOT_YET_MOVED,
-    'uh_team/uh_team/team_simulation.py:_run_objects': _NOT_YET_MOVED,
     'uh_topology/uh_topology/generate.py:write_team_scenario': _NOT_YET_MOVED,
 }
 
