@@ -1,5 +1,7 @@
-"""Native kernels of the control law of one UH: consensus errors, outer and inner loops, learning
-and fault observers (docs/graph.md, docs/control_law.md, with its anti-windup and projections).
+"""Native kernels of the control law of one UH.
+
+They compute the consensus errors, the outer and inner loops, and the learning and fault observers
+(docs/graph.md, docs/control_law.md, with its anti-windup and projections).
 
 These functions *are* the controller. They are compiled with numba (``@njit(cache=True)``, no
 fastmath, no parallelism, so results are deterministic and follow IEEE double arithmetic), take
@@ -380,8 +382,9 @@ def filter_advance(u, y, gain, wrap_last):
 
 @njit(cache=True)
 def rbf_centre(i, nodes, low, high):
-    """Centre c_i of node ``i`` of ``nodes`` evenly spaced on ``[low, high]`` (as ``np.linspace``;
-    one node sits at ``(low + high) / 2``).
+    """Return the centre c_i of node ``i`` of ``nodes`` evenly spaced on ``[low, high]``.
+
+    The spacing is that of ``np.linspace``; one node sits at ``(low + high) / 2``.
     """
     if nodes == 1:
         return 0.5 * (low + high)
@@ -455,7 +458,9 @@ def project_columns(weights, bound):
 
 @njit(cache=True)
 def composite_weight_update(weights, activations, z, zn, learning_rate, gamma, sigma, dt, bound):
-    """One explicit-Euler step of the composite learning law, in place (docs/control_law.md#outer-loop step 5)::
+    """Advance ``weights`` by one explicit-Euler step of the composite learning law, in place.
+
+    The law is step 5 of docs/control_law.md#outer-loop::
 
         W' = Gamma [ S (z + gamma z_n)^T - sigma W ]        then the column projection
 
@@ -492,7 +497,9 @@ def composite_weight_update(weights, activations, z, zn, learning_rate, gamma, s
 
 @njit(cache=True)
 def fault_observer_update(fhat, z, zn, lambda_, gamma_f, sigma_f, dt, bound):
-    """One explicit-Euler step of the fault estimation observer, in place (docs/control_law.md#outer-loop step 6)::
+    """Advance ``fhat`` by one explicit-Euler step of the fault estimation observer, in place.
+
+    The observer is step 6 of docs/control_law.md#outer-loop::
 
         Fhat' = lambda [ z + gamma_F z_n - sigma_F Fhat ]     then |Fhat_a| <= bound per component
 
@@ -506,16 +513,18 @@ def fault_observer_update(fhat, z, zn, lambda_, gamma_f, sigma_f, dt, bound):
 
 @njit(cache=True)
 def _learning(params, memory):
-    """True while the step's simulated time (``FLAG_TIME``) is within the learning phase
-    (``CP_LEARNING_PHASE``, counted from step 0 of the run).
+    """Return True while the step's simulated time (``FLAG_TIME``) is within the learning phase.
+
+    The learning phase (``CP_LEARNING_PHASE``) is counted from step 0 of the run.
     """
     return memory[M_FLAGS, FLAG_TIME] < params[CP_LEARNING_PHASE]
 
 
 @njit(cache=True)
 def estimator_advance(params, base, dt, learning, drift, net, applied, z, zn, activations, estimate, weights, fhat):
-    """Advance the learning states of one loop from t_k to t_{k+1} (explicit Euler, docs/control_law.md#outer-loop
-    steps 4-6 and 2.5 step 3), all right-hand sides at t_k::
+    """Advance the learning states of one loop from t_k to t_{k+1}.
+
+    Explicit Euler (docs/control_law.md#outer-loop steps 4-6 and 2.5 step 3), all right-hand sides at t_k::
 
         xhat' = f_nom + W^T S + a_applied + Fhat + kappa z_n      serial-parallel estimation model
         W'    = Gamma [ S (z + gamma z_n)^T - sigma W ]            composite learning, projection
@@ -640,7 +649,9 @@ def consensus_errors(own_state, offset, nb_states, nb_weights, nb_offsets, leade
 @njit(cache=True)
 def outer_law(params, degree, z1, feedforward, v, started, memory, weights, activations,
               alpha_v, alpha_rate, net, drift, z2, zn, u_p):
-    """Designed acceleration of the outer loop at t_k (docs/control_law.md#outer-loop steps 1-7)::
+    """Compute the designed acceleration of the outer loop at t_k.
+
+    The law is steps 1-7 of docs/control_law.md#outer-loop::
 
         alpha_v = (f - k1 z1) / d                                   virtual velocity, m/s
         tau_1 alpha_f' = alpha_v - alpha_f                          command filter
@@ -694,8 +705,9 @@ def outer_law(params, degree, z1, feedforward, v, started, memory, weights, acti
 
 @njit(cache=True)
 def thrust_and_attitude(params, u_p, psi_d):
-    """Thrust and roll/pitch that realise the designed acceleration ``u_p`` (docs/control_law.md#thrust-and-attitude,
-    Remark 4).
+    """Compute the thrust and roll/pitch that realise the designed acceleration ``u_p``.
+
+    See docs/control_law.md#thrust-and-attitude and Remark 4.
 
     ``a = u_p + g e3`` (specific thrust, m/s^2, inertial). Its vertical part is kept at least
     ``min_vertical_accel``; its horizontal part is scaled down so the tilt from vertical is at most
@@ -756,9 +768,10 @@ def thrust_and_attitude(params, u_p, psi_d):
 
 @njit(cache=True)
 def achieved_acceleration(params, euler, thrust, out):
-    """``(T / m) R(Theta) e3 - g e3`` (3,) m/s^2: the acceleration the limited thrust ``T`` (N)
-    gives at the measured attitude ``euler`` (rad), the outer SPEM's input (anti-windup,
-    docs/control_law.md#anti-windup-and-projection).
+    """Compute ``(T / m) R(Theta) e3 - g e3`` (3,) m/s^2, the acceleration of the limited thrust, to ``out``.
+
+    It is the acceleration the limited thrust ``T`` (N) gives at the measured attitude ``euler``
+    (rad), the outer SPEM's input (anti-windup, docs/control_law.md#anti-windup-and-projection).
     """
     cf, sf = math.cos(euler[0]), math.sin(euler[0])
     ct, st = math.cos(euler[1]), math.sin(euler[1])
@@ -771,8 +784,9 @@ def achieved_acceleration(params, euler, thrust, out):
 
 @njit(cache=True)
 def outer_advance(params, dt, memory, weights, activations, alpha_v, net, drift, accel, z2, zn):
-    """Advance the outer loop's internal states from t_k to t_{k+1} (explicit Euler, right-hand
-    sides at t_k)::
+    """Advance the outer loop's internal states from t_k to t_{k+1}.
+
+    Explicit Euler, right-hand sides at t_k::
 
         vhat'  = f_nom(v) + W^T S(v) + a_ach + Fhat + kappa z_n     serial-parallel estimation model
         W'     = Gamma [ S (z2 + gamma z_n)^T - sigma W ]           composite learning, then projection
@@ -836,8 +850,9 @@ def euler_rate_transpose(euler, e, out):
 
 @njit(cache=True)
 def inner_drift(params, omega, thrust, out):
-    """Known rate dynamics ``f_w,nom(omega, T)`` (3,) rad/s^2 of the nominal model
-    (docs/model.md#control-oriented-model)::
+    """Compute the known rate dynamics ``f_w,nom(omega, T)`` (3,) rad/s^2 of the nominal model.
+
+    The model is that of docs/model.md#control-oriented-model::
 
         f_w,nom = J^-1 ( -omega x J omega + [-(K_beta + T h_M) tau_f p, -(K_beta + T h_M) tau_f q,
                                               -D_r r - c_Q T] )
@@ -855,8 +870,10 @@ def inner_drift(params, omega, thrust, out):
 
 @njit(cache=True)
 def control_effectiveness(params, thrust, out):
-    """Diagonal of ``G(T) = J^-1 diag((K_beta + T h_M) B_lat, (K_beta + T h_M) A_lon, K_tr)`` (3,),
-    rad/s^2 per rad, for ``u_m = (delta_lat, delta_lon, theta_tr)``; ``thrust`` T in N.
+    """Compute the diagonal of ``G(T) = J^-1 diag((K_beta + T h_M) B_lat, (K_beta + T h_M) A_lon, K_tr)``.
+
+    The diagonal is (3,), rad/s^2 per rad, for ``u_m = (delta_lat, delta_lon, theta_tr)``;
+    ``thrust`` T in N.
     """
     k = params[CP_K_BETA] + thrust * params[CP_H_M]
     out[0] = k * params[CP_B_LAT] / params[CP_J_X]
@@ -867,7 +884,9 @@ def control_effectiveness(params, thrust, out):
 @njit(cache=True)
 def inner_law(params, euler, omega, euler_d, thrust, started, memory, weights, activations,
               theta_rate, alpha_w, alpha_rate, net, drift, effectiveness, z3, z4, zn, u_m, applied):
-    """Limited moment inputs of the inner loop at t_k (docs/control_law.md#inner-loop)::
+    """Compute the limited moment inputs of the inner loop at t_k.
+
+    The law is that of docs/control_law.md#inner-loop::
 
         tau_2 Theta_df' = Theta_d - Theta_df                       command filter (yaw difference wrapped)
         z3 = Theta - Theta_df   (yaw wrapped to (-pi, pi])         attitude error, rad
@@ -953,8 +972,9 @@ def inner_law(params, euler, omega, euler_d, thrust, started, memory, weights, a
 
 @njit(cache=True)
 def inner_advance(params, dt, memory, weights, activations, euler_d, alpha_w, net, drift, applied, z4, zn):
-    """Advance the inner loop's internal states from t_k to t_{k+1} (explicit Euler, right-hand
-    sides at t_k)::
+    """Advance the inner loop's internal states from t_k to t_{k+1}.
+
+    Explicit Euler, right-hand sides at t_k::
 
         omegahat' = f_nom + W^T S + G u_m,lim + Fhat + kappa z_n    SPEM fed with the limited input
         W'        = Gamma [ S (z4 + gamma z_n)^T - sigma W ]         then projection
@@ -998,8 +1018,10 @@ def frobenius_norm(weights):
 
 @njit(cache=True)
 def first_non_finite_state(own_state, nb_states):
-    """``STEP_DONE`` (-1) when ``own_state`` (12,) and every row of ``nb_states`` (n_nb, 12) are
-    finite; otherwise 0 for the own state or ``1 + n`` for neighbour row ``n`` (the first found).
+    """Return the index of the first non-finite state, or ``STEP_DONE`` (-1) when all are finite.
+
+    ``STEP_DONE`` when ``own_state`` (12,) and every row of ``nb_states`` (n_nb, 12) are finite;
+    otherwise 0 for the own state or ``1 + n`` for neighbour row ``n`` (the first found).
     """
     for a in range(STATE_SIZE):
         if not math.isfinite(own_state[a]):
@@ -1014,8 +1036,9 @@ def first_non_finite_state(own_state, nb_states):
 @njit(cache=True)
 def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset, leader_link,
                     reference, dt, weights_p, weights_w, memory, u, status):
-    """One control step of one UH at t_k (docs/graph.md, docs/control_law.md): command ``u`` and ``status`` out,
-    internal states advanced to t_{k+1}.
+    """Run one control step of one UH at t_k (docs/graph.md, docs/control_law.md).
+
+    The command ``u`` and ``status`` are written out, the internal states advanced to t_{k+1}.
 
     Order: :func:`consensus_errors` -> :func:`outer_law` -> :func:`thrust_and_attitude` ->
     :func:`inner_law` -> :func:`outer_advance` (its SPEM fed with :func:`achieved_acceleration`)
@@ -1121,9 +1144,10 @@ def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset
 
 
 def compile_control_kernels() -> float:
-    """Compile :func:`uh_control_step` (and every kernel it calls) for the signature
-    :class:`UHController` uses (C-contiguous float64 arrays, float scalars) and fill numba's on-disk
-    cache.
+    """Compile :func:`uh_control_step` (and every kernel it calls) and fill numba's on-disk cache.
+
+    The signature compiled is the one :class:`UHController` uses (C-contiguous float64 arrays,
+    float scalars).
 
     Returns the wall time spent, s (compilation on a cold cache, loading on a warm one).
     """

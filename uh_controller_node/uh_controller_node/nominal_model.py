@@ -33,8 +33,10 @@ __all__ = ['nominal_model']
 
 
 def nominal_model(params: HelicopterParams, mismatch: float = 1.0) -> HelicopterParams:
-    """The controller's nominal model: the airframe ``params`` with the drag ``D_v`` and the torque
-    reaction ``c_Q`` multiplied by ``mismatch`` (the scenario's ``model_mismatch``, > 0).
+    """Return the controller's nominal model: ``params`` with its drag and torque reaction scaled.
+
+    It is the airframe ``params`` with the drag ``D_v`` and the torque reaction ``c_Q`` multiplied
+    by ``mismatch`` (the scenario's ``model_mismatch``, > 0).
 
     Raises
     ------

@@ -64,7 +64,7 @@ __all__ = ['hover_trim', 'SinusoidalDisturbance', 'disturbance_from_spec', 'Heli
 
 
 def hover_trim(params: HelicopterParams) -> np.ndarray:
-    """Inputs (4,) rad that hold a level hover at rest (at any heading: the model is symmetric in yaw).
+    """Return the inputs (4,) rad that hold a level hover at rest (at any heading: the model is symmetric in yaw).
 
     ``T_M = m g`` gives ``theta_col = (m g - c_M2) / c_M1``; zero yaw moment gives
     ``theta_tr = c_Q m g / K_tr``; zero cyclics.
@@ -204,7 +204,7 @@ class HelicopterPlant:
         self._fault_table = _k.fault_table(faults)
 
     def _fault_array(self) -> np.ndarray:
-        """The kernel fault table, rebuilt when the schedule changed since it was built."""
+        """Return the kernel fault table, rebuilt when the schedule changed since it was built."""
         if self._faults.revision != self._fault_revision:
             self._fault_table = _k.fault_table(self._faults)
             self._fault_revision = self._faults.revision
@@ -212,8 +212,9 @@ class HelicopterPlant:
 
     @property
     def disturbance(self) -> SinusoidalDisturbance | None:
-        """The force disturbance ``d_p(t)`` N, inertial (``None``: no force); assigning rebuilds the
-        kernel disturbance table.
+        """The force disturbance ``d_p(t)`` N, inertial (``None``: no force).
+
+        Assigning rebuilds the kernel disturbance table.
 
         Raises
         ------
@@ -232,7 +233,7 @@ class HelicopterPlant:
         self._dist_table = _k.disturbance_table(disturbance)
 
     def kernel_arrays(self) -> _k.PlantArrays:
-        """Copies of the arrays the kernels take for this plant (see :mod:`.plant_kernels`)."""
+        """Return copies of the arrays the kernels take for this plant (see :mod:`.plant_kernels`)."""
         return _k.PlantArrays(self._params_vec.copy(), self._fault_array().copy(), self._dist_table.copy(),
                               self.substeps)
 
@@ -252,8 +253,10 @@ class HelicopterPlant:
     # -- inputs -----------------------------------------------------------------------------
     @staticmethod
     def _command(u_cmd) -> np.ndarray:
-        """``u_cmd`` as a writable C-contiguous float64 (4,) array (no copy when it already is one;
-        a read-only array would make numba compile another specialisation of every kernel).
+        """Return ``u_cmd`` as a writable C-contiguous float64 (4,) array.
+
+        No copy is made when it already is one; a read-only array would make numba compile another
+        specialisation of every kernel.
         """
         u = np.ascontiguousarray(u_cmd, dtype=np.float64)
         if u.shape != (INPUT_SIZE,):
@@ -273,15 +276,15 @@ class HelicopterPlant:
         return self._inputs(u_cmd, 0.0)[0]
 
     def actual_inputs(self, u_cmd, t: float) -> np.ndarray:
-        """Inputs (4,) rad acting at time ``t`` s: limits, faults (eq. 6), limits again."""
+        """Return the inputs (4,) rad acting at time ``t`` s: limits, faults (eq. 6), limits again."""
         return self._inputs(u_cmd, t)[1]
 
     def fault_active(self, t: float) -> bool:
-        """True when any fault channel is past its onset at ``t`` s."""
+        """Return True when any fault channel is past its onset at ``t`` s."""
         return self._faults.active(t)
 
     def stuck(self, t: float) -> bool:
-        """True when an active channel is stuck (``rho = 0``, not compensable)."""
+        """Return True when an active channel is stuck (``rho = 0``, not compensable)."""
         return self._faults.stuck(t)
 
     def _force(self, t: float) -> np.ndarray:
@@ -291,8 +294,10 @@ class HelicopterPlant:
         return out
 
     def lumped_faults(self, u_cmd, t: float) -> tuple:
-        """True lumped faults ``(F_p (3,) m/s^2 inertial, F_w (3,) rad/s^2 body)`` at the current
-        state and time ``t`` s (docs/model.md, "Lumped faults"); exactly zero when no fault acts.
+        """Return the true lumped faults ``(F_p (3,) m/s^2 inertial, F_w (3,) rad/s^2 body)``.
+
+        They are taken at the current state and time ``t`` s (docs/model.md, "Lumped faults");
+        exactly zero when no fault acts.
 
         ``u_cmd`` is the controller's command (4,) rad; it is limited first.
         """
@@ -321,8 +326,10 @@ class HelicopterPlant:
 
 
 def plant_from_scenario(scenario, uh_id: int, params: HelicopterParams | None = None) -> HelicopterPlant:
-    """The plant of UH ``uh_id`` of a ``uh_topology`` ``Scenario``: its initial state, faults,
-    disturbance and substeps; ``params`` default to the scenario's helicopter file.
+    """Build the plant of UH ``uh_id`` of a ``uh_topology`` ``Scenario``.
+
+    Its initial state, faults, disturbance and substeps come from the scenario; ``params`` default
+    to the scenario's helicopter file.
     """
     if params is None:
         params = load_helicopter_params(scenario.helicopter)

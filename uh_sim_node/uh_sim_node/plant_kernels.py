@@ -215,8 +215,10 @@ def params_vector(params) -> np.ndarray:
 
 
 def fault_table(faults) -> np.ndarray:
-    """``faults`` (NUM_CHANNELS, FAULT_FIELDS) float64 from a ``FaultSchedule`` or an iterable of
-    ``ActuatorFault`` (a later fault of a channel replaces an earlier one).
+    """Build ``faults`` (NUM_CHANNELS, FAULT_FIELDS) float64 from a schedule or an iterable of faults.
+
+    The schedule is a ``FaultSchedule``; the faults are ``ActuatorFault`` (a later fault of a
+    channel replaces an earlier one).
     """
     out = np.zeros((NUM_CHANNELS, FAULT_FIELDS))
     for f in getattr(faults, 'faults', faults):
@@ -231,8 +233,10 @@ def fault_table(faults) -> np.ndarray:
 
 
 def disturbance_table(disturbance) -> np.ndarray:
-    """``disturbance`` (3, DISTURBANCE_FIELDS) float64 from a ``SinusoidalDisturbance`` (or any object
-    with ``amplitude``, ``frequency``, ``phase`` of 3 numbers); ``None`` gives zeros (no force).
+    """Build ``disturbance`` (3, DISTURBANCE_FIELDS) float64 from a ``SinusoidalDisturbance``.
+
+    Any object with ``amplitude``, ``frequency``, ``phase`` of 3 numbers will do; ``None`` gives
+    zeros (no force).
     """
     out = np.zeros((3, DISTURBANCE_FIELDS))
     if disturbance is not None:
@@ -284,8 +288,9 @@ def _actual_channel(params, faults, channel, u, t, t_switch):
 
 @njit(cache=True)
 def _actual(params, faults, uc, t, t_switch):
-    """Tuple of 4 actual inputs, rad, for the tuple ``uc`` of limited commands at time ``t`` s,
-    the faults' activity decided at ``t_switch`` s.
+    """Return the tuple of 4 actual inputs, rad, for the tuple ``uc`` of limited commands at time ``t`` s.
+
+    The faults' activity is decided at ``t_switch`` s.
     """
     return (_actual_channel(params, faults, U_COL, uc[0], t, t_switch),
             _actual_channel(params, faults, U_TR, uc[1], t, t_switch),
@@ -295,7 +300,7 @@ def _actual(params, faults, uc, t, t_switch):
 
 @njit(cache=True)
 def _any_fault_acts(faults, t_switch):
-    """True when some channel's fault acts at ``t_switch`` s."""
+    """Return True when some channel's fault acts at ``t_switch`` s."""
     for ch in range(NUM_CHANNELS):
         if faults[ch, F_PRESENT] != 0.0 and t_switch >= faults[ch, F_ACTS_FROM]:
             return True
@@ -304,7 +309,7 @@ def _any_fault_acts(faults, t_switch):
 
 @njit(cache=True)
 def _sinusoid(disturbance, axis, t):
-    """``A sin(w t + phase)`` N of one axis (exactly 0 when the amplitude is 0)."""
+    """Return ``A sin(w t + phase)`` N of one axis (exactly 0 when the amplitude is 0)."""
     a = disturbance[axis, D_AMPLITUDE]
     if a == 0.0:
         return 0.0
@@ -319,7 +324,7 @@ def _force(disturbance, t):
 
 @njit(cache=True)
 def _rates(params, y, u, d):
-    """Derivatives ``(v', Theta', omega')`` (tuple of 9) of docs/model.md ("Helicopter dynamics").
+    """Return the derivatives ``(v', Theta', omega')`` (tuple of 9) of docs/model.md ("Helicopter dynamics").
 
     ``y`` = ``(v (3) m/s, Theta (3) rad, omega (3) rad/s)`` tuple of 9, ``u`` the 4 actual inputs
     rad, ``d`` the force disturbance (3) N inertial. ``p' = v`` is left to the caller.
@@ -461,8 +466,10 @@ def state_derivative(x, u_actual, d_p, params, out):
 
 @njit(cache=True)
 def actual_inputs(u_cmd, t, t_switch, params, faults, out_cmd, out_actual):
-    """The input chain at time ``t`` s: ``out_cmd`` (4,) = limited command, ``out_actual`` (4,) =
-    faulted (eq. 6, activity decided at ``t_switch`` s) and limited again; all rad.
+    """Apply the input chain to ``u_cmd`` at time ``t`` s: limits, faults, limits again.
+
+    ``out_cmd`` (4,) = limited command, ``out_actual`` (4,) = faulted (eq. 6, activity decided at
+    ``t_switch`` s) and limited again; all rad.
     """
     uc = _clip_command(params, u_cmd)
     ua = _actual(params, faults, uc, t, t_switch)
@@ -504,8 +511,10 @@ def _lumped(params, x, uc, ua, out_p, out_w):
 
 @njit(cache=True)
 def lumped_faults_of_inputs(x, u_cmd_limited, u_actual, params, out_p, out_w):
-    """True lumped faults at state ``x`` (12,) for given inputs (4,) rad: the limited command and
-    the actual (faulted, limited) inputs. ``out_p`` (3,) m/s^2 inertial, ``out_w`` (3,) rad/s^2 body.
+    """Compute the true lumped faults at state ``x`` (12,) for given inputs (4,) rad.
+
+    The inputs are the limited command and the actual (faulted, limited) inputs. ``out_p`` (3,)
+    m/s^2 inertial, ``out_w`` (3,) rad/s^2 body.
     """
     uc = (u_cmd_limited[0], u_cmd_limited[1], u_cmd_limited[2], u_cmd_limited[3])
     ua = (u_actual[0], u_actual[1], u_actual[2], u_actual[3])
@@ -514,8 +523,9 @@ def lumped_faults_of_inputs(x, u_cmd_limited, u_actual, params, out_p, out_w):
 
 @njit(cache=True)
 def lumped_faults(x, u_cmd, t, params, faults, out_p, out_w):
-    """True lumped faults ``F_p``, ``F_w`` of one plant at state ``x`` and time ``t``
-    (docs/model.md, "Lumped faults").
+    """Compute the true lumped faults ``F_p``, ``F_w`` of one plant at state ``x`` and time ``t``.
+
+    See docs/model.md, "Lumped faults".
 
     Parameters
     ----------
@@ -548,8 +558,10 @@ def lumped_faults(x, u_cmd, t, params, faults, out_p, out_w):
 
 
 def compile_plant_kernels() -> float:
-    """Compile every public kernel for the signatures :class:`HelicopterPlant` uses (C-contiguous
-    float64 arrays, float times, int substeps) and fill numba's on-disk cache.
+    """Compile every public kernel and fill numba's on-disk cache.
+
+    The signatures compiled are those :class:`HelicopterPlant` uses (C-contiguous float64 arrays,
+    float times, int substeps).
 
     Returns the wall time spent, s (compilation on a cold cache, loading on a warm one).
     """

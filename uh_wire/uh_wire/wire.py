@@ -92,9 +92,10 @@ def state_to_msg(uh_id: int, k: int, t: float, x: np.ndarray):
 
 
 def received_states_to_msg(uh_id: int, k: int, dt: float, own, neighbours: dict, sample_steps: dict):
-    """``ReceivedStates`` of UH ``uh_id`` at step ``k``: its ``own`` state (sent at k) and the
-    ``neighbours`` states ``{j: x}`` it used, each stamped with the step it was sent at
-    (``sample_steps[j]``, time ``step * dt``).
+    """Build the ``ReceivedStates`` of UH ``uh_id`` at step ``k``.
+
+    It holds its ``own`` state (sent at k) and the ``neighbours`` states ``{j: x}`` it used, each
+    stamped with the step it was sent at (``sample_steps[j]``, time ``step * dt``).
     """
     states = [state_to_msg(uh_id, k, k * dt, own)]
     states += [state_to_msg(j, sample_steps[j], sample_steps[j] * dt, neighbours[j]) for j in sorted(neighbours)]
@@ -127,7 +128,7 @@ def msg_to_command(msg, expected_id: int | None = None) -> np.ndarray:
 
 
 def reference_to_msg(k: int, t: float, ref):
-    """``Reference`` from a core reference sample (position, velocity, acceleration, yaw, yaw_rate)."""
+    """Build a ``Reference`` from a core reference sample (position, velocity, acceleration, yaw, yaw_rate)."""
     msg = m.Reference()
     msg.header = _header(t)
     msg.step = int(k)
