@@ -59,8 +59,6 @@ LAZY_IMPORTS = {
     'uh_campaign/uh_campaign/spec.py:_base_scenario': _NOT_YET_MOVED,
     'uh_campaign/uh_campaign/spec.py:_generated_team': _NOT_YET_MOVED,
     'uh_campaign/uh_campaign/spec.py:_check_draw_zero': _NOT_YET_MOVED,
-    'uh_controller_node/uh_controller_node/controller.py:__init__': _NOT_YET_MOVED,
-    'uh_controller_node/uh_controller_node/fault_isolation.py:_setup': _NOT_YET_MOVED,
     'uh_report/uh_report/bag_metrics.py:read_team_bag': _NOT_YET_MOVED,
     'uh_report/uh_report/bag_metrics.py:_diagnose_mcap': _NOT_YET_MOVED,
     'uh_report/uh_report/bag_metrics.py:write_metrics_from_bag': _NOT_YET_MOVED,

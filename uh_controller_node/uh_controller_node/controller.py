@@ -39,6 +39,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from uh_core.airframe import load_helicopter_params
 from uh_core.layout import STATUS_FLAG, STATUS_INDEX, STATUS_LAYOUT, STATUS_VECTOR3, STATUS_WIDTH
 from uh_topology.graph import reachable_from
 
@@ -322,7 +323,6 @@ class UHController:
             raise ControllerError(f'gains are those of case {gains.case!r}, the controller is {case!r}')
         self.gains = gains
         if helicopter_params is None:
-            from uh_core.airframe import load_helicopter_params
             helicopter_params = load_helicopter_params(scenario.helicopter)
         self.model = nominal_model(helicopter_params, float(scenario.model_mismatch))
 

@@ -40,6 +40,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from uh_core.airframe import load_helicopter_params
+
+from .gains import ControllerGains
+from .nominal_model import nominal_model
+
 __all__ = ['CHANNELS', 'IsolationSettings', 'ChannelReport', 'IsolationStatus', 'FaultIsolator', 'input_deviation',
            'isolate_run', 'healthy_deviation_statistics', 'IDENTIFICATION_CODES', 'NOT_ISOLATED',
            'FIT_TOO_SHORT', 'BIAS_NOT_CONSTANT', 'CONFOUNDED', 'IDENTIFIABLE', 'IDENTIFICATION_TEXT']
@@ -609,11 +614,6 @@ def _setup(arrays, scenario, case, settings):
     The settings default to the scenario's learning phase; the arrays are float arrays, rows cut to
     the shortest.
     """
-    from uh_core.airframe import load_helicopter_params
-
-    from .gains import ControllerGains
-    from .nominal_model import nominal_model
-
     if settings is None:
         phase = ControllerGains.from_mapping(scenario.gains, case).learning_phase
         settings = IsolationSettings(learning_phase=float(phase))
