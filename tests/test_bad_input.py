@@ -1,5 +1,7 @@
-"""Bad input where it enters a run: scenario and gains YAML, the command lines of run_formation and
-inject_fault, bags given to the metrics reader. Each case asserts the exit status and the message
+"""Bad input where it enters a run.
+
+Scenario and gains YAML, the command lines of run_formation and inject_fault, bags given to the
+metrics reader. Each case asserts the exit status and the message
 (what was wrong, where, what is allowed) and that nothing was started or written.
 """
 import copy
@@ -37,7 +39,7 @@ def _paper_data() -> dict:
 
 
 def _write_scenario(tmp_path, data, gains=None) -> Path:
-    """A copy of the paper scenario (absolute gains path unless ``gains`` is a mapping to write)."""
+    """Write a copy of the paper scenario (absolute gains path unless ``gains`` is a mapping to write)."""
     data = copy.deepcopy(data)
     if gains is not None:
         (tmp_path / 'gains.yaml').write_text(yaml.safe_dump(gains))
@@ -137,7 +139,8 @@ GAINS_CASES = {
     'unknown_key': (lambda g: g['/**']['ros__parameters']['outer'].__setitem__('kk', 1.0),
                     r"gains\.yaml: outer: unknown key\(s\) \['kk'\]; allowed: k, r, "),
     'missing_key': (lambda g: g['/**']['ros__parameters']['outer'].pop('k'), r"missing key\(s\) \['k'\]"),
-    'wrong_type': (lambda g: g['/**']['ros__parameters'].__setitem__('beta', 'two'), r"beta must be a number, got 'two'"),
+    'wrong_type': (lambda g: g['/**']['ros__parameters'].__setitem__('beta', 'two'),
+                   r"beta must be a number, got 'two'"),
     'non_finite': (lambda g: g['/**']['ros__parameters']['inner'].__setitem__('k', float('inf')),
                    r'k must be finite, got inf'),
 }
@@ -292,7 +295,7 @@ def test_inject_fault_without_a_team_says_so(domain_id):
 # -- bags given to the metrics reader --------------------------------------------------------------
 @pytest.fixture(scope='module')
 def small_bag(tmp_path_factory):
-    """A complete team bag written by the project's bag writer: 40 steps of reference and states."""
+    """Write a complete team bag with the project's bag writer: 40 steps of reference and states."""
     from uh_runtime import messages as m
     from uh_runtime.cdr import codec
     from uh_wire.wire import reference_to_msg, state_to_msg
@@ -373,8 +376,10 @@ def test_bag_without_the_team_topics(tmp_path):
 
 
 def test_invalid_messages_in_a_bag_are_left_out_and_counted(tmp_path):
-    """A state with NaN or another UH's id (what a faulty publisher puts on the wire, and the recorder
-    faithfully keeps) is left out of the arrays like the receiving nodes leave it out.
+    """Leave out a state with NaN or another UH's id, as the receiving nodes do.
+
+    Such a state is what a faulty publisher puts on the wire, and the recorder faithfully keeps it;
+    it is left out of the arrays like the receiving nodes leave it out.
     """
     import numpy as np
     from uh_runtime import messages as m

@@ -18,7 +18,7 @@ PAPER_FILE = Path(PAPER.source)
 
 
 def _base():
-    """The paper scenario as a plain mapping, with inline gains (independent of the gains file)."""
+    """Give the paper scenario as a plain mapping, with inline gains (independent of the gains file)."""
     data = yaml.safe_load(PAPER_FILE.read_text())
     data['gains'] = {'k1': 1.0}
     return data
@@ -267,7 +267,8 @@ INVALID = {
     'unreachable_leader_no_link': (_m_unreachable_leader_no_link, E.UnreachableLeaderError,
                                    r'leader\(s\) \[1, 2, 3\]'),
     'unreachable_follower': (_m_unreachable_follower, E.UnreachableFollowerError,
-                             r'uhs\[4\]: no directed path from any leader to follower\(s\) \[5\]; every follower must hear'),
+                             r'uhs\[4\]: no directed path from any leader to follower\(s\) \[5\]; '
+                             r'every follower must hear'),
     'unreachable_followers_cycle': (_m_unreachable_followers_cycle, E.UnreachableFollowerError,
                                     r'follower\(s\) \[4, 5\]'),
     'self_loop': (_m_self_loop, E.SelfLoopError,
