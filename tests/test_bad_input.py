@@ -1,8 +1,8 @@
 """Bad input where it enters a run.
 
-The entry points are scenario and gains YAML, the command lines of run_formation and inject_fault, and bags given to the
-metrics reader. Each case asserts the exit status and the message (what was wrong, where, what is allowed) and that
-nothing was started or written.
+Scenario and gains YAML, the command lines of run_formation and inject_fault, bags given to the
+metrics reader. Each case asserts the exit status and the message
+(what was wrong, where, what is allowed) and that nothing was started or written.
 """
 import copy
 import math
@@ -376,9 +376,10 @@ def test_bag_without_the_team_topics(tmp_path):
 
 
 def test_invalid_messages_in_a_bag_are_left_out_and_counted(tmp_path):
-    """A state with NaN or another UH's id is left out of the arrays like the receiving nodes leave it out.
+    """Leave out a state with NaN or another UH's id, as the receiving nodes do.
 
-    Such a state is what a faulty publisher puts on the wire, and the recorder faithfully keeps.
+    Such a state is what a faulty publisher puts on the wire, and the recorder faithfully keeps it;
+    it is left out of the arrays like the receiving nodes leave it out.
     """
     import numpy as np
     from uh_runtime import messages as m

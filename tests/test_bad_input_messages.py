@@ -1,8 +1,8 @@
 """Bad messages on a running team (real processes over DDS).
 
-The messages are invalid fault injections, and states and commands carrying NaN/inf or another UH's id. Each is rejected
-by its receiver with the reason in its log, the receiver keeps its last valid input, the plant keeps running, nothing is
-taken down, and the bag stays complete.
+Invalid fault injections, states and commands carrying NaN/inf or another UH's id. Each is
+rejected by its receiver with the reason in its log, the receiver keeps its last valid input, the
+plant keeps running, nothing is taken down, and the bag stays complete.
 """
 import json
 import os

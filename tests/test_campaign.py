@@ -1,8 +1,9 @@
-"""uh-campaign: spec validation, reproducible draws, re-runs, failure recording, resume and a Dask cluster.
+"""Campaigns run by uh-campaign.
 
-In detail: spec validation (file, line, key), reproducible draws, resolved scenarios that re-run to the stored numbers,
-failure recording, resume after Ctrl-C, and a Dask cluster giving the local pool's rows. Runs are short (12 s simulated,
-faults from 2-4 s so that the fault estimation is scored) so the file stays well under a minute.
+Spec validation (file, line, key), reproducible draws, resolved scenarios that
+re-run to the stored numbers, failure recording, resume after Ctrl-C, and a Dask cluster giving
+the local pool's rows. Runs are short (12 s simulated, faults from 2-4 s so that the fault
+estimation is scored) so the file stays well under a minute.
 """
 import math
 import os
@@ -72,7 +73,7 @@ def _assert_same_rows(a: dict, b: dict, draws=None):
 
 @pytest.fixture(scope='module')
 def reference(tmp_path_factory):
-    """Run the reference campaign once on 2 local workers; return (spec path, campaign directory)."""
+    """Run the reference campaign once on 2 local workers; give (spec path, campaign directory)."""
     base = tmp_path_factory.mktemp('reference')
     spec = _write(base, REFERENCE_SPEC)
     out = base / 'out'
@@ -163,10 +164,9 @@ def test_bundled_specs_load_and_draw_from_their_own_seed():
     assert a['edges'] != b['edges']                    # a new random graph per draw
     # the delay sweep: the same draw at every delay, with one impairments seed per draw
     d0, d4 = resolve_scenario(sweep, 5, 0), resolve_scenario(sweep, 5, 6)
-    assert d0['uhs'] == d4['uhs'] and (d0['impairments']['delay_steps'],
-                                       d4['impairments']['delay_steps']) == (0, 20)
-    assert (d0['impairments']['seed'] == d4['impairments']['seed']
-            != resolve_scenario(sweep, 6, 0)['impairments']['seed'])
+    assert d0['uhs'] == d4['uhs'] and (d0['impairments']['delay_steps'], d4['impairments']['delay_steps']) == (0, 20)
+    other_draw = resolve_scenario(sweep, 6, 0)
+    assert d0['impairments']['seed'] == d4['impairments']['seed'] != other_draw['impairments']['seed']
 
 
 # ----------------------------------------------------------------------------------------------
@@ -205,8 +205,8 @@ def test_same_draws_with_one_worker_and_a_smaller_campaign(reference, tmp_path):
         assert (small / 'scenarios' / name).read_text() == (out / 'scenarios' / name).read_text()
     # and the same scenario again when resolved on its own, out of order
     spec = load_spec(spec_path)
-    assert (out / 'scenarios' / 'draw_000007_s01.yaml').read_text().endswith(
-        scenario_yaml(resolve_scenario(spec, 7, 1)))
+    expected = scenario_yaml(resolve_scenario(spec, 7, 1))
+    assert (out / 'scenarios' / 'draw_000007_s01.yaml').read_text().endswith(expected)
 
 
 def test_a_resolved_scenario_loads_alone_and_reruns_to_the_stored_metrics(reference, tmp_path):
@@ -312,10 +312,10 @@ def test_sigint_saves_what_is_done_and_a_rerun_completes_it(reference, tmp_path,
 
 
 def test_a_terminal_ctrl_c_while_the_workers_start_is_a_clean_interruption(tmp_path):
-    """A worker still starting when Ctrl-C reaches it must not die with a traceback; the main process handles it.
+    """Handle a terminal's Ctrl-C in the main process, also while the workers start.
 
-    A terminal sends Ctrl-C to the whole process group, workers included; a worker still starting is one before its
-    initializer ignores SIGINT.
+    A terminal sends Ctrl-C to the whole process group, workers included: one still starting (before
+    its initializer ignores SIGINT) must not die with a traceback; the main process handles it.
     """
     spec = _write(tmp_path, 'name: early\nscenario: paper\nruns: 4\nduration: 2.0\ncases: [proposed]\n')
     command = [str(Path(sys.executable).with_name('uh-campaign')), str(spec), '--out', str(tmp_path / 'out'),
@@ -368,7 +368,10 @@ def test_runs_lost_by_the_executor_are_not_stored_so_a_resume_runs_them_again():
 
 
 def test_the_script_runs_the_campaign_and_writes_its_report(tmp_path):
-    """scripts/campaign.sh (uh-campaign): the campaign, then (every run stored) uh-report DIR; not with --no-report."""
+    """Run scripts/campaign.sh (uh-campaign): the campaign, then its report.
+
+    Once every run is stored it runs uh-report DIR; not with --no-report.
+    """
     spec = _write(tmp_path, 'name: script\nscenario: paper\nruns: 2\nduration: 2.0\ncases: [proposed]\n')
     out = tmp_path / 'mc'
     root = Path(__file__).resolve().parents[1]

@@ -1,8 +1,8 @@
 """Controller gains as ROS parameters (docs/control_law.md#gains-as-parameters).
 
-They are declared from the scenario's gains file with descriptions and ranges, overridden by ``--params-file``, changed
-live through the parameter services, validated like the file (rejected with the reason, the old value kept), logged, and
-used by the control law from the next step.
+They are declared from the scenario's gains file with descriptions and ranges, overridden by
+``--params-file``, changed live through the parameter services, validated like the file (rejected
+with the reason, the old value kept), logged, and used by the control law from the next step.
 """
 import math
 from pathlib import Path
@@ -37,9 +37,9 @@ def test_gain_parameters_flatten_the_file_and_nest_back_to_the_same_gains():
 
 @pytest.fixture
 def controller(domain_id, tmp_path):
-    """Spin the UH3 controller node of the paper scenario (realtime) in a thread, with a caller context.
+    """Spin the UH3 controller node of the paper scenario (realtime) in a thread.
 
-    Its gains are overridden by a /**: parameters file.
+    Its gains are overridden by a /**: parameters file; the fixture also gives a caller context.
     """
     from uh_runtime import dds_backend as rt
     from uh_controller_node.controller_node import ControllerNode

@@ -1,6 +1,6 @@
 """Deterministic communication and sensing impairments (docs/campaigns.md#impairments).
 
-The tests cover the hash they draw from, the delivered step, the noise, the scenario's `impairments` key, and the same
+The hash they draw from, the delivered step, the noise, the scenario's `impairments` key, and the same
 received states in the in-process kernel, the object loop and the lockstep distributed stack.
 """
 import subprocess
@@ -21,7 +21,7 @@ IMPAIRED = ROOT / 'tests' / 'data' / 'paper_impaired.yaml'
 
 
 def _paper_with(impairments_text: str) -> str:
-    """Return the paper scenario's YAML with an `impairments` block appended (gains by absolute path)."""
+    """Give the paper scenario's YAML with an `impairments` block appended (gains by absolute path)."""
     text = (CONFIG / 'paper.yaml').read_text().replace('gains: paper_gains.yaml',
                                                       f'gains: {CONFIG / "paper_gains.yaml"}')
     return text + '\n' + impairments_text
@@ -179,10 +179,11 @@ def test_realtime_runs_refuse_impairments(tmp_path):
 @pytest.mark.dds
 @pytest.mark.slow
 def test_a_lockstep_distributed_run_with_impairments_equals_the_in_process_run(tmp_path, impaired):
-    """Delay, loss, noise and a dropout act in each receiving controller node with the functions the kernel calls.
+    """Check that a lockstep distributed run with impairments equals the in-process run.
 
-    The bag therefore equals the in-process run to the bit, and its /uhN/received holds exactly the states each
-    controller used.
+    Delay, loss, noise and a dropout act in each receiving controller node with the functions the
+    kernel calls, so the bag equals the in-process run to the bit, and its /uhN/received holds
+    exactly the states each controller used.
     """
     from rosbags.rosbag2 import Reader
     from team_runs import start_run

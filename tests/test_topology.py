@@ -7,7 +7,10 @@ import numpy as np
 import pytest
 import yaml
 
+from uh_controller_node import gains as controller_gains
+from uh_core.layout import CHANNEL_ALIASES
 from uh_topology import errors as E
+from uh_topology import schema
 from uh_topology.graph import (check_assumption1, check_lemma1, containment_pattern, containment_weights,
                                laplacian, laplacian_blocks, leader_tracking_matrix)
 from uh_topology.scenario import (FaultSpec, Scenario, bundled_scenarios, load_scenario, parse_scenario,
@@ -18,7 +21,7 @@ PAPER_FILE = Path(PAPER.source)
 
 
 def _base():
-    """Return the paper scenario as a plain mapping, with inline gains (independent of the gains file)."""
+    """Give the paper scenario as a plain mapping, with inline gains (independent of the gains file)."""
     data = yaml.safe_load(PAPER_FILE.read_text())
     data['gains'] = {'k1': 1.0}
     return data
@@ -560,3 +563,20 @@ def test_zero_weight_edge_is_no_link():
     s = _build(data)
     assert s.neighbours(2) == (1,) and s.neighbours(3) == (2,)
     np.testing.assert_array_equal(s.adjacency, PAPER.adjacency)
+
+
+def test_every_configuration_error_derives_from_the_schema_base():
+    for name in E.__all__:
+        assert issubclass(getattr(E, name), schema.ConfigError), name
+    assert controller_gains.GainsError is E.GainsError   # one class for gains file and gains content
+
+
+def test_the_schema_reads_with_file_line_and_key():
+    data, lines = schema.parse_yaml('a:\n  b: [1, 2]\n  c: lateral\n', 'x.yaml')
+    ctx = schema.ConfigContext('x.yaml', lines)
+    assert ctx.channel(data['a']['c'], ('a', 'c')) == CHANNEL_ALIASES['lateral']
+    with pytest.raises(E.WrongTypeError, match=r"^x.yaml:2: a.b: expected a list of 3 numbers \(m\), got list"):
+        ctx.vector(data['a']['b'], ('a', 'b'), unit='m')
+    with pytest.raises(E.InvalidValueError, match=r'^x.yaml:2: a.b\[1\]: value 2.0 out of range; allowed: \[0, 1\)$'):
+        ctx.number(data['a']['b'][1], ('a', 'b', 1), lo=0, hi=1, hi_open=True)
+    assert schema.format_key_path(('edges', 3, 'weight')) == 'edges[3].weight'

@@ -181,11 +181,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-import uh_topology
-from uh_controller_node.gains import CASES
-from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
+from uh_controller_node.gains import CASES, ControllerGains, GainsError
+from uh_core.airframe import load_helicopter_params
+from uh_core.layout import CHANNEL_NAMES
 from uh_topology import errors as E
-from uh_topology.scenario import _Ctx, _fmt, _parse_yaml, read_config_file, scenario_from_mapping
+from uh_topology.generate import GenerateError, team_mapping
+from uh_topology.scenario import DEFAULT_SETTLE_TIME, bundled_scenarios, parse_scenario, scenario_from_mapping
+from uh_topology.schema import (CONFIG_DIR, ConfigContext, format_key_path, parse_yaml, read_config_file,
+                                type_name, unit_suffix)
 
 from uh_team.campaign_store import METRIC_COLUMNS
 
@@ -195,7 +198,6 @@ __all__ = ['CampaignSpec', 'Draws', 'FaultDraws', 'GeneratorSpec', 'Sweep', 'loa
 
 #: Bundled specs are ``uh_topology/config/campaign_*.yaml``.
 BUNDLED_PREFIX = 'campaign_'
-_CONFIG_DIR = Path(uh_topology.__file__).resolve().parent / 'config'
 
 #: Default success thresholds: metric -> largest value that still succeeds (m).
 DEFAULT_SUCCESS = {'formation_rms_m': 0.05, 'containment_rms_m': 0.02}
@@ -225,8 +227,10 @@ _TOKEN = re.compile(r'([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]')
 
 @dataclass(frozen=True)
 class FaultDraws:
-    """The fault draws of ``draws.faults`` (module docstring). Ranges are ``(low, high)``;
-    ``channels`` are channel indices, ``candidates`` UH ids (None: every UH).
+    """The fault draws of ``draws.faults`` (module docstring).
+
+    Ranges are ``(low, high)``; ``channels`` are channel indices, ``candidates`` UH ids (None:
+    every UH).
     """
 
     faulted_uhs: tuple = (1, 1)
@@ -242,8 +246,9 @@ class FaultDraws:
 
 @dataclass(frozen=True)
 class Draws:
-    """The random draws of a campaign (module docstring): spreads in m and rad, ranges
-    ``(low, high)`` or None (not drawn).
+    """The random draws of a campaign (module docstring).
+
+    Spreads in m and rad, ranges ``(low, high)`` or None (not drawn).
     """
 
     position_spread: float = 0.0        # m
@@ -268,8 +273,10 @@ class GeneratorSpec:
 
 @dataclass(frozen=True)
 class Sweep:
-    """``parameter`` (the key path as written), ``path`` (its tokens: str keys, int list
-    indices) and ``values`` (numbers, as written).
+    """The swept parameter of a campaign.
+
+    ``parameter`` (the key path as written), ``path`` (its tokens: str keys, int list indices)
+    and ``values`` (numbers, as written).
     """
 
     parameter: str
@@ -337,9 +344,10 @@ class CampaignSpec:
 
     @property
     def digest(self) -> str:
-        """sha256 of the spec text, of the base scenario it resolves to (with its gains, so editing the
-        scenario or gains file is a new campaign) and of the ``--runs`` override, if any: identifies
-        the campaign a results file belongs to.
+        """Identify the campaign a results file belongs to.
+
+        The sha256 of the spec text, of the base scenario it resolves to (with its gains, so
+        editing the scenario or gains file is a new campaign) and of the ``--runs`` override, if any.
         """
         h = hashlib.sha256(self.text.encode())
         if self.base_mapping is not None:
@@ -349,8 +357,9 @@ class CampaignSpec:
         return h.hexdigest()
 
     def with_runs(self, runs: int) -> 'CampaignSpec':
-        """The spec with ``runs`` draws (the ``--runs`` override; the spec's own number changes
-        nothing, not even the digest).
+        """Give the spec with ``runs`` draws.
+
+        The ``--runs`` override; the spec's own number changes nothing, not even the digest.
         """
         if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
             raise E.InvalidValueError(f'--runs must be an integer >= 1, got {runs!r}')
@@ -367,7 +376,7 @@ class CampaignSpec:
 
     def line(self, *path) -> int | None:
         """Line of a key path of the spec."""
-        return _Ctx(self.source, self.lines).line(path)
+        return ConfigContext(self.source, self.lines).line(path)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -376,26 +385,30 @@ class CampaignSpec:
 
 def bundled_specs() -> tuple:
     """Names of the bundled campaign specs (``uh_topology/config/campaign_*.yaml``)."""
-    return tuple(sorted(p.stem for p in _CONFIG_DIR.glob(f'{BUNDLED_PREFIX}*.yaml')))
+    return tuple(sorted(p.stem for p in CONFIG_DIR.glob(f'{BUNDLED_PREFIX}*.yaml')))
 
 
 def load_spec(path_or_name) -> CampaignSpec:
-    """Load and validate a campaign spec: a YAML file, or the name of a bundled spec
-    (``campaign_paper_faults``). Raises the :mod:`uh_topology.errors` types (module docstring).
+    """Load and validate a campaign spec.
+
+    A YAML file, or the name of a bundled spec (``campaign_paper_faults``). Raises the
+    :mod:`uh_topology.errors` types (module docstring).
     """
     path, content = read_config_file(path_or_name, 'campaign spec', bundled_specs)
     return parse_spec(content, source=str(path), base_dir=path.resolve().parent)
 
 
 def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> CampaignSpec:
-    """Parse and validate spec YAML text; ``base_dir`` resolves a relative ``scenario`` (default:
-    the current directory). Also validates the resolved scenarios of draw 0 (module docstring).
+    """Parse and validate spec YAML text.
+
+    ``base_dir`` resolves a relative ``scenario`` (default: the current directory). Also validates
+    the resolved scenarios of draw 0 (module docstring).
     """
-    data, lines = _parse_yaml(text, source)
+    data, lines = parse_yaml(text, source)
     if data is None:
         raise E.MissingFieldError('the campaign spec is empty; required keys: ' + ', '.join(_TOP_REQUIRED)
                                   + ' and one of scenario, generator', source=source)
-    ctx = _Ctx(source, lines)
+    ctx = ConfigContext(source, lines)
     base = Path(base_dir) if base_dir is not None else Path.cwd()
     top = ctx.mapping(data, (), _TOP_REQUIRED, _TOP_OPTIONAL, what='a campaign spec mapping')
 
@@ -423,7 +436,7 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
     if generator is None:
         scenario_file, base_mapping = _base_scenario(ctx, top['scenario'], base)
         base_duration = float(base_mapping['duration'])
-        base_settle = float(base_mapping.get('settle_time', 20.0))
+        base_settle = float(base_mapping.get('settle_time', DEFAULT_SETTLE_TIME))
     else:
         base_duration, base_settle = 60.0, 20.0
     duration = base_duration if duration is None else duration
@@ -472,10 +485,10 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
 
 
 def _range(ctx, value, path, *, lo=None, hi=None, lo_open=False, hi_open=False, unit='', integer=False):
-    """A ``[low, high]`` list with ``low <= high`` within the given bounds."""
+    """Read a ``[low, high]`` list with ``low <= high`` within the given bounds."""
     if not isinstance(value, list) or len(value) != 2:
-        raise ctx.error(E.WrongTypeError, path, f'expected a range [low, high]{_unit(unit)}, got '
-                        f'{_tname(value)} {value!r}')
+        raise ctx.error(E.WrongTypeError, path, f'expected a range [low, high]{unit_suffix(unit)}, got '
+                        f'{type_name(value)} {value!r}')
     if integer:
         low, high = (ctx.integer(v, path + (i,), lo=lo) for i, v in enumerate(value))
         if hi is not None and high > hi:
@@ -489,18 +502,8 @@ def _range(ctx, value, path, *, lo=None, hi=None, lo_open=False, hi_open=False, 
     return low, high
 
 
-def _unit(unit) -> str:
-    return f' ({unit})' if unit else ''
-
-
-def _tname(value) -> str:
-    return 'null' if value is None else type(value).__name__
-
-
 def _base_scenario(ctx, value, base: Path):
     """(absolute file, self-contained mapping) of the base scenario ``value``."""
-    from uh_topology.scenario import bundled_scenarios, parse_scenario
-
     name = ctx.string(value, ('scenario',))
     try:
         path, text = read_config_file(name, 'scenario', bundled_scenarios, base_dir=base)
@@ -508,7 +511,7 @@ def _base_scenario(ctx, value, base: Path):
         raise ctx.error(E.ScenarioNotFoundError, ('scenario',), exc.message) from None
     # its own errors name its own file and line
     scenario = parse_scenario(text, source=str(path), base_dir=path.resolve().parent)
-    data, _ = _parse_yaml(text, str(path))
+    data, _ = parse_yaml(text, str(path))
     data['helicopter'] = scenario.helicopter           # a bundled name or an absolute path
     gains = scenario.gains
     if gains:
@@ -548,7 +551,7 @@ def _generator(ctx, raw) -> GeneratorSpec:
 def _cases(ctx, raw) -> tuple:
     if not isinstance(raw, list) or not raw:
         raise ctx.error(E.WrongTypeError, ('cases',), f'expected a non-empty list of controller cases '
-                        f'({", ".join(CASES)}), got {_tname(raw)} {raw!r}')
+                        f'({", ".join(CASES)}), got {type_name(raw)} {raw!r}')
     cases = []
     for i, case in enumerate(raw):
         case = ctx.string(case, ('cases', i), choices=CASES)
@@ -588,7 +591,7 @@ def _fault_draws(ctx, raw, n_uhs: int) -> FaultDraws:
         cands = raw['candidates']
         if not isinstance(cands, list) or not cands:
             raise ctx.error(E.WrongTypeError, path + ('candidates',),
-                            f'expected a non-empty list of UH ids, got {_tname(cands)} {cands!r}')
+                            f'expected a non-empty list of UH ids, got {type_name(cands)} {cands!r}')
         known = set(range(1, n_uhs + 1))
         for i, uh in enumerate(cands):
             ctx.uh_id(uh, path + ('candidates', i), known)
@@ -601,7 +604,7 @@ def _fault_draws(ctx, raw, n_uhs: int) -> FaultDraws:
         chans = raw['channels']
         if not isinstance(chans, list) or not chans:
             raise ctx.error(E.WrongTypeError, path + ('channels',),
-                            f'expected a non-empty list of channels, got {_tname(chans)} {chans!r}')
+                            f'expected a non-empty list of channels, got {type_name(chans)} {chans!r}')
         channels = tuple(_channel(ctx, c, path + ('channels', i)) for i, c in enumerate(chans))
         for i, c in enumerate(channels):
             if c in channels[:i]:
@@ -623,16 +626,10 @@ def _fault_draws(ctx, raw, n_uhs: int) -> FaultDraws:
 
 
 def _channel(ctx, value, path) -> int:
-    if isinstance(value, str):
-        if value not in CHANNEL_ALIASES:
-            raise ctx.error(E.InvalidValueError, path,
-                            f'unknown channel {value!r}; allowed: 0..3 or {", ".join(CHANNEL_ALIASES)}')
-        return CHANNEL_ALIASES[value]
-    ch = ctx.integer(value, path, lo=0, what='a channel index 0..3 or name')
-    if ch > 3:
-        raise ctx.error(E.InvalidValueError, path, f'channel {ch} out of range; allowed: 0..3 or '
-                        f'{", ".join(CHANNEL_ALIASES)}')
-    return ch
+    """Read a channel of the fault draws: a name, or an integer index >= 0 (then 0..3)."""
+    if not isinstance(value, str):
+        value = ctx.integer(value, path, lo=0, what='a channel index 0..3 or name')
+    return ctx.channel(value, path)
 
 
 def _key_path(text: str) -> tuple:
@@ -656,7 +653,7 @@ def _sweep(ctx, raw, draws: Draws) -> Sweep:
     values = raw['values']
     if not isinstance(values, list) or not values:
         raise ctx.error(E.WrongTypeError, path + ('values',),
-                        f'expected a non-empty list of numbers, got {_tname(values)} {values!r}')
+                        f'expected a non-empty list of numbers, got {type_name(values)} {values!r}')
     for i, v in enumerate(values):
         ctx.number(v, path + ('values', i))
         if any(v == w for w in values[:i]):
@@ -665,7 +662,7 @@ def _sweep(ctx, raw, draws: Draws) -> Sweep:
 
 
 def _drawn_by(tokens: tuple, draws: Draws) -> str | None:
-    """The draws key that sets the scenario entry at ``tokens`` (None if no draw does)."""
+    """Name the draws key that sets the scenario entry at ``tokens`` (None if no draw does)."""
     if tokens[:2] == ('impairments', 'seed'):
         return 'the campaign (a seed per draw)'
     if tokens[:1] == ('model_mismatch',) and draws.model_mismatch is not None:
@@ -687,24 +684,27 @@ def _drawn_by(tokens: tuple, draws: Draws) -> str | None:
 
 
 def draw_generators(seed: int, draw: int) -> dict:
-    """The independent random streams of draw ``draw``: children of
-    ``numpy.random.default_rng([seed, draw])`` in a fixed order, by name.
+    """Give the independent random streams of draw ``draw``, by name.
+
+    They are the children of ``numpy.random.default_rng([seed, draw])``, in a fixed order.
     """
     children = np.random.default_rng([seed, draw]).spawn(len(_STREAMS))
     return dict(zip(_STREAMS, children))
 
 
 def scenario_file_name(spec: CampaignSpec, draw: int, sweep_index: int) -> str:
-    """``scenarios/draw_000042.yaml`` (``..._s03.yaml`` with a sweep), relative to the campaign
-    directory.
+    """Name the file of a resolved scenario, relative to the campaign directory.
+
+    ``scenarios/draw_000042.yaml`` (``..._s03.yaml`` with a sweep).
     """
     suffix = f'_s{sweep_index:02d}' if spec.sweep is not None else ''
     return f'scenarios/draw_{draw:06d}{suffix}.yaml'
 
 
 def resolve_scenario(spec: CampaignSpec, draw: int, sweep_index: int = 0) -> dict:
-    """The scenario mapping of (``draw``, ``sweep_index``) (module docstring, *The resolved
-    scenarios*). Plain data, ready for :func:`scenario_yaml`. Raises a
+    """Give the scenario mapping of (``draw``, ``sweep_index``).
+
+    See the module docstring, *The resolved scenarios*. Plain data, ready for :func:`scenario_yaml`. Raises a
     :class:`~uh_topology.errors.ScenarioError` when a generated draw finds no valid graph; the
     mapping itself is validated when it is loaded.
     """
@@ -771,11 +771,11 @@ def _draw_faults(fd: FaultDraws, ids: list, rng) -> list:
 
 
 def _generated_team(spec: CampaignSpec, draw: int, rng) -> dict:
-    """A generated team (:func:`uh_topology.generate.team_mapping`) with a random graph that passes
-    the topology checks, redrawn at most ``generator.attempts`` times.
-    """
-    from uh_topology.generate import GenerateError, team_mapping
+    """Generate a team with a random graph that passes the topology checks.
 
+    The team is that of :func:`uh_topology.generate.team_mapping`; the graph is redrawn at most
+    ``generator.attempts`` times.
+    """
     g = spec.generator
     try:
         data = team_mapping(g.leaders, g.followers, duration=spec.duration, faults=False)
@@ -814,7 +814,7 @@ def _set_path(data, tokens: tuple, value) -> None:
     node = data
     for k, token in enumerate(tokens):
         last = k == len(tokens) - 1
-        where = _fmt(tokens[:k + 1])
+        where = format_key_path(tokens[:k + 1])
         if isinstance(token, int):
             if not isinstance(node, list) or token >= len(node):
                 raise KeyError(f'{where}: no such list item in the resolved scenario')
@@ -829,8 +829,9 @@ def _set_path(data, tokens: tuple, value) -> None:
 
 
 def scenario_yaml(mapping: dict, header: str = '') -> str:
-    """The YAML text of a resolved scenario (floats written exactly: loading it gives the same
-    numbers), after ``header`` (comment lines).
+    """Write a resolved scenario as YAML text, after ``header`` (comment lines).
+
+    Floats are written exactly: loading the text gives the same numbers.
     """
     dumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
     body = yaml.dump(mapping, Dumper=dumper, sort_keys=False, default_flow_style=None, width=110)
@@ -842,12 +843,10 @@ def scenario_yaml(mapping: dict, header: str = '') -> str:
 
 
 def _check_draw_zero(spec: CampaignSpec) -> None:
-    """Build the resolved scenario of draw 0 for every sweep value, the gains of every case and the
-    airframe; report an error at the spec key it comes from.
-    """
-    from uh_controller_node.gains import ControllerGains, GainsError
-    from uh_core.airframe import load_helicopter_params
+    """Build the resolved scenario of draw 0 for every sweep value, the gains of every case and the airframe.
 
+    An error is reported at the spec key it comes from.
+    """
     for s in range(len(spec.sweep_values)):
         try:
             data = resolve_scenario(spec, 0, s)
@@ -895,4 +894,4 @@ def _at_spec_key(spec: CampaignSpec, exc: E.ScenarioError, sweep_index: int) -> 
     what = 'draw 0' + (f' with {sweep.parameter} = {sweep.values[sweep_index]!r}' if sweep is not None else '')
     message = f'{exc.message} (the resolved scenario of {what}, at its key {exc.path or "(top)"})'
     kwargs = {'ids': exc.ids} if hasattr(exc, 'ids') else {}
-    return type(exc)(message, path=_fmt(key), source=spec.source, line=spec.line(*key), **kwargs)
+    return type(exc)(message, path=format_key_path(key), source=spec.source, line=spec.line(*key), **kwargs)

@@ -182,7 +182,7 @@ class ControllerGains:
         return gains.for_case(case)
 
     def for_case(self, case: str) -> 'ControllerGains':
-        """These gains with the changes of comparison case ``case`` (docs/control_law.md#comparison-cases) applied.
+        """Give these gains with the changes of comparison case ``case`` (docs/control_law.md#comparison-cases).
 
         ``case1``: ``beta = 1``. ``case2``: ``gamma = gamma_F = kappa = 0`` in both loops.
         Nothing else differs. Applied to the proposed gains only (a case is not stacked on another).
@@ -311,8 +311,10 @@ STRUCTURAL_KEYS = ('rbf_nodes', 'rbf_low', 'rbf_high', 'rbf_width')
 
 @dataclass(frozen=True)
 class GainParameter:
-    """One gain as a ROS parameter: ``name`` (``beta``, ``outer.k`` ...), default ``value``,
-    ``description``, lower bound ``minimum`` (None: none) and ``read_only``.
+    """One gain as a ROS parameter.
+
+    ``name`` (``beta``, ``outer.k`` ...), default ``value``, ``description``, lower bound
+    ``minimum`` (None: none) and ``read_only``.
     """
 
     name: str
@@ -323,9 +325,10 @@ class GainParameter:
 
 
 def gain_parameters(mapping, source: str = 'gains') -> list:
-    """The gains of ``mapping`` (plain or ``/**: ros__parameters:``, validated as by
-    :meth:`ControllerGains.from_mapping`) as a list of :class:`GainParameter`, dotted names for
-    the loops (``outer.k``), in file order.
+    """List the gains of ``mapping`` as :class:`GainParameter`, in file order.
+
+    ``mapping`` is plain or ``/**: ros__parameters:``, validated as by
+    :meth:`ControllerGains.from_mapping`; the loops' gains have dotted names (``outer.k``).
     """
     ControllerGains.from_mapping(mapping, 'proposed', source)   # validate first: clear errors
     data = _unwrap(mapping, source)

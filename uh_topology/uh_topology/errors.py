@@ -1,17 +1,19 @@
-"""Exception types of scenario loading and topology validation (docs/graph.md, docs/scenario.md).
+"""Exception types of configuration loading and topology validation (docs/graph.md, docs/scenario.md).
 
-Every error is a :class:`ScenarioError` (a ``ValueError``) and carries where it happened:
+Every error is a :class:`ConfigError` (a ``ValueError``); those of a scenario, of the files it
+names (gains) and of a campaign spec are :class:`ScenarioError`. Each carries where it happened:
 
-* ``source`` -- the scenario file (or ``None`` for in-memory data),
+* ``source`` -- the file (or ``None`` for in-memory data),
 * ``line`` -- the 1-based line in that file when known,
-* ``path`` -- the key path inside the scenario, e.g. ``edges[3].weight``.
+* ``path`` -- the key path inside the file, e.g. ``edges[3].weight``.
 
 The message reads ``<source>:<line>: <path>: <what was wrong>; <what is allowed>``.
+:mod:`uh_topology.schema` reads the YAML and builds these errors.
 """
 from __future__ import annotations
 
 __all__ = [
-    'ScenarioError', 'ScenarioNotFoundError', 'ScenarioSyntaxError', 'SchemaError',
+    'ConfigError', 'ScenarioError', 'ScenarioNotFoundError', 'ScenarioSyntaxError', 'SchemaError',
     'UnknownKeyError', 'MissingFieldError', 'WrongTypeError', 'NonFiniteError',
     'InvalidValueError', 'DuplicateKeyError', 'TopologyError', 'DuplicateIdError',
     'IdNumberingError', 'UnknownIdError', 'SelfLoopError', 'NegativeWeightError',
@@ -22,17 +24,17 @@ __all__ = [
 ]
 
 
-class ScenarioError(ValueError):
-    """Base class: a scenario that cannot be used.
+class ConfigError(ValueError):
+    """Base class: a configuration file (or in-memory configuration) that cannot be used.
 
     Parameters
     ----------
     message : str
         What was wrong and what is allowed.
     path : str, optional
-        Key path inside the scenario (``edges[3].weight``).
+        Key path inside the file (``edges[3].weight``).
     source : str, optional
-        File the scenario came from.
+        File the configuration came from.
     line : int, optional
         1-based line in ``source``.
     """
@@ -51,6 +53,10 @@ class ScenarioError(ValueError):
         if path:
             where += f'{path}: '
         super().__init__(where + message)
+
+
+class ScenarioError(ConfigError):
+    """A scenario, a file it names, or a campaign spec that cannot be used."""
 
 
 class ScenarioNotFoundError(ScenarioError):
@@ -90,9 +96,12 @@ class DuplicateKeyError(SchemaError):
 
 
 class GainsError(ScenarioError):
-    """Controller gains that cannot be used: the gains file named by the scenario cannot be read or
-    is not a mapping, or an entry is unknown, missing or invalid, or the controller case is unknown
-    (raised by ``uh_controller_node.gains`` too).
+    """Controller gains that cannot be used.
+
+    The gains file named by the scenario cannot be read or is not a mapping (raised here, by
+    ``Scenario.gains``), or an entry is unknown, missing or invalid, or the controller case is
+    unknown (raised by the gains loader ``uh_controller_node.gains``, which exports this class).
+    One class for both, so that a caller building a controller from a scenario catches either.
     """
 
 
@@ -157,8 +166,10 @@ class UnreachableFollowerError(TopologyError):
 
 
 class LaplacianConditionError(TopologyError):
-    """Lemma 1 fails: L1 has an eigenvalue with non-positive real part, or -L1^-1 L2 is not a
-    matrix of convex weights with the reachability pattern of the graph.
+    """Lemma 1 fails.
+
+    L1 has an eigenvalue with non-positive real part, or -L1^-1 L2 is not a matrix of convex
+    weights with the reachability pattern of the graph.
     """
 
 

@@ -12,10 +12,13 @@ reads from YAML) with N leaders and M followers:
 * **followers** ``N+1..N+M``: follower j (0-based) hears leaders ``j mod N`` and ``(j+1) mod N``
   (two leaders; one when N = 1) and the previous follower (cyclically; none when M = 1);
 * initial states at rest, level, a few metres from the formation slot (deterministic
-  perturbations), the paper's reference, disturbance and gains;
+  perturbations), the paper's control period, substeps, model mismatch, helicopter, reference,
+  disturbance and gains;
 * the paper's actuator faults (docs/scenario.md) from t = 10 s, repeated over the team: the faults of
   UH 2 on leaders 2, 5, 8, ..., those of UH 3 on leaders 3, 6, 9, ..., those of UH 5 on every
   second follower.
+
+The paper's values are read from the bundled ``uh_topology/config/paper.yaml``, their one home.
 
 Every follower hears a leader directly, so ``L1`` is strictly diagonally dominant (non-singular)
 and ``-L1^-1 L2`` has non-negative rows summing to 1 (the topology checks of
@@ -24,10 +27,15 @@ sure). :func:`split_team` chooses N and M for a team size.
 """
 from __future__ import annotations
 
+import copy
+import functools
 import math
 from pathlib import Path
 
 import yaml
+
+from .scenario import load_scenario
+from .schema import CONFIG_DIR
 
 __all__ = ['GenerateError', 'split_team', 'team_mapping', 'write_team_scenario', 'MIN_SPACING',
            'LINK_EVERY', 'FOLLOWERS_PER_LEADER']
@@ -39,16 +47,10 @@ LINK_EVERY = 4
 #: Default followers per leader of :func:`split_team` (the issue asks for 1 to 3).
 FOLLOWERS_PER_LEADER = 1.5
 
-_CONFIG_DIR = Path(__file__).resolve().parent / 'config'
-
-# The paper's faults (docs/scenario.md) as patterns: UH 2's, UH 3's and UH 5's.
-_FAULTS_A = ({'channel': 'collective', 'rho': 0.8, 'bias_amplitude': 0.01, 'bias_frequency': 0.5},
-             {'channel': 'lateral', 'rho': 0.85, 'bias_constant': 0.005})
-_FAULTS_B = ({'channel': 'longitudinal', 'rho': 0.75, 'bias_constant': -0.005},
-             {'channel': 'tail_rotor', 'rho': 0.8, 'bias_constant': 0.01})
-_FAULTS_C = ({'channel': 'collective', 'rho': 0.85, 'bias_constant': -0.01},
-             {'channel': 'lateral', 'rho': 0.8, 'bias_amplitude': 0.005, 'bias_frequency': 0.3})
-_FAULT_ONSET = 10.0
+#: The paper scenario, whose values a generated team takes.
+PAPER_SCENARIO = CONFIG_DIR / 'paper.yaml'
+# The UHs of the paper whose faults (docs/scenario.md) are repeated over a generated team.
+_FAULT_PATTERN_UHS = (2, 3, 5)
 
 
 class GenerateError(ValueError):
@@ -69,10 +71,28 @@ def split_team(size: int, followers_per_leader: float = FOLLOWERS_PER_LEADER) ->
     return n, size - n
 
 
+@functools.lru_cache(maxsize=None)
+def _paper() -> dict:
+    """Read the paper scenario's mapping once (callers copy what they put in a team)."""
+    return yaml.safe_load(PAPER_SCENARIO.read_text())
+
+
+def _paper_radius() -> float:
+    """Give the paper's formation radius ``|h_1|``, m (3 m)."""
+    return math.hypot(*_paper()['uhs'][0]['offset'])
+
+
+def _fault_pattern(uh_id: int) -> tuple:
+    """Give the paper's faults of UH ``uh_id`` as ``(fault without uh and onset_time, onset_time)`` pairs."""
+    return tuple(({k: v for k, v in f.items() if k not in ('uh', 'onset_time')}, f['onset_time'])
+                 for f in _paper()['faults'] if f['uh'] == uh_id)
+
+
 def _radius(n_leaders: int) -> float:
+    paper = _paper_radius()
     if n_leaders < 2:
-        return 3.0
-    return max(3.0, MIN_SPACING / (2.0 * math.sin(math.pi / n_leaders)))
+        return paper
+    return max(paper, MIN_SPACING / (2.0 * math.sin(math.pi / n_leaders)))
 
 
 def _perturbation(uh_id: int) -> list:
@@ -83,7 +103,7 @@ def _perturbation(uh_id: int) -> list:
 
 def team_mapping(n_leaders: int, n_followers: int, *, duration: float = 60.0, faults: bool = True,
                  gains=None, name: str | None = None) -> dict:
-    """Mapping of a valid scenario with ``n_leaders`` leaders and ``n_followers`` followers.
+    """Build the mapping of a valid scenario with ``n_leaders`` leaders and ``n_followers`` followers.
 
     Parameters
     ----------
@@ -110,12 +130,16 @@ def team_mapping(n_leaders: int, n_followers: int, *, duration: float = 60.0, fa
             raise GenerateError(f'number of {label} must be an integer >= 1, got {value!r}')
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise GenerateError(f'duration must be a finite number of seconds > 0, got {duration!r}')
-    steps = round(duration / 0.01)
-    if steps < 1 or abs(steps * 0.01 - duration) > 1e-9 * max(1.0, duration):
-        raise GenerateError(f'duration {duration} s is not a whole number of 0.01 s control periods')
+    paper = _paper()
+    dt = paper['dt']
+    steps = round(duration / dt)
+    if steps < 1 or abs(steps * dt - duration) > 1e-9 * max(1.0, duration):
+        raise GenerateError(f'duration {duration} s is not a whole number of {dt} s control periods')
     n, m = n_leaders, n_followers
     radius = _radius(n)
-    start = (0.0, 0.0, 10.0)        # the paper reference at t = 0: center + (0, -radius, 0)
+    centre, r0 = paper['reference']['center'], paper['reference']['radius']
+    start = (centre[0], centre[1] - r0, centre[2])   # the paper reference at t = 0: center + (0, -radius, 0)
+    pattern_a, pattern_b, pattern_c = (_fault_pattern(uh) for uh in _FAULT_PATTERN_UHS)
     uhs, edges, links, fault_list = [], [], [], []
     slots = {}
     for i in range(1, n + 1):
@@ -130,9 +154,9 @@ def team_mapping(n_leaders: int, n_followers: int, *, duration: float = 60.0, fa
         if (i - 1) % LINK_EVERY == 0:
             links.append({'uh': i, 'weight': 1.0})
         if faults and i % 3 == 2:
-            fault_list += [dict(f, uh=i, onset_time=_FAULT_ONSET) for f in _FAULTS_A]
+            fault_list += [dict(f, uh=i, onset_time=onset) for f, onset in pattern_a]
         elif faults and i % 3 == 0:
-            fault_list += [dict(f, uh=i, onset_time=_FAULT_ONSET) for f in _FAULTS_B]
+            fault_list += [dict(f, uh=i, onset_time=onset) for f, onset in pattern_b]
     for j in range(m):
         k = n + 1 + j
         heard = sorted({1 + j % n, 1 + (j + 1) % n})
@@ -146,20 +170,18 @@ def team_mapping(n_leaders: int, n_followers: int, *, duration: float = 60.0, fa
                     'initial_state': {'position': [round(start[a] + 0.5 * centre[a] + d[a], 6)
                                                    for a in range(3)]}})
         if faults and j % 2 == 1:
-            fault_list += [dict(f, uh=k, onset_time=_FAULT_ONSET) for f in _FAULTS_C]
+            fault_list += [dict(f, uh=k, onset_time=onset) for f, onset in pattern_c]
     mapping = {
         'name': name or f'team_{n}l{m}f',
         'description': f'generated team: {n} leaders in a ring around the virtual leader, {m} followers '
                        'each hearing two leaders and one follower (uh_topology.generate)',
-        'dt': 0.01, 'substeps': 5, 'duration': float(duration),
-        'settle_time': min(20.0, float(duration) / 2.0), 'model_mismatch': 0.9,
-        'helicopter': 'helicopter',
-        'gains': str(gains) if gains is not None else str(_CONFIG_DIR / 'paper_gains.yaml'),
+        'dt': dt, 'substeps': paper['substeps'], 'duration': float(duration),
+        'settle_time': min(paper['settle_time'], float(duration) / 2.0), 'model_mismatch': paper['model_mismatch'],
+        'helicopter': paper['helicopter'],
+        'gains': str(gains) if gains is not None else str(CONFIG_DIR / paper['gains']),
         'uhs': uhs, 'edges': edges, 'reference_links': links,
-        'reference': {'radius': 10.0, 'angular_rate': 0.1, 'center': [0.0, 10.0, 10.0],
-                      'climb_rate': 0.1, 'yaw_rate': 0.1, 'initial_yaw': 0.0},
-        'disturbance': {'amplitude': [0.3, 0.3, 0.2], 'frequency': [0.5, 0.4, 0.3],
-                        'phase': [0.0, 1.0, 2.0], 'phase_per_id': 1.3},
+        'reference': copy.deepcopy(paper['reference']),
+        'disturbance': copy.deepcopy(paper['disturbance']),
     }
     if fault_list:
         mapping['faults'] = fault_list
@@ -172,8 +194,6 @@ def write_team_scenario(path, n_leaders: int, n_followers: int, **kwargs) -> Pat
     Keyword arguments go to :func:`team_mapping`. Raises the scenario's own
     :class:`~uh_topology.errors.ScenarioError` if the written file does not validate.
     """
-    from .scenario import load_scenario
-
     path = Path(path)
     mapping = team_mapping(n_leaders, n_followers, **kwargs)
     header = (f'# Generated by uh_topology.generate: {n_leaders} leaders, {n_followers} followers.\n'

@@ -47,10 +47,11 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
-from uh_core.layout import CHANNEL_ALIASES, NUM_CHANNELS
+from uh_core.layout import CHANNEL_ALIASES
 from uh_core.records import FaultSpec
 
 from . import errors as E
+from .schema import CONFIG_DIR, ConfigContext, parse_yaml, read_config_file, read_only_array, type_name
 from .graph import (check_lemma1, containment_pattern, laplacian, laplacian_blocks,
                     leader_tracking_matrix, unreachable_follower_message, unreachable_followers,
                     unreachable_leader_message, unreachable_leaders)
@@ -60,7 +61,6 @@ __all__ = [
     'scenario_from_mapping', 'bundled_scenarios', 'read_config_file', 'CHANNEL_ALIASES',
 ]
 
-_CONFIG_DIR = Path(__file__).resolve().parent / 'config'
 
 
 
@@ -86,15 +86,15 @@ class ReferenceSpec:
 
 @dataclass(frozen=True, eq=False)
 class DisturbanceSpec:
-    """Force disturbance ``d_p(t)`` on every UH, inertial frame, per axis a:
-    ``amplitude_a sin(frequency_a t + phase_a + i phase_per_id)`` N for UH ``i``.
+    """Force disturbance ``d_p(t)`` on every UH, inertial frame.
 
+    Per axis a: ``amplitude_a sin(frequency_a t + phase_a + i phase_per_id)`` N for UH ``i``.
     ``amplitude`` (3,) N, ``frequency`` (3,) rad/s, ``phase`` (3,) rad, ``phase_per_id`` rad.
     """
 
-    amplitude: np.ndarray = field(default_factory=lambda: _ro(np.zeros(3)))
-    frequency: np.ndarray = field(default_factory=lambda: _ro(np.zeros(3)))
-    phase: np.ndarray = field(default_factory=lambda: _ro(np.zeros(3)))
+    amplitude: np.ndarray = field(default_factory=lambda: read_only_array(np.zeros(3)))
+    frequency: np.ndarray = field(default_factory=lambda: read_only_array(np.zeros(3)))
+    phase: np.ndarray = field(default_factory=lambda: read_only_array(np.zeros(3)))
     phase_per_id: float = 0.0
 
     @property
@@ -104,8 +104,9 @@ class DisturbanceSpec:
 
 @dataclass(frozen=True, eq=False)
 class ImpairmentSpec:
-    """Deterministic communication and sensing impairments: what each controller receives
-    (docs/campaigns.md#impairments). They act in the receiving controller, on control steps, so
+    """Deterministic communication and sensing impairments: what each controller receives.
+
+    See docs/campaigns.md#impairments. They act in the receiving controller, on control steps, so
     they are defined for the in-process run and the lockstep distributed run (identically).
 
     Attributes
@@ -143,12 +144,6 @@ class ImpairmentSpec:
 
 #: :meth:`ImpairmentSpec.drop_step` of a UH that never drops out.
 NO_DROPOUT = 2 ** 62
-
-
-def _ro(arr) -> np.ndarray:
-    arr = np.array(arr, dtype=float)
-    arr.setflags(write=False)
-    return arr
 
 
 @dataclass(frozen=True, eq=False)
@@ -323,175 +318,6 @@ def _load_gains(src, scenario_source) -> dict:
 
 
 # ------------------------------------------------------------------------------------------------
-# YAML with duplicate-key detection and line numbers
-
-
-class _Loader(yaml.SafeLoader):
-    """Safe loader that rejects repeated keys in a mapping."""
-
-    def construct_mapping(self, node, deep=False):
-        self.flatten_mapping(node)
-        seen = {}
-        for key_node, _ in node.value:
-            key = self.construct_object(key_node, deep=True)
-            try:
-                hash(key)
-            except TypeError:
-                raise E.WrongTypeError(f'mapping keys must be scalars, got {type(key).__name__}',
-                                       source=getattr(self, '_source', None),
-                                       line=key_node.start_mark.line + 1) from None
-            if key in seen:
-                raise E.DuplicateKeyError(
-                    f'key {key!r} repeated (first at line {seen[key]}); each key may appear once',
-                    source=getattr(self, '_source', None), line=key_node.start_mark.line + 1)
-            seen[key] = key_node.start_mark.line + 1
-        return super().construct_mapping(node, deep=deep)
-
-
-def _line_map(node, path=(), out=None) -> dict:
-    """{key path tuple: 1-based line} for every mapping key and sequence item of a node tree."""
-    if out is None:
-        out = {(): node.start_mark.line + 1}
-    if isinstance(node, yaml.MappingNode):
-        for k, v in node.value:
-            p = path + (str(k.value),)
-            out.setdefault(p, k.start_mark.line + 1)
-            _line_map(v, p, out)
-    elif isinstance(node, yaml.SequenceNode):
-        for i, v in enumerate(node.value):
-            p = path + (i,)
-            out.setdefault(p, v.start_mark.line + 1)
-            _line_map(v, p, out)
-    return out
-
-
-def _parse_yaml(text: str, source: str | None):
-    loader = _Loader(text)
-    loader._source = source
-    try:
-        node = loader.get_single_node()
-        if node is None:
-            return None, {}
-        data = loader.construct_document(node)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        problem = exc.problem or exc.context or 'invalid YAML'
-        raise E.ScenarioSyntaxError(f'YAML syntax error: {problem}', source=source,
-                                    line=mark.line + 1 if mark else None) from None
-    except yaml.YAMLError as exc:
-        raise E.ScenarioSyntaxError(f'YAML syntax error: {exc}', source=source) from None
-    finally:
-        loader.dispose()
-    return data, _line_map(node)
-
-
-# ------------------------------------------------------------------------------------------------
-# Validation helpers
-
-
-def _fmt(path) -> str:
-    out = ''
-    for p in path:
-        out += f'[{p}]' if isinstance(p, int) else (f'.{p}' if out else str(p))
-    return out
-
-
-class _Ctx:
-    """Reports errors with file, line and key path."""
-
-    def __init__(self, source: str | None, lines: dict):
-        self.source = source
-        self.lines = lines
-
-    def line(self, path):
-        path = tuple(p if isinstance(p, int) else str(p) for p in path)
-        while path:
-            if path in self.lines:
-                return self.lines[path]
-            path = path[:-1]
-        return self.lines.get(())
-
-    def error(self, cls, path, message, **kwargs):
-        return cls(message, path=_fmt(path) or None, source=self.source, line=self.line(path), **kwargs)
-
-    # typed accessors ----------------------------------------------------------------------------
-    def mapping(self, value, path, required=(), optional=(), what='a mapping'):
-        if not isinstance(value, dict):
-            raise self.error(E.WrongTypeError, path, f'expected {what}, got {_tname(value)}')
-        allowed = list(required) + list(optional)
-        for key in value:
-            if key not in allowed:
-                raise self.error(E.UnknownKeyError, path + (key,),
-                                 f'unknown key {key!r}; allowed keys here: {", ".join(allowed)}')
-        for key in required:
-            if key not in value:
-                raise self.error(E.MissingFieldError, path,
-                                 f'missing required key {key!r} (required: {", ".join(required)})')
-        return value
-
-    def number(self, value, path, *, lo=None, hi=None, lo_open=False, hi_open=False, unit=''):
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(E.WrongTypeError, path, f'expected a number{_unit(unit)}, got {_tname(value)} {value!r}')
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.error(E.NonFiniteError, path, f'expected a finite number{_unit(unit)}, got {value!r}')
-        bad = ((lo is not None and (value <= lo if lo_open else value < lo))
-               or (hi is not None and (value >= hi if hi_open else value > hi)))
-        if bad:
-            raise self.error(E.InvalidValueError, path,
-                             f'value {value!r} out of range; allowed: {_range(lo, hi, lo_open, hi_open)}{_unit(unit)}')
-        return value
-
-    def integer(self, value, path, *, lo=None, what='an integer'):
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(E.WrongTypeError, path, f'expected {what}, got {_tname(value)} {value!r}')
-        if lo is not None and value < lo:
-            raise self.error(E.InvalidValueError, path, f'value {value} out of range; allowed: >= {lo}')
-        return value
-
-    def string(self, value, path, choices=None):
-        if not isinstance(value, str):
-            raise self.error(E.WrongTypeError, path, f'expected a string, got {_tname(value)} {value!r}')
-        if choices is not None and value not in choices:
-            raise self.error(E.InvalidValueError, path,
-                             f'{value!r} is not allowed; allowed: {", ".join(choices)}')
-        return value
-
-    def vector(self, value, path, size=3, unit=''):
-        if not isinstance(value, list) or len(value) != size:
-            raise self.error(E.WrongTypeError, path,
-                             f'expected a list of {size} numbers{_unit(unit)}, got {_tname(value)} {value!r}')
-        return _ro([self.number(v, path + (i,), unit=unit) for i, v in enumerate(value)])
-
-    def uh_id(self, value, path, known, what='UH id'):
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(E.WrongTypeError, path, f'expected an integer {what}, got {_tname(value)} {value!r}')
-        if value not in known:
-            hint = ('; id 0 is the virtual leader: link leaders to it under reference_links'
-                    if value == 0 else '')
-            raise self.error(E.UnknownIdError, path,
-                             f'{what} {value} is not a UH of this scenario; known ids: '
-                             f'{sorted(known)}{hint}')
-        return value
-
-
-def _tname(value) -> str:
-    return 'null' if value is None else type(value).__name__
-
-
-def _unit(unit) -> str:
-    return f' ({unit})' if unit else ''
-
-
-def _range(lo, hi, lo_open, hi_open) -> str:
-    if lo is not None and hi is not None:
-        return f'{"(" if lo_open else "["}{lo}, {hi}{")" if hi_open else "]"}'
-    if lo is not None:
-        return f'{">" if lo_open else ">="} {lo}'
-    return f'{"<" if hi_open else "<="} {hi}'
-
-
-# ------------------------------------------------------------------------------------------------
 # Building a Scenario
 
 _TOP_REQUIRED = ('name', 'dt', 'duration', 'uhs', 'edges', 'reference_links', 'reference')
@@ -515,9 +341,38 @@ DEFAULT_MODEL_MISMATCH = 0.9
 DEFAULT_HELICOPTER = 'helicopter'
 
 
+@dataclass(frozen=True)
+class _Timing:
+    """The scalar entries of a scenario: names and times (s)."""
+
+    name: str
+    description: str
+    dt: float
+    substeps: int
+    duration: float
+    settle_time: float
+    model_mismatch: float
+
+
+@dataclass(frozen=True)
+class _Team:
+    """The UHs of a scenario: roles, offsets, initial states and where each is listed."""
+
+    roles: dict      # id -> 'leader' | 'follower'
+    offsets: dict    # leader id -> (3,) m
+    states: dict     # id -> (12,)
+    where: dict      # id -> index in `uhs`
+    leaders: tuple
+    followers: tuple
+
+
 def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
                           lines: dict | None = None) -> Scenario:
     """Validate a scenario mapping (as read from YAML) and build the :class:`Scenario`.
+
+    The checks run in this order, and the first that fails raises: the entries' schema and
+    timing, the file names (helicopter, gains), the UHs, the graph, Assumption 1 and Lemma 1, the
+    reference, the disturbance, the faults, the impairments.
 
     Parameters
     ----------
@@ -529,10 +384,42 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
     lines : dict, optional
         Key path -> line map (from the YAML parser) for error messages.
     """
-    ctx = _Ctx(source, lines or {})
+    ctx = ConfigContext(source, lines or {})
     base = Path(base_dir) if base_dir is not None else Path.cwd()
     top = ctx.mapping(data, (), _TOP_REQUIRED, _TOP_OPTIONAL, what='a scenario mapping')
+    timing = _timing(ctx, top)
+    helicopter = _helicopter(ctx, top, base)
+    gains_source = _gains_source(ctx, top, base)
+    team = _team(ctx, top['uhs'])
+    adjacency = np.zeros((len(team.roles) + 1, len(team.roles) + 1))
+    _edges(ctx, top['edges'], team, adjacency)
+    _reference_links(ctx, top['reference_links'], team, adjacency)
+    l1, l2, weights = _assumptions(ctx, adjacency, team)
+    reference = _reference(ctx, top['reference'])
+    disturbance = _disturbance(ctx, top.get('disturbance') or {})
+    faults = _faults(ctx, top.get('faults') or [], team)
+    impairments = (_impairments(ctx, top['impairments'], adjacency, set(team.roles), timing.duration)
+                   if top.get('impairments') is not None else None)
+    if impairments is not None and not impairments.is_active:
+        impairments = None   # all zero: the run without impairments (any clock, no /uhN/received)
 
+    adjacency.setflags(write=False)
+    return Scenario(
+        name=timing.name, description=timing.description, source=source, dt=timing.dt,
+        duration=timing.duration, substeps=timing.substeps, settle_time=timing.settle_time,
+        model_mismatch=timing.model_mismatch, helicopter=helicopter,
+        leaders=team.leaders, followers=team.followers, adjacency=adjacency,
+        offsets=MappingProxyType(dict(sorted(team.offsets.items()))),
+        initial_states=MappingProxyType(dict(sorted(team.states.items()))),
+        faults=MappingProxyType({i: tuple(sorted(f, key=lambda s: s.channel)) for i, f in faults.items()}),
+        reference=reference, disturbance=disturbance,
+        laplacian_blocks=(read_only_array(l1), read_only_array(l2)),
+        containment_weights=read_only_array(weights), gains_source=gains_source, impairments=impairments,
+    )
+
+
+def _timing(ctx: ConfigContext, top: dict) -> _Timing:
+    """Read the name, description, control period, substeps, duration, settle time and mismatch."""
     name = ctx.string(top['name'], ('name',))
     description = ctx.string(top.get('description', ''), ('description',))
     dt = ctx.number(top['dt'], ('dt',), lo=0.0, lo_open=True, unit='s')
@@ -547,6 +434,12 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
                         hi=duration, hi_open=True, unit='s')
     mismatch = ctx.number(top.get('model_mismatch', DEFAULT_MODEL_MISMATCH), ('model_mismatch',),
                           lo=0.0, lo_open=True)
+    return _Timing(name=name, description=description, dt=dt, substeps=substeps, duration=duration,
+                   settle_time=settle, model_mismatch=mismatch)
+
+
+def _helicopter(ctx: ConfigContext, top: dict, base: Path) -> str:
+    """Give the helicopter entry: a bundled name as written, a file name resolved against ``base``."""
     helicopter = ctx.string(top.get('helicopter', DEFAULT_HELICOPTER), ('helicopter',))
     if not helicopter:
         raise ctx.error(E.InvalidValueError, ('helicopter',), 'empty helicopter name; allowed: a bundled '
@@ -554,22 +447,26 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
     hp = Path(helicopter)
     if hp.suffix or hp.parent != Path('.'):
         helicopter = str((base / hp).resolve()) if not hp.is_absolute() else str(hp)
+    return helicopter
 
+
+def _gains_source(ctx: ConfigContext, top: dict, base: Path):
+    """Give the gains entry: None, a read-only copy of an inline mapping, or the resolved file path."""
     gains_raw = top.get('gains')
     if gains_raw is None:
-        gains_source = None
-    elif isinstance(gains_raw, dict):
-        gains_source = MappingProxyType(copy.deepcopy(gains_raw))
-    elif isinstance(gains_raw, str) and gains_raw:
-        gains_source = Path(gains_raw) if Path(gains_raw).is_absolute() else (base / gains_raw).resolve()
-    else:
-        raise ctx.error(E.WrongTypeError, ('gains',),
-                        f'expected a file name (relative to the scenario) or a mapping, got {_tname(gains_raw)}')
+        return None
+    if isinstance(gains_raw, dict):
+        return MappingProxyType(copy.deepcopy(gains_raw))
+    if isinstance(gains_raw, str) and gains_raw:
+        return Path(gains_raw) if Path(gains_raw).is_absolute() else (base / gains_raw).resolve()
+    raise ctx.error(E.WrongTypeError, ('gains',),
+                    f'expected a file name (relative to the scenario) or a mapping, got {type_name(gains_raw)}')
 
-    # -- UHs ------------------------------------------------------------------------------------
-    uhs = top['uhs']
+
+def _team(ctx: ConfigContext, uhs) -> _Team:
+    """Read the ``uhs`` list and check the numbering: ids 1..N+M, leaders first, leaders with offsets."""
     if not isinstance(uhs, list) or not uhs:
-        raise ctx.error(E.WrongTypeError, ('uhs',), f'expected a non-empty list of UHs, got {_tname(uhs)}')
+        raise ctx.error(E.WrongTypeError, ('uhs',), f'expected a non-empty list of UHs, got {type_name(uhs)}')
     roles, offsets, states, where = {}, {}, {}, {}
     for idx, entry in enumerate(uhs):
         path = ('uhs', idx)
@@ -583,18 +480,7 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
                             f'UH id {uid} is not allowed; 0 is the virtual leader, UH ids are 1..N+M')
         where[uid] = idx
         roles[uid] = ctx.string(entry['role'], path + ('role',), choices=('leader', 'follower'))
-        st = ctx.mapping(entry['initial_state'], path + ('initial_state',), _STATE_REQUIRED, _STATE_OPTIONAL,
-                         what='an initial_state mapping')
-        sp = path + ('initial_state',)
-        pos = ctx.vector(st['position'], sp + ('position',), unit='m')
-        vel = ctx.vector(st.get('velocity', [0.0] * 3), sp + ('velocity',), unit='m/s')
-        eul = ctx.vector(st.get('euler', [0.0] * 3), sp + ('euler',), unit='rad')
-        omg = ctx.vector(st.get('omega', [0.0] * 3), sp + ('omega',), unit='rad/s')
-        for axis, lim in ((0, math.pi / 2), (1, math.pi / 2)):
-            if abs(eul[axis]) >= lim:
-                raise ctx.error(E.InvalidValueError, sp + ('euler', axis),
-                                f'{("roll", "pitch")[axis]} {eul[axis]} rad; allowed: |angle| < pi/2')
-        states[uid] = _ro(np.concatenate([pos, vel, eul, omg]))
+        states[uid] = _initial_state(ctx, entry['initial_state'], path + ('initial_state',))
         if 'offset' in entry:
             if roles[uid] == 'follower':
                 raise ctx.error(E.FollowerOffsetError, path + ('offset',),
@@ -615,15 +501,30 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         if j not in offsets:
             raise ctx.error(E.MissingOffsetError, ('uhs', where[j]),
                             f'leader {j} has no formation offset; add offset: [x, y, z] (m)')
+    return _Team(roles=roles, offsets=offsets, states=states, where=where, leaders=leaders, followers=followers)
 
-    # -- graph ----------------------------------------------------------------------------------
-    adjacency = np.zeros((n + 1, n + 1))
-    known = set(roles)
-    edges = top['edges']
+
+def _initial_state(ctx: ConfigContext, raw, sp: tuple) -> np.ndarray:
+    """Read an ``initial_state`` mapping as the (12,) state: position m, velocity m/s, Euler rad, rate rad/s."""
+    st = ctx.mapping(raw, sp, _STATE_REQUIRED, _STATE_OPTIONAL, what='an initial_state mapping')
+    pos = ctx.vector(st['position'], sp + ('position',), unit='m')
+    vel = ctx.vector(st.get('velocity', [0.0] * 3), sp + ('velocity',), unit='m/s')
+    eul = ctx.vector(st.get('euler', [0.0] * 3), sp + ('euler',), unit='rad')
+    omg = ctx.vector(st.get('omega', [0.0] * 3), sp + ('omega',), unit='rad/s')
+    for axis, lim in ((0, math.pi / 2), (1, math.pi / 2)):
+        if abs(eul[axis]) >= lim:
+            raise ctx.error(E.InvalidValueError, sp + ('euler', axis),
+                            f'{("roll", "pitch")[axis]} {eul[axis]} rad; allowed: |angle| < pi/2')
+    return read_only_array(np.concatenate([pos, vel, eul, omg]))
+
+
+def _edges(ctx: ConfigContext, edges, team: _Team, adjacency: np.ndarray) -> None:
+    """Read the ``edges`` list into ``adjacency[i, j] = a_ij`` (UH i hears UH j)."""
+    roles, known = team.roles, set(team.roles)
     if edges is None:
         edges = []
     if not isinstance(edges, list):
-        raise ctx.error(E.WrongTypeError, ('edges',), f'expected a list of edges, got {_tname(edges)}')
+        raise ctx.error(E.WrongTypeError, ('edges',), f'expected a list of edges, got {type_name(edges)}')
     edge_at = {}
     for idx, edge in enumerate(edges):
         path = ('edges', idx)
@@ -648,12 +549,15 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         edge_at[(i, j)] = idx
         adjacency[i, j] = w
 
-    links = top['reference_links']
+
+def _reference_links(ctx: ConfigContext, links, team: _Team, adjacency: np.ndarray) -> None:
+    """Read the ``reference_links`` list into ``adjacency[i, 0] = a_i0`` (UH i hears the virtual leader)."""
+    roles, known = team.roles, set(team.roles)
     if links is None:
         links = []
     if not isinstance(links, list):
         raise ctx.error(E.WrongTypeError, ('reference_links',),
-                        f'expected a list of links {{uh, weight}}, got {_tname(links)}')
+                        f'expected a list of links {{uh, weight}}, got {type_name(links)}')
     link_at = {}
     for idx, link in enumerate(links):
         path = ('reference_links', idx)
@@ -674,7 +578,13 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         link_at[i] = idx
         adjacency[i, 0] = w
 
-    # Assumption 1; the error points at the first UH without a path
+
+def _assumptions(ctx: ConfigContext, adjacency: np.ndarray, team: _Team) -> tuple:
+    """Check Assumption 1 and Lemma 1 (docs/graph.md); give ``(L1, L2, -L1^-1 L2)``.
+
+    An unreachable UH is reported at its entry under ``uhs`` (the first one without a path).
+    """
+    leaders, followers, where = team.leaders, team.followers, team.where
     lost = unreachable_leaders(adjacency, leaders)
     if lost:
         raise ctx.error(E.UnreachableLeaderError, ('uhs', where[lost[0]]), unreachable_leader_message(lost),
@@ -688,12 +598,14 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         weights = check_lemma1(l1, l2, containment_pattern(adjacency, leaders, followers))
     except E.LaplacianConditionError as exc:
         raise ctx.error(E.LaplacianConditionError, ('edges',), exc.message) from None
+    return l1, l2, weights
 
-    # -- reference, disturbance, faults -----------------------------------------------------
-    ref = ctx.mapping(top['reference'], ('reference',), _REF_REQUIRED, _REF_OPTIONAL,
-                      what='a reference mapping')
+
+def _reference(ctx: ConfigContext, raw) -> ReferenceSpec:
+    """Read the ``reference`` mapping (the virtual leader's trajectory)."""
     rp = ('reference',)
-    reference = ReferenceSpec(
+    ref = ctx.mapping(raw, rp, _REF_REQUIRED, _REF_OPTIONAL, what='a reference mapping')
+    return ReferenceSpec(
         radius=ctx.number(ref['radius'], rp + ('radius',), lo=0.0, unit='m'),
         angular_rate=ctx.number(ref['angular_rate'], rp + ('angular_rate',), unit='rad/s'),
         center=ctx.vector(ref['center'], rp + ('center',), unit='m'),
@@ -702,9 +614,11 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         initial_yaw=ctx.number(ref.get('initial_yaw', 0.0), rp + ('initial_yaw',), unit='rad'),
     )
 
-    dist = top.get('disturbance') or {}
-    ctx.mapping(dist, ('disturbance',), (), _DIST_OPTIONAL, what='a disturbance mapping')
+
+def _disturbance(ctx: ConfigContext, dist) -> DisturbanceSpec:
+    """Read the ``disturbance`` mapping (empty: no disturbance)."""
     dp = ('disturbance',)
+    ctx.mapping(dist, dp, (), _DIST_OPTIONAL, what='a disturbance mapping')
     disturbance = DisturbanceSpec(
         amplitude=ctx.vector(dist.get('amplitude', [0.0] * 3), dp + ('amplitude',), unit='N'),
         frequency=ctx.vector(dist.get('frequency', [0.0] * 3), dp + ('frequency',), unit='rad/s'),
@@ -715,17 +629,21 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         raise ctx.error(E.InvalidValueError, dp + ('amplitude',),
                         f'negative amplitude {disturbance.amplitude.tolist()}; allowed: >= 0 N '
                         f'(use the phase for the sign)')
+    return disturbance
 
-    faults_raw = top.get('faults') or []
+
+def _faults(ctx: ConfigContext, faults_raw, team: _Team) -> dict:
+    """Read the ``faults`` list as ``{uh id: [FaultSpec, ...]}`` with every id a key, one fault per channel."""
     if not isinstance(faults_raw, list):
-        raise ctx.error(E.WrongTypeError, ('faults',), f'expected a list of faults, got {_tname(faults_raw)}')
-    faults = {i: [] for i in range(1, n + 1)}
+        raise ctx.error(E.WrongTypeError, ('faults',), f'expected a list of faults, got {type_name(faults_raw)}')
+    known = set(team.roles)
+    faults = {i: [] for i in range(1, len(team.roles) + 1)}
     fault_at = {}
     for idx, fd in enumerate(faults_raw):
         path = ('faults', idx)
         ctx.mapping(fd, path, _FAULT_REQUIRED, _FAULT_OPTIONAL, what='a fault mapping')
         i = ctx.uh_id(fd['uh'], path + ('uh',), known)
-        ch = _channel(ctx, fd['channel'], path + ('channel',))
+        ch = ctx.channel(fd['channel'], path + ('channel',))
         if (i, ch) in fault_at:
             raise ctx.error(E.DuplicateFaultError, path + ('channel',),
                             f'UH {i} channel {ch} already has a fault (faults[{fault_at[(i, ch)]}]); '
@@ -739,26 +657,7 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
             bias_frequency=ctx.number(fd.get('bias_frequency', 0.0), path + ('bias_frequency',), unit='rad/s'),
             onset_time=ctx.number(fd.get('onset_time', 0.0), path + ('onset_time',), lo=0.0, unit='s'),
         ))
-
-    impairments = (_impairments(ctx, top['impairments'], adjacency, known, duration)
-                   if top.get('impairments') is not None else None)
-    if impairments is not None and not impairments.is_active:
-        impairments = None   # all zero: the run without impairments (any clock, no /uhN/received)
-
-    adjacency.setflags(write=False)
-    l1 = _ro(l1)
-    l2 = _ro(l2)
-    return Scenario(
-        name=name, description=description, source=source, dt=dt, duration=duration,
-        substeps=substeps, settle_time=settle, model_mismatch=mismatch, helicopter=helicopter,
-        leaders=leaders, followers=followers, adjacency=adjacency,
-        offsets=MappingProxyType(dict(sorted(offsets.items()))),
-        initial_states=MappingProxyType(dict(sorted(states.items()))),
-        faults=MappingProxyType({i: tuple(sorted(f, key=lambda s: s.channel)) for i, f in faults.items()}),
-        reference=reference, disturbance=disturbance,
-        laplacian_blocks=(l1, l2), containment_weights=_ro(weights), gains_source=gains_source,
-        impairments=impairments,
-    )
+    return faults
 
 
 def _impairments(ctx, raw, adjacency, known, duration) -> ImpairmentSpec:
@@ -774,7 +673,7 @@ def _impairments(ctx, raw, adjacency, known, duration) -> ImpairmentSpec:
     losses = {e: loss for e in edges}
     links = raw.get('links') or []
     if not isinstance(links, list):
-        raise ctx.error(E.WrongTypeError, path + ('links',), f'expected a list of links, got {_tname(links)}')
+        raise ctx.error(E.WrongTypeError, path + ('links',), f'expected a list of links, got {type_name(links)}')
     for idx, link in enumerate(links):
         lp = path + ('links', idx)
         ctx.mapping(link, lp, ('uh', 'hears'), ('delay_steps', 'loss'),
@@ -796,7 +695,7 @@ def _impairments(ctx, raw, adjacency, known, duration) -> ImpairmentSpec:
     dropouts = {}
     drops = raw.get('dropouts') or []
     if not isinstance(drops, list):
-        raise ctx.error(E.WrongTypeError, path + ('dropouts',), f'expected a list of dropouts, got {_tname(drops)}')
+        raise ctx.error(E.WrongTypeError, path + ('dropouts',), f'expected a list of dropouts, got {type_name(drops)}')
     for idx, drop in enumerate(drops):
         dp = path + ('dropouts', idx)
         ctx.mapping(drop, dp, ('uh', 'time'), (), what='a dropout mapping {uh, time}')
@@ -805,26 +704,12 @@ def _impairments(ctx, raw, adjacency, known, duration) -> ImpairmentSpec:
             raise ctx.error(E.InvalidValueError, dp + ('uh',), f'UH {i} already drops out; one dropout per UH')
         dropouts[i] = ctx.number(drop['time'], dp + ('time',), lo=0.0, hi=duration, unit='s')
     return ImpairmentSpec(seed=seed, delays=MappingProxyType(delays), losses=MappingProxyType(losses),
-                          noise=_ro(noise), dropouts=MappingProxyType(dropouts))
-
-
-def _channel(ctx, value, path) -> int:
-    if isinstance(value, str):
-        if value not in CHANNEL_ALIASES:
-            raise ctx.error(E.InvalidValueError, path,
-                            f'unknown channel {value!r}; allowed: 0..3 or {", ".join(CHANNEL_ALIASES)}')
-        return CHANNEL_ALIASES[value]
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ctx.error(E.WrongTypeError, path, f'expected a channel index 0..3 or name, got {_tname(value)}')
-    if not 0 <= value <= 3:
-        raise ctx.error(E.InvalidValueError, path,
-                        f'channel {value} out of range; allowed: 0..3 or {", ".join(CHANNEL_ALIASES)}')
-    return value
+                          noise=read_only_array(noise), dropouts=MappingProxyType(dropouts))
 
 
 def parse_scenario(text: str, *, source: str | None = None, base_dir=None) -> Scenario:
     """Parse and validate scenario YAML text (``base_dir`` resolves relative file names)."""
-    data, lines = _parse_yaml(text, source)
+    data, lines = parse_yaml(text, source)
     if data is None:
         raise E.MissingFieldError('the scenario is empty; required keys: ' + ', '.join(_TOP_REQUIRED),
                                   source=source)
@@ -833,7 +718,7 @@ def parse_scenario(text: str, *, source: str | None = None, base_dir=None) -> Sc
 
 def bundled_scenarios() -> tuple:
     """Names of the scenarios bundled in ``uh_topology/config`` (e.g. ``('paper',)``)."""
-    return tuple(sorted(p.stem for p in _CONFIG_DIR.glob('*.yaml')
+    return tuple(sorted(p.stem for p in CONFIG_DIR.glob('*.yaml')
                         if not p.stem.endswith('_gains') and not p.stem.startswith('campaign_')))
 
 
@@ -857,28 +742,3 @@ def load_scenario(path_or_name) -> Scenario:
         return path_or_name
     path, content = read_config_file(path_or_name, 'scenario', bundled_scenarios)
     return parse_scenario(content, source=str(path), base_dir=path.resolve().parent)
-
-
-def read_config_file(path_or_name, what: str, bundled_names, base_dir=None) -> tuple[Path, str]:
-    """``(path, text)`` of a YAML file (a relative name is taken relative to ``base_dir``, default
-    the current directory), or of the bundled file ``uh_topology/config/<name>.yaml`` when
-    ``path_or_name`` is a bare name and no such file exists; ``what`` names the kind of file and
-    ``bundled_names()`` the bundled ones in the error message (:class:`ScenarioNotFoundError`).
-    """
-    text = str(path_or_name)
-    path = Path(text)
-    if base_dir is not None and not path.is_absolute():
-        path = Path(base_dir) / path
-    if not path.is_file():
-        bundled = _CONFIG_DIR / f'{text}.yaml'
-        if Path(text).suffix == '' and Path(text).parent == Path('.') and bundled.is_file():
-            path = bundled
-        else:
-            where = f' (relative to {str(base_dir)!r})' if base_dir is not None else ''
-            raise E.ScenarioNotFoundError(
-                f'no {what} file {text!r}{where}; give a path to a YAML file or a bundled name '
-                f'({", ".join(bundled_names()) or "none"})')
-    try:
-        return path, path.read_text()
-    except OSError as exc:
-        raise E.ScenarioNotFoundError(f'cannot read {str(path)!r}: {exc.strerror}') from None
