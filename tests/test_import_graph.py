@@ -26,7 +26,6 @@ MAX_FUNCTION_LINES = 80
 
 #: ``path:function`` of the functions still longer than MAX_FUNCTION_LINES (being split).
 LONG_FUNCTIONS = {
-    'uh_topology/uh_topology/scenario.py:scenario_from_mapping',
     'uh_campaign/uh_campaign/runner.py:run_campaign',
     'uh_report/uh_report/bag_metrics.py:read_team_bag',
 }
@@ -56,9 +55,6 @@ LAZY_IMPORTS = {
     'uh_campaign/uh_campaign/runner.py:_warm_up': _NOT_YET_MOVED,
     'uh_campaign/uh_campaign/runner.py:run_task': _NOT_YET_MOVED,
     'uh_campaign/uh_campaign/runner.py:__init__': _NOT_YET_MOVED,
-    'uh_campaign/uh_campaign/spec.py:_base_scenario': _NOT_YET_MOVED,
-    'uh_campaign/uh_campaign/spec.py:_generated_team': _NOT_YET_MOVED,
-    'uh_campaign/uh_campaign/spec.py:_check_draw_zero': _NOT_YET_MOVED,
     'uh_report/uh_report/bag_metrics.py:read_team_bag': _NOT_YET_MOVED,
     'uh_report/uh_report/bag_metrics.py:_diagnose_mcap': _NOT_YET_MOVED,
     'uh_report/uh_report/bag_metrics.py:write_metrics_from_bag': _NOT_YET_MOVED,
@@ -80,14 +76,10 @@ LAZY_IMPORTS = {
     'uh_team/uh_team/metrics.py:_published_verdicts': _NOT_YET_MOVED,
     'uh_team/uh_team/simulate_cli.py:_fault_lines': _NOT_YET_MOVED,
     'uh_team/uh_team/simulate_cli.py:_main': _NOT_YET_MOVED,
-    'uh_topology/uh_topology/generate.py:write_team_scenario': _NOT_YET_MOVED,
 }
 
 #: ``path: {names}`` of private names still imported from another package (to be made public at home).
-PRIVATE_IMPORTS = {
-    'uh_campaign/uh_campaign/spec.py': {'uh_topology.scenario._Ctx', 'uh_topology.scenario._fmt',
-                                        'uh_topology.scenario._parse_yaml'},
-}
+PRIVATE_IMPORTS: dict = {}
 
 
 def _package_roots() -> dict:
