@@ -31,6 +31,10 @@ from pathlib import Path
 
 import numpy as np
 
+from uh_core.layout import X_P_SLICE
+from uh_team.metrics import FALSE_ESTIMATE_START, LUMPED_FAULTS, containment_errors, faulted_uhs, formation_errors
+from uh_team.run_arrays import RUN_REF_POSITION, RUN_REF_YAW
+
 __all__ = ['DPI', 'FIGURE_SIZES', 'pixel_size', 'plot_states', 'plot_trajectory_3d', 'plot_xy_snapshots',
            'plot_faults', 'plot_false_fault_estimate', 'plot_errors', 'plot_errors_per_uh', 'uh_errors', 'snapshot_times']
 
@@ -108,7 +112,6 @@ def _vline(ax, t: float, text: str) -> None:
 
 def _mark_faults(ax, run, uh=None) -> None:
     """Labelled dotted vertical line at the fault onset(s) (of ``uh`` only if given)."""
-    from uh_team.metrics import faulted_uhs
     onsets = sorted({f.onset for i, f in faulted_uhs(run.scenario).items() if uh is None or i == uh})
     t_end = float(run.arrays['time'][-1])
     for onset in onsets:
@@ -142,7 +145,7 @@ def plot_states(run, path: Path) -> Path:
             if k < 3:
                 ax.plot(t, ref[:, k], label='virtual leader', **_VL)
             else:
-                ax.plot(t, np.degrees(_unwrap(ref[:, 3])), label='virtual leader', **_VL)
+                ax.plot(t, np.degrees(_unwrap(ref[:, RUN_REF_YAW])), label='virtual leader', **_VL)
             ax.set_ylabel(ylabel)
             ax.set_title(title)
             _mark_faults(ax, run)
@@ -179,7 +182,7 @@ def plot_trajectory_3d(run, path: Path) -> Path:
                   (fig.add_subplot(2, 2, 4), 1, 2, 'YZ plane (side view)')]
         names = 'xyz'
         for c, i in enumerate(ids):
-            p = states[:, c, 0:3]
+            p = states[:, c, X_P_SLICE]
             colour = _uh_colour(c)
             ax3.plot(p[:, 0], p[:, 1], p[:, 2], color=colour, label=_uh_label(run, i))
             ax3.scatter(*p[0], color=colour, marker='o', s=30)
@@ -303,8 +306,6 @@ def plot_faults(run, uh: int, path: Path) -> Path:
     """Estimated (dashed) vs true (solid) lumped faults of UH ``uh``: F_p (m/s^2, inertial x, y, z)
     left, F_w (rad/s^2, body roll, pitch, yaw) right, one row per axis; dotted line at the onset.
     """
-    from uh_team.metrics import faulted_uhs
-
     t = run.arrays['time']
     c = run.scenario.ids.index(uh)
     info = faulted_uhs(run.scenario).get(uh)
@@ -380,8 +381,6 @@ def plot_false_fault_estimate(run, path: Path) -> Path:
     each UH's RMS over its window (the run's ``false_fault_estimate``) in the legend. Values below
     the y range (an estimate still exactly zero) are drawn on its bottom edge.
     """
-    from uh_team.metrics import FALSE_ESTIMATE_START, LUMPED_FAULTS, faulted_uhs
-
     t = np.asarray(run.arrays['time'], dtype=float)
     ids = run.scenario.ids
     faulted = faulted_uhs(run.scenario)
@@ -429,11 +428,9 @@ def uh_errors(run) -> np.ndarray:
     """(K+1, n) formation error ``|p_i - h_i - p_0|`` of each leader and containment error
     ``|p_k - sum_j w_kj p_j|`` of each follower, m (docs/metrics.md), UH axis in ``scenario.ids`` order.
     """
-    from uh_team.metrics import containment_errors, formation_errors
-
     sc = run.scenario
-    pos = np.asarray(run.arrays['states'], dtype=float)[..., 0:3]
-    p0 = np.asarray(run.arrays['reference'], dtype=float)[:, 0:3]
+    pos = np.asarray(run.arrays['states'], dtype=float)[..., X_P_SLICE]
+    p0 = np.asarray(run.arrays['reference'], dtype=float)[:, RUN_REF_POSITION]
     n_lead = len(sc.leaders)
     h = np.array([sc.offsets[i] for i in sc.leaders], dtype=float)
     out = np.empty(pos.shape[:2])
