@@ -92,9 +92,10 @@ _DRAIN_TIMEOUT = 120.0
 
 
 class CampaignError(RuntimeError):
-    """A campaign that cannot start or go on: the directory holds another campaign, the cluster
-    cannot be reached (``status`` 2: bad input, nothing ran), a worker process died (``status``
-    1: what is done is saved).
+    """A campaign that cannot start or go on.
+
+    The directory holds another campaign, the cluster cannot be reached (``status`` 2: bad input, nothing ran), a worker
+    process died (``status`` 1: what is done is saved).
     """
 
     def __init__(self, message: str, status: int = 2):
@@ -116,9 +117,10 @@ class CampaignInterrupted(Exception):
 
 @dataclass
 class CampaignOutcome:
-    """Counts of a campaign after :func:`run_campaign`: runs of the whole campaign (``total``),
-    stored now (``done``), stored before this call (``skipped``), and of those run now, not ``ok``
-    (``failures``).
+    """Counts of a campaign after :func:`run_campaign`.
+
+    Runs of the whole campaign (``total``), stored now (``done``), stored before this call (``skipped``), and of those
+    run now, not ``ok`` (``failures``).
     """
 
     directory: Path
@@ -137,7 +139,7 @@ _WARM = False
 
 
 def _warm_up() -> None:
-    """Once per process: load the numba kernels (from the cache, or compile them), then ``gc.freeze()`` everything alive.
+    """Once per process: load the numba kernels (from the cache, or compile them), then freeze.
 
     What a run imports is imported with this module (its imports are at the top), so it is alive
     here and frozen with the rest: ``gc.freeze()`` everything alive (as the nodes do at start-up,
@@ -213,7 +215,7 @@ class _LocalPool:
         self.unstarted = workers    # workers not started yet (the pool starts them as tasks come)
 
     def restart(self):
-        """A new pool in place of a broken one (after :class:`WorkerDied`)."""
+        """Return a new pool in place of a broken one (after :class:`WorkerDied`)."""
         self.pool.shutdown(wait=False, cancel_futures=True)
         self.pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=self.context,
                                            initializer=_init_local_worker)
@@ -365,8 +367,9 @@ def _write_atomic(path: Path, text: str) -> None:
 
 
 def _tasks(spec: CampaignSpec, directory: Path, done: set):
-    """``(task, failed_rows)`` per (draw, sweep point) with pending cases, in key order: the task
-    to run, or the failed rows of a scenario that could not be resolved.
+    """``(task, failed_rows)`` per (draw, sweep point) with pending cases, in key order.
+
+    The task to run, or the failed rows of a scenario that could not be resolved.
     """
     for draw in range(spec.runs):
         for s, value in enumerate(spec.sweep_values):
@@ -538,7 +541,7 @@ def _run_tasks(executor, tasks, inflight: dict, commit, lost: list, stop) -> Non
 
 
 def _run_alone(executor, task, stop) -> list:
-    """The rows of ``task`` run with nothing else in flight; failed rows if its worker dies."""
+    """Return the rows of ``task`` run with nothing else in flight; failed rows if its worker dies."""
     future = executor.submit(task)
     while not future.done():
         if stop is not None and stop.is_set():
@@ -553,9 +556,10 @@ def _run_alone(executor, task, stop) -> list:
 
 
 def _task_rows(executor, future, task, lost: list) -> list:
-    """The rows a finished task returned. A task the executor lost (e.g. a Dask worker killed while
-    running it) says nothing about its runs: they are not stored, so a resume runs them again, and
-    the reason goes to ``lost``.
+    """Return the rows a finished task returned.
+
+    A task the executor lost (e.g. a Dask worker killed while running it) says nothing about its runs: they are not
+    stored, so a resume runs them again, and the reason goes to ``lost``.
     """
     try:
         return executor.result(future)
@@ -593,9 +597,10 @@ _BAR_WIDTH = 30
 
 
 class Progress:
-    """Progress of a campaign on a stream (stderr): runs done / total, failures, runs/s and ETA.
-    On a terminal a bar on one line rewritten in place (at most 5 times a second); otherwise a line
-    at every further 10 % of the runs. ``quiet`` writes nothing.
+    """Progress of a campaign on a stream (stderr).
+
+    Runs done / total, failures, runs/s and ETA. On a terminal a bar on one line rewritten in place (at most 5 times a
+    second); otherwise a line at every further 10 % of the runs. ``quiet`` writes nothing.
     """
 
     def __init__(self, stream=None, quiet: bool = False, tty: bool | None = None, label: str = 'uh-campaign'):
@@ -666,10 +671,11 @@ def _duration(seconds: float) -> str:
 
 
 def summary_lines(directory, spec: CampaignSpec) -> list:
-    """Per case (and sweep value): runs stored, success count and rate, median formation and
-    containment RMS of the ``ok`` runs (from the results file).
-    """
+    """Per case (and sweep value).
 
+    Runs stored, success count and rate, median formation and containment RMS of the ``ok`` runs (from the results
+    file).
+    """
     runs = store.read_runs(Path(directory) / store.DB_NAME)
     lines = []
     sweep = spec.sweep is not None
@@ -696,5 +702,5 @@ def summary_lines(directory, spec: CampaignSpec) -> list:
 
 
 def success_text(spec: CampaignSpec) -> str:
-    """The spec's success criterion in words."""
+    """Return the spec's success criterion in words."""
     return ', '.join(f'{m} <= {t:g}' for m, t in spec.success.items()) or 'status ok'

@@ -37,9 +37,9 @@ def _metric_axis_label(metric: str) -> str:
 
 
 def plot_distribution(runs: dict, cases, metric: str, path: Path, labels: dict | None = None) -> Path | None:
-    """Empirical CDF of ``metric`` over the ok runs of each case, cases overlaid (legend: n and
-    median); log x-axis when the positive values span :data:`LOG_SPAN_RATIO` or more. None (no file)
-    when no case has a value.
+    """Empirical CDF of ``metric`` over the ok runs of each case, cases overlaid (legend: n and median).
+
+    Log x-axis when the positive values span :data:`LOG_SPAN_RATIO` or more. None (no file) when no case has a value.
     """
     from matplotlib.figure import Figure     # matplotlib only when figures are drawn (slow to import)
 
@@ -69,9 +69,10 @@ def plot_distribution(runs: dict, cases, metric: str, path: Path, labels: dict |
 
 
 def plot_sweep(table: list[dict], cases, parameter: str, path: Path, labels: dict | None = None) -> Path:
-    """Three panels against the swept value: median (line) and interquartile range (band) of
-    ``formation_rms_m`` and ``containment_rms_m`` per case, and the success rate with its Wilson
-    interval (error bars, shifted slightly per case so they do not overlap) per case.
+    """Three panels against the swept value.
+
+    Median (line) and interquartile range (band) of ``formation_rms_m`` and ``containment_rms_m`` per case, and the
+    success rate with its Wilson interval (error bars, shifted slightly per case so they do not overlap) per case.
     """
     from matplotlib.figure import Figure     # as in plot_distribution
 

@@ -66,10 +66,11 @@ class Campaign:
 
 
 def is_campaign_dir(path) -> bool:
-    """Whether ``path`` is a campaign: a directory holding ``campaign.sqlite`` or a ``scenarios/``
-    folder (a campaign that has not stored a run yet; :func:`load_campaign` says so), or the
-    ``.sqlite`` results file itself. Run directories (``bag/``, ``run.json``, ``timeseries.npz``)
-    are not.
+    """Whether ``path`` is a campaign.
+
+    A directory holding ``campaign.sqlite`` or a ``scenarios/`` folder (a campaign that has not stored a run yet;
+    :func:`load_campaign` says so), or the ``.sqlite`` results file itself. Run directories (``bag/``, ``run.json``,
+    ``timeseries.npz``) are not.
     """
     path = Path(path)
     if path.is_file():
@@ -83,7 +84,7 @@ def is_campaign_dir(path) -> bool:
 
 
 def _decoded(value):
-    """A stored meta value: its JSON content, or the string itself when it is not JSON."""
+    """Return a stored meta value: its JSON content, or the string itself when it is not JSON."""
     if not isinstance(value, str):
         return value
     try:

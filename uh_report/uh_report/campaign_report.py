@@ -103,7 +103,7 @@ def _label(case: str, labels: dict | None) -> str:
 
 
 def _duration(meta: dict):
-    """The campaign's simulated duration (s) if the store gives a positive number, else None."""
+    """Return the campaign's simulated duration (s) if the store gives a positive number, else None."""
     value = meta.get('duration')
     return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
         and math.isfinite(value) and value > 0 else None
@@ -301,8 +301,8 @@ def _write_csvs(out: Path, campaign: Campaign, success: list, summaries: dict, p
         rows.append(row)
     (out / 'summary.csv').write_text(_csv(head, rows))
 
-    paired_keys = ['first', 'second', 'sweep_index', 'sweep_value', 'metric', 'pairs', 'excluded', 'first_better', 'ties', 'median_difference', 'ci_low',
-                   'ci_high', 'wilcoxon_p', 'note']
+    paired_keys = ['first', 'second', 'sweep_index', 'sweep_value', 'metric', 'pairs', 'excluded', 'first_better',
+                   'ties', 'median_difference', 'ci_low', 'ci_high', 'wilcoxon_p', 'note']
     (out / 'paired.csv').write_text(_csv(paired_keys, [[r[k] for k in paired_keys] for r in paired]))
 
     worst_keys = ['case', 'rank', 'draw', 'sweep_index', 'sweep_value', 'status', 'reason', 'scenario_file',

@@ -50,8 +50,9 @@ _NOT_OK = ('failed', 'diverged')
 
 
 def wilson_interval(successes: int, trials: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
-    """Wilson score interval ``(low, high)`` of a success probability from ``successes`` of
-    ``trials`` (fractions in [0, 1]); ``(nan, nan)`` for no trials.
+    """Return the Wilson score interval ``(low, high)`` of a success probability.
+
+    From ``successes`` of ``trials`` (fractions in [0, 1]); ``(nan, nan)`` for no trials.
     """
     # With p = k/n and z the (1 + confidence)/2 normal quantile (1.96 for 95 %):
     #   centre = (p + z²/(2n)) / (1 + z²/n)
@@ -76,9 +77,10 @@ def status_counts(runs: dict, cases) -> dict:
 
 
 def success_rate(runs: dict, mask: np.ndarray, confidence: float = CONFIDENCE) -> dict:
-    """Success rate of the runs selected by the boolean ``mask``: ``{'runs', 'successes', 'rate',
-    'ci_low', 'ci_high'}`` (fractions). A run is successful only when its stored ``success`` is 1:
-    diverged and failed runs, and runs without a verdict, count as not successful.
+    """Success rate of the runs selected by the boolean ``mask``.
+
+    ``{'runs', 'successes', 'rate', 'ci_low', 'ci_high'}`` (fractions). A run is successful only when its stored
+    ``success`` is 1: diverged and failed runs, and runs without a verdict, count as not successful.
     """
     trials = int(np.sum(mask))
     successes = int(np.sum(runs['success'][mask] == 1))
@@ -96,17 +98,18 @@ _NUMBER = re.compile(r'(?<![A-Za-z_])[-+]?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?')
 
 
 def reason_pattern(reason) -> str:
-    """The reason of a run with its numbers (steps, times, values) replaced by ``N``, so that runs
-    failing the same way group together; UH names such as ``uh3`` are kept.
+    """Replace the numbers (steps, times, values) in the reason of a run by ``N``.
+
+    So runs failing the same way group together; UH names such as ``uh3`` are kept.
     """
     text = ' '.join(str(reason or '').split())
     return _NUMBER.sub('N', text) if text else '(no reason stored)'
 
 
 def failure_groups(runs: dict, examples: int = 5) -> list[dict]:
-    """The diverged and failed runs grouped by status and :func:`reason_pattern`, largest group
-    first: ``{'status', 'pattern', 'count', 'cases': {case: count}, 'draws': [first draws],
-    'example': one full reason}``.
+    """Return the diverged and failed runs grouped by status and :func:`reason_pattern`, largest group first.
+
+    ``{'status', 'pattern', 'count', 'cases': {case: count}, 'draws': [first draws], 'example': one full reason}``.
     """
     groups = {}
     for i in np.flatnonzero(np.isin(runs['status'], _NOT_OK)):
@@ -124,15 +127,16 @@ def failure_groups(runs: dict, examples: int = 5) -> list[dict]:
 
 
 def ok_finite(runs: dict, case: str, metric: str) -> np.ndarray:
-    """Indices of the ok runs of ``case`` with a finite ``metric``."""
+    """Return indices of the ok runs of ``case`` with a finite ``metric``."""
     values = runs[metric]
     return np.flatnonzero((runs['case_name'] == case) & (runs['status'] == 'ok') & np.isfinite(values))
 
 
 def distribution_summary(runs: dict, cases, metric: str) -> list[dict]:
-    """Per case, over its ok runs with a finite ``metric``: ``{'case', 'n', 'median', 'p90', 'max',
-    'max_draw', 'max_sweep_value'}`` (NaN / None when no run has a value). Percentiles interpolate
-    linearly between order statistics (numpy's default).
+    """Per case, over its ok runs with a finite ``metric``.
+
+    ``{'case', 'n', 'median', 'p90', 'max', 'max_draw', 'max_sweep_value'}`` (NaN / None when no run has a value).
+    Percentiles interpolate linearly between order statistics (numpy's default).
     """
     rows = []
     for case in cases:
@@ -150,8 +154,9 @@ def distribution_summary(runs: dict, cases, metric: str) -> list[dict]:
 
 
 def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
-    """Empirical CDF of the finite ``values``: sorted values and the fraction ``i/n`` (i = 1..n) of
-    values at or below each.
+    """Empirical CDF of the finite ``values``.
+
+    Sorted values and the fraction ``i/n`` (i = 1..n) of values at or below each.
     """
     x = np.sort(np.asarray(values, dtype=float)[np.isfinite(values)])
     return x, np.arange(1, len(x) + 1) / max(len(x), 1)
@@ -159,9 +164,10 @@ def ecdf(values) -> tuple[np.ndarray, np.ndarray]:
 
 def paired_differences(runs: dict, first: str, second: str, metric: str,
                        sweep_index: int | None = None) -> tuple[list, np.ndarray]:
-    """``(keys, differences)``: for every (draw, sweep index) where both cases ran ok with a finite
-    ``metric``, ``metric(first) - metric(second)`` (negative: ``first`` is better), keys sorted;
-    with ``sweep_index``, at that sweep point only.
+    """``(keys, differences)``.
+
+    For every (draw, sweep index) where both cases ran ok with a finite ``metric``, ``metric(first) - metric(second)``
+    (negative: ``first`` is better), keys sorted; with ``sweep_index``, at that sweep point only.
     """
     def by_key(case):
         index = ok_finite(runs, case, metric)
@@ -175,9 +181,10 @@ def paired_differences(runs: dict, first: str, second: str, metric: str,
 
 def bootstrap_median_ci(differences, resamples: int = BOOTSTRAP_RESAMPLES, seed: int = BOOTSTRAP_SEED,
                         confidence: float = CONFIDENCE) -> tuple[float, float]:
-    """Percentile bootstrap interval of the median of ``differences``: the median of ``resamples``
-    resamples drawn with replacement (generator seeded with ``seed``), and the (1 - confidence)/2
-    and (1 + confidence)/2 quantiles of those medians; ``(nan, nan)`` for fewer than 2 values.
+    """Percentile bootstrap interval of the median of ``differences``.
+
+    The median of ``resamples`` resamples drawn with replacement (generator seeded with ``seed``), and the (1 -
+    confidence)/2 and (1 + confidence)/2 quantiles of those medians; ``(nan, nan)`` for fewer than 2 values.
     """
     d = np.asarray(differences, dtype=float)
     if len(d) < 2:
@@ -194,9 +201,10 @@ def bootstrap_median_ci(differences, resamples: int = BOOTSTRAP_RESAMPLES, seed:
 
 
 def wilcoxon_p(differences) -> tuple[float, str]:
-    """Two-sided Wilcoxon signed-rank p-value of paired ``differences`` (zero differences dropped,
-    scipy's default) and a note: ``(nan, why)`` for fewer than 2 pairs or all differences zero,
-    ``(p, '')`` otherwise.
+    """Return the two-sided Wilcoxon signed-rank p-value of paired ``differences`` and a note.
+
+    Zero differences are dropped (scipy's default). ``(nan, why)`` for fewer than 2 pairs or all
+    differences zero, ``(p, '')`` otherwise.
     """
     d = np.asarray(differences, dtype=float)
     if len(d) < 2:
@@ -211,13 +219,13 @@ def wilcoxon_p(differences) -> tuple[float, str]:
 
 def paired_comparison(runs: dict, first: str, second: str, metric: str, resamples: int = BOOTSTRAP_RESAMPLES,
                       seed: int = BOOTSTRAP_SEED, sweep_index: int | None = None) -> dict:
-    """Paired comparison of ``first`` and ``second`` on ``metric`` (lower is better) over the draws
-    where both ran ok (at ``sweep_index`` only, if given: the draws of one sweep point are
-    independent, those of several sweep points are not): ``{'first', 'second', 'metric',
-    'sweep_index', 'pairs', 'excluded' (draws run by both cases that are not a pair: a run not ok
-    or without the metric), 'first_better' (fraction with first < second), 'ties' (count),
-    'median_difference' (first - second), 'ci_low', 'ci_high' (:func:`bootstrap_median_ci`),
-    'wilcoxon_p', 'note'}``.
+    """Compare ``first`` and ``second`` on ``metric`` (lower is better) over the draws where both ran ok.
+
+    At ``sweep_index`` only, if given (the draws of one sweep point are independent, those of
+    several sweep points are not). Returns ``{'first', 'second', 'metric', 'sweep_index', 'pairs',
+    'excluded' (draws run by both cases that are not a pair: a run not ok or without the metric),
+    'first_better' (fraction with first < second), 'ties' (count), 'median_difference' (first -
+    second), 'ci_low', 'ci_high' (:func:`bootstrap_median_ci`), 'wilcoxon_p', 'note'}``.
     """
     _, d = paired_differences(runs, first, second, metric, sweep_index)
     n = len(d)
@@ -236,9 +244,10 @@ def paired_comparison(runs: dict, first: str, second: str, metric: str, resample
 
 
 def worst_runs(runs: dict, case: str, count: int = WORST_COUNT) -> list[int]:
-    """Row indices of the ``count`` worst runs of ``case``: failed ones first, then diverged ones,
-    then ok runs without a score (a metric undefined), then the ok runs by ``formation_rms_m +
-    containment_rms_m`` largest first; ties in draw and sweep order.
+    """Row indices of the ``count`` worst runs of ``case``.
+
+    Failed ones first, then diverged ones, then ok runs without a score (a metric undefined), then the ok runs by
+    ``formation_rms_m + containment_rms_m`` largest first; ties in draw and sweep order.
     """
     rank = {'failed': 0, 'diverged': 1}
     score = runs['formation_rms_m'] + runs['containment_rms_m']
@@ -278,10 +287,11 @@ def rerun_commands(directory, scenario_file: str, case: str, campaign_name: str,
 
 
 def sweep_table(runs: dict, cases, sweep_values=(), confidence: float = CONFIDENCE) -> list[dict]:
-    """Per case and sweep point: ``{'case', 'sweep_index', 'sweep_value', 'runs', 'ok',
-    '<metric>_median', '<metric>_q25', '<metric>_q75', '<metric>_n'`` for each of
-    :data:`SWEEP_METRICS` (over the ok runs with a finite value), and the :func:`success_rate`
-    keys ``successes``, ``rate``, ``ci_low``, ``ci_high``}. The sweep value is the stored one, else
+    """Per case and sweep point.
+
+    ``{'case', 'sweep_index', 'sweep_value', 'runs', 'ok', '<metric>_median', '<metric>_q25', '<metric>_q75',
+    '<metric>_n'`` for each of :data:`SWEEP_METRICS` (over the ok runs with a finite value), and the
+    :func:`success_rate` keys ``successes``, ``rate``, ``ci_low``, ``ci_high``}. The sweep value is the stored one, else
     ``sweep_values[sweep_index]``.
     """
     rows = []

@@ -71,20 +71,23 @@ def _html_cell(cell, quote: bool) -> str:
 
 
 def html_table(head, rows, quote: bool = False) -> str:
-    """An HTML table of texts (:func:`inline_html`, quotes escaped if ``quote``)."""
+    """Return an HTML table of texts (:func:`inline_html`, quotes escaped if ``quote``)."""
     th = ''.join(f'<th>{inline_html(h, quote)}</th>' for h in head)
     body = ''.join('<tr>' + ''.join(_html_cell(c, quote) for c in row) + '</tr>\n' for row in rows)
     return f'<table>\n<thead><tr>{th}</tr></thead>\n<tbody>\n{body}</tbody>\n</table>'
 
 
 def html_figure(path: str, caption: str, alt: str | None = None) -> str:
-    """An HTML figure: the image at ``path`` (relative to the page) with its caption."""
+    """Return an HTML figure: the image at ``path`` (relative to the page) with its caption."""
     return (f'<figure><img src="{html.escape(path)}" alt="{html.escape(caption if alt is None else alt)}">'
             f'<figcaption>{html.escape(caption)}</figcaption></figure>')
 
 
 def html_page(title: str, body: str, css=()) -> str:
-    """A complete HTML page of ``body`` with the reports' style, plus the rules ``css`` (e.g. :data:`CSS_CODE`)."""
+    """Return a complete HTML page of ``body`` with the reports' style.
+
+    ``css``: further style rules (e.g. :data:`CSS_CODE`).
+    """
     style = '\n'.join(_CSS_TABLES + tuple(css) + _CSS_FIGURES)
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>\n'
             f'<style>\n{style}\n</style></head>\n<body>\n{body}\n</body></html>\n')

@@ -291,8 +291,10 @@ def _table_unit(unit: str) -> str:
 
 
 def _fault_rows(runs) -> list[tuple[str, str, str, bool]]:
-    """Rows of the fault metrics (docs/metrics.md): the false fault estimate's maximum over the UHs
-    per vector, then for every UH and vector any run scores its absolute RMS error and its NRMSE.
+    """Rows of the fault metrics (docs/metrics.md).
+
+    The false fault estimate's maximum over the UHs per vector, then for every UH and vector any run scores its absolute
+    RMS error and its NRMSE.
     """
     rows = [(f'false_fault_estimate.max.{v.key}',
              f'false fault estimate RMS ‖{v.symbol.replace("F", "F̂")}‖, max over UHs '
@@ -326,10 +328,11 @@ def table_rows(runs) -> list[tuple[str, str, str, bool]]:
 
 
 def isolation_table(run) -> list[list[str]] | None:
-    """Rows (cell texts, columns :data:`ISOLATION_HEAD`) of the fault isolation of ``run``: every
-    faulted channel (isolation delay, identified ``rho`` and ``b`` against the truth, or why they
-    are not identifiable) and every falsely isolated one; ``None`` if ``metrics.json`` has no
-    ``fault_isolation`` section (an older run, or one without commands).
+    """Rows (cell texts, columns :data:`ISOLATION_HEAD`) of the fault isolation of ``run``.
+
+    Every faulted channel (isolation delay, identified ``rho`` and ``b`` against the truth, or why they are not
+    identifiable) and every falsely isolated one; ``None`` if ``metrics.json`` has no ``fault_isolation`` section (an
+    older run, or one without commands).
     """
     section = run.metrics.get('fault_isolation')
     if not section:
@@ -348,12 +351,12 @@ def isolation_table(run) -> list[list[str]] | None:
 
 
 def _markdown_text(head, rows) -> str:
-    """A Markdown table of texts, ending with a line break."""
+    """Return a Markdown table of texts, ending with a line break."""
     return '\n'.join(markdown_grid(head, rows)) + '\n'
 
 
 def _html_grid(head, rows) -> str:
-    """An HTML table of texts, quotes escaped like every text of the run report's page."""
+    """Return an HTML table of texts, quotes escaped like every text of the run report's page."""
     return html_grid(head, rows, quote=True)
 
 
@@ -362,8 +365,10 @@ def _html_paragraph(text: str) -> str:
 
 
 def _isolation_section(run, grid, paragraph) -> str:
-    """The per-run fault isolation table rendered by ``grid`` (:func:`_markdown_text` or
-    :func:`_html_grid`), or a sentence rendered by ``paragraph`` when there is none.
+    """Render the per-run fault isolation table, or a sentence when there is none.
+
+    The table is rendered by ``grid`` (:func:`_markdown_text` or :func:`_html_grid`), the sentence
+    by ``paragraph``.
     """
     rows = isolation_table(run)
     if rows is None:
@@ -372,9 +377,11 @@ def _isolation_section(run, grid, paragraph) -> str:
 
 
 def _table_value(metrics: dict, key: str):
-    """The value of ``key`` as the tables show it: that of ``metrics.json``, except an NRMSE
-    withheld below its floor, which is :data:`uh_team.metrics.NOT_MEANINGFUL_MARK` (not ``n/a``:
-    it is defined, just not a measure of the estimator). A KeyError if absent.
+    """Return the value of ``key`` as the tables show it.
+
+    That of ``metrics.json``, except an NRMSE withheld below its floor, which is
+    :data:`uh_team.metrics.NOT_MEANINGFUL_MARK` (not ``n/a``: it is defined, just not a measure of the estimator). A
+    KeyError if absent.
     """
     value = _lookup(metrics, key)
     if value is None and key.startswith('fault_estimation.') and key.endswith('.nrmse'):
@@ -419,7 +426,7 @@ def _metric_table(runs) -> tuple[list, list]:
 
 
 def markdown_table(runs) -> str:
-    """The metrics table in Markdown: one row per metric, one column per run (best value in bold)."""
+    """Return the metrics table in Markdown: one row per metric, one column per run (best value in bold)."""
     head, rows = _metric_table(runs)
     return '\n'.join(markdown_grid(head, rows, right_aligned=range(3, len(head)))) + '\n'
 
@@ -432,7 +439,7 @@ def _csv_cell(value) -> str:
 
 
 def csv_table(runs) -> str:
-    """The metrics table as CSV at full precision (``repr`` of each number of ``metrics.json``)."""
+    """Return the metrics table as CSV at full precision (``repr`` of each number of ``metrics.json``)."""
     rows = []
     for key, _what, _unit, _better in table_rows(runs):
         row = [key]
@@ -446,7 +453,7 @@ def csv_table(runs) -> str:
 
 
 def html_table(runs) -> str:
-    """The metrics table in HTML, as :func:`markdown_table`."""
+    """Return the metrics table in HTML, as :func:`markdown_table`."""
     return _html_grid(*_metric_table(runs))
 
 
@@ -517,8 +524,10 @@ def _notes(runs) -> list[str]:
 
 
 def _markdown_report(runs, figures: dict, rel) -> str:
-    """``report.md``: the runs, the metrics table and its notes, the comparison figures, per run its
-    fault isolation and figures; ``rel`` gives a figure's path relative to the report.
+    """Return ``report.md``.
+
+    The runs, the metrics table and its notes, the comparison figures, per run its fault isolation
+    and figures; ``rel`` gives a figure's path relative to the report.
     """
     md = [f'# {_title(runs)}', '', 'Runs:', '']
     for run in runs:

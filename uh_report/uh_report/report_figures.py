@@ -36,7 +36,8 @@ from uh_team.metrics import FALSE_ESTIMATE_START, LUMPED_FAULTS, containment_err
 from uh_team.run_arrays import RUN_REF_POSITION, RUN_REF_YAW
 
 __all__ = ['DPI', 'FIGURE_SIZES', 'pixel_size', 'plot_states', 'plot_trajectory_3d', 'plot_xy_snapshots',
-           'plot_faults', 'plot_false_fault_estimate', 'plot_errors', 'plot_errors_per_uh', 'uh_errors', 'snapshot_times']
+           'plot_faults', 'plot_false_fault_estimate', 'plot_errors', 'plot_errors_per_uh', 'uh_errors',
+           'snapshot_times']
 
 #: Dots per inch of every PNG.
 DPI = 100
@@ -219,8 +220,10 @@ def snapshot_times(t_end: float, count: int = 7) -> list[float]:
 
 
 def plot_xy_snapshots(run, path: Path, count: int = 7) -> Path:
-    """XY plane (m): trajectories, and at ``count`` snapshot times the leaders' convex hull (filled
-    polygon), the followers (filled markers) and the virtual leader (star).
+    """Draw the XY plane (m): trajectories and snapshots of the team.
+
+    At ``count`` snapshot times the leaders' convex hull (filled polygon), the followers (filled
+    markers) and the virtual leader (star).
     """
     from matplotlib.patches import Polygon
 
@@ -303,8 +306,10 @@ def _convex_hull_2d(points: np.ndarray) -> np.ndarray:
 # Fault estimation
 # ----------------------------------------------------------------------------------------------
 def plot_faults(run, uh: int, path: Path) -> Path:
-    """Estimated (dashed) vs true (solid) lumped faults of UH ``uh``: F_p (m/s^2, inertial x, y, z)
-    left, F_w (rad/s^2, body roll, pitch, yaw) right, one row per axis; dotted line at the onset.
+    """Estimated (dashed) vs true (solid) lumped faults of UH ``uh``.
+
+    F_p (m/s^2, inertial x, y, z) left, F_w (rad/s^2, body roll, pitch, yaw) right, one row per axis; dotted line at the
+    onset.
     """
     t = run.arrays['time']
     c = run.scenario.ids.index(uh)
@@ -340,8 +345,9 @@ def plot_faults(run, uh: int, path: Path) -> Path:
 
 
 def _robust_ylim(ax, t, true, est, skip: float) -> None:
-    """y range holding the true fault everywhere and the estimate after ``skip`` s (start-up
-    spikes of the observers would otherwise squash the curves), with 8 % margins.
+    """Set a y range holding the true fault everywhere and the estimate after ``skip`` s, with 8 % margins.
+
+    Start-up spikes of the observers would otherwise squash the curves.
     """
     late = t >= skip
     values = np.concatenate([np.asarray(true, dtype=float), np.asarray(est, dtype=float)[late]])
@@ -360,8 +366,9 @@ def _fault_free_steps(run, uh: int, faulted: dict) -> np.ndarray:
 
 
 def _log_ylim(ax, shown, threshold: float) -> float:
-    """Log y range from below the scored values and a tenth of ``threshold`` up to the largest
-    value drawn; returns its bottom (curves are clipped to it, so a zero estimate stays visible).
+    """Log y range from below the scored values and a tenth of ``threshold`` up to the largest value drawn.
+
+    Returns its bottom (curves are clipped to it, so a zero estimate stays visible).
     """
     values = np.concatenate(shown) if shown else np.empty(0)
     values = values[np.isfinite(values) & (values > 0)]
@@ -373,7 +380,7 @@ def _log_ylim(ax, shown, threshold: float) -> float:
 
 
 def plot_false_fault_estimate(run, path: Path) -> Path:
-    """The false fault estimate made visible (docs/metrics.md#false-fault-estimate).
+    """Draw the false fault estimate made visible (docs/metrics.md#false-fault-estimate).
 
     ``|Fhat_p|`` (m/s^2, top) and ``|Fhat_w|`` (rad/s^2, bottom), log scale, of every UH where no
     fault acts: healthy UHs over the whole run (solid), faulted UHs up to their onset (dashed);
@@ -425,8 +432,10 @@ def plot_false_fault_estimate(run, path: Path) -> Path:
 # Figures 10-12: formation and containment errors, runs overlaid
 # ----------------------------------------------------------------------------------------------
 def uh_errors(run) -> np.ndarray:
-    """(K+1, n) formation error ``|p_i - h_i - p_0|`` of each leader and containment error
-    ``|p_k - sum_j w_kj p_j|`` of each follower, m (docs/metrics.md), UH axis in ``scenario.ids`` order.
+    """Return the (K+1, n) errors of each UH, m (docs/metrics.md), UH axis in ``scenario.ids`` order.
+
+    The formation error ``|p_i - h_i - p_0|`` of each leader and the containment error
+    ``|p_k - sum_j w_kj p_j|`` of each follower.
     """
     sc = run.scenario
     pos = np.asarray(run.arrays['states'], dtype=float)[..., X_P_SLICE]
@@ -452,9 +461,10 @@ def _settle_line(ax, runs) -> None:
 
 
 def plot_errors(runs, path: Path) -> Path:
-    """RMS over the leaders of the formation errors and RMS over the followers of the containment
-    errors (m, log scale) against time, one line per run (Figures 10-12), with an inset table of
-    the after-settle RMS from each run's metrics.
+    """Draw the RMS formation and containment errors against time, one line per run (Figures 10-12).
+
+    RMS over the leaders of the formation errors and RMS over the followers of the containment
+    errors (m, log scale), with an inset table of the after-settle RMS from each run's metrics.
     """
     with _style():
         fig = _figure('errors')
@@ -488,8 +498,9 @@ def plot_errors(runs, path: Path) -> Path:
 
 
 def plot_errors_per_uh(runs, path: Path) -> Path:
-    """Formation (leaders) or containment (followers) error of each UH (m, log scale) against time,
-    one panel per UH, one line per run.
+    """Draw the formation (leaders) or containment (followers) error of each UH against time.
+
+    In m, log scale; one panel per UH, one line per run.
     """
     sc = runs[0].scenario
     ids = sc.ids

@@ -1,5 +1,7 @@
-"""Scoring of the fault estimates of a run: which UHs and vectors are scored, over which steps,
-and how (docs/metrics.md#fault-estimation, docs/metrics.md#false-fault-estimate).
+"""Scoring of the fault estimates of a run.
+
+Which UHs and vectors are scored, over which steps, and how (docs/metrics.md#fault-estimation,
+docs/metrics.md#false-fault-estimate).
 
 The lumped faults ``F_p`` (position loop, m/s^2) and ``F_w`` (attitude loop, rad/s^2) are arrays
 (K, n, 3) per step and UH; :func:`fault_estimation` scores the estimate of each faulted UH after
@@ -69,9 +71,10 @@ class FaultedUH:
     collective: bool
 
     def scored_vectors(self) -> tuple:
-        """The :data:`LUMPED_FAULTS` scored for this UH: ``F_p`` only with a collective fault (only
-        the collective acts on the position loop), ``F_w`` always (every channel moves the rotor
-        moments).
+        """Return the :data:`LUMPED_FAULTS` scored for this UH.
+
+        ``F_p`` only with a collective fault (only the collective acts on the position loop), ``F_w`` always (every
+        channel moves the rotor moments).
         """
         return tuple(v for v in LUMPED_FAULTS if v.key == 'w' or self.collective)
 
@@ -118,7 +121,7 @@ LUMPED_FAULTS = (
 
 
 def fault_spec_value(spec, key: str):
-    """The field ``key`` of a fault spec given as an object (``FaultSpec``) or as a mapping."""
+    """Return the field ``key`` of a fault spec given as an object (``FaultSpec``) or as a mapping."""
     return spec[key] if isinstance(spec, dict) else getattr(spec, key)
 
 
@@ -164,8 +167,9 @@ def rms_norm(vectors) -> float | None:
 
 
 def _finite_rows(*arrays) -> np.ndarray:
-    """(k,) bool: the rows where every array holds finite values; a step a real-time run did not
-    record is NaN and is left out of the fault metrics.
+    """(k,) bool: the rows where every array holds finite values.
+
+    A step a real-time run did not record is NaN and is left out of the fault metrics.
     """
     keep = np.ones(arrays[0].shape[0], dtype=bool)
     for arr in arrays:
@@ -221,8 +225,9 @@ def _fault_estimation_entry(estimate, truth, vector: LumpedFault) -> dict:
 
 
 def nrmse_below_floor(entry) -> bool:
-    """Whether a ``fault_estimation`` vector entry withholds its NRMSE because the true RMS is
-    below the floor (``nrmse`` null, ``truth_rms`` a number), as opposed to an empty window.
+    """Tell whether a ``fault_estimation`` vector entry withholds its NRMSE because the true RMS is below the floor.
+
+    That is: ``nrmse`` null, ``truth_rms`` a number, as opposed to an empty window.
 
     Parameters
     ----------
@@ -237,8 +242,10 @@ def nrmse_below_floor(entry) -> bool:
 
 
 def fault_estimation(step_time, ids, faulted, fault_data, tolerance: float) -> dict:
-    """``fault_estimation`` of docs/metrics.md: each faulted UH's scored vectors over
-    ``[onset + FAULT_WINDOW_DELAY, end]``; ``fault_data`` maps array names to (K, n, 3) or ``None``.
+    """``fault_estimation`` of docs/metrics.md.
+
+    Each faulted UH's scored vectors over ``[onset + FAULT_WINDOW_DELAY, end]``; ``fault_data`` maps array names to (K,
+    n, 3) or ``None``.
     """
     out = {}
     for uh, info in faulted.items():
@@ -256,9 +263,10 @@ def fault_estimation(step_time, ids, faulted, fault_data, tolerance: float) -> d
 
 
 def false_fault_estimate(step_time, ids, faulted, fault_data, tolerance: float) -> dict:
-    """``false_fault_estimate`` of docs/metrics.md: RMS of ``|Fhat|`` of every UH over
-    ``[FALSE_ESTIMATE_START, end]`` if healthy, ``[FALSE_ESTIMATE_START, onset)`` if faulted (left
-    out if empty), the maximum over the UHs and the thresholds it is checked against.
+    """``false_fault_estimate`` of docs/metrics.md.
+
+    RMS of ``|Fhat|`` of every UH over ``[FALSE_ESTIMATE_START, end]`` if healthy, ``[FALSE_ESTIMATE_START, onset)`` if
+    faulted (left out if empty), the maximum over the UHs and the thresholds it is checked against.
     """
     per_uh = {}
     for col, uh in enumerate(ids):

@@ -22,8 +22,9 @@ ISOLATION_ARRAYS = ('time', 'states', 'commands', 'fault_est_p', 'fault_est_w')
 
 
 def _channel_faults(scenario, end: float) -> dict:
-    """``{uh id: {channel: (onset, rho, bias_constant)}}`` of the faults of ``scenario.faults``
-    whose onset is at or before ``end`` (s); the earliest fault of a channel counts.
+    """Return ``{uh id: {channel: (onset, rho, bias_constant)}}`` of the faults of ``scenario.faults``.
+
+    Only those whose onset is at or before ``end`` (s); the earliest fault of a channel counts.
     """
     out = {}
     for uh, specs in sorted(scenario.faults.items()):
@@ -39,9 +40,10 @@ def _channel_faults(scenario, end: float) -> dict:
 
 
 def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
-    """``fault_isolation`` of docs/metrics.md: the verdicts of the isolator every controller runs
-    step by step (docs/faults.md#isolation-and-identification), scored against the scenario's
-    faults. The verdicts are those the controllers published when ``arrays`` has an
+    """``fault_isolation`` of docs/metrics.md.
+
+    The verdicts of the isolator every controller runs step by step (docs/faults.md#isolation-and-identification),
+    scored against the scenario's faults. The verdicts are those the controllers published when ``arrays`` has an
     ``isolation`` entry for every UH (``uh_report.bag_metrics.read_team_bag``), else
     ``uh_controller_node.fault_isolation.isolate_run`` over the arrays (the same computation).
 
@@ -128,8 +130,9 @@ def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
 
 
 def _published_verdicts(published: dict, names) -> dict:
-    """Per channel name, the verdict entries of :func:`fault_isolation_metrics` from the fault
-    isolation fields of a controller's last ``ControllerStatus``
+    """Return the verdict entries of :func:`fault_isolation_metrics` from a published status, per channel name.
+
+    From the fault isolation fields of a controller's last ``ControllerStatus``
     (``uh_report.bag_metrics.read_team_bag``'s ``isolation``).
     """
     def finite(value):

@@ -89,9 +89,10 @@ def _number(value, spec: str = '.4g') -> str:
 
 
 def _fault_lines(metrics: dict) -> list[str]:
-    """Console lines of the fault metrics (docs/metrics.md): the false fault estimate's maximum
-    over the UHs against its threshold, then the absolute RMS error and NRMSE of every scored
-    vector (``n/m`` below the NRMSE floor).
+    """Console lines of the fault metrics (docs/metrics.md).
+
+    The false fault estimate's maximum over the UHs against its threshold, then the absolute RMS error and NRMSE of
+    every scored vector (``n/m`` below the NRMSE floor).
     """
     false_estimate = metrics['false_fault_estimate']
     lines = [f'  {"false estimate " + v.symbol:22s} max over UHs {_number(false_estimate["max"][v.key])} {v.unit} '
