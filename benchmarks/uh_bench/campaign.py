@@ -21,6 +21,13 @@ import statistics
 import time
 from pathlib import Path
 
+from uh_campaign.runner import run_campaign
+from uh_campaign.spec import parse_spec
+from uh_team.compile_kernels import compile_all
+from uh_team.metrics import metrics_from_arrays
+from uh_team.team_simulation import run_team_simulation
+from uh_topology.scenario import load_scenario
+
 __all__ = ['measure']
 
 _SPEC = """name: bench_paper
@@ -33,11 +40,6 @@ cases: [proposed]
 
 
 def _one_run_seconds(duration: float, repeats: int) -> float:
-    from uh_team.compile_kernels import compile_all
-    from uh_team.metrics import metrics_from_arrays
-    from uh_team.team_simulation import run_team_simulation
-    from uh_topology.scenario import load_scenario
-
     compile_all()
     scenario = load_scenario('paper')
     gc.collect()
@@ -59,9 +61,6 @@ def measure(workdir, runs: int = 200, workers: int | None = None, duration: floa
     The campaign is ``runs`` paper-scenario runs of ``duration`` s on ``workers`` local processes (default: the
     machine's cores); see the module docstring.
     """
-    from uh_campaign.runner import run_campaign
-    from uh_campaign.spec import parse_spec
-
     cores = os.cpu_count() or 1
     workers = workers or cores
     t_one = _one_run_seconds(duration, repeats)

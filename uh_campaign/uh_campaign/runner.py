@@ -55,7 +55,9 @@ running, commits their rows and raises :class:`CampaignInterrupted`.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import gc
 import math
+import multiprocessing
 import os
 import signal
 import sys
@@ -63,9 +65,17 @@ import threading
 import time
 from dataclasses import dataclass
 from datetime import datetime, timezone
+from importlib import metadata
 from pathlib import Path
 
+import numpy as np
+
 from uh_team import campaign_store as store
+from uh_team.compile_kernels import compile_all
+from uh_team.metrics import metrics_from_arrays
+from uh_team.team_simulation import SimulationError, run_team_simulation
+from uh_topology.scenario import parse_scenario
+
 from .spec import CampaignSpec, resolve_scenario, scenario_file_name, scenario_yaml
 
 __all__ = ['run_campaign', 'run_task', 'CampaignError', 'CampaignInterrupted', 'CampaignOutcome', 'Progress',
@@ -82,9 +92,10 @@ _DRAIN_TIMEOUT = 120.0
 
 
 class CampaignError(RuntimeError):
-    """A campaign that cannot start or go on: the directory holds another campaign, the cluster
-    cannot be reached (``status`` 2: bad input, nothing ran), a worker process died (``status``
-    1: what is done is saved).
+    """A campaign that cannot start or go on.
+
+    The directory holds another campaign, the cluster cannot be reached (``status`` 2: bad input, nothing ran), a worker
+    process died (``status`` 1: what is done is saved).
     """
 
     def __init__(self, message: str, status: int = 2):
@@ -106,9 +117,10 @@ class CampaignInterrupted(Exception):
 
 @dataclass
 class CampaignOutcome:
-    """Counts of a campaign after :func:`run_campaign`: runs of the whole campaign (``total``),
-    stored now (``done``), stored before this call (``skipped``), and of those run now, not ``ok``
-    (``failures``).
+    """Counts of a campaign after :func:`run_campaign`.
+
+    Runs of the whole campaign (``total``), stored now (``done``), stored before this call (``skipped``), and of those
+    run now, not ``ok`` (``failures``).
     """
 
     directory: Path
@@ -127,8 +139,10 @@ _WARM = False
 
 
 def _warm_up() -> None:
-    """Once per process: import what a run needs, load the numba kernels (from the cache, or
-    compile them), then ``gc.freeze()`` everything alive (as the nodes do at start-up,
+    """Once per process: load the numba kernels (from the cache, or compile them), then freeze.
+
+    What a run imports is imported with this module (its imports are at the top), so it is alive
+    here and frozen with the rest: ``gc.freeze()`` everything alive (as the nodes do at start-up,
     ``uh_runtime.runner``; ``UH_GC_FREEZE=0`` keeps the default). The imports and the kernels'
     dispatchers are a large, permanent object graph that every full collection would walk again:
     frozen, a 60 s run of the paper scenario takes about 0.39 s instead of 0.47 s.
@@ -136,13 +150,6 @@ def _warm_up() -> None:
     global _WARM
     if _WARM:
         return
-    import gc
-
-    import uh_team.metrics  # noqa: F401 - imported now, frozen below
-    import uh_team.team_simulation  # noqa: F401
-    from uh_team.compile_kernels import compile_all
-    from uh_topology.scenario import parse_scenario  # noqa: F401
-
     compile_all()
     if os.environ.get('UH_GC_FREEZE', '1').strip() not in ('0', 'false', 'no'):
         gc.collect()
@@ -162,11 +169,6 @@ def run_task(task: dict) -> list:
     campaign directory, for messages and the row), ``scenario_text`` (its YAML) and ``cases``.
     The rows hold every :data:`~uh_team.campaign_store.RUN_COLUMNS` column but ``success``.
     """
-    from uh_topology.scenario import parse_scenario
-
-    from uh_team.metrics import metrics_from_arrays
-    from uh_team.team_simulation import SimulationError, run_team_simulation
-
     _warm_up()
     key = {'draw': task['draw'], 'sweep_index': task['sweep_index'], 'sweep_value': task['sweep_value'],
            'scenario_file': task['scenario_file']}
@@ -203,9 +205,6 @@ class _LocalPool:
     """Tasks in a process pool on this machine."""
 
     def __init__(self, workers: int):
-        import multiprocessing
-
-        from uh_team.compile_kernels import compile_all
         compile_all()    # fill numba's cache once here, so the workers only load it
         self.context = multiprocessing.get_context('spawn')
         self.workers = workers
@@ -216,7 +215,7 @@ class _LocalPool:
         self.unstarted = workers    # workers not started yet (the pool starts them as tasks come)
 
     def restart(self):
-        """A new pool in place of a broken one (after :class:`WorkerDied`)."""
+        """Return a new pool in place of a broken one (after :class:`WorkerDied`)."""
         self.pool.shutdown(wait=False, cancel_futures=True)
         self.pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=self.context,
                                            initializer=_init_local_worker)
@@ -319,8 +318,6 @@ def success_of(row: dict, thresholds: dict) -> int:
 
 def campaign_versions() -> dict:
     """Versions of what produces the numbers: Python, numpy, numba and the project's packages."""
-    from importlib import metadata
-
     out = {'python': sys.version.split()[0]}
     for name in ('numpy', 'numba', 'uh_team', 'uh_topology', 'uh_core', 'uh_sim_node', 'uh_controller_node'):
         try:
@@ -370,8 +367,9 @@ def _write_atomic(path: Path, text: str) -> None:
 
 
 def _tasks(spec: CampaignSpec, directory: Path, done: set):
-    """``(task, failed_rows)`` per (draw, sweep point) with pending cases, in key order: the task
-    to run, or the failed rows of a scenario that could not be resolved.
+    """``(task, failed_rows)`` per (draw, sweep point) with pending cases, in key order.
+
+    The task to run, or the failed rows of a scenario that could not be resolved.
     """
     for draw in range(spec.runs):
         for s, value in enumerate(spec.sweep_values):
@@ -461,41 +459,8 @@ def run_campaign(spec: CampaignSpec, directory, *, workers: int | None = None, c
             if progress is not None:
                 progress.note(f'running on {executor.description}')
         tasks = _tasks(spec, directory, done_before)
-        exhausted = False
-        while skipped < total:
-            while not exhausted and len(inflight) < executor.slots and not (stop and stop.is_set()):
-                try:
-                    task, failed = next(tasks)
-                except StopIteration:
-                    exhausted = True
-                    break
-                if failed:
-                    commit(failed)
-                else:
-                    inflight[executor.submit(task)] = task
-            if stop is not None and stop.is_set():
-                raise _Stop
-            if not inflight:
-                break
-            for future in executor.wait(list(inflight), _POLL):
-                task = inflight.pop(future)
-                try:
-                    rows = _task_rows(executor, future, task, lost)
-                except CampaignError as exc:
-                    if stop is not None and stop.is_set():
-                        raise _Stop from None   # workers hit by the same Ctrl-C (a terminal's)
-                    if not isinstance(exc, WorkerDied):
-                        raise
-                    # every task in flight is lost with the pool: run each alone in a new pool, so
-                    # the one that kills its worker is recorded as failed and the others run
-                    suspects = [task, *inflight.values()]
-                    inflight.clear()
-                    for suspect in suspects:
-                        executor.restart()
-                        commit(_run_alone(executor, suspect, stop))
-                    executor.restart()
-                    break
-                commit(rows)
+        if skipped < total:
+            _run_tasks(executor, tasks, inflight, commit, lost, stop)
         if lost:
             raise CampaignError(f'{sum(n for n, _ in lost)} runs were lost by the executor, not run (e.g. '
                                 f'{lost[0][1]}); the rest is saved, and a resume runs them again', status=1)
@@ -514,8 +479,69 @@ class _Stop(Exception):
     pass
 
 
+def _submit_more(executor, tasks, inflight: dict, commit, stop) -> bool:
+    """Submit tasks while the executor has free slots and no stop is asked; return whether ``tasks`` is exhausted.
+
+    A task whose scenario could not be made comes with its failed rows, which are committed at once.
+    """
+    while len(inflight) < executor.slots and not (stop and stop.is_set()):
+        try:
+            task, failed = next(tasks)
+        except StopIteration:
+            return True
+        if failed:
+            commit(failed)
+        else:
+            inflight[executor.submit(task)] = task
+    return False
+
+
+def _collect(executor, inflight: dict, commit, lost: list, stop) -> None:
+    """Commit the rows of the tasks finished within :data:`_POLL` seconds.
+
+    A dead local worker takes every task in flight with it: each of them is then run alone in a new
+    pool, so the one that kills its worker is recorded as failed and the others run.
+    """
+    for future in executor.wait(list(inflight), _POLL):
+        task = inflight.pop(future)
+        try:
+            rows = _task_rows(executor, future, task, lost)
+        except CampaignError as exc:
+            if stop is not None and stop.is_set():
+                raise _Stop from None   # workers hit by the same Ctrl-C (a terminal's)
+            if not isinstance(exc, WorkerDied):
+                raise
+            suspects = [task, *inflight.values()]
+            inflight.clear()
+            for suspect in suspects:
+                executor.restart()
+                commit(_run_alone(executor, suspect, stop))
+            executor.restart()
+            return
+        commit(rows)
+
+
+def _run_tasks(executor, tasks, inflight: dict, commit, lost: list, stop) -> None:
+    """Keep the executor's slots filled from ``tasks`` and commit the rows as they come, until all are done.
+
+    Raises
+    ------
+    _Stop
+        ``stop`` was set (the tasks in flight are still in ``inflight``).
+    """
+    exhausted = False
+    while True:
+        if not exhausted:
+            exhausted = _submit_more(executor, tasks, inflight, commit, stop)
+        if stop is not None and stop.is_set():
+            raise _Stop
+        if not inflight:
+            return
+        _collect(executor, inflight, commit, lost, stop)
+
+
 def _run_alone(executor, task, stop) -> list:
-    """The rows of ``task`` run with nothing else in flight; failed rows if its worker dies."""
+    """Return the rows of ``task`` run with nothing else in flight; failed rows if its worker dies."""
     future = executor.submit(task)
     while not future.done():
         if stop is not None and stop.is_set():
@@ -530,9 +556,10 @@ def _run_alone(executor, task, stop) -> list:
 
 
 def _task_rows(executor, future, task, lost: list) -> list:
-    """The rows a finished task returned. A task the executor lost (e.g. a Dask worker killed while
-    running it) says nothing about its runs: they are not stored, so a resume runs them again, and
-    the reason goes to ``lost``.
+    """Return the rows a finished task returned.
+
+    A task the executor lost (e.g. a Dask worker killed while running it) says nothing about its runs: they are not
+    stored, so a resume runs them again, and the reason goes to ``lost``.
     """
     try:
         return executor.result(future)
@@ -570,9 +597,10 @@ _BAR_WIDTH = 30
 
 
 class Progress:
-    """Progress of a campaign on a stream (stderr): runs done / total, failures, runs/s and ETA.
-    On a terminal a bar on one line rewritten in place (at most 5 times a second); otherwise a line
-    at every further 10 % of the runs. ``quiet`` writes nothing.
+    """Progress of a campaign on a stream (stderr).
+
+    Runs done / total, failures, runs/s and ETA. On a terminal a bar on one line rewritten in place (at most 5 times a
+    second); otherwise a line at every further 10 % of the runs. ``quiet`` writes nothing.
     """
 
     def __init__(self, stream=None, quiet: bool = False, tty: bool | None = None, label: str = 'uh-campaign'):
@@ -643,11 +671,11 @@ def _duration(seconds: float) -> str:
 
 
 def summary_lines(directory, spec: CampaignSpec) -> list:
-    """Per case (and sweep value): runs stored, success count and rate, median formation and
-    containment RMS of the ``ok`` runs (from the results file).
-    """
-    import numpy as np
+    """Per case (and sweep value).
 
+    Runs stored, success count and rate, median formation and containment RMS of the ``ok`` runs (from the results
+    file).
+    """
     runs = store.read_runs(Path(directory) / store.DB_NAME)
     lines = []
     sweep = spec.sweep is not None
@@ -674,5 +702,5 @@ def summary_lines(directory, spec: CampaignSpec) -> list:
 
 
 def success_text(spec: CampaignSpec) -> str:
-    """The spec's success criterion in words."""
+    """Return the spec's success criterion in words."""
     return ', '.join(f'{m} <= {t:g}' for m, t in spec.success.items()) or 'status ok'

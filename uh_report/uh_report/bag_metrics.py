@@ -18,6 +18,14 @@ import json
 from pathlib import Path
 
 import numpy as np
+from rosbags.rosbag2 import Reader
+from rosbags.rosbag2.errors import ReaderError
+
+from uh_runtime.bag_reader import BagError, bag_file, read_messages
+from uh_runtime.messages import typestore
+from uh_team.metrics import metrics_from_arrays
+from uh_team.run_arrays import new_run_arrays
+from uh_wire import topics
 
 __all__ = ['BagContentError', 'read_team_bag', 'write_metrics_from_bag']
 
@@ -30,26 +38,32 @@ def _vec(v) -> list:
     return [v.x, v.y, v.z]
 
 
-def read_team_bag(bag_dir, scenario) -> dict:
-    """Read the per-step topics of a team bag into arrays.
+class _Decoder:
+    """Decodes the raw messages of one bag and counts, per topic, those a receiver would reject."""
 
-    Returns a dict with ``time`` (K+1,), ``states`` (K+1, n, 12), ``commands`` (K+1, n, 4),
-    ``reference`` (K+1, 5) = (x0, y0, z0, psi0, psi0'), ``fault_true_p``/``fault_true_w`` and
-    ``fault_est_p``/``fault_est_w`` (K+1, n, 3), ``u_p`` (K+1, n, 3), ``saturated`` (K+1, n) (any
-    saturation flag), ``isolation`` (the last fault isolation each controller published,
-    :func:`_isolation_of`; ``{}`` when no status carried one), ``counts`` ({topic: messages}).
-    Steps missing from a topic are NaN.
-    """
-    from rosbags.rosbag2 import Reader
-    from rosbags.rosbag2.errors import ReaderError
+    def __init__(self, bag_dir: Path):
+        self.bag_dir = bag_dir
+        self.store = typestore()
+        self.rejected: dict = {}
 
-    from uh_wire import topics
-    from uh_runtime.messages import typestore
+    def decode(self, topic: str, msgtype: str, raw):
+        """Return the message of ``raw``; a BagContentError if it does not decode."""
+        try:
+            return self.store.deserialize_cdr(raw, msgtype)
+        except Exception as exc:
+            raise BagContentError(f'bag {self.bag_dir}: a {msgtype} message on {topic} does not decode: '
+                                  f'{exc}') from None
 
-    bag_dir = Path(bag_dir)
-    ids = list(scenario.ids)
-    col = {i: c for c, i in enumerate(ids)}
-    store = typestore()
+    def valid(self, topic: str, msg, values, uh_id=None) -> bool:
+        """Tell whether ``values`` are finite and ``msg`` is of UH ``uh_id`` (if given); count it if not."""
+        ok = np.isfinite(np.asarray(values, dtype=float)).all() and (uh_id is None or int(msg.uh_id) == uh_id)
+        if not ok:
+            self.rejected[topic] = self.rejected.get(topic, 0) + 1
+        return bool(ok)
+
+
+def _read_raw(bag_dir: Path) -> tuple[dict, dict]:
+    """Return ``({topic: [(msgtype, raw bytes)]}, {topic: message count})`` of the bag in ``bag_dir``."""
     _check_bag_dir(bag_dir)
     try:
         reader = Reader(bag_dir)
@@ -62,80 +76,99 @@ def read_team_bag(bag_dir, scenario) -> dict:
             for conn, _, raw in reader.messages():
                 rows.setdefault(conn.topic, []).append((conn.msgtype, raw))
         except Exception as exc:  # rosbags raises several types for damaged chunks
-            raise BagContentError(f'cannot read bag {bag_dir}: {str(exc).rstrip(".")}{_diagnose_mcap(bag_dir)}') from None
+            raise BagContentError(f'cannot read bag {bag_dir}: {str(exc).rstrip(".")}'
+                                  f'{_diagnose_mcap(bag_dir)}') from None
         counts = {c.topic: c.msgcount for c in reader.connections}
     finally:
         reader.close()
-    rejected: dict = {}
+    return rows, counts
 
-    def decode(topic, msgtype, raw):
-        try:
-            return store.deserialize_cdr(raw, msgtype)
-        except Exception as exc:
-            raise BagContentError(f'bag {bag_dir}: a {msgtype} message on {topic} does not decode: {exc}') from None
 
-    def valid(topic, msg, values, uh_id=None) -> bool:
-        ok = np.isfinite(np.asarray(values, dtype=float)).all() and (uh_id is None or int(msg.uh_id) == uh_id)
-        if not ok:
-            rejected[topic] = rejected.get(topic, 0) + 1
-        return bool(ok)
+def _fill_reference(out: dict, messages, dec: _Decoder) -> None:
+    """Write the virtual leader's ``(x0, y0, z0, psi0, psi0')`` of each step into ``out['reference']``."""
+    name = topics.REFERENCE.name
+    for msgtype, raw in messages:
+        r = dec.decode(name, msgtype, raw)
+        row = [*_vec(r.position), r.yaw, r.yaw_rate]
+        if dec.valid(name, r, row + _vec(r.velocity) + _vec(r.acceleration)):
+            out['reference'][r.step] = row
 
-    steps = [decode(topics.REFERENCE.name, t, raw).step for t, raw in rows.get(topics.REFERENCE.name, [])]
+
+def _fill_plant_side(out: dict, rows: dict, dec: _Decoder, uh: int, c: int, last_step: int) -> None:
+    """Write UH ``uh``'s states, commands and true lumped faults into column ``c`` of ``out``."""
+    name = topics.uh_topic(uh, topics.STATE)
+    for msgtype, raw in rows.get(name, []):
+        s = dec.decode(name, msgtype, raw)
+        row = _vec(s.position) + _vec(s.velocity) + _vec(s.euler) + _vec(s.body_rates)
+        if s.step <= last_step and dec.valid(name, s, row, uh):
+            out['states'][s.step, c] = row
+    name = topics.uh_topic(uh, topics.COMMAND)
+    for msgtype, raw in rows.get(name, []):
+        u = dec.decode(name, msgtype, raw)
+        row = [u.theta_col, u.theta_tr, u.delta_lat, u.delta_lon]
+        if u.step <= last_step and dec.valid(name, u, row, uh):
+            out['commands'][u.step, c] = row
+    name = topics.uh_topic(uh, topics.FAULT_TRUTH)
+    for msgtype, raw in rows.get(name, []):
+        f = dec.decode(name, msgtype, raw)
+        if f.step <= last_step and dec.valid(name, f, _vec(f.lumped_fault_position) + _vec(f.lumped_fault_attitude),
+                                             uh):
+            out['fault_true_p'][f.step, c] = _vec(f.lumped_fault_position)
+            out['fault_true_w'][f.step, c] = _vec(f.lumped_fault_attitude)
+
+
+def _fill_status(out: dict, rows: dict, dec: _Decoder, uh: int, c: int, last_step: int) -> None:
+    """Write UH ``uh``'s fault estimates, ``u_p`` and saturation into column ``c`` of ``out``.
+
+    The fault isolation of its last status goes to ``out['isolation'][uh]``.
+    """
+    name = topics.uh_topic(uh, topics.STATUS)
+    last = None
+    for msgtype, raw in rows.get(name, []):
+        st = dec.decode(name, msgtype, raw)
+        if st.step <= last_step and st.uh_id == uh:
+            if last is None or st.step >= last.step:
+                last = st
+            out['fault_est_p'][st.step, c] = _vec(st.fault_estimate_position)
+            out['fault_est_w'][st.step, c] = _vec(st.fault_estimate_attitude)
+            out['u_p'][st.step, c] = _vec(st.u_p)
+            out['saturated'][st.step, c] = st.saturated_tilt or st.saturated_collective or st.saturated_cyclic
+    if last is not None:
+        out['isolation'][uh] = _isolation_of(last)
+
+
+def read_team_bag(bag_dir, scenario) -> dict:
+    """Read the per-step topics of a team bag into arrays.
+
+    Returns a dict with ``time`` (K+1,), ``states`` (K+1, n, 12), ``commands`` (K+1, n, 4),
+    ``reference`` (K+1, 5) = (x0, y0, z0, psi0, psi0'), ``fault_true_p``/``fault_true_w`` and
+    ``fault_est_p``/``fault_est_w`` (K+1, n, 3), ``u_p`` (K+1, n, 3), ``saturated`` (K+1, n) (any
+    saturation flag), ``isolation`` (the last fault isolation each controller published,
+    :func:`_isolation_of`; ``{}`` when no status carried one), ``counts`` ({topic: messages}).
+    Steps missing from a topic are NaN (the arrays of :func:`uh_team.run_arrays.new_run_arrays`).
+    """
+    bag_dir = Path(bag_dir)
+    ids = list(scenario.ids)
+    rows, counts = _read_raw(bag_dir)
+    dec = _Decoder(bag_dir)
+    reference = rows.get(topics.REFERENCE.name, [])
+    steps = [dec.decode(topics.REFERENCE.name, t, raw).step for t, raw in reference]
     if not steps:
         raise BagContentError(f'bag {bag_dir} has no {topics.REFERENCE.name} messages: not a team run')
     K = max(steps)
-    n = len(ids)
-    nan = lambda *shape: np.full(shape, np.nan)
-    out = {'time': np.arange(K + 1) * scenario.dt, 'states': nan(K + 1, n, 12), 'commands': nan(K + 1, n, 4),
-           'reference': nan(K + 1, 5), 'fault_true_p': nan(K + 1, n, 3), 'fault_true_w': nan(K + 1, n, 3),
-           'fault_est_p': nan(K + 1, n, 3), 'fault_est_w': nan(K + 1, n, 3), 'u_p': nan(K + 1, n, 3),
-           'saturated': np.zeros((K + 1, n), dtype=bool), 'isolation': {}, 'counts': counts,
-           'rejected': rejected}
-    name = topics.REFERENCE.name
-    for msgtype, raw in rows.get(name, []):
-        r = decode(name, msgtype, raw)
-        row = [*_vec(r.position), r.yaw, r.yaw_rate]
-        if valid(name, r, row + _vec(r.velocity) + _vec(r.acceleration)):
-            out['reference'][r.step] = row
-    for i in ids:
-        c = col[i]
-        name = topics.uh_topic(i, topics.STATE)
-        for msgtype, raw in rows.get(name, []):
-            s = decode(name, msgtype, raw)
-            row = _vec(s.position) + _vec(s.velocity) + _vec(s.euler) + _vec(s.body_rates)
-            if s.step <= K and valid(name, s, row, i):
-                out['states'][s.step, c] = row
-        name = topics.uh_topic(i, topics.COMMAND)
-        for msgtype, raw in rows.get(name, []):
-            u = decode(name, msgtype, raw)
-            row = [u.theta_col, u.theta_tr, u.delta_lat, u.delta_lon]
-            if u.step <= K and valid(name, u, row, i):
-                out['commands'][u.step, c] = row
-        name = topics.uh_topic(i, topics.FAULT_TRUTH)
-        for msgtype, raw in rows.get(name, []):
-            f = decode(name, msgtype, raw)
-            if f.step <= K and valid(name, f, _vec(f.lumped_fault_position) + _vec(f.lumped_fault_attitude), i):
-                out['fault_true_p'][f.step, c] = _vec(f.lumped_fault_position)
-                out['fault_true_w'][f.step, c] = _vec(f.lumped_fault_attitude)
-        name = topics.uh_topic(i, topics.STATUS)
-        last = None
-        for msgtype, raw in rows.get(name, []):
-            st = decode(name, msgtype, raw)
-            if st.step <= K and st.uh_id == i:
-                if last is None or st.step >= last.step:
-                    last = st
-                out['fault_est_p'][st.step, c] = _vec(st.fault_estimate_position)
-                out['fault_est_w'][st.step, c] = _vec(st.fault_estimate_attitude)
-                out['u_p'][st.step, c] = _vec(st.u_p)
-                out['saturated'][st.step, c] = st.saturated_tilt or st.saturated_collective or st.saturated_cyclic
-        if last is not None:
-            out['isolation'][i] = _isolation_of(last)
+    out = {'time': np.arange(K + 1) * scenario.dt, **new_run_arrays(K + 1, len(ids)), 'isolation': {},
+           'counts': counts, 'rejected': dec.rejected}
+    _fill_reference(out, reference, dec)
+    for c, i in enumerate(ids):
+        _fill_plant_side(out, rows, dec, i, c, K)
+        _fill_status(out, rows, dec, i, c, K)
     return out
 
 
 def _isolation_of(status) -> dict:
-    """The fault isolation fields of one ``ControllerStatus`` as plain lists (one entry per channel):
-    ``step``, ``isolated``, ``detection_time`` (s), ``effectiveness``, ``bias`` (rad),
+    """Return the fault isolation fields of one ``ControllerStatus`` as plain lists.
+
+    One entry per channel: ``step``, ``isolated``, ``detection_time`` (s), ``effectiveness``, ``bias`` (rad),
     ``identification`` (codes).
     """
     return {'step': int(status.step), 'isolated': [bool(v) for v in status.fault_isolated],
@@ -158,8 +191,7 @@ def _check_bag_dir(bag_dir: Path) -> None:
 
 
 def _diagnose_mcap(bag_dir: Path) -> str:
-    """What is wrong with the bag's MCAP file, as a sentence to append to an error (or '')."""
-    from uh_runtime.bag_reader import BagError, bag_file, read_messages
+    """Say what is wrong with the bag's MCAP file, as a sentence to append to an error (or '')."""
     try:
         result = read_messages(bag_file(bag_dir))
     except BagError as exc:
@@ -173,8 +205,6 @@ def _diagnose_mcap(bag_dir: Path) -> str:
 
 def write_metrics_from_bag(bag_dir, scenario, case: str, out_path, wall_time_s: float | None = None) -> dict:
     """Compute the metrics of docs/metrics.md from a team bag and write them to ``out_path`` (JSON)."""
-    from uh_team.metrics import metrics_from_arrays
-
     arrays = read_team_bag(bag_dir, scenario)
     metrics = metrics_from_arrays(arrays, scenario, case, wall_time_s=wall_time_s)
     Path(out_path).write_text(json.dumps(metrics, indent=2, sort_keys=False) + '\n')

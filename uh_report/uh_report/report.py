@@ -33,17 +33,31 @@ message names the file and what is wrong.
 from __future__ import annotations
 
 import argparse
-import csv
 import html
-import io
 import json
 import math
 import re
 import sys
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from uh_core.layout import X_P_SLICE
+from uh_runtime.bag_reader import BagError, open_bag
+from uh_team.metrics import (FALSE_ESTIMATE_START, FAULT_WINDOW_DELAY, LUMPED_FAULTS, NOT_MEANINGFUL_MARK,
+                             NRMSE_FLOOR_P, NRMSE_FLOOR_W, MetricsError, faulted_uhs, metrics_from_arrays,
+                             nrmse_below_floor)
+from uh_topology.errors import ScenarioError
+from uh_topology.scenario import load_scenario
+
+from . import report_figures as F
+from .bag_metrics import BagContentError, read_team_bag
+from .campaign_report import CampaignReportError, is_campaign_dir, write_campaign_report
+from .document import CSS_NUMBERS, NumberCell, csv_text, html_figure, html_page, make_writable_dir
+from .document import html_table as html_grid
+from .document import markdown_table as markdown_grid
 
 __all__ = ['ReportError', 'RunData', 'load_run', 'table_rows', 'format_value', 'write_report', 'main',
            'build_parser', 'CASE_LABELS']
@@ -137,8 +151,6 @@ def _read_json(path: Path) -> dict:
 
 
 def _load_scenario(name, run_dir: Path, where: str):
-    from uh_topology.errors import ScenarioError
-    from uh_topology.scenario import load_scenario
     candidates = [name]
     if not Path(str(name)).is_absolute() and name != 'paper':
         candidates.append(run_dir / str(name))
@@ -168,10 +180,6 @@ def load_run(run_dir, scenario_name: str = 'paper', check_chunks: bool = True) -
         A missing or empty directory, one that holds no run, a bag that cannot be read (file and
         problem named), arrays that do not fit the scenario, a bad ``run.json``/``metrics.json``.
     """
-    from uh_report.bag_metrics import BagContentError, read_team_bag
-    from uh_team.metrics import MetricsError, metrics_from_arrays
-    from uh_runtime.bag_reader import BagError, open_bag
-
     run_dir = Path(run_dir)
     if not run_dir.exists():
         raise ReportError(f'{run_dir}: no such run directory')
@@ -201,7 +209,7 @@ def load_run(run_dir, scenario_name: str = 'paper', check_chunks: bool = True) -
         contents = sorted(p.name for p in run_dir.iterdir())
         raise ReportError(f'{run_dir}: not a run: no bag/ (run_formation.sh) and no timeseries.npz '
                           f'(uh-simulate); it holds {contents}')
-    if not np.isfinite(arrays['states'][..., 0:3]).any():
+    if not np.isfinite(arrays['states'][..., X_P_SLICE]).any():
         raise ReportError(f'{run_dir}: the {source} holds no finite position')
     metrics_source = 'metrics.json'
     if metrics is None:
@@ -215,7 +223,6 @@ def load_run(run_dir, scenario_name: str = 'paper', check_chunks: bool = True) -
 
 
 def _load_timeseries(path: Path, scenario) -> dict:
-    import zipfile
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
@@ -284,11 +291,11 @@ def _table_unit(unit: str) -> str:
 
 
 def _fault_rows(runs) -> list[tuple[str, str, str, bool]]:
-    """Rows of the fault metrics (docs/metrics.md): the false fault estimate's maximum over the UHs
-    per vector, then for every UH and vector any run scores its absolute RMS error and its NRMSE.
-    """
-    from uh_team.metrics import LUMPED_FAULTS
+    """Rows of the fault metrics (docs/metrics.md).
 
+    The false fault estimate's maximum over the UHs per vector, then for every UH and vector any run scores its absolute
+    RMS error and its NRMSE.
+    """
     rows = [(f'false_fault_estimate.max.{v.key}',
              f'false fault estimate RMS ‖{v.symbol.replace("F", "F̂")}‖, max over UHs '
              f'(threshold {v.false_estimate_threshold:g})', _table_unit(v.unit), True)
@@ -321,10 +328,11 @@ def table_rows(runs) -> list[tuple[str, str, str, bool]]:
 
 
 def isolation_table(run) -> list[list[str]] | None:
-    """Rows (cell texts, columns :data:`ISOLATION_HEAD`) of the fault isolation of ``run``: every
-    faulted channel (isolation delay, identified ``rho`` and ``b`` against the truth, or why they
-    are not identifiable) and every falsely isolated one; ``None`` if ``metrics.json`` has no
-    ``fault_isolation`` section (an older run, or one without commands).
+    """Rows (cell texts, columns :data:`ISOLATION_HEAD`) of the fault isolation of ``run``.
+
+    Every faulted channel (isolation delay, identified ``rho`` and ``b`` against the truth, or why they are not
+    identifiable) and every falsely isolated one; ``None`` if ``metrics.json`` has no ``fault_isolation`` section (an
+    older run, or one without commands).
     """
     section = run.metrics.get('fault_isolation')
     if not section:
@@ -342,18 +350,14 @@ def isolation_table(run) -> list[list[str]] | None:
     return rows
 
 
-def _markdown_grid(head, rows) -> str:
-    """A plain Markdown table of texts."""
-    cell = lambda t: str(t).replace('|', '\\|')  # noqa: E731
-    lines = ['| ' + ' | '.join(map(cell, head)) + ' |', '|' + '---|' * len(head)]
-    return '\n'.join(lines + ['| ' + ' | '.join(map(cell, row)) + ' |' for row in rows]) + '\n'
+def _markdown_text(head, rows) -> str:
+    """Return a Markdown table of texts, ending with a line break."""
+    return '\n'.join(markdown_grid(head, rows)) + '\n'
 
 
 def _html_grid(head, rows) -> str:
-    """A plain HTML table of texts, styled like :func:`html_table`."""
-    th = ''.join(f'<th>{html.escape(h)}</th>' for h in head)
-    body = ['<tr>' + ''.join(f'<td>{html.escape(str(t))}</td>' for t in row) + '</tr>' for row in rows]
-    return f'<table>\n<thead><tr>{th}</tr></thead>\n<tbody>\n' + '\n'.join(body) + '\n</tbody>\n</table>'
+    """Return an HTML table of texts, quotes escaped like every text of the run report's page."""
+    return html_grid(head, rows, quote=True)
 
 
 def _html_paragraph(text: str) -> str:
@@ -361,8 +365,10 @@ def _html_paragraph(text: str) -> str:
 
 
 def _isolation_section(run, grid, paragraph) -> str:
-    """The per-run fault isolation table rendered by ``grid`` (:func:`_markdown_grid` or
-    :func:`_html_grid`), or a sentence rendered by ``paragraph`` when there is none.
+    """Render the per-run fault isolation table, or a sentence when there is none.
+
+    The table is rendered by ``grid`` (:func:`_markdown_text` or :func:`_html_grid`), the sentence
+    by ``paragraph``.
     """
     rows = isolation_table(run)
     if rows is None:
@@ -371,12 +377,12 @@ def _isolation_section(run, grid, paragraph) -> str:
 
 
 def _table_value(metrics: dict, key: str):
-    """The value of ``key`` as the tables show it: that of ``metrics.json``, except an NRMSE
-    withheld below its floor, which is :data:`uh_team.metrics.NOT_MEANINGFUL_MARK` (not ``n/a``:
-    it is defined, just not a measure of the estimator). A KeyError if absent.
-    """
-    from uh_team.metrics import NOT_MEANINGFUL_MARK, nrmse_below_floor
+    """Return the value of ``key`` as the tables show it.
 
+    That of ``metrics.json``, except an NRMSE withheld below its floor, which is
+    :data:`uh_team.metrics.NOT_MEANINGFUL_MARK` (not ``n/a``: it is defined, just not a measure of the estimator). A
+    KeyError if absent.
+    """
     value = _lookup(metrics, key)
     if value is None and key.startswith('fault_estimation.') and key.endswith('.nrmse'):
         if nrmse_below_floor(_lookup(metrics, key.rpartition('.')[0])):
@@ -406,50 +412,49 @@ def _source_text(run) -> str:
     return kind + ('' if run.metrics_source == 'metrics.json' else ', metrics computed by uh-report')
 
 
-def markdown_table(runs) -> str:
-    """The metrics table in Markdown: one row per metric, one column per run (best value in bold)."""
+def _metric_table(runs) -> tuple[list, list]:
+    """``(head, rows)`` of the metrics table: one row per metric, one column per run (best value in bold).
+
+    The cells of the runs' values are :class:`uh_report.document.NumberCell`; ``None`` is an empty cell.
+    """
     head = ['metric', 'unit', 'metrics.json key'] + [r.label for r in runs]
-    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * 3 + '---:|' * len(runs)]
-    lines.append('| run directory | | | ' + ' | '.join(f'`{r.directory.name}`' for r in runs) + ' |')
-    lines.append('| source | | | ' + ' | '.join(_source_text(r) for r in runs) + ' |')
+    rows = [['run directory', None, None] + [f'`{r.directory.name}`' for r in runs],
+            ['source', None, None] + [_source_text(r) for r in runs]]
     for key, what, unit, better in table_rows(runs):
-        lines.append(f'| {what} | {unit} | `{key}` | ' + ' | '.join(_cells(runs, key, better, True)) + ' |')
-    return '\n'.join(lines) + '\n'
+        rows.append([what, unit, f'`{key}`'] + [NumberCell(t) for t in _cells(runs, key, better, True)])
+    return head, rows
+
+
+def markdown_table(runs) -> str:
+    """Return the metrics table in Markdown: one row per metric, one column per run (best value in bold)."""
+    head, rows = _metric_table(runs)
+    return '\n'.join(markdown_grid(head, rows, right_aligned=range(3, len(head)))) + '\n'
+
+
+def _csv_cell(value) -> str:
+    """CSV text of a metrics value at full precision: ``repr`` of a float, ``null`` for ``None``, empty if absent."""
+    if value is KeyError:
+        return ''
+    return 'null' if value is None else repr(value) if isinstance(value, float) else str(value)
 
 
 def csv_table(runs) -> str:
-    """The metrics table as CSV at full precision (``repr`` of each number of ``metrics.json``)."""
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator='\n')
-    writer.writerow(['key'] + [r.name for r in runs])
+    """Return the metrics table as CSV at full precision (``repr`` of each number of ``metrics.json``)."""
+    rows = []
     for key, _what, _unit, _better in table_rows(runs):
         row = [key]
         for run in runs:
             try:
-                value = _table_value(run.metrics, key)
+                row.append(_table_value(run.metrics, key))
             except KeyError:
-                row.append('')
-                continue
-            row.append('null' if value is None else repr(value) if isinstance(value, float) else str(value))
-        writer.writerow(row)
-    return out.getvalue()
+                row.append(KeyError)
+        rows.append(row)
+    return csv_text(['key'] + [r.name for r in runs], rows, _csv_cell)
 
 
 def html_table(runs) -> str:
-    head = ''.join(f'<th>{html.escape(h)}</th>' for h in ['metric', 'unit', 'metrics.json key'] + [r.label for r in runs])
-    body = ['<tr><td>run directory</td><td></td><td></td>' +
-            ''.join(f'<td><code>{html.escape(r.directory.name)}</code></td>' for r in runs) + '</tr>',
-            '<tr><td>source</td><td></td><td></td>' +
-            ''.join(f'<td>{html.escape(_source_text(r))}</td>' for r in runs) + '</tr>']
-    for key, what, unit, better in table_rows(runs):
-        cells = []
-        for text in _cells(runs, key, better, True):
-            strong = text.startswith('**')
-            text = html.escape(text.strip('*'))
-            cells.append(f'<td class="num">{"<strong>" + text + "</strong>" if strong else text}</td>')
-        body.append(f'<tr><td>{html.escape(what)}</td><td>{html.escape(unit)}</td>'
-                    f'<td><code>{html.escape(key)}</code></td>{"".join(cells)}</tr>')
-    return f'<table>\n<thead><tr>{head}</tr></thead>\n<tbody>\n' + '\n'.join(body) + '\n</tbody>\n</table>'
+    """Return the metrics table in HTML, as :func:`markdown_table`."""
+    return _html_grid(*_metric_table(runs))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -478,10 +483,6 @@ def _figure_text(key: str) -> str:
 
 def write_figures(runs, out: Path) -> dict:
     """Draw every figure; returns ``{'errors': path, ..., run.name: {kind: path}}``."""
-    from uh_team.metrics import faulted_uhs
-
-    from . import report_figures as F
-
     written = {'errors': F.plot_errors(runs, out / 'errors.png'),
                'errors_per_uh': F.plot_errors_per_uh(runs, out / 'errors_per_uh.png')}
     for run in runs:
@@ -502,9 +503,6 @@ def _title(runs) -> str:
 
 
 def _notes(runs) -> list[str]:
-    from uh_team.metrics import (FALSE_ESTIMATE_START, FAULT_WINDOW_DELAY, NOT_MEANINGFUL_MARK, NRMSE_FLOOR_P,
-                                 NRMSE_FLOOR_W)
-
     settle = sorted({r.metrics.get('settle_time_s') for r in runs if r.metrics.get('settle_time_s') is not None})
     settle_text = ', '.join(f'{s:g}' for s in settle) or 'the settle time'
     return [
@@ -525,16 +523,12 @@ def _notes(runs) -> list[str]:
     ]
 
 
-def write_report(runs, out: Path) -> Path:
-    """Write the figures, ``report.md``, ``index.html`` and ``metrics_table.csv`` into ``out``."""
-    from .campaign_report import make_writable_dir
+def _markdown_report(runs, figures: dict, rel) -> str:
+    """Return ``report.md``.
 
-    _unique_names(runs)
-    make_writable_dir(out, ReportError)
-    figures = write_figures(runs, out)
-    (out / 'metrics_table.csv').write_text(csv_table(runs))
-
-    rel = lambda p: p.relative_to(out).as_posix()  # noqa: E731
+    The runs, the metrics table and its notes, the comparison figures, per run its fault isolation
+    and figures; ``rel`` gives a figure's path relative to the report.
+    """
     md = [f'# {_title(runs)}', '', 'Runs:', '']
     for run in runs:
         md.append(f'- **{run.label}**: `{run.directory}` ({_source_text(run)}, scenario `{run.scenario.name}`, '
@@ -546,41 +540,39 @@ def write_report(runs, out: Path) -> Path:
         md += [f'### {_figure_text(key)}', '', f'![{key}]({rel(figures[key])})', '']
     for run in runs:
         md += [f'## {run.label} (`{run.directory.name}`)', '', f'### {_ISOLATION_TEXT}', '',
-               _isolation_section(run, _markdown_grid, str), '']
+               _isolation_section(run, _markdown_text, str), '']
         for key, path in run.figures.items():
             md += [f'### {_figure_text(key)}', '', f'![{run.name} {key}]({rel(path)})', '']
-    (out / 'report.md').write_text('\n'.join(md))
+    return '\n'.join(md)
 
-    parts = ['<h2>Metrics</h2>', html_table(runs)] + [f'<p>{html.escape(n).replace("`", "")}</p>' for n in _notes(runs)]
+
+def _html_report(runs, figures: dict, rel) -> str:
+    """``index.html``: the content of :func:`_markdown_report` as an HTML page."""
+    parts = [f'<h1>{html.escape(_title(runs))}</h1>',
+             '<ul>' + ''.join(f'<li><b>{html.escape(r.label)}</b>: <code>{html.escape(str(r.directory))}</code> '
+                              f'({html.escape(_source_text(r))})</li>' for r in runs) + '</ul>',
+             '<h2>Metrics</h2>', html_table(runs)]
+    parts += [f'<p>{html.escape(n).replace("`", "")}</p>' for n in _notes(runs)]
     parts.append('<h2>Comparison figures</h2>')
     for key in ('errors', 'errors_per_uh'):
-        parts.append(f'<figure><img src="{html.escape(rel(figures[key]))}" alt="{key}">'
-                     f'<figcaption>{html.escape(_figure_text(key))}</figcaption></figure>')
+        parts.append(html_figure(rel(figures[key]), _figure_text(key), alt=key))
     for run in runs:
         parts.append(f'<h2>{html.escape(run.label)} <small><code>{html.escape(str(run.directory))}</code></small></h2>')
         parts.append(f'<h3>{html.escape(_ISOLATION_TEXT)}</h3>\n{_isolation_section(run, _html_grid, _html_paragraph)}')
         for key, path in run.figures.items():
-            parts.append(f'<figure><img src="{html.escape(rel(path))}" alt="{html.escape(run.name + " " + key)}">'
-                         f'<figcaption>{html.escape(_figure_text(key))}</figcaption></figure>')
-    page = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>{html.escape(_title(runs))}</title>
-<style>
-body {{ font-family: sans-serif; margin: 1.5em auto; max-width: 1450px; color: #222; }}
-table {{ border-collapse: collapse; margin: 1em 0; }}
-th, td {{ border: 1px solid #bbb; padding: 0.3em 0.6em; }}
-th {{ background: #eef; }}
-td.num {{ text-align: right; font-variant-numeric: tabular-nums; }}
-figure {{ margin: 1.5em 0; }}
-img {{ max-width: 100%; border: 1px solid #ddd; }}
-figcaption {{ font-style: italic; margin-top: 0.3em; }}
-</style></head>
-<body>
-<h1>{html.escape(_title(runs))}</h1>
-<ul>{''.join(f'<li><b>{html.escape(r.label)}</b>: <code>{html.escape(str(r.directory))}</code> ({html.escape(_source_text(r))})</li>' for r in runs)}</ul>
-{chr(10).join(parts)}
-</body></html>
-"""
-    (out / 'index.html').write_text(page)
+            parts.append(html_figure(rel(path), _figure_text(key), alt=run.name + ' ' + key))
+    return html_page(_title(runs), '\n'.join(parts), css=(CSS_NUMBERS,))
+
+
+def write_report(runs, out: Path) -> Path:
+    """Write the figures, ``report.md``, ``index.html`` and ``metrics_table.csv`` into ``out``."""
+    _unique_names(runs)
+    make_writable_dir(out, ReportError)
+    figures = write_figures(runs, out)
+    (out / 'metrics_table.csv').write_text(csv_table(runs))
+    rel = lambda p: p.relative_to(out).as_posix()  # noqa: E731
+    (out / 'report.md').write_text(_markdown_report(runs, figures, rel))
+    (out / 'index.html').write_text(_html_report(runs, figures, rel))
     return out / 'report.md'
 
 
@@ -618,8 +610,6 @@ def _fail(message: str, status: int = 2) -> int:
 
 def _campaign_main(args, campaign_dir) -> int:
     """``uh-report CAMPAIGN_DIR [--out DIR]``: the report of :mod:`uh_report.campaign_report`."""
-    from .campaign_report import CampaignReportError, write_campaign_report
-
     if len(args.runs) != 1:
         return _fail(f'{campaign_dir} is a campaign directory (campaign.sqlite); a campaign is reported on its '
                      f'own: uh-report {campaign_dir} [--out DIR]')
@@ -638,10 +628,8 @@ def _campaign_main(args, campaign_dir) -> int:
 
 def main(argv=None) -> int:
     """Entry point of ``uh-report``; returns the exit status (see the module docstring)."""
-    import matplotlib
+    import matplotlib     # a file-only backend before any figure: uh-report draws without a display
     matplotlib.use('Agg')
-
-    from .campaign_report import is_campaign_dir
 
     args = build_parser().parse_args(argv)
     campaigns = [d for d in args.runs if is_campaign_dir(d)]

@@ -31,8 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
+from uh_core.layout import X_P_SLICE
+from uh_team.metrics import FALSE_ESTIMATE_START, LUMPED_FAULTS, containment_errors, faulted_uhs, formation_errors
+from uh_team.run_arrays import RUN_REF_POSITION, RUN_REF_YAW
+
 __all__ = ['DPI', 'FIGURE_SIZES', 'pixel_size', 'plot_states', 'plot_trajectory_3d', 'plot_xy_snapshots',
-           'plot_faults', 'plot_false_fault_estimate', 'plot_errors', 'plot_errors_per_uh', 'uh_errors', 'snapshot_times']
+           'plot_faults', 'plot_false_fault_estimate', 'plot_errors', 'plot_errors_per_uh', 'uh_errors',
+           'snapshot_times']
 
 #: Dots per inch of every PNG.
 DPI = 100
@@ -108,7 +113,6 @@ def _vline(ax, t: float, text: str) -> None:
 
 def _mark_faults(ax, run, uh=None) -> None:
     """Labelled dotted vertical line at the fault onset(s) (of ``uh`` only if given)."""
-    from uh_team.metrics import faulted_uhs
     onsets = sorted({f.onset for i, f in faulted_uhs(run.scenario).items() if uh is None or i == uh})
     t_end = float(run.arrays['time'][-1])
     for onset in onsets:
@@ -142,7 +146,7 @@ def plot_states(run, path: Path) -> Path:
             if k < 3:
                 ax.plot(t, ref[:, k], label='virtual leader', **_VL)
             else:
-                ax.plot(t, np.degrees(_unwrap(ref[:, 3])), label='virtual leader', **_VL)
+                ax.plot(t, np.degrees(_unwrap(ref[:, RUN_REF_YAW])), label='virtual leader', **_VL)
             ax.set_ylabel(ylabel)
             ax.set_title(title)
             _mark_faults(ax, run)
@@ -179,7 +183,7 @@ def plot_trajectory_3d(run, path: Path) -> Path:
                   (fig.add_subplot(2, 2, 4), 1, 2, 'YZ plane (side view)')]
         names = 'xyz'
         for c, i in enumerate(ids):
-            p = states[:, c, 0:3]
+            p = states[:, c, X_P_SLICE]
             colour = _uh_colour(c)
             ax3.plot(p[:, 0], p[:, 1], p[:, 2], color=colour, label=_uh_label(run, i))
             ax3.scatter(*p[0], color=colour, marker='o', s=30)
@@ -216,8 +220,10 @@ def snapshot_times(t_end: float, count: int = 7) -> list[float]:
 
 
 def plot_xy_snapshots(run, path: Path, count: int = 7) -> Path:
-    """XY plane (m): trajectories, and at ``count`` snapshot times the leaders' convex hull (filled
-    polygon), the followers (filled markers) and the virtual leader (star).
+    """Draw the XY plane (m): trajectories and snapshots of the team.
+
+    At ``count`` snapshot times the leaders' convex hull (filled polygon), the followers (filled
+    markers) and the virtual leader (star).
     """
     from matplotlib.patches import Polygon
 
@@ -300,11 +306,11 @@ def _convex_hull_2d(points: np.ndarray) -> np.ndarray:
 # Fault estimation
 # ----------------------------------------------------------------------------------------------
 def plot_faults(run, uh: int, path: Path) -> Path:
-    """Estimated (dashed) vs true (solid) lumped faults of UH ``uh``: F_p (m/s^2, inertial x, y, z)
-    left, F_w (rad/s^2, body roll, pitch, yaw) right, one row per axis; dotted line at the onset.
-    """
-    from uh_team.metrics import faulted_uhs
+    """Estimated (dashed) vs true (solid) lumped faults of UH ``uh``.
 
+    F_p (m/s^2, inertial x, y, z) left, F_w (rad/s^2, body roll, pitch, yaw) right, one row per axis; dotted line at the
+    onset.
+    """
     t = run.arrays['time']
     c = run.scenario.ids.index(uh)
     info = faulted_uhs(run.scenario).get(uh)
@@ -339,8 +345,9 @@ def plot_faults(run, uh: int, path: Path) -> Path:
 
 
 def _robust_ylim(ax, t, true, est, skip: float) -> None:
-    """y range holding the true fault everywhere and the estimate after ``skip`` s (start-up
-    spikes of the observers would otherwise squash the curves), with 8 % margins.
+    """Set a y range holding the true fault everywhere and the estimate after ``skip`` s, with 8 % margins.
+
+    Start-up spikes of the observers would otherwise squash the curves.
     """
     late = t >= skip
     values = np.concatenate([np.asarray(true, dtype=float), np.asarray(est, dtype=float)[late]])
@@ -359,8 +366,9 @@ def _fault_free_steps(run, uh: int, faulted: dict) -> np.ndarray:
 
 
 def _log_ylim(ax, shown, threshold: float) -> float:
-    """Log y range from below the scored values and a tenth of ``threshold`` up to the largest
-    value drawn; returns its bottom (curves are clipped to it, so a zero estimate stays visible).
+    """Log y range from below the scored values and a tenth of ``threshold`` up to the largest value drawn.
+
+    Returns its bottom (curves are clipped to it, so a zero estimate stays visible).
     """
     values = np.concatenate(shown) if shown else np.empty(0)
     values = values[np.isfinite(values) & (values > 0)]
@@ -372,7 +380,7 @@ def _log_ylim(ax, shown, threshold: float) -> float:
 
 
 def plot_false_fault_estimate(run, path: Path) -> Path:
-    """The false fault estimate made visible (docs/metrics.md#false-fault-estimate).
+    """Draw the false fault estimate made visible (docs/metrics.md#false-fault-estimate).
 
     ``|Fhat_p|`` (m/s^2, top) and ``|Fhat_w|`` (rad/s^2, bottom), log scale, of every UH where no
     fault acts: healthy UHs over the whole run (solid), faulted UHs up to their onset (dashed);
@@ -380,8 +388,6 @@ def plot_false_fault_estimate(run, path: Path) -> Path:
     each UH's RMS over its window (the run's ``false_fault_estimate``) in the legend. Values below
     the y range (an estimate still exactly zero) are drawn on its bottom edge.
     """
-    from uh_team.metrics import FALSE_ESTIMATE_START, LUMPED_FAULTS, faulted_uhs
-
     t = np.asarray(run.arrays['time'], dtype=float)
     ids = run.scenario.ids
     faulted = faulted_uhs(run.scenario)
@@ -426,14 +432,14 @@ def plot_false_fault_estimate(run, path: Path) -> Path:
 # Figures 10-12: formation and containment errors, runs overlaid
 # ----------------------------------------------------------------------------------------------
 def uh_errors(run) -> np.ndarray:
-    """(K+1, n) formation error ``|p_i - h_i - p_0|`` of each leader and containment error
-    ``|p_k - sum_j w_kj p_j|`` of each follower, m (docs/metrics.md), UH axis in ``scenario.ids`` order.
-    """
-    from uh_team.metrics import containment_errors, formation_errors
+    """Return the (K+1, n) errors of each UH, m (docs/metrics.md), UH axis in ``scenario.ids`` order.
 
+    The formation error ``|p_i - h_i - p_0|`` of each leader and the containment error
+    ``|p_k - sum_j w_kj p_j|`` of each follower.
+    """
     sc = run.scenario
-    pos = np.asarray(run.arrays['states'], dtype=float)[..., 0:3]
-    p0 = np.asarray(run.arrays['reference'], dtype=float)[:, 0:3]
+    pos = np.asarray(run.arrays['states'], dtype=float)[..., X_P_SLICE]
+    p0 = np.asarray(run.arrays['reference'], dtype=float)[:, RUN_REF_POSITION]
     n_lead = len(sc.leaders)
     h = np.array([sc.offsets[i] for i in sc.leaders], dtype=float)
     out = np.empty(pos.shape[:2])
@@ -455,9 +461,10 @@ def _settle_line(ax, runs) -> None:
 
 
 def plot_errors(runs, path: Path) -> Path:
-    """RMS over the leaders of the formation errors and RMS over the followers of the containment
-    errors (m, log scale) against time, one line per run (Figures 10-12), with an inset table of
-    the after-settle RMS from each run's metrics.
+    """Draw the RMS formation and containment errors against time, one line per run (Figures 10-12).
+
+    RMS over the leaders of the formation errors and RMS over the followers of the containment
+    errors (m, log scale), with an inset table of the after-settle RMS from each run's metrics.
     """
     with _style():
         fig = _figure('errors')
@@ -491,8 +498,9 @@ def plot_errors(runs, path: Path) -> Path:
 
 
 def plot_errors_per_uh(runs, path: Path) -> Path:
-    """Formation (leaders) or containment (followers) error of each UH (m, log scale) against time,
-    one panel per UH, one line per run.
+    """Draw the formation (leaders) or containment (followers) error of each UH against time.
+
+    In m, log scale; one panel per UH, one line per run.
     """
     sc = runs[0].scenario
     ids = sc.ids

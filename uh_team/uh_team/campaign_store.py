@@ -106,8 +106,9 @@ def done_keys(con: sqlite3.Connection) -> set:
 
 
 def write_run(con: sqlite3.Connection, row: dict) -> None:
-    """Store one run (a dict with the columns of :data:`RUN_COLUMNS`; missing ones are NULL) and
-    commit, so it survives an interruption right after.
+    """Store one run and commit, so it survives an interruption right after.
+
+    ``row`` is a dict with the columns of :data:`RUN_COLUMNS`; missing ones are NULL.
     """
     names = [name for name, _ in RUN_COLUMNS]
     unknown = set(row) - set(names)
@@ -150,7 +151,7 @@ def read_runs(path_or_con) -> dict:
 
 
 def metric_row(metrics: dict) -> dict:
-    """The :data:`METRIC_COLUMNS` of one run from its ``metrics_from_arrays`` result."""
+    """Return the :data:`METRIC_COLUMNS` of one run from its ``metrics_from_arrays`` result."""
     false_max = (metrics.get('false_fault_estimate') or {}).get('max') or {}
     errors = {'p': [], 'w': []}
     for entry in (metrics.get('fault_estimation') or {}).values():

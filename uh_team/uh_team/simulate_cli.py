@@ -21,6 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from uh_controller_node.gains import CASES
+from uh_topology.errors import ScenarioError
+from uh_topology.scenario import load_scenario
+
+from .metrics import LUMPED_FAULTS, NOT_MEANINGFUL_MARK, metrics_from_arrays, nrmse_below_floor
+from .team_simulation import SimulationError, run_team_simulation
 
 __all__ = ['main', 'build_parser']
 
@@ -84,12 +89,11 @@ def _number(value, spec: str = '.4g') -> str:
 
 
 def _fault_lines(metrics: dict) -> list[str]:
-    """Console lines of the fault metrics (docs/metrics.md): the false fault estimate's maximum
-    over the UHs against its threshold, then the absolute RMS error and NRMSE of every scored
-    vector (``n/m`` below the NRMSE floor).
-    """
-    from .metrics import LUMPED_FAULTS, NOT_MEANINGFUL_MARK, nrmse_below_floor
+    """Console lines of the fault metrics (docs/metrics.md).
 
+    The false fault estimate's maximum over the UHs against its threshold, then the absolute RMS error and NRMSE of
+    every scored vector (``n/m`` below the NRMSE floor).
+    """
     false_estimate = metrics['false_fault_estimate']
     lines = [f'  {"false estimate " + v.symbol:22s} max over UHs {_number(false_estimate["max"][v.key])} {v.unit} '
              f'(threshold {false_estimate["threshold"][v.key]:g})' for v in LUMPED_FAULTS]
@@ -124,12 +128,6 @@ def _main(argv) -> int:
     problem = _check_out_dir(args.out, args.force)
     if problem:
         return _fail(problem)
-
-    from uh_topology.errors import ScenarioError
-    from uh_topology.scenario import load_scenario
-
-    from .metrics import metrics_from_arrays
-    from .team_simulation import SimulationError, run_team_simulation
 
     try:
         scenario = load_scenario(args.scenario)
