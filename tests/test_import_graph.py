@@ -25,12 +25,8 @@ MAX_NODE_MODULE_LINES = 200
 MAX_FUNCTION_LINES = 80
 
 #: ``path:function`` of the functions still longer than MAX_FUNCTION_LINES (being split).
-LONG_FUNCTIONS = {
-    'uh_campaign/uh_campaign/runner.py:run_campaign',
-    'uh_report/uh_report/bag_metrics.py:read_team_bag',
-}
+LONG_FUNCTIONS: set = set()
 
-_NOT_YET_MOVED = 'not yet moved to the top of its module'
 _HEAVY_CLI = 'loads Cyclone DDS and every message type: uh --help and a mistyped command answer at once'
 #: ``path:function`` that import first-party modules inside the function, and why.
 LAZY_IMPORTS = {
@@ -51,31 +47,6 @@ LAZY_IMPORTS = {
     'uh_runtime/uh_runtime/runner.py:check_parameter_overrides': 'the package imports the runner: no cycle at import',
     'uh_runtime/uh_runtime/runner.py:_clear_errors': 'the package imports the runner: no cycle at import',
     'uh_runtime/uh_runtime/runner.py:run_node': 'process statistics only when asked for',
-    # other packages: still to be moved by their owners (the list shrinks)
-    'uh_campaign/uh_campaign/runner.py:_warm_up': _NOT_YET_MOVED,
-    'uh_campaign/uh_campaign/runner.py:run_task': _NOT_YET_MOVED,
-    'uh_campaign/uh_campaign/runner.py:__init__': _NOT_YET_MOVED,
-    'uh_report/uh_report/bag_metrics.py:read_team_bag': _NOT_YET_MOVED,
-    'uh_report/uh_report/bag_metrics.py:_diagnose_mcap': _NOT_YET_MOVED,
-    'uh_report/uh_report/bag_metrics.py:write_metrics_from_bag': _NOT_YET_MOVED,
-    'uh_report/uh_report/report.py:_load_scenario': _NOT_YET_MOVED,
-    'uh_report/uh_report/report.py:load_run': _NOT_YET_MOVED,
-    'uh_report/uh_report/report.py:_fault_rows': _NOT_YET_MOVED,
-    'uh_report/uh_report/report.py:_table_value': _NOT_YET_MOVED,
-    'uh_report/uh_report/report.py:write_figures': _NOT_YET_MOVED,
-    'uh_report/uh_report/report.py:_notes': _NOT_YET_MOVED,
-    'uh_report/uh_report/report.py:write_report': _NOT_YET_MOVED,
-    'uh_report/uh_report/report.py:_campaign_main': _NOT_YET_MOVED,
-    'uh_report/uh_report/report.py:main': _NOT_YET_MOVED,
-    'uh_report/uh_report/report_figures.py:_mark_faults': _NOT_YET_MOVED,
-    'uh_report/uh_report/report_figures.py:plot_faults': _NOT_YET_MOVED,
-    'uh_report/uh_report/report_figures.py:plot_false_fault_estimate': _NOT_YET_MOVED,
-    'uh_report/uh_report/report_figures.py:uh_errors': _NOT_YET_MOVED,
-    'uh_team/uh_team/compile_kernels.py:compile_all': _NOT_YET_MOVED,
-    'uh_team/uh_team/metrics.py:fault_isolation_metrics': _NOT_YET_MOVED,
-    'uh_team/uh_team/metrics.py:_published_verdicts': _NOT_YET_MOVED,
-    'uh_team/uh_team/simulate_cli.py:_fault_lines': _NOT_YET_MOVED,
-    'uh_team/uh_team/simulate_cli.py:_main': _NOT_YET_MOVED,
 }
 
 #: ``path: {names}`` of private names still imported from another package (to be made public at home).

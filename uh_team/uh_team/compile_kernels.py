@@ -9,16 +9,17 @@ from __future__ import annotations
 import argparse
 import sys
 
+from uh_controller_node.control_kernels import compile_control_kernels
+from uh_controller_node.impairments import compile_impairment_kernels
+from uh_sim_node.plant_kernels import compile_plant_kernels
+
+from .team_kernel import compile_team_kernel
+
 __all__ = ['compile_all', 'main']
 
 
 def compile_all() -> dict:
     """Compile (or load from the cache) every kernel; seconds spent per group of kernels."""
-    from uh_sim_node.plant_kernels import compile_plant_kernels
-
-    from uh_controller_node.control_kernels import compile_control_kernels
-    from uh_controller_node.impairments import compile_impairment_kernels
-    from .team_kernel import compile_team_kernel
     return {'model': compile_plant_kernels(), 'control law': compile_control_kernels(),
             'impairments': compile_impairment_kernels(), 'team loop': compile_team_kernel()}
 
