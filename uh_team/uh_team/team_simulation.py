@@ -24,6 +24,7 @@ from typing import Callable
 import numpy as np
 
 from uh_core.airframe import load_helicopter_params
+from uh_core.layout import R_P_SLICE, R_V_SLICE, R_YAW, REFERENCE_SIZE, X_P_SLICE
 from uh_sim_node.helicopter import plant_from_scenario
 from uh_sim_node.reference import VirtualLeaderReference
 
@@ -32,6 +33,7 @@ from uh_controller_node.gains import CASES, GainsError
 from uh_controller_node.impairments import ReceivedStates
 
 from .metrics import containment_errors, formation_errors
+from .run_arrays import RUN_REF_POSITION, new_run_arrays
 from .team_kernel import TEAM_DONE, TeamRecord, run_team_steps, team_arrays
 
 __all__ = ['SimulationError', 'TeamRun', 'run_team_simulation', 'ENGINES']
@@ -117,10 +119,10 @@ class TeamRun:
 def _errors(states, reference, scenario):
     """Compute the formation errors of the leaders, then the containment errors of the followers (K+1, n), m."""
     n_lead = len(tuple(scenario.leaders))
-    pos = states[:, :, 0:3]
+    pos = states[:, :, X_P_SLICE]
     out = np.empty(states.shape[:2])
     offsets = np.array([scenario.offsets[i] for i in scenario.leaders])
-    out[:, :n_lead] = formation_errors(pos[:, :n_lead], reference[:, 0:3], offsets)
+    out[:, :n_lead] = formation_errors(pos[:, :n_lead], reference[:, RUN_REF_POSITION], offsets)
     if tuple(scenario.followers):
         out[:, n_lead:] = containment_errors(pos[:, n_lead:], pos[:, :n_lead], scenario.containment_weights)
     return out
@@ -182,27 +184,24 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     if engine == 'kernel':
         arrays = team_arrays(ids, controllers, plants, scenario.impairments, dt)
 
-    out = {key: np.empty((K + 1, n, size)) for key, size in (
-        ('states', 12), ('commands', 4), ('fault_true_p', 3), ('fault_true_w', 3), ('fault_est_p', 3),
-        ('fault_est_w', 3), ('u_p', 3), ('z1', 3))}
-    out['saturated'] = np.zeros((K + 1, n), dtype=bool)
-    ref = np.empty((K + 1, 5))
+    out = new_run_arrays(K + 1, n, with_z1=True)
+    ref = out.pop('reference')
     stuck = {ids[c] for c, plant in enumerate(plants) if plant.stuck(K * dt)}  # rho = 0 from an onset on
     every = max(1, K // 100)
 
     if arrays is not None:
         # load (or compile) the kernel before the clock starts: that is start-up, like imports
-        _run_kernel(K, dt, ids, arrays, np.empty((1, 7)), out, every, None, load_only=True)
+        _run_kernel(K, dt, ids, arrays, np.empty((1, REFERENCE_SIZE)), out, every, None, load_only=True)
     start = _time.perf_counter()
     samples = [reference.at(k * dt) for k in range(K + 1)]   # the virtual leader at every step
     for k, r in enumerate(samples):
         ref[k] = (r.position[0], r.position[1], r.position[2], r.yaw, r.yaw_rate)
     if engine == 'kernel':
         # [p_0, v_0, psi_0] per step, the layout of the controllers' kernel
-        references = np.empty((K + 1, 7))
-        references[:, 0:3] = [r.position for r in samples]
-        references[:, 3:6] = [r.velocity for r in samples]
-        references[:, 6] = [r.yaw for r in samples]
+        references = np.empty((K + 1, REFERENCE_SIZE))
+        references[:, R_P_SLICE] = [r.position for r in samples]
+        references[:, R_V_SLICE] = [r.velocity for r in samples]
+        references[:, R_YAW] = [r.yaw for r in samples]
         _run_kernel(K, dt, ids, arrays, references, out, every, progress)
     else:
         _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, scenario.impairments)
