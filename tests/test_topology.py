@@ -147,7 +147,7 @@ def test_gains_file_errors_are_reported_on_access(tmp_path):
     data = _base()
     data['gains'] = 'missing_gains.yaml'
     s = _build(data, tmp_path)   # the scenario itself is valid; the gains are read lazily
-    with pytest.raises(E.GainsError, match=r"gains: cannot read the gains file .*missing_gains.yaml"):
+    with pytest.raises(E.GainsFileError, match=r"gains: cannot read the gains file .*missing_gains.yaml"):
         s.gains
     (tmp_path / 'bad.yaml').write_text('k1: [1, 2\n')
     data['gains'] = 'bad.yaml'
@@ -155,7 +155,7 @@ def test_gains_file_errors_are_reported_on_access(tmp_path):
         _build(data, tmp_path).gains
     (tmp_path / 'list.yaml').write_text('- 1\n- 2\n')
     data['gains'] = 'list.yaml'
-    with pytest.raises(E.GainsError, match='must hold a mapping, got list'):
+    with pytest.raises(E.GainsFileError, match='must hold a mapping, got list'):
         _build(data, tmp_path).gains
 
 
@@ -568,7 +568,9 @@ def test_zero_weight_edge_is_no_link():
 def test_every_configuration_error_derives_from_the_schema_base():
     for name in E.__all__:
         assert issubclass(getattr(E, name), schema.ConfigError), name
-    assert controller_gains.GainsError is E.GainsError   # one class for gains file and gains content
+    # gains content is the controller's concern, the gains file the scenario's: both are scenario errors
+    assert issubclass(controller_gains.GainsError, E.ScenarioError) and not hasattr(E, 'GainsError')
+    assert issubclass(E.GainsFileError, E.ScenarioError)
 
 
 def test_the_schema_reads_with_file_line_and_key():

@@ -864,7 +864,7 @@ def _check_draw_zero(spec: CampaignSpec) -> None:
             ControllerGains.from_mapping(scenario.gains, case)
     except (GainsError, ValueError) as exc:
         key = 'scenario' if spec.scenario is not None else 'generator'
-        raise E.GainsError(f'the base scenario\'s gains or airframe cannot be used: {exc}', path=key,
+        raise E.GainsFileError(f'the base scenario\'s gains or airframe cannot be used: {exc}', path=key,
                            source=spec.source, line=spec.line(key)) from None
 
 

@@ -25,13 +25,22 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from uh_topology.errors import GainsError
+from uh_topology.errors import ScenarioError
 
 __all__ = ['CASES', 'GainsError', 'RBFSpec', 'LoopGains', 'ControllerGains', 'GainParameter',
            'gain_parameters', 'nest_gains']
 
 #: The comparison cases of docs/control_law.md#comparison-cases, in report order.
 CASES = ('proposed', 'case1', 'case2')
+
+
+class GainsError(ScenarioError):
+    """Controller gains that cannot be used: an entry unknown, missing or invalid, or an unknown case.
+
+    A scenario's error, like the ``GainsFileError`` of a gains file that cannot be read
+    (``uh_topology.errors``), so a caller that loads a scenario and builds its controllers catches
+    either as a ``ScenarioError``.
+    """
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from uh_core.airframe import load_helicopter_params
 from uh_core.layout import R_P_SLICE, R_V_SLICE, R_YAW, REFERENCE_SIZE, X_P_SLICE
 from uh_sim_node.helicopter import plant_from_scenario
 from uh_sim_node.reference import VirtualLeaderReference
+from uh_topology.errors import GainsFileError
 
 from uh_controller_node.controller import UHController
 from uh_controller_node.gains import CASES, GainsError
@@ -177,7 +178,7 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     plants = [plant_from_scenario(scenario, i, params) for i in ids]
     try:
         controllers = [UHController(i, scenario, case, helicopter_params=params) for i in ids]
-    except GainsError as exc:
+    except (GainsError, GainsFileError) as exc:
         raise SimulationError(str(exc)) from None
     reference = VirtualLeaderReference(scenario.reference)
     arrays = None

@@ -20,7 +20,7 @@ __all__ = [
     'DuplicateEdgeError', 'LeaderHearsFollowerError', 'FollowerLinkedToReferenceError',
     'MissingOffsetError', 'FollowerOffsetError', 'UnreachableLeaderError',
     'UnreachableFollowerError', 'LaplacianConditionError', 'DuplicateFaultError',
-    'GainsError',
+    'GainsFileError',
 ]
 
 
@@ -95,13 +95,11 @@ class DuplicateKeyError(SchemaError):
     """A mapping repeats a key (YAML would silently keep the last one)."""
 
 
-class GainsError(ScenarioError):
-    """Controller gains that cannot be used.
+class GainsFileError(ScenarioError):
+    """The gains file a scenario names cannot be read or does not hold a mapping (``Scenario.gains``).
 
-    The gains file named by the scenario cannot be read or is not a mapping (raised here, by
-    ``Scenario.gains``), or an entry is unknown, missing or invalid, or the controller case is
-    unknown (raised by the gains loader ``uh_controller_node.gains``, which exports this class).
-    One class for both, so that a caller building a controller from a scenario catches either.
+    What the gains say is checked by the gains loader, ``uh_controller_node.gains``, which raises its
+    own ``GainsError``.
     """
 
 

@@ -300,7 +300,7 @@ def _load_gains(src, scenario_source) -> dict:
     try:
         text = path.read_text()
     except OSError as exc:
-        raise E.GainsError(f'cannot read the gains file {str(path)!r} ({exc.strerror}); `gains:` must '
+        raise E.GainsFileError(f'cannot read the gains file {str(path)!r} ({exc.strerror}); `gains:` must '
                            f'name an existing YAML file relative to the scenario file or be a mapping',
                            source=scenario_source, path='gains') from None
     try:
@@ -312,7 +312,7 @@ def _load_gains(src, scenario_source) -> dict:
     if data is None:
         data = {}
     if not isinstance(data, dict):
-        raise E.GainsError(f'the gains file must hold a mapping, got {type(data).__name__}',
+        raise E.GainsFileError(f'the gains file must hold a mapping, got {type(data).__name__}',
                            source=str(path))
     return data
 
