@@ -72,9 +72,11 @@ class RunFailed(RuntimeError):
 
 
 def _on_exit(name, kind, completed):
-    """What the end of node ``name`` does: the clock's end with status 0 ends the launch ('run
-    complete'); a failed clock, or a lockstep node that fails before the shutdown, ends it with
-    exit status 1 (launch turns an exception in an event handler into shutdown and status 1).
+    """Build the handler of the end of node ``name``.
+
+    The clock's end with status 0 ends the launch ('run complete'); a failed clock, or a lockstep
+    node that fails before the shutdown, ends it with exit status 1 (launch turns an exception in
+    an event handler into shutdown and status 1).
     """
     def on_exit(event, context):
         status = event.returncode
@@ -91,7 +93,9 @@ def _on_exit(name, kind, completed):
 
 
 def _on_idle(completed):
-    """The launch also ends when nothing is left running ('idle'). That happens without a process
+    """Build the handler of the launch's shutdown when nothing is left running ('idle').
+
+    The launch also ends when nothing is left running ('idle'). That happens without a process
     exit event when no node could be started at all (launch logs the exec error and sends none):
     without the clock's completion, that is a failed run, status 1.
     """

@@ -48,8 +48,9 @@ SETTLE_S = 1.5
 
 
 def _sim_listens(node, topic: str) -> bool:
-    """Whether the UH's simulator (node ``sim`` in the topic's namespace) subscribes to ``topic``; a
-    recorder, which subscribes to every topic it discovers, does not count.
+    """Return whether the UH's simulator (node ``sim`` in the topic's namespace) subscribes to ``topic``.
+
+    A recorder, which subscribes to every topic it discovers, does not count.
     """
     namespace = topic.rsplit('/', 1)[0]
     return any(info.node_name == 'sim' and info.node_namespace == namespace

@@ -121,8 +121,10 @@ def sweep_stale() -> list[str]:
 
 
 def host_of_process(name: str) -> str:
-    """Host of a supervised process: ``uh3_sim``/``uh3_controller``/``uh3`` -> ``uh3``, the virtual
-    leader -> ``vl``, everything else (clock, recorder, visualisation, a composed team) -> ``ground``.
+    """Return the host of a supervised process.
+
+    ``uh3_sim``/``uh3_controller``/``uh3`` -> ``uh3``, the virtual leader -> ``vl``, everything else
+    (clock, recorder, visualisation, a composed team) -> ``ground``.
     """
     if re.match(r'^uh\d+(_|$)', name):
         return name.split('_')[0]
@@ -143,8 +145,9 @@ FAST_DISCOVERY_XML = '<SPDPInterval>1 s</SPDPInterval>'
 
 
 def cyclone_config(host: Host, peers: list, max_participants: int = 10) -> str:
-    """``CYCLONEDDS_URI`` of a process on ``host``: its interface, no multicast, every host a peer,
-    fast loss recovery (:data:`FAST_RECOVERY_XML`).
+    """Return the ``CYCLONEDDS_URI`` of a process on ``host``.
+
+    Its interface, no multicast, every host a peer, fast loss recovery (:data:`FAST_RECOVERY_XML`).
     """
     peer_xml = ''.join(f'<Peer address="{p}"/>' for p in peers)
     defaults = os.environ.get('UH_NETNS_CYCLONE_DEFAULTS') == '1'

@@ -47,8 +47,10 @@ class NodeFailure(RuntimeError):
 
 @dataclass
 class NodeProcess:
-    """One supervised process: its name, node kind (``sim``, ``controller``, ... or the kind that
-    decides for a group of nodes), command, log, the running ``Popen`` and its exit status.
+    """One supervised process.
+
+    Its name, node kind (``sim``, ``controller``, ... or the kind that decides for a group of
+    nodes), command, log, the running ``Popen`` and its exit status.
     """
 
     name: str
@@ -172,8 +174,10 @@ class Supervisor:
                     pass
 
     def stop_all(self, last=()) -> dict:
-        """SIGINT every running node (the ``last`` ones after the others have ended), wait, then
-        SIGKILL what is left; return the exit codes by node name.
+        """Stop every node; return the exit codes by node name.
+
+        SIGINT every running node (the ``last`` ones after the others have ended), wait, then
+        SIGKILL what is left.
         """
         for group in ([n for n in self.nodes if n.name not in last], [n for n in self.nodes if n.name in last]):
             for node in group:

@@ -69,9 +69,11 @@ NODES = {
 
 
 def backend_environment(kind: str, env) -> dict:
-    """Extra environment of a node of ``kind``: ``UH_BACKEND=dds`` for an infrastructure node when
-    the user has not chosen a backend (``UH_BACKEND`` unset in ``env``) and the Cyclone DDS Python
-    binding is installed; nothing otherwise (the node then takes rclpy where it exists).
+    """Return the extra environment of a node of ``kind``.
+
+    ``UH_BACKEND=dds`` for an infrastructure node when the user has not chosen a backend
+    (``UH_BACKEND`` unset in ``env``) and the Cyclone DDS Python binding is installed; nothing
+    otherwise (the node then takes rclpy where it exists).
     """
     import importlib.util
     if NODES[kind].infrastructure and not env.get('UH_BACKEND') and importlib.util.find_spec('cyclonedds'):
@@ -92,10 +94,11 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
                bag_dir: Path, startup_timeout: float, stale_timeout: float | None = None,
                visualization: bool = True, standard_views: bool = True,
                live_view: tuple | None = None, realtime_priority: int = 0) -> list[tuple[str, str, list]]:
-    """``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last
-    (the visualisation node only if ``visualization``; ``standard_views=False`` switches /tf, odom
+    """Return ``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last.
+
+    The visualisation node only if ``visualization``; ``standard_views=False`` switches /tf, odom
     and /diagnostics off, docs/visualization.md; ``live_view=(host, port)`` adds the Foxglove live
-    view after the recorder). In realtime, ``realtime_priority`` > 0 runs the control loop's nodes
+    view after the recorder. In realtime, ``realtime_priority`` > 0 runs the control loop's nodes
     (every kind that is not infrastructure) under SCHED_FIFO at that priority
     (docs/performance.md#real-time-scheduling).
     """

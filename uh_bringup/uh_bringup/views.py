@@ -1,5 +1,7 @@
-"""Ready-made views of a team (docs/visualization.md#ready-made-views): a Foxglove layout and an
-RViz2 configuration, generated from a scenario so that they name its UHs' topics and frames.
+"""Ready-made views of a team: a Foxglove layout and an RViz2 configuration.
+
+The views (docs/visualization.md#ready-made-views) are generated from a scenario so that they name
+its UHs' topics and frames.
 
     python -m uh_bringup.views --scenario paper --out views     # writes formation.foxglove.json, formation.rviz
 
@@ -58,8 +60,10 @@ def foxglove_layout(scenario) -> str:
 
 
 def rviz_config(scenario) -> str:
-    """An RViz2 configuration (YAML): fixed frame ``world``, grid, TF, ``/markers``, one Odometry
-    display per UH, the view following the virtual leader.
+    """Return an RViz2 configuration (YAML) of ``scenario``'s team.
+
+    Fixed frame ``world``, grid, TF, ``/markers``, one Odometry display per UH, the view following
+    the virtual leader.
     """
     displays = [
         {'Class': 'rviz_default_plugins/Grid', 'Name': 'Grid', 'Enabled': True, 'Cell Size': 5,

@@ -177,8 +177,9 @@ class InputSynchroniser:
 
     # -- inputs ------------------------------------------------------------------------------------
     def offer(self, key, k: int, value) -> list:
-        """Take in the valid value of input ``key`` (:data:`OWN`, a neighbour id or
-        :data:`REFERENCE`) for step ``k``; returns the :class:`StepInputs` now released, in order.
+        """Take in a valid input value for step ``k``; return the :class:`StepInputs` now released, in order.
+
+        ``key`` names the input: :data:`OWN`, a neighbour id or :data:`REFERENCE`.
         """
         if key != OWN and key not in self.input_keys:
             raise ValueError(f'uh{self.uh_id} does not hear {input_label(key)}')
@@ -196,15 +197,19 @@ class InputSynchroniser:
         return self._assemble(from_timer=False)
 
     def poll(self) -> list:
-        """realtime timer: release the step waited for once its sync wait is over; report a silent
-        own state. Call it after every message already received has been offered, so a backlog (a
-        process that was not scheduled for a while) is taken in before anything counts as stale.
+        """Release the step waited for once its sync wait is over; report a silent own state.
+
+        The realtime timer (nothing in lockstep). Call it after every message already received has
+        been offered, so a backlog (a process that was not scheduled for a while) is taken in before
+        anything counts as stale.
         """
         return [] if self.lockstep else self._assemble(from_timer=True)
 
     def reject(self, what: str, reason) -> None:
-        """Count a rejected message of input ``what`` and log why, at most once per
-        :data:`REJECT_LOG_PERIOD` wall seconds per input; the last valid value is kept.
+        """Count a rejected message of input ``what`` and log why.
+
+        It logs at most once per :data:`REJECT_LOG_PERIOD` wall seconds per input; the last valid
+        value is kept.
         """
         count = self.rejected[what] = self.rejected.get(what, 0) + 1
         now = self.now()

@@ -108,7 +108,8 @@ class ClockAdvancer:
 
     # -- inputs ------------------------------------------------------------------------------------
     def on_command(self, uh_id: int, k: int) -> list:
-        """UH ``uh_id`` commanded step ``k``; returns the steps now released (lockstep), in order.
+        """Note that UH ``uh_id`` commanded step ``k``; return the steps now released (lockstep), in order.
+
         realtime: only the commands of step 0 before the ticks start count (see :meth:`start_ticking`).
         """
         if self.lockstep:
@@ -143,8 +144,10 @@ class ClockAdvancer:
 
     # -- realtime ----------------------------------------------------------------------------------
     def start_ticking(self) -> bool:
-        """realtime: whether the ticks start now: every UH commanded step 0, or the start-up wait is
-        over (logged). True once; False in lockstep, before :meth:`start` and when done.
+        """Return whether the realtime ticks start now.
+
+        They start when every UH commanded step 0, or the start-up wait is over (logged). True once;
+        False in lockstep, before :meth:`start` and when done.
         """
         if self.lockstep or self.ticking or self.done or self.live_deadline is None:
             return False
@@ -161,8 +164,10 @@ class ClockAdvancer:
         return True
 
     def tick(self) -> int | None:
-        """realtime timer: the next step to publish, or None after the last one (the ticks end; the
-        run completes when the recorder confirms the last step, or on :meth:`give_up`).
+        """Return the next step to publish (realtime timer), or None after the last one.
+
+        After the last one the ticks end; the run completes when the recorder confirms the last
+        step, or on :meth:`give_up`.
         """
         if self.step < self.last_step:
             return self._release(self.step + 1)

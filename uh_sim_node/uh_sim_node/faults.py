@@ -53,8 +53,9 @@ class FaultError(ValueError):
 
 @dataclass(frozen=True)
 class ActuatorFault(FaultSpec):
-    """One actuator fault on one channel (paper eq. 6): a :class:`~uh_core.records.FaultSpec`,
-    validated, with the arithmetic of the fault model.
+    """One actuator fault on one channel (paper eq. 6).
+
+    A :class:`~uh_core.records.FaultSpec`, validated, with the arithmetic of the fault model.
 
     Parameters
     ----------

@@ -1,5 +1,6 @@
-"""Virtual-leader node (``virtual_leader``): publishes the reference of docs/scenario.md on
-``/reference``, one message per ``/clock`` step, computed analytically at t_k = k dt.
+"""Virtual-leader node (``virtual_leader``): publishes the reference of docs/scenario.md on ``/reference``.
+
+One message per ``/clock`` step, computed analytically at t_k = k dt.
 """
 from __future__ import annotations
 

@@ -98,10 +98,12 @@ class ViewConfig:
     diagnostics_every: int  # steps between two /diagnostics reports
 
     def diagnostics_phase(self, ids, uh_id: int, controller: bool) -> int:
-        """The step within each ``diagnostics_every`` period at which UH ``uh_id``'s simulator (or
-        controller) reports on /diagnostics: the team's reports are spread evenly over the period,
-        not sent in one burst. A reader with a short history (``ros2 topic echo`` keeps 5) that
-        reads after the burst would keep only its last reports (docs/visualization.md#diagnostics).
+        """Return the step within each ``diagnostics_every`` period at which a UH reports on /diagnostics.
+
+        The reporter is UH ``uh_id``'s simulator (or controller, with ``controller``). The team's
+        reports are spread evenly over the period, not sent in one burst. A reader with a short
+        history (``ros2 topic echo`` keeps 5) that reads after the burst would keep only its last
+        reports (docs/visualization.md#diagnostics).
         """
         ids = list(ids)
         slot = 2 * ids.index(uh_id) + int(controller)
@@ -109,8 +111,10 @@ class ViewConfig:
 
 
 def declare_view_parameters(node, dt: float) -> ViewConfig:
-    """Declare ``standard_views`` (bool), ``pose_rate`` and ``diagnostics_rate`` (Hz of simulated
-    time) on ``node`` (control period ``dt`` s) and return them as steps.
+    """Declare the standard views' parameters on ``node`` and return them as steps.
+
+    The parameters are ``standard_views`` (bool), ``pose_rate`` and ``diagnostics_rate`` (Hz of
+    simulated time); ``dt`` is the node's control period in s.
     """
     node.declare_parameter('standard_views', True, _describe(
         'publish /tf, odom and /diagnostics for RViz2, tf2, Foxglove and rqt (off for benchmarks)',

@@ -1,5 +1,6 @@
-"""Standard ROS messages of the team's state for generic tools: ``/tf``, ``/uhN/odom``, ``/diagnostics``
-(docs/visualization.md). Built with the classes of either node backend (:mod:`uh_runtime.messages`).
+"""Standard ROS messages of the team's state for generic tools: ``/tf``, ``/uhN/odom``, ``/diagnostics``.
+
+See docs/visualization.md. Built with the classes of either node backend (:mod:`uh_runtime.messages`).
 
 ``UHState`` stays the control interface; these are views of it for RViz2, tf2, PlotJuggler,
 Foxglove and rqt_robot_monitor. Frames and the mathematics: :mod:`uh_core.frames`.
@@ -19,8 +20,9 @@ __all__ = ['view_publisher', 'transform_msg', 'tf_msg', 'odometry_msg', 'diagnos
 
 
 def view_publisher(node, spec):
-    """``node``'s publisher of the standard view ``spec`` (:data:`uh_wire.topics.TF`, ``ODOM``,
-    ``DIAGNOSTICS``) with its type and QoS from the topic registry.
+    """Create ``node``'s publisher of the standard view ``spec``, with its type and QoS from the topic registry.
+
+    ``spec`` is :data:`uh_wire.topics.TF`, ``ODOM`` or ``DIAGNOSTICS``.
     """
     return node.create_publisher(m.get_message(spec.type), spec.name, topics.qos_profile(spec.qos))
 
@@ -57,9 +59,10 @@ def tf_msg(transforms):
 
 
 def odometry_msg(uh_id: int, t: float, x, pose=None):
-    """``nav_msgs/Odometry`` of UH ``uh_id`` in state ``x`` (12,) at time ``t``: pose in ``world``,
-    twist in ``uhN/base_link`` (REP 105); covariances zero (the simulator's state is exact).
-    ``pose``: :func:`uh_core.frames.pose_of_state` of ``x`` if already computed.
+    """Return the ``nav_msgs/Odometry`` of UH ``uh_id`` in state ``x`` (12,) at time ``t``.
+
+    Pose in ``world``, twist in ``uhN/base_link`` (REP 105); covariances zero (the simulator's
+    state is exact). ``pose``: :func:`uh_core.frames.pose_of_state` of ``x`` if already computed.
     """
     position, q = pose or frames.pose_of_state(x)
     linear, angular = frames.body_twist_of_state(x)

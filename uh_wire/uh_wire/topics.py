@@ -42,8 +42,10 @@ QosSpec = QoSWords
 
 @dataclass(frozen=True)
 class TopicSpec:
-    """A topic: name (relative = in the UH's namespace), ROS type, QoS, whether it carries one
-    message per lockstep step, and who publishes/subscribes (for documentation and audits).
+    """A topic of the registry.
+
+    Its name (relative = in the UH's namespace), ROS type, QoS, whether it carries one message per
+    lockstep step, and who publishes/subscribes (for documentation and audits).
     """
 
     name: str
@@ -114,8 +116,9 @@ def uh_topic(uh_id: int, spec: TopicSpec) -> str:
 
 
 def team_topics(uh_ids, impaired: bool = False) -> list[tuple[str, TopicSpec]]:
-    """Every recorded topic of a team with UHs ``uh_ids`` (with ``impaired``, of a scenario with
-    impairments): ``[(full name, spec), ...]``.
+    """Return every recorded topic of a team with UHs ``uh_ids`` as ``[(full name, spec), ...]``.
+
+    With ``impaired``, the topics of a scenario with impairments.
     """
     topics = [(spec.name, spec) for spec in TEAM]
     per_uh = PER_UH + (IMPAIRED_PER_UH if impaired else ())
@@ -125,7 +128,8 @@ def team_topics(uh_ids, impaired: bool = False) -> list[tuple[str, TopicSpec]]:
 
 
 def qos_profile(spec: QosSpec):
-    """Build the node runtime's ``QoSProfile`` (rclpy's on a ROS 2 machine) from ``spec``
-    (:func:`uh_runtime.qos.profile_from_words`).
+    """Build the node runtime's ``QoSProfile`` (rclpy's on a ROS 2 machine) from ``spec``.
+
+    See :func:`uh_runtime.qos.profile_from_words`.
     """
     return profile_from_words(spec)
