@@ -1,7 +1,12 @@
 #!/usr/bin/env bash
-# Runs the test suite: sets up .venv (pinned dependencies + the project's packages) if needed,
-# then pytest. Extra arguments go to pytest, e.g. scripts/test.sh -k topology -x
+# Runs the lint step and the test suite: sets up .venv (pinned dependencies + the project's packages)
+# if needed, checks the code with ruff (ruff.toml: pycodestyle, pyflakes, pep257 docstrings), then
+# runs pytest. Extra arguments go to pytest, e.g. scripts/test.sh -k topology -x
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
 cd "$REPO_ROOT"
+if ! python -P -m ruff check --quiet .; then
+  echo "lint: the findings above break the rules of ruff.toml (.venv/bin/ruff check --fix repairs some of them)" >&2
+  exit 1
+fi
 exec python -P -m pytest "$@"

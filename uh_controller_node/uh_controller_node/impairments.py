@@ -47,7 +47,8 @@ def _splitmix(z):
 
 @njit(cache=True)
 def hash_uniform(seed, receiver, sender, step, stream):
-    """A uniform number in [0, 1) from ``(seed, receiver, sender, step, stream)`` (all ints >= 0):
+    """Return a uniform number in [0, 1) from ``(seed, receiver, sender, step, stream)`` (all ints >= 0).
+
     SplitMix64 applied to each in turn, the top 53 bits scaled by 2^-53.
     """
     z = _splitmix(np.uint64(seed))
@@ -94,8 +95,10 @@ def delivered_step(k, delay, loss, drop_step, seed, receiver, sender):
 
 @njit(cache=True)
 def add_noise(state, sigma, seed, receiver, sender, step, out):
-    """``out = state + sigma * g``, ``g`` standard normal per component (Box-Muller on two hashed
-    uniforms, keyed by the step the state was sent at); components with ``sigma == 0`` are copied.
+    """Write ``out = state + sigma * g``, ``g`` standard normal per component.
+
+    ``g`` comes from Box-Muller on two hashed uniforms, keyed by the step the state was sent at;
+    components with ``sigma == 0`` are copied.
     """
     for c in range(STATE_SIZE):
         if sigma[c] == 0.0:
@@ -136,9 +139,10 @@ class ReceivedStates:
         self.sample_steps = {}
 
     def receive(self, k: int, own, neighbours: dict):
-        """The own state and neighbour states the controller uses at step ``k``, from those sent at
-        step ``k``. Returns ``(own, {j: state})`` (new arrays); :attr:`sample_steps` then holds
-        the step each neighbour's state was sent at.
+        """Return the own state and the neighbour states the controller uses at step ``k``.
+
+        From those sent at step ``k``: ``(own, {j: state})`` (new arrays); :attr:`sample_steps`
+        then holds the step each neighbour's state was sent at.
         """
         own_out = np.empty(STATE_SIZE)
         add_noise(np.ascontiguousarray(own, dtype=float), self.sigma, self.seed, self.uh_id, self.uh_id, k, own_out)
