@@ -1,4 +1,5 @@
 """The layouts of uh_core.layout agree with the message definitions and the kernels that use them."""
+import ast
 import re
 from pathlib import Path
 
@@ -161,3 +162,61 @@ def test_parameter_tables_tile_the_parameter_vectors():
     assert list(ck.LOOP_GAIN_OFFSET.values()) == list(range(ck.LOOP_GAINS_SIZE))
     assert ck.CONTROL_PARAMS_SIZE == ck.CP_OUTER + 2 * ck.LOOP_GAINS_SIZE
     assert pk.PARAMS_SIZE == pk.PARAMS_INDEX['input_upper'] + layout.INPUT_SIZE
+
+
+#: The names uh_runtime puts on the wire (uh_runtime/names.py): the DDS prefixes of ROS topics and
+#: services and the recorder's progress topic.
+_WIRE_NAMES = ('rt', 'rq', 'rr', '/recorder/progress')
+
+
+def _package_modules():
+    for pkg in sorted(p.name for p in ROOT.glob('uh_*') if (p / p.name).is_dir() and p.name != 'uh_msgs'):
+        yield from sorted((ROOT / pkg / pkg).rglob('*.py'))
+    yield from sorted((ROOT / 'uh_bringup' / 'launch').glob('*.py'))
+
+
+def _code_strings(tree):
+    """Yield the string constants of ``tree`` that are not docstrings."""
+    docstrings = {id(body[0].value) for node in ast.walk(tree)
+                  if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                  for body in [node.body] if body and isinstance(body[0], ast.Expr)}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings:
+            yield node
+
+
+def test_the_wire_names_have_one_home():
+    """Check that the DDS prefixes and the progress topic are spelt out only in uh_runtime/names.py."""
+    offenders = []
+    for path in _package_modules():
+        if path.name == 'names.py':
+            continue
+        for node in _code_strings(ast.parse(path.read_text())):
+            value = node.value
+            if value in _WIRE_NAMES or value.startswith(('rt/', 'rq/', 'rr/')):
+                # scheduling.py names the scheduling policies of Linux, whose SCHED_RR is 'rr'
+                if not (path.name == 'scheduling.py' and value == 'rr'):
+                    offenders.append(f'{path.relative_to(ROOT)}:{node.lineno}: {value!r}')
+    assert not offenders
+
+
+def test_the_default_stale_timeout_has_one_home():
+    """Check that no module but uh_wire/run_config.py gives ``stale_timeout`` a literal default."""
+    offenders = []
+    for path in _package_modules():
+        if path.name == 'run_config.py':
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            pairs = []
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                args = node.args.posonlyargs + node.args.args
+                pairs += zip([a.arg for a in args[len(args) - len(node.args.defaults):]], node.args.defaults)
+                pairs += [(a.arg, d) for a, d in zip(node.args.kwonlyargs, node.args.kw_defaults) if d is not None]
+            elif isinstance(node, ast.Call):
+                pairs += [(k.arg, k.value) for k in node.keywords]
+                if node.args and isinstance(node.args[0], ast.Constant) and len(node.args) > 1:
+                    pairs.append((node.args[0].value, node.args[1]))   # declare_parameter('stale_timeout', 0.25)
+            offenders += [f'{path.relative_to(ROOT)}:{value.lineno}' for name, value in pairs
+                          if isinstance(name, str) and 'stale_timeout' in name and isinstance(value, ast.Constant)
+                          and isinstance(value.value, (int, float, str)) and value.value is not None]
+    assert not offenders

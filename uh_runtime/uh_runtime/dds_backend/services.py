@@ -25,6 +25,7 @@ import itertools
 import time
 
 from .. import messages as _messages
+from ..names import REPLY_PREFIX, REQUEST_PREFIX
 from ..parameters import (
     InvalidParameterTypeException, InvalidParameterValueException, Parameter,
     ParameterDescriptor, ParameterNotDeclaredException, ParameterType, ParameterUninitializedException,
@@ -74,7 +75,7 @@ def _endpoints(context, srv_type: str, srv_name: str, qos_profile, role: str):
     ident = '.'.join(f'{b:x}' for b in bytes(context.gid[:12]) + next(_service_ids).to_bytes(4, 'big'))
     extra = f'{role}={ident};'.encode()
     out = []
-    for prefix, part, suffix in (('rq', 'Request', 'Request'), ('rr', 'Response', 'Reply')):
+    for prefix, part, suffix in ((REQUEST_PREFIX, 'Request', 'Request'), (REPLY_PREFIX, 'Response', 'Reply')):
         cls = _messages.dds_service_message(f'{srv_type}_{part}')
         serves = (role == 'serviceid') == (part == 'Request')    # the server reads requests
         entity = context._sub if serves else context._pub
