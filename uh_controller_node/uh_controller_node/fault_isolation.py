@@ -41,6 +41,7 @@ from typing import NamedTuple
 import numpy as np
 
 from uh_core.airframe import load_helicopter_params
+from uh_core.layout import X_OMEGA, X_THETA_SLICE
 
 from .gains import ControllerGains
 from .nominal_model import nominal_model
@@ -278,8 +279,8 @@ def input_deviation(nominal, x, u, fhat_p, fhat_w):
     dT : float
         Thrust deviation, N.
     """
-    d, dT, _ = _deviation(_constants(nominal), [float(v) for v in x[9:11]], [float(v) for v in u],
-                          [float(v) for v in x[6:9]], [float(v) for v in fhat_p], [float(v) for v in fhat_w])
+    d, dT, _ = _deviation(_constants(nominal), [float(v) for v in x[X_OMEGA:X_OMEGA + 2]], [float(v) for v in u],
+                          [float(v) for v in x[X_THETA_SLICE]], [float(v) for v in fhat_p], [float(v) for v in fhat_w])
     return np.array(d), dT
 
 
@@ -474,7 +475,7 @@ class FaultIsolator:
             return
         u = [min(max(v, lo), hi) for v, lo, hi in zip(_floats(u), self._lower, self._upper)]
         x = _floats(x)
-        d, dT, k_ta = _deviation(self._k, x[9:11], u, x[6:9], _floats(fhat_p), _floats(fhat_w))
+        d, dT, k_ta = _deviation(self._k, x[X_OMEGA:X_OMEGA + 2], u, x[X_THETA_SLICE], _floats(fhat_p), _floats(fhat_w))
         self._last_d = d
         window = self._dT_window
         window.append(dT)

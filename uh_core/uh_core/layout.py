@@ -47,10 +47,11 @@ CHANNEL_ALIASES = {alias: i for i in range(NUM_CHANNELS) for alias in (CHANNEL_N
 R_P, R_V, R_YAW = 0, 3, 6                         # p_0 (3) m, v_0 (3) m/s, psi_0 rad
 REFERENCE_SIZE = 7
 
-# -- the 3-vectors above as slices (position of a state; position and velocity of a reference) --
-X_P_SLICE = slice(X_P, X_P + 3)
+# -- the 3-vectors above as slices (the blocks of a state; position and velocity of a reference) --
+X_P_SLICE, X_V_SLICE = slice(X_P, X_P + 3), slice(X_V, X_V + 3)
+X_THETA_SLICE, X_OMEGA_SLICE = slice(X_THETA, X_THETA + 3), slice(X_OMEGA, X_OMEGA + 3)
 R_P_SLICE, R_V_SLICE = slice(R_P, R_P + 3), slice(R_V, R_V + 3)
-__all__ += ['X_P_SLICE', 'R_P_SLICE', 'R_V_SLICE']
+__all__ += ['X_P_SLICE', 'X_V_SLICE', 'X_THETA_SLICE', 'X_OMEGA_SLICE', 'R_P_SLICE', 'R_V_SLICE']
 
 # -- status vector of one controller step (uh_msgs/msg/ControllerStatus.msg) -----------------------
 #: Kinds of a status field: its ``.msg`` type and how many float64 entries of the vector it takes.

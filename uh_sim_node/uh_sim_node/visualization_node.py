@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 import uh_runtime as rt
+from uh_core.layout import X_P_SLICE, X_THETA_SLICE
 from uh_runtime import messages as m
 from uh_wire.run_config import declare_run_parameters
 from uh_wire.wire import WireError, msg_to_state, stamp
@@ -125,14 +126,14 @@ class VisualizationNode(rt.Node):
             x = states[i]
             rgba = LEADER_RGBA if i in leaders else FOLLOWER_RGBA
             arrow = marker('uh', i, 0, rgba, (1.0, 0.25, 0.25))  # ARROW
-            arrow.pose.position = _point(x[:3])
-            q = _yaw_pitch_roll_quaternion(*x[6:9])
+            arrow.pose.position = _point(x[X_P_SLICE])
+            q = _yaw_pitch_roll_quaternion(*x[X_THETA_SLICE])
             arrow.pose.orientation.x, arrow.pose.orientation.y, arrow.pose.orientation.z, arrow.pose.orientation.w = q
             label = marker('label', i, 9, (1, 1, 1, 1), (0, 0, 0.5))  # TEXT_VIEW_FACING
-            label.pose.position = _point(x[:3] + np.array([0.0, 0.0, 0.6]))
+            label.pose.position = _point(x[X_P_SLICE] + np.array([0.0, 0.0, 0.6]))
             label.text = f'uh{i}'
             trail = self.trails[i]
-            trail.append(_point(x[:3]))   # the trail keeps its Point messages: one new Point per publication
+            trail.append(_point(x[X_P_SLICE]))   # the trail keeps its Point messages: one new Point per publication
             del trail[:-self.trail_length]
             line = marker('trail', i, 4, rgba[:3] + (0.6,), (0.05, 0, 0))  # LINE_STRIP
             line.points = list(trail)
@@ -144,7 +145,7 @@ class VisualizationNode(rt.Node):
             first = states[leaders[0]]
             hull.points = [_point(p) for a, b in zip(leaders[1:-1], leaders[2:])
                            for p in (first, states[a], states[b])]
-        lead_pos = np.array([states[i][:3] for i in leaders])
+        lead_pos = np.array([states[i][X_P_SLICE] for i in leaders])
         for row, k_id in enumerate(followers):
             target = marker('target', k_id, 2, FOLLOWER_RGBA[:3] + (0.5,), (0.3, 0.3, 0.3))  # SPHERE
             target.pose.position = _point(self.weights[row] @ lead_pos)
