@@ -157,6 +157,11 @@ def test_gains_file_errors_are_reported_on_access(tmp_path):
     data['gains'] = 'list.yaml'
     with pytest.raises(E.GainsFileError, match='must hold a mapping, got list'):
         _build(data, tmp_path).gains
+    # the gains file is read with the schema's YAML parse: a repeated key is an error with its line
+    (tmp_path / 'twice.yaml').write_text('beta: 2.0\nouter:\n  k: 1.0\nbeta: 3.0\n')
+    data['gains'] = 'twice.yaml'
+    with pytest.raises(E.DuplicateKeyError, match=r"twice.yaml:4: .*key 'beta' repeated \(first at line 1\)"):
+        _build(data, tmp_path).gains
 
 
 # ------------------------------------------------------------------------------------------------

@@ -781,8 +781,7 @@ def _generated_team(spec: CampaignSpec, draw: int, rng) -> dict:
         data = team_mapping(g.leaders, g.followers, duration=spec.duration, faults=False)
     except GenerateError as exc:
         raise E.InvalidValueError(str(exc), path='duration', source=spec.source, line=spec.line('duration')) from None
-    gains = yaml.safe_load(Path(data['gains']).read_text())
-    data['gains'] = gains
+    data['gains'], _ = parse_yaml(Path(data['gains']).read_text(), str(data['gains']))
     data['settle_time'] = spec.settle_time
     leaders = list(range(1, g.leaders + 1))
     followers = list(range(g.leaders + 1, g.leaders + g.followers + 1))

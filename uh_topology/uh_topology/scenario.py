@@ -45,7 +45,6 @@ from types import MappingProxyType
 from typing import Any, Mapping
 
 import numpy as np
-import yaml
 
 from uh_core.layout import CHANNEL_ALIASES
 from uh_core.records import FaultSpec
@@ -303,12 +302,7 @@ def _load_gains(src, scenario_source) -> dict:
         raise E.GainsFileError(f'cannot read the gains file {str(path)!r} ({exc.strerror}); `gains:` must '
                            f'name an existing YAML file relative to the scenario file or be a mapping',
                            source=scenario_source, path='gains') from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, 'problem_mark', None)
-        raise E.ScenarioSyntaxError(f'YAML syntax error: {getattr(exc, "problem", None) or exc}',
-                                    source=str(path), line=mark.line + 1 if mark else None) from None
+    data, _ = parse_yaml(text, str(path))   # a repeated key is an error, with its line, as in a scenario
     if data is None:
         data = {}
     if not isinstance(data, dict):
