@@ -1,4 +1,6 @@
-"""Starting ``scripts/run_formation.sh`` from tests and waiting for its logs."""
+"""Starting ``scripts/run_formation.sh`` from tests, waiting for its logs and leaving nothing behind."""
+import os
+import signal
 import subprocess
 import time
 from pathlib import Path
@@ -33,8 +35,6 @@ def stop_run(proc, timeout: float = 60.0) -> None:
     SIGINT makes the supervisor stop every node it started. Killing only the supervisor would orphan its nodes, which
     live on in the test's DDS domain and meet the next test that takes that id.
     """
-    import os
-    import signal
     if proc.poll() is not None:
         return
     try:
@@ -45,3 +45,14 @@ def stop_run(proc, timeout: float = 60.0) -> None:
         proc.wait()
     except ProcessLookupError:
         pass
+
+
+def kill_session(proc) -> None:
+    """Kill the whole session of ``proc`` (started with ``start_new_session``) if it still runs, and reap it.
+
+    The clean-up of a test that started a run or a campaign, whatever its outcome: nothing it
+    started may live on in the test's DDS domain or hold its CPU.
+    """
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()

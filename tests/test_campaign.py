@@ -22,6 +22,7 @@ from uh_team import campaign_store as store
 from uh_campaign.runner import run_campaign
 from uh_campaign.spec import bundled_specs, load_spec, resolve_scenario, scenario_yaml
 from uh_topology import errors as E
+from team_runs import kill_session
 
 # 10 draws x 2 sweep values x 3 cases = 60 runs of 12 s (settle time: half of it)
 REFERENCE_SPEC = """\
@@ -331,8 +332,7 @@ def test_a_terminal_ctrl_c_while_the_workers_start_is_a_clean_interruption(tmp_p
         os.killpg(proc.pid, signal.SIGINT)  # as a terminal does: to every process of the group
         err = seen + proc.communicate(timeout=120)[1]
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        kill_session(proc)
     assert proc.returncode == 130, err
     assert 'Traceback' not in err and 'KeyboardInterrupt' not in err, err
 

@@ -20,7 +20,7 @@ from uh_team.team_simulation import run_team_simulation
 from uh_runtime.network import reserve_domain_id
 from uh_wire import topics
 from uh_topology.scenario import load_scenario
-from team_runs import start_run, wait_for_log
+from team_runs import start_run, wait_for_log, kill_session
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -174,8 +174,7 @@ def test_ctrl_c_stops_every_process_and_leaves_a_readable_bag(tmp_path):
         os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in the terminal does
         output, _ = proc.communicate(timeout=60)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        kill_session(proc)
     assert proc.returncode == 130, output
     assert 'interrupted' in output
     _assert_no_process_left(out)

@@ -19,6 +19,7 @@ import pytest
 
 from uh_bringup import netns
 from uh_runtime.network import reserve_domain_id
+from team_runs import kill_session
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN = ROOT / 'scripts' / 'run_formation.sh'
@@ -147,8 +148,7 @@ def test_team_flies_over_a_lossy_network(tmp_path, nft):
     try:
         output, _ = proc.communicate(timeout=300)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        kill_session(proc)
     tag = f'{netns.PREFIX}{proc.pid}'
     assert _namespaces(tag) == [], 'namespaces left behind'
     assert proc.returncode == 0, output
@@ -185,7 +185,6 @@ def test_interrupted_netns_run_removes_its_namespaces(tmp_path):
         os.killpg(proc.pid, signal.SIGINT)
         output, _ = proc.communicate(timeout=120)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        kill_session(proc)
     assert proc.returncode == 130, output
     assert _namespaces(tag) == []

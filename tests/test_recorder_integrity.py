@@ -20,6 +20,7 @@ from rosbags.rosbag2 import Reader
 from uh_runtime.bag import CHUNK_SIZE, recover_bag
 from uh_runtime.bag_reader import bag_file, read_messages
 from uh_runtime.network import reserve_domain_id
+from team_runs import kill_session
 
 ROOT = Path(__file__).resolve().parents[1]
 TALKER = ROOT / 'tests' / 'data' / 'reliability_talker.py'
@@ -180,8 +181,7 @@ def test_run_whose_recorder_is_killed_fails_and_recovers_the_bag(tmp_path):
         os.kill(recorder_pid, signal.SIGKILL)
         output, _ = proc.communicate(timeout=120)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        kill_session(proc)
     assert proc.returncode == 1, output
     assert 'node recorder killed by SIGKILL' in output
     assert 'the recorder is essential to the run; stopping it' in output

@@ -26,7 +26,7 @@ from uh_report.bag_metrics import read_team_bag
 from uh_runtime.messages import typestore
 from uh_runtime.network import reserve_domain_id
 from uh_topology.scenario import load_scenario
-from team_runs import start_run, wait_for_log
+from team_runs import start_run, wait_for_log, kill_session
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN = ROOT / 'scripts' / 'run_formation.sh'
@@ -58,9 +58,7 @@ def _run_and_kill(out: Path, domain: int, victim: str, at_step: int, *extra, tim
         os.kill(pid, signal.SIGKILL)
         output, _ = proc.communicate(timeout=timeout)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        kill_session(proc)
     return proc.returncode, output, pid
 
 
@@ -211,8 +209,7 @@ def test_a_death_in_lockstep_ends_the_run_naming_the_node(tmp_path):
         os.kill(json.loads((out / 'run.json').read_text())['pids']['uh4_controller'], signal.SIGKILL)
         output, _ = proc.communicate(timeout=120)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        kill_session(proc)
     assert proc.returncode == 1, output
     assert 'node uh4_controller killed by SIGKILL' in output
     assert 'lockstep: every step needs every node; stopping the run' in output
@@ -242,8 +239,7 @@ def test_no_node_outlives_a_killed_supervisor(tmp_path, domain_id):
             time.sleep(0.2)
         assert not alive, f'still running after the supervisor was killed: {alive}'
     finally:   # whatever the outcome, leave nothing behind in the domain
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
+        kill_session(proc)
         started = json.loads((out / 'run.json').read_text())['pids'] if (out / 'run.json').exists() else {}
         for pid in started.values():
             try:
