@@ -2,6 +2,7 @@
 import os
 import signal
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -57,3 +58,25 @@ def processes():
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+
+
+#: Every first-party Python package (a top-level folder ``uh_*`` holding a package of its name).
+FIRST_PARTY = sorted(d.name for d in ROOT.glob('uh_*') if (d / d.name / '__init__.py').is_file())
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Check that the quick tier (``scripts/test.sh --quick``) still exercises every package.
+
+    The tier deselects the DDS and slow tests; the rest run in this process, so a package no quick
+    test imports is a package the tier does not cover. Checked only for the whole tier (no file or
+    keyword selection), and only when it passed.
+    """
+    if os.environ.get('UH_TEST_TIER') != 'quick' or exitstatus != 0:
+        return
+    if session.config.args not in ([], [str(ROOT / 'tests')], ['tests']) or session.config.getoption('keyword'):
+        return
+    missing = [pkg for pkg in FIRST_PARTY if pkg not in sys.modules]
+    if missing:
+        session.config.get_terminal_writer().line(
+            f'quick tier: no quick test imports {", ".join(missing)}: add a fast test for it', red=True)
+        session.exitstatus = 1
