@@ -230,6 +230,7 @@ def test_a_truncated_bag_is_named(tmp_path, capsys):
     (bag / 'cut_0.mcap').write_bytes(data[:len(data) * 2 // 3])   # a recorder killed mid-write
     err = _replay_error(capsys, bag)
     assert str(bag / 'cut_0.mcap') in err and 'truncated' in err
+    assert f'python -m uh_runtime.bag recover {bag}' in err   # the error says how to fix it
 
 
 def test_a_damaged_chunk_is_named(tmp_path, capsys):
@@ -250,6 +251,7 @@ def test_a_damaged_chunk_is_named(tmp_path, capsys):
     (bag / 'bad_0.mcap').write_bytes(damaged_chunk(tmp_path / 'good' / 'good_0.mcap'))
     err = _replay_error(capsys, bag)
     assert str(bag / 'bad_0.mcap') in err and 'corrupted (CRC mismatch)' in err
+    assert f'python -m uh_runtime.bag recover {bag}' in err
 
 
 def test_a_broken_chunk_without_crc_is_named(tmp_path, capsys):

@@ -162,6 +162,12 @@ class BagInfo:
         return max(0, self.end_ns - self.start_ns) * 1e-9
 
 
+def _recover_hint(path: Path) -> str:
+    """Return the sentence that ends the error of a cut or damaged MCAP file: how to recover its bag."""
+    return (f'; `python -m uh_runtime.bag recover {path.parent}` restores the bag up to its last complete '
+            'chunk (the damaged file is kept beside it)')
+
+
 def _check_mcap_file(path: Path, check_chunks: bool):
     """Summary of one MCAP file after checking its magic, footer, summary and chunk CRCs."""
     from mcap.exceptions import McapError
@@ -176,7 +182,7 @@ def _check_mcap_file(path: Path, check_chunks: bool):
         if size < 2 * len(MCAP_MAGIC) or f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
             raise BagError(f'{path}: truncated: the file ({size} bytes) does not end with the MCAP '
                            'footer and magic, so it was not closed (the recorder was killed or the '
-                           'copy is incomplete)')
+                           f'copy is incomplete){_recover_hint(path)}')
         f.seek(0)
         try:
             reader = make_reader(f)
@@ -191,13 +197,14 @@ def _check_mcap_file(path: Path, check_chunks: bool):
         for index in summary.chunk_indexes:
             where = f'{path}: chunk at byte {index.chunk_start_offset}'
             if index.chunk_start_offset + index.chunk_length > size:
-                raise BagError(f'{where} runs past the end of the file ({size} bytes): truncated')
+                raise BagError(f'{where} runs past the end of the file ({size} bytes): truncated'
+                               f'{_recover_hint(path)}')
             try:
                 f.seek(index.chunk_start_offset + 1 + 8, io.SEEK_SET)
                 chunk = Chunk.read(ReadDataStream(f))
                 mismatch = _crc_mismatch(chunk)
                 if mismatch:
-                    raise BagError(f'{where} is corrupted (CRC mismatch)')
+                    raise BagError(f'{where} is corrupted (CRC mismatch){_recover_hint(path)}')
                 if mismatch is None:
                     # no CRC (rosbag2 on Jazzy writes none) or compressed: check the record structure
                     for record in breakup_chunk(chunk, validate_crc=True):
