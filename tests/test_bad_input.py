@@ -289,6 +289,8 @@ def test_inject_fault_without_a_team_says_so(domain_id):
                           capture_output=True, text=True, timeout=60)
     assert proc.returncode == 1
     assert f'nobody subscribes to /uh2/fault in DDS domain {domain_id}' in proc.stderr
+    # and it points to the fix: where to look for the team, and how to name its domain
+    assert f'uh node list --domain-id {domain_id}' in proc.stderr and '--domain-id N' in proc.stderr
     assert 'Traceback' not in proc.stderr
 
 

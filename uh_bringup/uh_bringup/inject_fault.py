@@ -114,8 +114,10 @@ def main(argv=None) -> int:
                       f'UH {args.uh}; its UHs: {", ".join(map(str, team))}', file=sys.stderr)
                 return 2
             if now > deadline:
-                print(f'{parser.prog}: error: nobody subscribes to {topic} in DDS domain {domain} '
-                      '(is the team running, with that --domain-id?)', file=sys.stderr)
+                print(f'{parser.prog}: error: nobody subscribes to {topic} in DDS domain {domain} within '
+                      f'{args.timeout:g} s: is the team running in that domain? `uh node list --domain-id {domain}` '
+                      'lists the nodes there; a run prints its domain at start and writes it to <out>/env.sh, '
+                      'so pass it with --domain-id N (or source that file)', file=sys.stderr)
                 return 1
             rt.spin_once(node, timeout_sec=0.05)
         msg = m.ActuatorFault()
