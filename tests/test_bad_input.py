@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from uh_bringup import inject_fault, run_formation
+from uh_bringup import inject_fault, run_formation, run_outcome
 from uh_report.bag_metrics import BagContentError, read_team_bag
 from uh_runtime.bag import BagWriter
 from uh_runtime.qos import qos_profile_yaml
@@ -179,6 +179,10 @@ RUN_CASES = {
     'rate_nan': (['--rate', 'nan'], r'--rate nan: allowed 0\.01 \.\. 1000'),
     'duration': (['--duration', '-5'], r'--duration -5\.0: allowed > 0 \.\. 1e6 s'),
     'duration_inf': (['--duration', 'inf'], r'--duration inf: allowed > 0'),
+    # one rule for durations, the scenario file's: a whole number of control periods, at least one
+    'duration_steps': (['--duration', '1.234'], r'--duration 1\.234 s is not a whole number of control '
+                                                r'periods dt = 0\.01 s; allowed: a multiple of dt'),
+    'duration_short': (['--duration', '0.005'], r'--duration 0\.005 s is shorter than one control period'),
     'domain': (['--domain-id', '300'], r'--domain-id 300: allowed 0\.\.232'),
     'startup_timeout': (['--startup-timeout', '0'], r'--startup-timeout 0\.0: allowed > 0'),
     'stale_timeout': (['--stale-timeout', '-1'], r'--stale-timeout -1\.0: allowed > 0'),
@@ -333,6 +337,18 @@ def _copy_bag(src: Path, dst: Path) -> Path:
     for f in src.iterdir():
         (dst / f.name).write_bytes(f.read_bytes())
     return dst
+
+
+def test_a_run_whose_metrics_cannot_be_computed_says_so(small_bag, tmp_path, capsys):
+    """Check that metrics that cannot be computed are reported, with no metrics.json left behind.
+
+    The run then ends with exit status 1 and ``metrics_error`` in run.json (run_formation.run).
+    """
+    _, paper = small_bag
+    (tmp_path / 'bag').mkdir()          # a bag directory the recorder never wrote to
+    problem = run_outcome.write_metrics(tmp_path, paper, 'proposed', 1.0)
+    assert problem and f'[run] metrics: cannot be computed: {problem}' in capsys.readouterr().err
+    assert not (tmp_path / 'metrics.json').exists()
 
 
 def test_truncated_bag_says_how_to_recover(small_bag, tmp_path):

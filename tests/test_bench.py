@@ -35,7 +35,7 @@ def test_split_team_rejects_a_team_without_a_follower():
 def test_team_mapping_rejects_zero_leaders_and_odd_durations():
     with pytest.raises(GenerateError, match='number of leaders must be an integer >= 1'):
         team_mapping(0, 3)
-    with pytest.raises(GenerateError, match='not a whole number of 0.01 s control periods'):
+    with pytest.raises(GenerateError, match=r'duration 1\.005 s is not a whole number of control periods dt = 0\.01 s'):
         team_mapping(2, 3, duration=1.005)
 
 

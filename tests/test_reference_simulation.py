@@ -100,10 +100,15 @@ def test_simulation_rejects_bad_requests(paper):
         run_team_simulation(paper, 'proposed', engine='fortran')
     with pytest.raises(SimulationError, match="unknown controller case 'case7'"):
         run_team_simulation(paper, 'case7')
-    with pytest.raises(SimulationError, match='duration must be a finite number of seconds > 0'):
+    with pytest.raises(SimulationError, match='duration -2 s is shorter than one control period'):
         run_team_simulation(paper, 'proposed', duration=-2.0)
     with pytest.raises(SimulationError, match='shorter than one control period'):
         run_team_simulation(paper, 'proposed', duration=0.001)
+    with pytest.raises(SimulationError, match="duration nan is not a finite number of seconds"):
+        run_team_simulation(paper, 'proposed', duration=float('nan'))
+    # one rule for durations, the scenario file's: no silent rounding to whole control periods
+    with pytest.raises(SimulationError, match=r'duration 1\.234 s is not a whole number of control periods'):
+        run_team_simulation(paper, 'proposed', duration=1.234)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -137,6 +142,7 @@ def test_cli_refuses_a_non_empty_output_directory_unless_forced(tmp_path, capsys
 @pytest.mark.parametrize('args, status, message', [
     (['--scenario', 'no_such_scenario'], 2, "invalid scenario: no scenario file 'no_such_scenario'"),
     (['--scenario', 'paper', '--duration', '0'], 2, '--duration must be a finite number of seconds > 0'),
+    (['--scenario', 'paper', '--duration', '1.234'], 2, 'duration 1.234 s is not a whole number of control periods'),
     (['--scenario', 'paper', '--case', 'case3'], 2, "invalid choice: 'case3'"),
 ])
 def test_cli_bad_input_exits_non_zero_without_traceback(tmp_path, args, status, message):

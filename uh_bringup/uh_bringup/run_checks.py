@@ -20,7 +20,7 @@ from uh_sim_node.faults import FaultError
 from uh_sim_node.helicopter import plant_from_scenario
 from uh_sim_node.reference import ReferenceParameterError, VirtualLeaderReference
 from uh_topology.errors import ScenarioError
-from uh_topology.scenario import load_scenario
+from uh_topology.scenario import duration_steps, load_scenario
 
 __all__ = ['UsageError', 'CONFIG_ERRORS', 'CLOCKS', 'HOSTS', 'LAYOUTS', 'check_args', 'validate_team',
            'prepare_out', 'check_run']
@@ -131,6 +131,11 @@ def check_run(args) -> tuple:
     """
     check_args(args)
     scenario = load_scenario(args.scenario)
+    if args.duration is not None:
+        try:
+            duration_steps(args.duration, scenario.dt)
+        except ValueError as exc:
+            raise UsageError(f'--duration {exc}') from None
     validate_team(scenario, args.case)
     if scenario.impairments is not None and args.clock != 'lockstep':
         raise UsageError(f'scenario {scenario.name!r} has impairments (docs/campaigns.md#impairments), which are '

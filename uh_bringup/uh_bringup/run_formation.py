@@ -166,7 +166,11 @@ def run(args) -> int:
                        failed_node=fatal.name if fatal else None, bag_recovery=recovery, dropped_packets=dropped)
     record.write()
     if status in (EXIT_OK, EXIT_DEGRADED) and not args.no_metrics:
-        write_metrics(out, scenario, args.case, wall)
+        problem = write_metrics(out, scenario, args.case, wall)
+        if problem is not None:   # the run is not done without its metrics: say so in run.json too
+            status = EXIT_FAILED
+            record.info.update(exit_status=status, metrics_error=problem)
+            record.write()
     print(f'[run] done in {wall:.1f} s wall: {out}', file=sys.stderr)
     return status
 

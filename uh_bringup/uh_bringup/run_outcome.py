@@ -87,8 +87,17 @@ def exit_status(interrupted: bool, fatal, failures: list, out: Path) -> int:
     return EXIT_OK
 
 
-def write_metrics(out: Path, scenario, case: str, wall: float) -> None:
-    """Compute ``out/metrics.json`` from the bag (docs/metrics.md) and print the scalar metrics."""
-    metrics = write_metrics_from_bag(out / 'bag', scenario, case, out / 'metrics.json', wall_time_s=wall)
+def write_metrics(out: Path, scenario, case: str, wall: float) -> str | None:
+    """Compute ``out/metrics.json`` from the bag (docs/metrics.md) and print the scalar metrics.
+
+    Returns None, or why the metrics cannot be computed (the bag cannot be read, or what it holds
+    does not make a run the metrics can score); that is printed too, and no ``metrics.json`` is written.
+    """
+    try:
+        metrics = write_metrics_from_bag(out / 'bag', scenario, case, out / 'metrics.json', wall_time_s=wall)
+    except (BagError, ValueError) as exc:    # BagContentError and MetricsError are ValueErrors
+        print(f'[run] metrics: cannot be computed: {exc}', file=sys.stderr)
+        return str(exc)
     print('[run] metrics: ' + ', '.join(f'{k} {v:.4g}' for k, v in metrics.items()
                                         if isinstance(v, float)), file=sys.stderr)
+    return None

@@ -16,7 +16,6 @@ compared and scored by the same code (:func:`uh_team.metrics.metrics_from_arrays
 """
 from __future__ import annotations
 
-import math
 import time as _time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -28,6 +27,7 @@ from uh_core.layout import R_P_SLICE, R_V_SLICE, R_YAW, REFERENCE_SIZE, X_P_SLIC
 from uh_sim_node.helicopter import plant_from_scenario
 from uh_sim_node.reference import VirtualLeaderReference
 from uh_topology.errors import GainsFileError
+from uh_topology.scenario import duration_steps
 
 from uh_controller_node.controller import UHController
 from uh_controller_node.gains import CASES, GainsError
@@ -139,7 +139,8 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     case : str
         ``'proposed'``, ``'case1'`` or ``'case2'`` (docs/control_law.md#comparison-cases).
     duration : float, optional
-        Simulated time, s (default ``scenario.duration``); rounded to whole control periods.
+        Simulated time, s (default ``scenario.duration``): a whole number of control periods
+        (:func:`uh_topology.scenario.duration_steps`).
     progress : callable, optional
         ``progress(k, K)`` called now and then (about every 1 % of the steps and at the end).
     engine : str
@@ -165,12 +166,10 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     dt = float(scenario.dt)
     if duration is None:
         duration = float(scenario.duration)
-    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not math.isfinite(duration) \
-            or duration <= 0.0:
-        raise SimulationError(f'duration must be a finite number of seconds > 0, got {duration!r}')
-    K = int(round(duration / dt))
-    if K < 1:
-        raise SimulationError(f'duration {duration!r} s is shorter than one control period ({dt} s)')
+    try:
+        K = duration_steps(duration, dt)
+    except ValueError as exc:
+        raise SimulationError(f'duration {exc}') from None
 
     ids = tuple(scenario.ids)
     n = len(ids)

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import yaml
 
-from .scenario import load_scenario
+from .scenario import duration_steps, load_scenario
 from .schema import CONFIG_DIR
 
 __all__ = ['GenerateError', 'split_team', 'team_mapping', 'write_team_scenario', 'MIN_SPACING',
@@ -128,13 +128,12 @@ def team_mapping(n_leaders: int, n_followers: int, *, duration: float = 60.0, fa
     for label, value in (('leaders', n_leaders), ('followers', n_followers)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise GenerateError(f'number of {label} must be an integer >= 1, got {value!r}')
-    if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
-        raise GenerateError(f'duration must be a finite number of seconds > 0, got {duration!r}')
     paper = _paper()
     dt = paper['dt']
-    steps = round(duration / dt)
-    if steps < 1 or abs(steps * dt - duration) > 1e-9 * max(1.0, duration):
-        raise GenerateError(f'duration {duration} s is not a whole number of {dt} s control periods')
+    try:
+        duration_steps(duration, dt)    # the one rule for durations
+    except ValueError as exc:
+        raise GenerateError(f'duration {exc}') from None
     n, m = n_leaders, n_followers
     radius = _radius(n)
     centre, r0 = paper['reference']['center'], paper['reference']['radius']

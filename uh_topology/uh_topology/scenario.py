@@ -57,7 +57,7 @@ from .graph import (check_lemma1, containment_pattern, laplacian, laplacian_bloc
 
 __all__ = [
     'Scenario', 'FaultSpec', 'ReferenceSpec', 'DisturbanceSpec', 'ImpairmentSpec', 'load_scenario', 'parse_scenario',
-    'scenario_from_mapping', 'bundled_scenarios', 'read_config_file', 'CHANNEL_ALIASES',
+    'scenario_from_mapping', 'bundled_scenarios', 'read_config_file', 'CHANNEL_ALIASES', 'duration_steps',
 ]
 
 
@@ -412,6 +412,29 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
     )
 
 
+def duration_steps(duration, dt: float) -> int:
+    """Return the control steps of a run of ``duration`` s at control period ``dt`` s.
+
+    The one rule for a duration, wherever it is given (a scenario or campaign file, ``--duration``
+    of ``run_formation.sh`` and ``uh-simulate``): a finite number of seconds, at least one control
+    period, and a whole number of them (to a relative 1e-9, the rounding of decimal seconds).
+
+    Raises
+    ------
+    ValueError
+        With the reason and what is allowed, worded to follow the name of the duration.
+    """
+    if isinstance(duration, bool) or not isinstance(duration, (int, float)) or not math.isfinite(duration):
+        raise ValueError(f'{duration!r} is not a finite number of seconds; allowed: a multiple of dt = {dt} s')
+    steps = round(duration / dt)
+    if steps < 1:
+        raise ValueError(f'{duration:g} s is shorter than one control period dt = {dt} s; allowed: a multiple of dt')
+    if abs(steps * dt - duration) > 1e-9 * max(1.0, duration):
+        raise ValueError(f'{duration} s is not a whole number of control periods dt = {dt} s; '
+                         'allowed: a multiple of dt')
+    return steps
+
+
 def _timing(ctx: ConfigContext, top: dict) -> _Timing:
     """Read the name, description, control period, substeps, duration, settle time and mismatch."""
     name = ctx.string(top['name'], ('name',))
@@ -419,11 +442,10 @@ def _timing(ctx: ConfigContext, top: dict) -> _Timing:
     dt = ctx.number(top['dt'], ('dt',), lo=0.0, lo_open=True, unit='s')
     substeps = ctx.integer(top.get('substeps', DEFAULT_SUBSTEPS), ('substeps',), lo=1)
     duration = ctx.number(top['duration'], ('duration',), lo=dt, unit='s')
-    steps = round(duration / dt)
-    if abs(steps * dt - duration) > 1e-9 * max(1.0, duration):
-        raise ctx.error(E.InvalidValueError, ('duration',),
-                        f'duration {duration} s is not a whole number of control periods dt = {dt} s; '
-                        f'allowed: a multiple of dt')
+    try:
+        duration_steps(duration, dt)
+    except ValueError as exc:
+        raise ctx.error(E.InvalidValueError, ('duration',), f'duration {exc}') from None
     settle = ctx.number(top.get('settle_time', DEFAULT_SETTLE_TIME), ('settle_time',), lo=0.0,
                         hi=duration, hi_open=True, unit='s')
     mismatch = ctx.number(top.get('model_mismatch', DEFAULT_MODEL_MISMATCH), ('model_mismatch',),
