@@ -67,7 +67,7 @@ def main() -> int:
     command_pub.publish(command_to_msg(1, 100, 1.0, [math.inf, 0.0, 0.0, 0.0]))
     command_pub.publish(command_to_msg(9, 100, 1.0, [0.0, 0.0, 0.0, 0.0]))
     for pub in (fault_pub, state_pub, command_pub):
-        pub.wait_for_all_acked(timeout_sec=10.0)
+        pub.wait_for_all_acked(rt.Duration(seconds=10.0))
     print('sent', flush=True)
     node.destroy_node()
     rt.try_shutdown()

@@ -33,7 +33,7 @@ def main() -> int:
     for k in range(count):
         x[0] = k
         pub.publish(state_to_msg(1, k, k * 0.01, x))
-    ok = pub.wait_for_all_acked(timeout_sec=30.0)
+    ok = pub.wait_for_all_acked(rt.Duration(seconds=30.0))
     print(f'published {count}' if ok else 'not acknowledged', flush=True)
     node.destroy_node()
     rt.try_shutdown()

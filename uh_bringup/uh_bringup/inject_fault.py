@@ -45,6 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: s after the first team topic is seen before a UH without a subscriber counts as not in the team
 SETTLE_S = 1.5
+#: Longest wait for the simulator to acknowledge the fault (a reliable topic), s.
+ACK_TIMEOUT_S = 2.0
 
 
 def _sim_listens(node, topic: str) -> bool:
@@ -125,10 +127,10 @@ def main(argv=None) -> int:
         msg.bias_constant, msg.bias_amplitude = args.bias, args.amplitude
         msg.bias_frequency, msg.onset_time = args.frequency, args.onset
         pub.publish(msg)
-        # give reliable delivery a moment to complete before the participant goes away
-        end = time.monotonic() + 0.5
-        while time.monotonic() < end:
-            rt.spin_once(node, timeout_sec=0.05)
+        # the simulator's reliable reader acknowledges the sample before the participant goes away
+        if not pub.wait_for_all_acked(rt.Duration(seconds=ACK_TIMEOUT_S)):
+            print(f'{parser.prog}: warning: the simulator did not acknowledge the fault within {ACK_TIMEOUT_S:g} s',
+                  file=sys.stderr)
         print(f'injected on {topic}: {args.channel} rho {args.rho}, bias {args.bias} + {args.amplitude} '
               f'sin({args.frequency} t), from t = {args.onset} s', file=sys.stderr)
         return 0

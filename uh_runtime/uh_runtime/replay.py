@@ -223,10 +223,7 @@ class ReplayNode(rt.Node):
         for pub in self.all_publishers().values():
             left = max(0.0, deadline - time.monotonic())
             try:
-                if rt.BACKEND == 'rclpy':
-                    pub.wait_for_all_acked(rt.Duration(seconds=left))
-                else:
-                    pub.wait_for_all_acked(left)
+                pub.wait_for_all_acked(rt.Duration(seconds=left))
             except Exception:  # a best-effort topic or a backend without acks: nothing to wait for
                 pass
 

@@ -78,8 +78,15 @@ class Publisher:
         """
         return len(self._writer.get_matched_subscriptions()) + len(self._local)
 
-    def wait_for_all_acked(self, timeout_sec=None) -> bool:
-        ns = DDS_INFINITY if timeout_sec is None else int(timeout_sec * 1e9)
+    def wait_for_all_acked(self, timeout=None) -> bool:
+        """Wait until every reliable reader acknowledged what was written; return whether they did.
+
+        ``timeout`` as rclpy's: a ``Duration``, negative for no limit (also None, or seconds).
+        """
+        ns = getattr(timeout, 'nanoseconds', None)
+        if ns is None:
+            ns = -1 if timeout is None else int(timeout * 1e9)
+        ns = DDS_INFINITY if ns < 0 else ns
         try:
             self._writer.wait_for_acks(ns)
             return True
