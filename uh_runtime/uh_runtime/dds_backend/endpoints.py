@@ -81,11 +81,9 @@ class Publisher:
     def wait_for_all_acked(self, timeout=None) -> bool:
         """Wait until every reliable reader acknowledged what was written; return whether they did.
 
-        ``timeout`` as rclpy's: a ``Duration``, negative for no limit (also None, or seconds).
+        ``timeout`` as rclpy's: a ``Duration``, negative (or None) for no limit.
         """
-        ns = getattr(timeout, 'nanoseconds', None)
-        if ns is None:
-            ns = -1 if timeout is None else int(timeout * 1e9)
+        ns = -1 if timeout is None else timeout.nanoseconds
         ns = DDS_INFINITY if ns < 0 else ns
         try:
             self._writer.wait_for_acks(ns)
