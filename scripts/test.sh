@@ -3,7 +3,7 @@
 # if needed, checks the code with ruff (ruff.toml: pycodestyle, pyflakes, pep257 docstrings), then
 # runs pytest. Extra arguments go to pytest, e.g. scripts/test.sh -k topology -x
 #   scripts/test.sh --quick   the quick tier: every package, no DDS processes and no long runs
-#                             (about 1.5 minutes on 2 cores; the full suite is the default and CI's)
+#                             (under 2 minutes on 2 cores; the full suite is the default and CI's)
 set -euo pipefail
 if [ "${1:-}" = "--quick" ]; then
   shift
