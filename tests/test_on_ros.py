@@ -178,7 +178,7 @@ def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain
         # step in every simulator (docs/performance.md#real-time-scheduling; 0 in 5 of 7 runs, 1 in one,
         # 16 in a run_formation run); at normal priority the same load gives thousands (4826 measured)
         assert sum(late) <= 10
-    metrics = write_metrics_from_bag(out / 'bag', load_scenario('paper'), 'proposed', tmp_path / 'm.json')
+    metrics, _ = write_metrics_from_bag(out / 'bag', load_scenario('paper'), 'proposed', tmp_path / 'm.json')
     assert metrics['formation_rms_m'] < 0.05 and metrics['containment_rms_m'] < 0.02, metrics
 
 
