@@ -8,10 +8,19 @@ PYTHON="${PYTHON:-python3}"
 stamp_src() {
   cat "$REPO_ROOT/requirements.txt" "$REPO_ROOT"/uh_*/setup.py "$REPO_ROOT"/uh_msgs/msg/*.msg | sha256sum | cut -d' ' -f1
 }
+setup_step() {  # setup_step "what": one progress line with the seconds since the set-up started
+  echo "[setup] $(( SECONDS - setup_started )) s: $1" >&2
+}
 if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$VENV/.uh_stamp" 2>/dev/null)" != "$(stamp_src)" ]; then
-  echo "[setup] preparing virtualenv $VENV (first run takes a minute)" >&2
-  [ -x "$VENV/bin/python" ] || "$PYTHON" -m venv "$VENV"
+  setup_started=$SECONDS
+  echo "[setup] preparing virtualenv $VENV: about 730 MB, 1-2 minutes the first time (once; later runs start at once)" >&2
+  if [ ! -x "$VENV/bin/python" ]; then
+    setup_step "creating the virtualenv with $("$PYTHON" --version 2>&1)"
+    "$PYTHON" -m venv "$VENV"
+  fi
+  setup_step "installing the pinned dependencies of requirements.txt (numpy, scipy, numba, cyclonedds, rosbags, mcap, matplotlib, ...)"
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REPO_ROOT/requirements.txt"
+  setup_step "installing the project's packages (uh_msgs, uh_runtime, ..., uh_bringup)"
   # uh_msgs installs data files (the .msg definitions), so it is a regular install;
   # the Python packages are editable so a change in the tree takes effect without reinstalling.
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps "$REPO_ROOT/uh_msgs"
@@ -27,6 +36,7 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$VENV/.uh_stamp" 2>/dev/null)" != "$
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
     -e "$REPO_ROOT/uh_report" -e "$REPO_ROOT/uh_campaign"
   stamp_src > "$VENV/.uh_stamp"
+  setup_step "virtualenv ready ($(du -sh "$VENV" 2>/dev/null | cut -f1))"
 fi
 # shellcheck disable=SC1091
 source "$VENV/bin/activate"
@@ -39,7 +49,7 @@ kernels_stamp() {
     -maxdepth 1 -name '*.py' -printf '%p %T@ %s\n' | sort | sha256sum | cut -d' ' -f1
 }
 if [ "$(cat "$VENV/.uh_kernels_stamp" 2>/dev/null)" != "$(kernels_stamp)" ]; then
-  echo "[setup] compiling the numba kernels of the model and the control law (cached afterwards)" >&2
+  echo "[setup] compiling the numba kernels of the model and the control law (once; cached afterwards)" >&2
   python -P -m uh_team.compile_kernels >&2
   kernels_stamp > "$VENV/.uh_kernels_stamp"
 fi

@@ -4,7 +4,9 @@
 #                            [--clock lockstep|realtime] [--rate R] [--duration S]
 #                            [--out DIR] [--force] [--domain-id N] [--processes per-node|per-uh|single]
 #                            [--respawn] [--stale-timeout S] [--hosts local|netns] [--loss PCT]
-# Output: DIR/bag/ (rosbag2 MCAP), DIR/metrics.json, DIR/logs/ (one log per node), DIR/run.json.
+#                            [--no-metrics] [--no-report]   (--help: every option)
+# Output: DIR/bag/ (rosbag2 MCAP), DIR/metrics.json, DIR/report/index.html (metrics, errors and XY
+# snapshots), DIR/logs/ (one log per node), DIR/run.json.
 # Exit status: 0 ok, 1 run failed, 2 bad input (nothing started), 3 completed with node failures,
 # 130 interrupted. Failures, respawns, lossy links: docs/reliability.md.
 # Sets up .venv on first use. On a ROS 2 machine with the workspace sourced, nodes start with ros2 run.

@@ -126,6 +126,21 @@ def test_metrics_from_the_bag_meet_the_thresholds(lockstep_run):
             assert value < 0.5, f'{uh} {name}: fault NRMSE {value}'
 
 
+def test_the_run_ends_with_its_report_the_errors_and_xy_snapshots(lockstep_run):
+    out, _, output = lockstep_run
+    report = out / 'report'
+    assert f'[run] report: {report / "index.html"}' in output
+    page = (report / 'index.html').read_text()
+    metrics = json.loads((out / 'metrics.json').read_text())
+    # the table shows metrics.json's numbers (4 significant digits, docs/report.md)
+    assert f'{metrics["formation_rms_m"]:.4g}' in (report / 'report.md').read_text()
+    for figure in (report / 'errors.png', report / out.name / 'xy_snapshots.png'):
+        assert figure.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and figure.stat().st_size > 10_000, figure
+        assert figure.relative_to(report).as_posix() in page
+    assert not (report / out.name / 'states.png').exists()      # the slow figures come with uh-report
+    assert f'uh-report {out}' in page
+
+
 def test_the_bags_fault_isolation_is_what_the_controllers_published_and_equals_in_process(
         lockstep_run, paper, reference_run):
     from uh_team.metrics import metrics_from_arrays
@@ -251,7 +266,8 @@ def test_realtime_run_meets_the_thresholds(tmp_path, paper, reference_run):
     assert np.nanmax(deviation) < 0.1
 
 
-@pytest.mark.parametrize('layout, extra', [('per-uh', ()), ('single', ()), ('per-node', ('--no-visualization',))])
+@pytest.mark.parametrize('layout, extra', [('per-uh', ()), ('single', ()),
+                                           ('per-node', ('--no-visualization', '--no-report'))])
 def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layout, extra):
     """Composition (several nodes in one process) changes nothing, nor does leaving out the visualisation.
 
@@ -267,6 +283,7 @@ def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layou
     recorded = {t['topic_metadata']['name'] for t in yaml.safe_load((out / 'bag' / 'metadata.yaml').read_text())[
         'rosbag2_bagfile_information']['topics_with_message_count'] if t['message_count'] > 0}
     assert ('/markers' in recorded) == info['visualization'], sorted(recorded)
+    assert (out / 'report' / 'index.html').is_file() == ('--no-report' not in extra)
     bag = read_team_bag(out / 'bag', paper)
     reference = run_team_simulation(paper, 'proposed', duration=3.0)
     assert np.array_equal(bag['states'], reference.states)

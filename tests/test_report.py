@@ -270,6 +270,22 @@ def test_report_of_a_short_simulation_marks_undefined_metrics(tmp_path):
     assert (run / 'report' / 'errors.png').stat().st_size > 10_000
 
 
+def test_a_report_of_some_figures_draws_and_shows_only_those(tmp_path):
+    """The report a run writes when it ends: the errors and the XY snapshots, and how to get the rest."""
+    from uh_report.report import load_run, write_report
+    from uh_team import simulate_cli
+    run_dir = tmp_path / 'short'
+    assert simulate_cli.main(['--scenario', 'paper', '--out', str(run_dir), '--duration', '2']) == 0
+    out = tmp_path / 'report'
+    write_report([load_run(run_dir)], out, ('errors', 'xy_snapshots'), hint='Every figure: `uh-report short`.')
+    drawn = sorted(p.relative_to(out).as_posix() for p in out.rglob('*.png'))
+    assert drawn == ['errors.png', 'short/xy_snapshots.png']
+    text = (out / 'report.md').read_text()
+    assert '](errors.png)' in text and '](short/xy_snapshots.png)' in text and 'states.png' not in text
+    assert 'Every figure: `uh-report short`.' in text
+    assert 'short/xy_snapshots.png' in (out / 'index.html').read_text()
+
+
 # ----------------------------------------------------------------------------------------------
 # bad input
 # ----------------------------------------------------------------------------------------------

@@ -3,7 +3,7 @@
 Starts the recorder, one simulator and one controller per UH, the virtual leader and the clock,
 each through its own entry point (``ros2 run`` on a ROS 2 machine), on a private DDS domain; waits
 for the run to end; stops everything (also on Ctrl-C and when a node fails: no orphans); then
-computes ``metrics.json`` from the recorded bag.
+computes ``metrics.json`` from the recorded bag and writes the run's report (``report/index.html``).
 
 Everything it is given is checked before anything starts: options (one line naming the option,
 the value and what is allowed; exit status 2), the output directory (new or empty unless
@@ -39,6 +39,8 @@ Output directory::
     DIR/bag/            rosbag2 MCAP bag of every topic
     DIR/logs/*.log      one log per node
     DIR/metrics.json    the metrics of docs/metrics.md, computed from the bag
+    DIR/report/         the run's report: index.html / report.md with the metrics, the fault
+                        isolation, the errors and XY snapshots (not with --no-report)
     DIR/run.json        what was run (command, scenario, case, clock, domain id, wall time, exit codes)
 """
 from __future__ import annotations
@@ -87,7 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--processes', default='per-node', choices=LAYOUTS,
                    help='process layout: one process per node (default), one per UH, or a single process; '
                         'results are identical')
-    p.add_argument('--no-metrics', action='store_true', help='do not compute metrics.json after the run')
+    p.add_argument('--no-metrics', action='store_true',
+                   help='do not compute metrics.json after the run (and write no report)')
+    p.add_argument('--no-report', action='store_true',
+                   help='do not write the run\'s report (DIR/report/index.html: metrics, errors and XY snapshots)')
     p.add_argument('--no-visualization', action='store_true',
                    help='do not start the visualisation node (no /markers in the bag): headless batch runs; '
                         'with one process per node it saves about 8 %% of the CPU of a lockstep step')
@@ -166,7 +171,7 @@ def run(args) -> int:
                        failed_node=fatal.name if fatal else None, bag_recovery=recovery, dropped_packets=dropped)
     record.write()
     if status in (EXIT_OK, EXIT_DEGRADED) and not args.no_metrics:
-        problem = write_metrics(out, scenario, args.case, wall)
+        problem = write_metrics(out, scenario, args.case, wall, report=not args.no_report)
         if problem is not None:   # the run is not done without its metrics: say so in run.json too
             status = EXIT_FAILED
             record.info.update(exit_status=status, metrics_error=problem)

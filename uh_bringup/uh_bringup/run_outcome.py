@@ -1,4 +1,4 @@
-"""What a team run leaves behind: ``run.json``, the exit status, the recovered bag, ``metrics.json``.
+"""What a team run leaves behind: ``run.json``, the exit status, the recovered bag, ``metrics.json``, the report.
 
 Exit status: :data:`EXIT_OK` success; :data:`EXIT_FAILED` the run failed; :data:`EXIT_USAGE` bad
 input (nothing was started); :data:`EXIT_DEGRADED` the run completed but nodes failed during it;
@@ -11,13 +11,19 @@ import sys
 from pathlib import Path
 
 from uh_report.bag_metrics import write_metrics_from_bag
+from uh_report.report import ReportError, run_of_arrays, write_report
 from uh_runtime.bag import recover_bag
 from uh_runtime.bag_reader import BagError
 
 __all__ = ['EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED', 'RunRecord',
-           'run_info', 'recover_bag_if_needed', 'exit_status', 'write_metrics']
+           'run_info', 'recover_bag_if_needed', 'exit_status', 'write_metrics', 'write_run_report',
+           'RUN_REPORT_FIGURES']
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DEGRADED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+#: The figures of the report a run writes when it ends: the quick ones (about a second); the others
+#: (states, 3-D trajectory, fault estimates) take several seconds more and come with ``uh-report``.
+RUN_REPORT_FIGURES = ('errors', 'xy_snapshots')
 
 
 def run_info(args, duration: float, domain: int, priority: int) -> dict:
@@ -87,17 +93,41 @@ def exit_status(interrupted: bool, fatal, failures: list, out: Path) -> int:
     return EXIT_OK
 
 
-def write_metrics(out: Path, scenario, case: str, wall: float) -> str | None:
+def write_metrics(out: Path, scenario, case: str, wall: float, report: bool = False) -> str | None:
     """Compute ``out/metrics.json`` from the bag (docs/metrics.md) and print the scalar metrics.
 
+    With ``report``, also write the run's report (:data:`RUN_REPORT_FIGURES`) into ``out/report``.
     Returns None, or why the metrics cannot be computed (the bag cannot be read, or what it holds
     does not make a run the metrics can score); that is printed too, and no ``metrics.json`` is written.
     """
     try:
-        metrics = write_metrics_from_bag(out / 'bag', scenario, case, out / 'metrics.json', wall_time_s=wall)
+        metrics, arrays = write_metrics_from_bag(out / 'bag', scenario, case, out / 'metrics.json', wall_time_s=wall)
     except (BagError, ValueError) as exc:    # BagContentError and MetricsError are ValueErrors
         print(f'[run] metrics: cannot be computed: {exc}', file=sys.stderr)
         return str(exc)
     print('[run] metrics: ' + ', '.join(f'{k} {v:.4g}' for k, v in metrics.items()
                                         if isinstance(v, float)), file=sys.stderr)
+    if report:
+        write_run_report(out, scenario, case, arrays, metrics)
     return None
+
+
+def write_run_report(out: Path, scenario, case: str, arrays: dict, metrics: dict) -> Path | None:
+    """Write the report of a run that just ended into ``out/report``; return its ``index.html`` (None if it failed).
+
+    The report (:mod:`uh_report.report`) has the metrics and fault isolation tables and the figures
+    :data:`RUN_REPORT_FIGURES`; ``uh-report out`` redraws it with every figure. A report that cannot
+    be written is said on stderr and leaves the run's result as it is.
+    """
+    import matplotlib     # a file-only backend before any figure: runs draw without a display
+    matplotlib.use('Agg')
+    try:
+        write_report([run_of_arrays(out, scenario, case, arrays, metrics)], out / 'report', RUN_REPORT_FIGURES,
+                     hint=f'This report shows the errors and the XY snapshots; `uh-report {out}` adds the states, '
+                          'the 3-D trajectory and the fault estimates.')
+    except (ReportError, OSError, ValueError) as exc:
+        print(f'[run] report: not written: {exc}', file=sys.stderr)
+        return None
+    index = out / 'report' / 'index.html'
+    print(f'[run] report: {index} (every figure: uh-report {out})', file=sys.stderr)
+    return index

@@ -59,7 +59,7 @@ from .document import CSS_NUMBERS, NumberCell, csv_text, html_figure, html_page,
 from .document import html_table as html_grid
 from .document import markdown_table as markdown_grid
 
-__all__ = ['ReportError', 'RunData', 'load_run', 'table_rows', 'format_value', 'write_report', 'main',
+__all__ = ['ReportError', 'RunData', 'load_run', 'run_of_arrays', 'table_rows', 'format_value', 'write_report', 'main',
            'build_parser', 'CASE_LABELS']
 
 PROG = 'uh-report'
@@ -481,19 +481,27 @@ def _figure_text(key: str) -> str:
     return _FIGURE_TEXT.get(key, key)
 
 
-def write_figures(runs, out: Path) -> dict:
-    """Draw every figure; returns ``{'errors': path, ..., run.name: {kind: path}}``."""
-    written = {'errors': F.plot_errors(runs, out / 'errors.png'),
-               'errors_per_uh': F.plot_errors_per_uh(runs, out / 'errors_per_uh.png')}
+def write_figures(runs, out: Path, kinds=None) -> dict:
+    """Draw the figures ``kinds`` (every one when None); returns ``{'errors': path, ..., run.name: {kind: path}}``.
+
+    The kinds: ``errors``, ``errors_per_uh`` (the runs overlaid); per run ``states``,
+    ``trajectory_3d``, ``xy_snapshots``, ``faults`` (one figure per faulted UH) and
+    ``false_fault_estimate``.
+    """
+    wanted = (lambda kind: True) if kinds is None else (lambda kind: kind in kinds)  # noqa: E731
+    written = {key: plot(runs, out / f'{key}.png')
+               for key, plot in (('errors', F.plot_errors), ('errors_per_uh', F.plot_errors_per_uh)) if wanted(key)}
     for run in runs:
         d = out / run.name
         d.mkdir(parents=True, exist_ok=True)
-        run.figures = {'states': F.plot_states(run, d / 'states.png'),
-                       'trajectory_3d': F.plot_trajectory_3d(run, d / 'trajectory_3d.png'),
-                       'xy_snapshots': F.plot_xy_snapshots(run, d / 'xy_snapshots.png')}
-        for uh in faulted_uhs(run.scenario):
-            run.figures[f'faults_uh{uh}'] = F.plot_faults(run, uh, d / f'faults_uh{uh}.png')
-        run.figures['false_fault_estimate'] = F.plot_false_fault_estimate(run, d / 'false_fault_estimate.png')
+        plots = [(key, lambda path, plot=plot: plot(run, path)) for key, plot in
+                 (('states', F.plot_states), ('trajectory_3d', F.plot_trajectory_3d),
+                  ('xy_snapshots', F.plot_xy_snapshots))]
+        plots += [(f'faults_uh{uh}', lambda path, uh=uh: F.plot_faults(run, uh, path))
+                  for uh in faulted_uhs(run.scenario) if wanted('faults')]
+        plots.append(('false_fault_estimate', lambda path: F.plot_false_fault_estimate(run, path)))
+        run.figures = {key: plot(d / f'{key}.png') for key, plot in plots
+                       if key.startswith('faults_uh') or wanted(key)}
         written[run.name] = dict(run.figures)
     return written
 
@@ -523,7 +531,7 @@ def _notes(runs) -> list[str]:
     ]
 
 
-def _markdown_report(runs, figures: dict, rel) -> str:
+def _markdown_report(runs, figures: dict, rel, hint: str | None = None) -> str:
     """Return ``report.md``.
 
     The runs, the metrics table and its notes, the comparison figures, per run its fault isolation
@@ -534,10 +542,11 @@ def _markdown_report(runs, figures: dict, rel) -> str:
         md.append(f'- **{run.label}**: `{run.directory}` ({_source_text(run)}, scenario `{run.scenario.name}`, '
                   f'{run.metrics.get("sim_time_s", float("nan")):g} s simulated)')
     md += ['', '## Metrics', '', markdown_table(runs)]
-    md += [f'{n}\n' for n in _notes(runs)]
+    md += [f'{n}\n' for n in _notes(runs) + ([hint] if hint else [])]
     md += ['## Comparison figures', '']
     for key in ('errors', 'errors_per_uh'):
-        md += [f'### {_figure_text(key)}', '', f'![{key}]({rel(figures[key])})', '']
+        if key in figures:
+            md += [f'### {_figure_text(key)}', '', f'![{key}]({rel(figures[key])})', '']
     for run in runs:
         md += [f'## {run.label} (`{run.directory.name}`)', '', f'### {_ISOLATION_TEXT}', '',
                _isolation_section(run, _markdown_text, str), '']
@@ -546,16 +555,16 @@ def _markdown_report(runs, figures: dict, rel) -> str:
     return '\n'.join(md)
 
 
-def _html_report(runs, figures: dict, rel) -> str:
+def _html_report(runs, figures: dict, rel, hint: str | None = None) -> str:
     """``index.html``: the content of :func:`_markdown_report` as an HTML page."""
     parts = [f'<h1>{html.escape(_title(runs))}</h1>',
              '<ul>' + ''.join(f'<li><b>{html.escape(r.label)}</b>: <code>{html.escape(str(r.directory))}</code> '
                               f'({html.escape(_source_text(r))})</li>' for r in runs) + '</ul>',
              '<h2>Metrics</h2>', html_table(runs)]
-    parts += [f'<p>{html.escape(n).replace("`", "")}</p>' for n in _notes(runs)]
+    parts += [f'<p>{html.escape(n).replace("`", "")}</p>' for n in _notes(runs) + ([hint] if hint else [])]
     parts.append('<h2>Comparison figures</h2>')
-    for key in ('errors', 'errors_per_uh'):
-        parts.append(html_figure(rel(figures[key]), _figure_text(key), alt=key))
+    parts += [html_figure(rel(figures[key]), _figure_text(key), alt=key)
+              for key in ('errors', 'errors_per_uh') if key in figures]
     for run in runs:
         parts.append(f'<h2>{html.escape(run.label)} <small><code>{html.escape(str(run.directory))}</code></small></h2>')
         parts.append(f'<h3>{html.escape(_ISOLATION_TEXT)}</h3>\n{_isolation_section(run, _html_grid, _html_paragraph)}')
@@ -564,16 +573,26 @@ def _html_report(runs, figures: dict, rel) -> str:
     return html_page(_title(runs), '\n'.join(parts), css=(CSS_NUMBERS,))
 
 
-def write_report(runs, out: Path) -> Path:
-    """Write the figures, ``report.md``, ``index.html`` and ``metrics_table.csv`` into ``out``."""
+def write_report(runs, out: Path, kinds=None, hint: str | None = None) -> Path:
+    """Write the figures ``kinds`` (every one when None), ``report.md``, ``index.html`` and ``metrics_table.csv``.
+
+    ``hint`` is a line added to the notes (e.g. how to draw the figures left out).
+    """
     _unique_names(runs)
     make_writable_dir(out, ReportError)
-    figures = write_figures(runs, out)
+    figures = write_figures(runs, out, kinds)
     (out / 'metrics_table.csv').write_text(csv_table(runs))
     rel = lambda p: p.relative_to(out).as_posix()  # noqa: E731
-    (out / 'report.md').write_text(_markdown_report(runs, figures, rel))
-    (out / 'index.html').write_text(_html_report(runs, figures, rel))
+    (out / 'report.md').write_text(_markdown_report(runs, figures, rel, hint))
+    (out / 'index.html').write_text(_html_report(runs, figures, rel, hint))
     return out / 'report.md'
+
+
+def run_of_arrays(run_dir, scenario, case: str, arrays: dict, metrics: dict) -> RunData:
+    """Return the :class:`RunData` of a recorded run whose arrays and metrics are already in hand."""
+    run_dir = Path(run_dir)
+    return RunData(directory=run_dir, name=run_dir.name, label=CASE_LABELS.get(case, case), source='bag',
+                   case=case, scenario=scenario, arrays=arrays, metrics=metrics)
 
 
 # ----------------------------------------------------------------------------------------------
