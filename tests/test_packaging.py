@@ -147,15 +147,15 @@ def test_the_ros_machine_requirements_agree_with_the_pinned_ones_and_keep_numpy_
     assert {'rosbags', 'mcap', 'mcap-ros2-support', 'numba'} <= set(ros)
 
 
-#: rosdep keys whose package the ROS machine takes from requirements-ros.txt instead (README): Ubuntu
+#: rosdep keys whose package the ROS machine takes from requirements-ros.txt instead (docs/ros2.md): Ubuntu
 #: 24.04 has no python3-numba, and rosdep's pip keys install unpinned as root
 FROM_REQUIREMENTS_ROS = {'python3-numba': 'numba', 'python3-rosbags-pip': 'rosbags',
                          'mcap-ros2-support': 'mcap-ros2-support'}
 
 
-def test_the_readme_ros_install_skips_exactly_the_keys_requirements_ros_provides():
-    readme = (ROOT / 'README.md').read_text()
-    block = readme[readme.index('## On a ROS 2 Jazzy machine'):]
+def test_the_documented_ros_install_skips_exactly_the_keys_requirements_ros_provides():
+    doc = (ROOT / 'docs' / 'ros2.md').read_text()
+    block = doc[doc.index('## Installing'):]
     block = block[block.index('```bash'):block.index('```', block.index('```bash') + 7)]
     skipped = set(re.search(r'--skip-keys "([^"]+)"', block).group(1).split())
     declared = {e.text for pkg in PYTHON_PACKAGES for e in ET.parse(ROOT / pkg / 'package.xml').getroot().iter()
