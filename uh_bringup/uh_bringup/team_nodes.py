@@ -113,7 +113,7 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
                 if spec.per_step]
     # injections may come from a publisher that lives a moment (ros2 topic pub --once)
     injections = [f'{topics.uh_topic(i, topics.FAULT)}={topics.FAULT.type}' for i in scenario.ids]
-    specs = [('recorder', 'recorder', ['--ros-args', '-p', f'output:={bag_dir}',
+    specs = [('recorder', 'recorder', ['--ros-args', '-p', f'output:={bag_dir}', '-p', 'sim_time:=true',
                                        '-p', f'progress_topics:=[{",".join(per_step)}]',
                                        '-p', f'expected_topics:=[{",".join(injections)}]'])]
     if live_view is not None:

@@ -14,7 +14,13 @@ only after the publisher has gone.
 
 Log times are simulation times: the message's own stamp when its first field is a
 ``std_msgs/Header`` or a ``builtin_interfaces/Time`` (every uh_msgs type, ``/clock``), otherwise
-the latest ``/clock``. With ``progress_topics`` set, it publishes on ``/recorder/progress`` the sim
+the latest ``/clock``. With ``sim_time`` (a run on simulated time: the run supervisor and the launch
+file set it), a stamp more than :data:`STAMP_WINDOW_NS` away from the latest ``/clock`` (0 before
+the first) is not the run's time (a message stamped with wall-clock time: a fault sent from rclpy,
+``/rosout`` of an rclpy node): the message is logged at the latest ``/clock`` instead, its bytes
+unchanged, so it never stretches the bag's time range; the recorder logs how many were.
+
+With ``progress_topics`` set, it publishes on ``/recorder/progress`` the sim
 time up to which every one of those topics has been written; the lockstep clock waits on it, so a
 lockstep run loses nothing however slow the disk.
 
@@ -35,7 +41,7 @@ from uh_runtime.bag_reader import BagError
 from uh_runtime.names import RECORDER_PROGRESS_TOPIC
 from uh_runtime.qos import QoSWords, merge_offered, profile_from_words, qos_profile_yaml, words_of
 
-__all__ = ['RecorderNode', 'LogClock', 'main', 'stamp_of', 'stamped_first', 'new_topics']
+__all__ = ['RecorderNode', 'LogClock', 'STAMP_WINDOW_NS', 'main', 'stamp_of', 'stamped_first', 'new_topics']
 
 _STAMPED_FIRST = {'rosgraph_msgs/msg/Clock', 'builtin_interfaces/msg/Time'}
 _TIME = struct.Struct('<iI')
@@ -58,20 +64,36 @@ def stamp_of(data: bytes) -> int:
     return sec * 1_000_000_000 + nanosec
 
 
+#: With ``sim_time``, the farthest a stamp may lie from the latest ``/clock`` and still be a log time
+#: (ns of simulated time). Messages of a step reach the recorder within a few steps of the ``/clock``
+#: of that step (the lockstep clock waits on the recorder; in real time they are 10 ms apart), and a
+#: wall-clock stamp is decades away.
+STAMP_WINDOW_NS = 10_000_000_000
+
+
 class LogClock:
     """Log time of a raw message.
 
     Its own stamp (or its Header's) when its type starts with one (:func:`stamped_first`), else the
-    simulation time of the latest ``/clock``, 0 before any.
+    simulation time of the latest ``/clock``, 0 before any. With ``sim_time``, a stamp more than
+    :data:`STAMP_WINDOW_NS` from the latest ``/clock`` is replaced by it (counted in ``replaced``).
     """
 
-    def __init__(self):
+    def __init__(self, sim_time: bool = False):
         self.clock_ns = 0
+        self.sim_time = sim_time
+        self.replaced = 0
 
     def of(self, topic: str, data: bytes, stamped: bool) -> int:
-        log_ns = stamp_of(data) if stamped else self.clock_ns
+        """Return the log time (ns) of the payload ``data`` of ``topic``."""
+        if not stamped:
+            return self.clock_ns
+        log_ns = stamp_of(data)
         if topic == '/clock':
             self.clock_ns = log_ns
+        elif self.sim_time and abs(log_ns - self.clock_ns) > STAMP_WINDOW_NS:
+            self.replaced += 1
+            return self.clock_ns
         return log_ns
 
 
@@ -106,6 +128,9 @@ class RecorderNode(rt.Node):
         self.declare_parameter('progress_topics', [''], rt.ParameterDescriptor(
             description='per-step topics whose recorded sim time is published on /recorder/progress',
             read_only=True))
+        self.declare_parameter('sim_time', False, rt.ParameterDescriptor(
+            description='the run is on simulated time (/clock): a stamp more than 10 s from the latest /clock '
+                        '(e.g. wall-clock time) is logged at that /clock instead', read_only=True))
         output = str(self.get_parameter('output').value)
         if not output:
             raise BagError("parameter 'output' is empty: give the bag directory to create")
@@ -121,7 +146,7 @@ class RecorderNode(rt.Node):
             expected.append((name, type_name))
         self.bag = BagWriter(output)
         self.latest_stamp: dict[str, int] = {}
-        self.log_clock = LogClock()
+        self.log_clock = LogClock(sim_time=bool(self.get_parameter('sim_time').value))
         self.progress_ns = -1
         self.subscriptions_by_topic = {}
         self.progress_pub = self.create_publisher(m.Time, RECORDER_PROGRESS_TOPIC, 10)
@@ -170,6 +195,10 @@ class RecorderNode(rt.Node):
         self.bag.close()
         counts = ', '.join(f'{t.name}: {t.message_count}' for t in self.bag.topics.values())
         rt.log_on_exit(self, f'bag closed: {self.bag.directory} ({counts})')
+        if self.log_clock.replaced:
+            rt.log_on_exit(self, f'{self.log_clock.replaced} message(s) stamped more than '
+                                 f'{STAMP_WINDOW_NS / 1e9:g} s from the simulated time were logged at the '
+                                 'latest /clock instead of their stamp')
         return super().destroy_node()
 
 
