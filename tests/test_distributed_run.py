@@ -234,6 +234,18 @@ def test_fault_injected_at_run_time_shows_in_truth_and_estimate(tmp_path, paper)
     # the observer picks it up: after 3 s it has recovered most of the fault
     assert np.mean(est_z[after]) < 0.5 * np.mean(true_z[after])
     assert np.sqrt(np.mean((est_z[after] - true_z[after]) ** 2)) < 0.5 * np.sqrt(np.mean(true_z[after] ** 2))
+    # the metrics take the injected fault as a fault: listed apart from the scheduled ones, its
+    # estimate scored, its isolation a correct one (not a false isolation on a healthy UH)
+    metrics = json.loads((out / 'metrics.json').read_text())
+    injected = metrics['faults']['injected']
+    assert [(f['uh'], f['channel'], f['rho'], f['onset_time']) for f in injected] == [(1, 0, 0.7, 16.0)]
+    assert injected[0]['received_s'] <= 16.0 and not injected[0]['nominal']
+    assert {f['uh'] for f in metrics['faults']['scheduled']} == {uh for uh, specs in paper.faults.items() if specs}
+    assert 'uh1' in metrics['fault_estimation']
+    collective = metrics['fault_isolation']['uh1']['collective']
+    assert collective['faulty'] and collective['onset'] == pytest.approx(16.0)
+    assert metrics['fault_isolation']['summary']['false_isolations'] == 0
+    assert 'injected, received at' in (out / 'report' / 'report.md').read_text()
 
 
 def test_realtime_run_meets_the_thresholds(tmp_path, paper, reference_run):

@@ -374,3 +374,30 @@ def test_fault_isolation_of_a_recorded_run_scores_what_the_controllers_published
     partial = {1: published[1]}
     assert metrics_from_arrays(dict(arrays, isolation=partial), scenario,
                                'proposed')['fault_isolation']['summary']['source'] == 'recomputed'
+
+
+def test_injected_faults_are_those_a_simulator_applies_and_join_the_scheduled_ones():
+    from uh_team.fault_metrics import fault_list, injected_faults, run_faults
+    from uh_topology.scenario import load_scenario
+    scenario = load_scenario('paper')          # UH1 and UH4 healthy, UH2, UH3, UH5 faulted from 10 s
+    base = {'channel': 0, 'rho': 0.7, 'bias_constant': 0.0, 'bias_amplitude': 0.0, 'bias_frequency': 0.0}
+    arrays = {'fault_injections': [
+        {'uh': 1, 'uh_id': 1, **base, 'onset_time': 16.0, 'received_s': 2.5},        # applied, acts from 16 s
+        {'uh': 4, 'uh_id': 4, **base, 'channel': 2, 'onset_time': 3.0, 'received_s': 7.25},  # late: acts on arrival
+        {'uh': 1, 'uh_id': 2, **base, 'onset_time': 1.0, 'received_s': 3.0},         # names another UH: rejected
+        {'uh': 4, 'uh_id': 4, **base, 'rho': 1.5, 'onset_time': 1.0, 'received_s': 3.0},   # invalid rho: rejected
+        {'uh': 4, 'uh_id': 4, **base, 'channel': 3, 'rho': 1.0, 'onset_time': 9.0, 'received_s': 8.0},  # clears
+    ]}
+    applied = injected_faults(arrays)
+    assert [(f['uh'], f['channel'], f['onset_time'], f['nominal']) for f in applied] == [
+        (1, 0, 16.0, False), (4, 2, 7.25, False), (4, 3, 9.0, True)]
+    assert applied[1]['sent_onset_time'] == 3.0 and applied[1]['received_s'] == 7.25
+    faults = run_faults(scenario, arrays)
+    assert len(faults[1]) == len(scenario.faults.get(1, ())) + 1
+    assert len(faults[4]) == len(scenario.faults.get(4, ())) + 1          # the clearing one is not a fault
+    faulted = faulted_uhs(scenario, arrays)
+    assert faulted[1].onset == 16.0 and faulted[1].collective
+    assert faulted[4].onset == 7.25 and not faulted[4].collective
+    assert faulted_uhs(scenario) == {uh: f for uh, f in faulted.items() if uh not in (1, 4)}
+    listed = fault_list(scenario, arrays)
+    assert len(listed['scheduled']) == sum(len(s) for s in scenario.faults.values()) and listed['injected'] == applied

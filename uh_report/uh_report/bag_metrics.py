@@ -64,6 +64,7 @@ class _TopicMessages:
         order = np.argsort(np.asarray(self.log_times, dtype=np.int64), kind='stable')
         if (np.diff(order) != 1).any():
             self.payloads = [self.payloads[k] for k in order]
+            self.log_times = [self.log_times[k] for k in order]
 
 
 class _Bag:
@@ -215,6 +216,27 @@ def _fill_status(out: dict, bag: _Bag, uh: int, c: int, last_step: int) -> None:
     out['isolation'][uh] = _isolation_of(bag.decode(name, int(last)))
 
 
+def _fault_injections(bag: _Bag, ids) -> list:
+    """Return one mapping per message on ``/uhN/fault``: ``uh``, the message's fields, ``received_s`` (log time, s).
+
+    What the simulators did with them (applied or rejected) is decided by
+    :func:`uh_team.fault_metrics.injected_faults`, with the simulators' own rule.
+    """
+    records = []
+    for uh in ids:
+        name = topics.uh_topic(uh, topics.FAULT)
+        messages = bag.topics.get(name)
+        if messages is None or messages.msgtype != topics.FAULT.type:
+            continue
+        for k, log_ns in enumerate(messages.log_times):
+            msg = bag.decode(name, k)
+            records.append({'uh': uh, 'uh_id': int(msg.uh_id), 'channel': int(msg.channel), 'rho': float(msg.rho),
+                            'bias_constant': float(msg.bias_constant), 'bias_amplitude': float(msg.bias_amplitude),
+                            'bias_frequency': float(msg.bias_frequency), 'onset_time': float(msg.onset_time),
+                            'received_s': log_ns * 1e-9})
+    return records
+
+
 def read_team_bag(bag_dir, scenario) -> dict:
     """Read the per-step topics of a team bag into arrays.
 
@@ -222,7 +244,8 @@ def read_team_bag(bag_dir, scenario) -> dict:
     ``reference`` (K+1, 5) = (x0, y0, z0, psi0, psi0'), ``fault_true_p``/``fault_true_w`` and
     ``fault_est_p``/``fault_est_w`` (K+1, n, 3), ``u_p`` (K+1, n, 3), ``saturated`` (K+1, n) (any
     saturation flag), ``isolation`` (the last fault isolation each controller published,
-    :func:`_isolation_of`; ``{}`` when no status carried one), ``counts`` ({topic: messages}).
+    :func:`_isolation_of`; ``{}`` when no status carried one), ``counts`` ({topic: messages}),
+    ``fault_injections`` (every message on ``/uhN/fault``, :func:`_fault_injections`).
     Steps missing from a topic are NaN (the arrays of :func:`uh_team.run_arrays.new_run_arrays`).
     The numeric fields are read as columns (:mod:`uh_report.cdr_columns`).
     """
@@ -234,7 +257,7 @@ def read_team_bag(bag_dir, scenario) -> dict:
         raise BagContentError(f'bag {bag_dir} has no {topics.REFERENCE.name} messages: not a team run')
     K = int(reference['step'].max())
     out = {'time': np.arange(K + 1) * scenario.dt, **new_run_arrays(K + 1, len(ids)), 'isolation': {},
-           'counts': bag.counts, 'rejected': bag.rejected}
+           'counts': bag.counts, 'rejected': bag.rejected, 'fault_injections': _fault_injections(bag, ids)}
     _fill_reference(out, bag, reference)
     for c, i in enumerate(ids):
         _fill_rows(out, bag, topics.STATE, i, c, K, {'states': _STATE})

@@ -44,8 +44,9 @@ from pathlib import Path
 
 import numpy as np
 
-from uh_core.layout import X_P_SLICE
+from uh_core.layout import CHANNEL_NAMES, X_P_SLICE
 from uh_runtime.bag_reader import BagError, open_bag
+from uh_team.fault_metrics import fault_list
 from uh_team.metrics import (FALSE_ESTIMATE_START, FAULT_WINDOW_DELAY, LUMPED_FAULTS, NOT_MEANINGFUL_MARK,
                              NRMSE_FLOOR_P, NRMSE_FLOOR_W, MetricsError, faulted_uhs, metrics_from_arrays,
                              nrmse_below_floor)
@@ -92,6 +93,12 @@ _ISOLATION_ROWS = [
 #: Heading of the per-run fault isolation table (:func:`isolation_table`).
 ISOLATION_HEAD = ('UH', 'channel', 'onset (s)', 'isolated after (s)', 'ρ identified', 'ρ true',
                   'b identified (rad)', 'b constant true (rad)', 'verdict')
+
+
+#: Heading of the per-run table of faults (:func:`faults_table`).
+FAULTS_HEAD = ('UH', 'channel', 'ρ', 'b constant (rad)', 'b amplitude (rad)', 'b frequency (rad/s)',
+               'acts from (s)', 'source')
+_FAULTS_TEXT = 'Faults: scheduled by the scenario, and injected during the run'
 
 
 class ReportError(ValueError):
@@ -350,6 +357,32 @@ def isolation_table(run) -> list[list[str]] | None:
     return rows
 
 
+def faults_table(run) -> list[list[str]]:
+    """Rows (cell texts, columns :data:`FAULTS_HEAD`) of the faults of ``run``: scheduled ones, then injected ones.
+
+    From ``metrics.json``'s ``faults``, else from the scenario and the arrays
+    (:func:`uh_team.fault_metrics.fault_list`). An injection that clears its channel says so.
+    """
+    faults = run.metrics.get('faults') or fault_list(run.scenario, run.arrays)
+    rows = []
+    for source, entries in (('scheduled', faults.get('scheduled', ())), ('injected', faults.get('injected', ()))):
+        for f in entries:
+            if source == 'scheduled':
+                origin = 'scheduled'
+            else:
+                origin = f'injected, received at {format_value(f["received_s"])} s' + \
+                    (' (clears the channel)' if f.get('nominal') else '')
+            rows.append([f'UH{f["uh"]}', CHANNEL_NAMES[int(f['channel'])], *(format_value(f[k]) for k in (
+                'rho', 'bias_constant', 'bias_amplitude', 'bias_frequency', 'onset_time')), origin])
+    return rows
+
+
+def _faults_section(run, grid, paragraph) -> str:
+    """Render the per-run table of faults (:func:`faults_table`), or a sentence when the run had none."""
+    rows = faults_table(run)
+    return grid(FAULTS_HEAD, rows) if rows else paragraph('No fault: none scheduled, none injected.')
+
+
 def _markdown_text(head, rows) -> str:
     """Return a Markdown table of texts, ending with a line break."""
     return '\n'.join(markdown_grid(head, rows)) + '\n'
@@ -498,7 +531,7 @@ def write_figures(runs, out: Path, kinds=None) -> dict:
                  (('states', F.plot_states), ('trajectory_3d', F.plot_trajectory_3d),
                   ('xy_snapshots', F.plot_xy_snapshots))]
         plots += [(f'faults_uh{uh}', lambda path, uh=uh: F.plot_faults(run, uh, path))
-                  for uh in faulted_uhs(run.scenario) if wanted('faults')]
+                  for uh in faulted_uhs(run.scenario, run.arrays) if wanted('faults')]
         plots.append(('false_fault_estimate', lambda path: F.plot_false_fault_estimate(run, path)))
         run.figures = {key: plot(d / f'{key}.png') for key, plot in plots
                        if key.startswith('faults_uh') or wanted(key)}
@@ -548,7 +581,8 @@ def _markdown_report(runs, figures: dict, rel, hint: str | None = None) -> str:
         if key in figures:
             md += [f'### {_figure_text(key)}', '', f'![{key}]({rel(figures[key])})', '']
     for run in runs:
-        md += [f'## {run.label} (`{run.directory.name}`)', '', f'### {_ISOLATION_TEXT}', '',
+        md += [f'## {run.label} (`{run.directory.name}`)', '', f'### {_FAULTS_TEXT}', '',
+               _faults_section(run, _markdown_text, str), '', f'### {_ISOLATION_TEXT}', '',
                _isolation_section(run, _markdown_text, str), '']
         for key, path in run.figures.items():
             md += [f'### {_figure_text(key)}', '', f'![{run.name} {key}]({rel(path)})', '']
@@ -567,6 +601,7 @@ def _html_report(runs, figures: dict, rel, hint: str | None = None) -> str:
               for key in ('errors', 'errors_per_uh') if key in figures]
     for run in runs:
         parts.append(f'<h2>{html.escape(run.label)} <small><code>{html.escape(str(run.directory))}</code></small></h2>')
+        parts.append(f'<h3>{html.escape(_FAULTS_TEXT)}</h3>\n{_faults_section(run, _html_grid, _html_paragraph)}')
         parts.append(f'<h3>{html.escape(_ISOLATION_TEXT)}</h3>\n{_isolation_section(run, _html_grid, _html_paragraph)}')
         for key, path in run.figures.items():
             parts.append(html_figure(rel(path), _figure_text(key), alt=run.name + ' ' + key))

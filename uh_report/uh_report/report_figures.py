@@ -113,7 +113,7 @@ def _vline(ax, t: float, text: str) -> None:
 
 def _mark_faults(ax, run, uh=None) -> None:
     """Labelled dotted vertical line at the fault onset(s) (of ``uh`` only if given)."""
-    onsets = sorted({f.onset for i, f in faulted_uhs(run.scenario).items() if uh is None or i == uh})
+    onsets = sorted({f.onset for i, f in faulted_uhs(run.scenario, run.arrays).items() if uh is None or i == uh})
     t_end = float(run.arrays['time'][-1])
     for onset in onsets:
         if onset <= t_end:
@@ -313,7 +313,7 @@ def plot_faults(run, uh: int, path: Path) -> Path:
     """
     t = run.arrays['time']
     c = run.scenario.ids.index(uh)
-    info = faulted_uhs(run.scenario).get(uh)
+    info = faulted_uhs(run.scenario, run.arrays).get(uh)
     with _style():
         fig = _figure('faults')
         axes = fig.subplots(3, 2, sharex=True)
@@ -390,7 +390,7 @@ def plot_false_fault_estimate(run, path: Path) -> Path:
     """
     t = np.asarray(run.arrays['time'], dtype=float)
     ids = run.scenario.ids
-    faulted = faulted_uhs(run.scenario)
+    faulted = faulted_uhs(run.scenario, run.arrays)
     scores = run.metrics.get('false_fault_estimate') or {}
     scored = t >= FALSE_ESTIMATE_START
     with _style():

@@ -14,12 +14,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from uh_sim_node.faults import ActuatorFault, FaultError
+
 from .hull_geometry import dot
 
 __all__ = ['MetricsError', 'FaultedUH', 'LumpedFault', 'LUMPED_FAULTS', 'FAULT_WINDOW_DELAY',
            'FALSE_ESTIMATE_START', 'FALSE_ESTIMATE_THRESHOLD_P', 'FALSE_ESTIMATE_THRESHOLD_W',
            'NRMSE_TARGET', 'NRMSE_FLOOR_P', 'NRMSE_FLOOR_W', 'NOT_MEANINGFUL_MARK', 'fault_spec_value',
-           'faulted_uhs', 'none_if_nan', 'rms_norm', 'nrmse_below_floor', 'fault_estimation',
+           'faulted_uhs', 'injected_faults', 'run_faults', 'fault_list', 'none_if_nan', 'rms_norm',
+           'nrmse_below_floor', 'fault_estimation',
            'false_fault_estimate']
 
 #: Delay after a UH's fault onset before its fault estimate is scored, s (docs/metrics.md).
@@ -125,13 +128,68 @@ def fault_spec_value(spec, key: str):
     return spec[key] if isinstance(spec, dict) else getattr(spec, key)
 
 
-def faulted_uhs(scenario) -> dict:
-    """``{uh id: FaultedUH}`` of the UHs with at least one scheduled fault in ``scenario.faults``.
+#: The fields of a fault injection (``uh_msgs/ActuatorFault``) that make the fault.
+_FAULT_FIELDS = ('channel', 'rho', 'bias_constant', 'bias_amplitude', 'bias_frequency', 'onset_time')
 
-    Accepts fault specs as objects or mappings with ``channel`` and ``onset_time``.
+
+def injected_faults(arrays) -> list:
+    """Return the faults injected during a recorded run that its simulators applied, in the order received.
+
+    ``arrays['fault_injections']`` (:func:`uh_report.bag_metrics.read_team_bag`) holds one mapping
+    per message on ``/uhN/fault``: ``uh`` (the UH of the topic), ``uh_id`` (the UH the message
+    names), the fault's fields and ``received_s`` (its log time, s of simulated time). A simulator
+    applies a message that names its own UH and is a valid fault, as ``uh_sim_node.sim_node`` does
+    (docs/faults.md#injecting-a-fault-at-run-time); the others it rejects, and they are left out.
+    Each applied one is returned as a mapping with ``uh``, the fault's fields, ``sent_onset_time``
+    and ``received_s``; its ``onset_time`` is when it acts, ``max(sent onset, received)`` (a fault
+    sent with an onset in the past acts from its arrival); ``nominal`` tells one that clears its
+    channel (rho = 1, no bias: not a fault).
+    """
+    applied = []
+    for record in arrays.get('fault_injections', ()) if arrays is not None else ():
+        if int(record['uh_id']) != int(record['uh']):
+            continue
+        try:
+            fault = ActuatorFault(**{k: (int if k == 'channel' else float)(record[k]) for k in _FAULT_FIELDS})
+        except (FaultError, ValueError, TypeError):
+            continue
+        received = float(record['received_s'])
+        applied.append({'uh': int(record['uh']), **{k: getattr(fault, k) for k in _FAULT_FIELDS},
+                        'onset_time': max(fault.onset_time, received), 'sent_onset_time': fault.onset_time,
+                        'received_s': received, 'nominal': bool(fault.is_nominal)})
+    return applied
+
+
+def run_faults(scenario, arrays=None) -> dict:
+    """Return ``{uh id: fault specs}``: the faults ``scenario`` schedules and those injected during the run.
+
+    The injected ones are those of :func:`injected_faults` (``arrays`` of a recorded run), less the
+    nominal ones. A channel faulted twice keeps both: the scoring takes a channel's earliest fault.
+    """
+    out = {int(uh): tuple(specs) for uh, specs in scenario.faults.items()}
+    for fault in injected_faults(arrays):
+        if not fault['nominal']:
+            out[fault['uh']] = out.get(fault['uh'], ()) + ({k: fault[k] for k in _FAULT_FIELDS},)
+    return out
+
+
+def fault_list(scenario, arrays=None) -> dict:
+    """Return ``{'scheduled': [...], 'injected': [...]}``: the run's faults as plain mappings (``metrics.json``)."""
+    scheduled = [{'uh': int(uh), **{k: fault_spec_value(spec, k) for k in _FAULT_FIELDS}}
+                 for uh, specs in sorted(scenario.faults.items()) for spec in specs]
+    return {'scheduled': [{k: (int(v) if k in ('uh', 'channel') else float(v)) for k, v in f.items()}
+                          for f in scheduled],
+            'injected': injected_faults(arrays)}
+
+
+def faulted_uhs(scenario, arrays=None) -> dict:
+    """``{uh id: FaultedUH}`` of the UHs with at least one fault: scheduled in ``scenario.faults``, or injected.
+
+    Injected faults are those of :func:`run_faults` (a recorded run's ``arrays``). Accepts fault
+    specs as objects or mappings with ``channel`` and ``onset_time``.
     """
     out = {}
-    for uh, specs in sorted(scenario.faults.items()):
+    for uh, specs in sorted(run_faults(scenario, arrays).items()):
         specs = tuple(specs)
         if not specs:
             continue

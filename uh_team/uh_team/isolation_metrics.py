@@ -13,7 +13,7 @@ import numpy as np
 from uh_controller_node.fault_isolation import IDENTIFIABLE, IDENTIFICATION_TEXT, isolate_run
 from uh_core.layout import CHANNEL_NAMES
 
-from .fault_metrics import fault_spec_value
+from .fault_metrics import fault_spec_value, run_faults
 
 __all__ = ['ISOLATION_ARRAYS', 'fault_isolation_metrics']
 
@@ -21,13 +21,13 @@ __all__ = ['ISOLATION_ARRAYS', 'fault_isolation_metrics']
 ISOLATION_ARRAYS = ('time', 'states', 'commands', 'fault_est_p', 'fault_est_w')
 
 
-def _channel_faults(scenario, end: float) -> dict:
-    """Return ``{uh id: {channel: (onset, rho, bias_constant)}}`` of the faults of ``scenario.faults``.
+def _channel_faults(scenario, end: float, arrays=None) -> dict:
+    """Return ``{uh id: {channel: (onset, rho, bias_constant)}}`` of the run's faults (scheduled and injected).
 
     Only those whose onset is at or before ``end`` (s); the earliest fault of a channel counts.
     """
     out = {}
-    for uh, specs in sorted(scenario.faults.items()):
+    for uh, specs in sorted(run_faults(scenario, arrays).items()):
         for spec in specs:
             onset, channel = float(fault_spec_value(spec, 'onset_time')), int(fault_spec_value(spec, 'channel'))
             if onset > end:
@@ -102,7 +102,7 @@ def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
                        'reason': IDENTIFICATION_TEXT[r['identification']]}
                 for name, r in isolation[f'uh{uh}']['channels'].items()}
     end = float(data['time'][-1]) + 1e-9 * max(float(scenario.dt), 1.0)
-    truth = _channel_faults(scenario, end)
+    truth = _channel_faults(scenario, end, arrays)
     out, false_isolations, missed, delays = {}, 0, 0, []
     for uh in tuple(scenario.ids):
         reports = verdicts[int(uh)]

@@ -67,7 +67,7 @@ from .error_metrics import consensus_errors, containment_errors, formation_error
 from .fault_metrics import (FALSE_ESTIMATE_START, FALSE_ESTIMATE_THRESHOLD_P, FALSE_ESTIMATE_THRESHOLD_W,
                             FAULT_WINDOW_DELAY, LUMPED_FAULTS, NOT_MEANINGFUL_MARK, NRMSE_FLOOR_P, NRMSE_FLOOR_W,
                             NRMSE_TARGET, FaultedUH, LumpedFault, MetricsError, false_fault_estimate,
-                            fault_estimation, faulted_uhs, none_if_nan, nrmse_below_floor, rms_norm)
+                            fault_estimation, fault_list, faulted_uhs, none_if_nan, nrmse_below_floor, rms_norm)
 from .hull_geometry import hull_distance, point_segment_distance, point_triangle_distance
 from .isolation_metrics import ISOLATION_ARRAYS, fault_isolation_metrics
 from .run_arrays import RUN_REF_POSITION
@@ -84,7 +84,7 @@ __all__ = ['MetricsError', 'FaultedUH', 'LumpedFault', 'LUMPED_FAULTS', 'FAULT_W
 METRIC_KEYS = ('case', 'sim_time_s', 'wall_time_s', 'settle_time_s', 'formation_rms_m',
                'containment_rms_m', 'hull_distance_max_m', 'mse_formation', 'mse_containment', 'cpi',
                'fault_estimation', 'false_fault_estimate', 'fault_nrmse', 'saturation_fraction',
-               'fault_isolation')
+               'fault_isolation', 'faults')
 
 
 def _shape(name, arr, shape):
@@ -225,8 +225,11 @@ def metrics_from_arrays(arrays, scenario, case: str, wall_time_s: float | None =
     Returns
     -------
     dict
-        As :func:`compute_metrics`; z1 for the CPI comes from :func:`consensus_errors`, and
-        ``fault_isolation`` from :func:`fault_isolation_metrics` (``None`` without ``commands``).
+        As :func:`compute_metrics`; z1 for the CPI comes from :func:`consensus_errors`,
+        ``fault_isolation`` from :func:`fault_isolation_metrics` (``None`` without ``commands``) and
+        ``faults`` (the run's scheduled and injected faults) from :func:`~uh_team.fault_metrics.fault_list`.
+        The faults scored are the scenario's and those injected during a recorded run
+        (``arrays['fault_injections']``, :func:`~uh_team.fault_metrics.injected_faults`).
     """
     missing = [k for k in ('time', 'states', 'reference', 'u_p', 'saturated') if k not in arrays]
     if missing:
@@ -251,7 +254,8 @@ def metrics_from_arrays(arrays, scenario, case: str, wall_time_s: float | None =
         containment_weights=scenario.containment_weights, z1=z1, u_p=per_step('u_p'),
         saturated=per_step('saturated'), fault_true_p=per_step('fault_true_p'),
         fault_true_w=per_step('fault_true_w'), fault_est_p=per_step('fault_est_p'),
-        fault_est_w=per_step('fault_est_w'), faulted=faulted_uhs(scenario),
+        fault_est_w=per_step('fault_est_w'), faulted=faulted_uhs(scenario, arrays),
         settle_time=float(scenario.settle_time), wall_time=wall_time_s)
     result['fault_isolation'] = fault_isolation_metrics(arrays, scenario, case)
+    result['faults'] = fault_list(scenario, arrays)
     return result
