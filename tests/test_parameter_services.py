@@ -197,3 +197,34 @@ def test_uh_param_cli_against_a_node_in_another_process(domain_id, processes):
     assert 'Type: double' in described and 'Max value: 60.0' in described
     nobody = run('get', '/uh9/controller', 'x', '--spin-time', '0.5')
     assert nobody.returncode == 1 and "no parameter services of node '/uh9/controller'" in nobody.stderr
+
+
+def test_a_client_that_cannot_be_answered_is_named_once_and_ours_is_not(served, monkeypatch):
+    """A Fast DDS client (Jazzy's default) sends requests without rmw_cyclonedds' header: the node says so, once.
+
+    Its request writer does not say ``clientid=`` in USER_DATA, as this backend's and rmw_cyclonedds' do.
+    """
+    import time
+    from cyclonedds.pub import DataWriter
+    from uh_runtime.dds_backend.context import typehash_user_data
+    from uh_runtime.dds_backend.services import FOREIGN_CLIENT_CHECK_S, qos_profile_parameters
+    from uh_runtime.qos import to_dds_qos
+    node, call, caller = served
+    warnings = []
+    logger = node.get_logger()
+    monkeypatch.setattr(logger, 'warning', lambda text, **kw: warnings.append(text))
+    assert call('get_parameters', names=['outer.k1']).values     # this backend's client: answered, not named
+    time.sleep(2.5 * FOREIGN_CLIENT_CHECK_S)
+    assert warnings == []
+    cls = messages.dds_service_message('rcl_interfaces/srv/GetParameters_Request')
+    topic = caller.topic('rq/uh3/controller/get_parametersRequest', cls)
+    writers = [DataWriter(caller._pub, topic, qos=to_dds_qos(qos_profile_parameters, typehash_user_data(cls)))
+               for _ in range(2)]                  # as Fast DDS's request writer: a type hash, no clientid
+    deadline = time.monotonic() + BOUND
+    while not warnings and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(2.5 * FOREIGN_CLIENT_CHECK_S)
+    assert len(warnings) == 1, warnings
+    assert 'RMW_IMPLEMENTATION=rmw_cyclonedds_cpp' in warnings[0] and 'uh param' in warnings[0]
+    assert '/uh3/controller/' in warnings[0]
+    del writers

@@ -32,10 +32,12 @@ from ..parameters import (
     SetParametersResult,
 )
 from ..qos import QoSProfile, DurabilityPolicy, HistoryPolicy, ReliabilityPolicy, to_dds_qos
+from .clock import Clock, ClockType
 from .context import typehash_user_data
 
 __all__ = ['Service', 'ServiceClient', 'ParameterServices', 'parameter_value', 'value_message',
-           'qos_profile_parameters', 'qos_profile_parameter_events', 'REPLY_MATCH_WAIT_S']
+           'qos_profile_parameters', 'qos_profile_parameter_events', 'REPLY_MATCH_WAIT_S',
+           'FOREIGN_CLIENT_CHECK_S', 'FOREIGN_CLIENT_TEXT']
 
 #: rmw_qos_profile_parameters (services) and rmw_qos_profile_parameter_events: keep last 1000,
 #: reliable, volatile.
@@ -48,6 +50,16 @@ qos_profile_parameter_events = qos_profile_parameters
 REPLY_MATCH_WAIT_S = 0.5
 
 _service_ids = itertools.count(1)
+
+#: Period of a node's look for parameter clients it cannot answer, s of wall-clock time.
+FOREIGN_CLIENT_CHECK_S = 1.0
+
+#: What a node says, once, when such a client appears (docs/ros2.md#parameters-from-fast-dds).
+FOREIGN_CLIENT_TEXT = (
+    'a parameter client on {service} sends requests this node cannot answer: it is not rmw_cyclonedds '
+    '(likely Fast DDS, ROS 2 Jazzy\'s default), whose requests carry no request header in their payload and '
+    'whose replies are matched by a sample identity this backend cannot send (ros2/rmw_cyclonedds#184); '
+    'run ros2 param with RMW_IMPLEMENTATION=rmw_cyclonedds_cpp, or use `uh param`')
 
 
 def _user_data_value(endpoint, key: str) -> str | None:
@@ -109,6 +121,7 @@ class Service:
         self._condition = ReadCondition(self._reader, SampleState.NotRead | ViewState.Any | InstanceState.Any)
         self.gid = self._reader.get_guid().bytes
         self.writer_gid = self._writer.get_guid().bytes
+        self._writers_seen = set()     # request writers looked at by clients_without_header
 
     def _take_messages(self, from_dds=True):
         """Every waiting request (samples with their info)."""
@@ -137,6 +150,26 @@ class Service:
             if reader is not None and _user_data_value(reader, 'clientid') == client:
                 return True
         return False
+
+    def clients_without_header(self) -> list:
+        """Return the handles of the matched request writers that do not say ``clientid=`` (not met before).
+
+        rmw_cyclonedds clients (and this backend's) say who they are in USER_DATA and put the request
+        header in the payload; a client that does neither (Fast DDS, Jazzy's default RMW) sends requests
+        this reader cannot read.
+        """
+        found = []
+        for handle in self._reader.get_matched_publications():
+            if handle in self._writers_seen:
+                continue
+            self._writers_seen.add(handle)
+            try:
+                writer = self._reader.get_matched_publication_data(handle)
+            except Exception:
+                continue
+            if writer is not None and _user_data_value(writer, 'clientid') is None:
+                found.append(handle)
+        return found
 
     def _serve(self, request) -> None:
         response = self._response_cls()
@@ -250,11 +283,25 @@ class ParameterServices:
             qos_profile_parameter_events)
 
     def start_services(self):
-        """Create the six services (rclpy does at the end of the node's constructor)."""
+        """Create the six services (rclpy does at the end of the node's constructor).
+
+        Every :data:`FOREIGN_CLIENT_CHECK_S` of wall-clock time the node looks for clients whose
+        requests it cannot read (:meth:`Service.clients_without_header`) and says so once.
+        """
         node = self._node
-        for suffix, srv in self.SERVICES:
-            node.create_service(f'rcl_interfaces/srv/{srv}', f'{node.get_name()}/{suffix}',
-                                getattr(self, f'_{suffix}'), qos_profile=qos_profile_parameters)
+        self._services = [node.create_service(f'rcl_interfaces/srv/{srv}', f'{node.get_name()}/{suffix}',
+                                              getattr(self, f'_{suffix}'), qos_profile=qos_profile_parameters)
+                          for suffix, srv in self.SERVICES]
+        self._check = node.create_timer(FOREIGN_CLIENT_CHECK_S, self._check_clients,
+                                        clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _check_clients(self) -> None:
+        """Log one line, once, when a client that cannot be answered (Fast DDS) has matched a parameter service."""
+        for service in self._services:
+            if service.clients_without_header():
+                self._node.get_logger().warning(FOREIGN_CLIENT_TEXT.format(service=service.srv_name))
+                self._check.cancel()
+                return
 
     # -- events ----------------------------------------------------------------------------
     def publish_event(self, new=(), changed=()):
