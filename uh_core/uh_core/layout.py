@@ -24,6 +24,7 @@ __all__ = [
     'STATUS_VECTOR3', 'STATUS_FLOAT', 'STATUS_FLAG', 'STATUS_LAYOUT', 'STATUS_WIDTH', 'STATUS_INDEX', 'STATUS_SIZE',
     'S_Z1', 'S_Z2', 'S_Z3', 'S_Z4', 'S_F_HAT_P', 'S_F_HAT_W', 'S_ZN_P', 'S_ZN_W', 'S_U_P', 'S_EULER_D',
     'S_THRUST', 'S_W_NORM_P', 'S_W_NORM_W', 'S_SAT_TILT', 'S_SAT_COLLECTIVE', 'S_SAT_CYCLIC', 'S_COST_RATE',
+    'SATURATION_FLAGS',
     'STATUS_VECTORS',
 ]
 
@@ -107,5 +108,7 @@ S_SAT_TILT = STATUS_INDEX['saturated_tilt']
 S_SAT_COLLECTIVE = STATUS_INDEX['saturated_collective']
 S_SAT_CYCLIC = STATUS_INDEX['saturated_cyclic']
 S_COST_RATE = STATUS_INDEX['cost_rate']
+#: The saturation flags of the status (its ``STATUS_FLAG`` fields, ``saturated_*``), in order.
+SATURATION_FLAGS = tuple(name for name, kind in STATUS_LAYOUT if kind == STATUS_FLAG)
 #: Number of 3-vector fields; they come first and fill ``status[:3 * STATUS_VECTORS]``.
 STATUS_VECTORS = sum(kind == STATUS_VECTOR3 for _, kind in STATUS_LAYOUT)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from uh_core.layout import SATURATION_FLAGS
 from uh_runtime.bag_reader import BagError, bag_file, find_bag_files, read_messages
 from uh_runtime.messages import typestore
 from uh_team.metrics import metrics_from_arrays
@@ -48,7 +49,6 @@ _FAULT_P, _FAULT_W = _xyz('lumped_fault_position'), _xyz('lumped_fault_attitude'
 _REFERENCE = _xyz('position') + ('yaw', 'yaw_rate')
 _REFERENCE_CHECKED = _xyz('velocity') + _xyz('acceleration')
 _STATUS_P, _STATUS_W = _xyz('fault_estimate_position'), _xyz('fault_estimate_attitude')
-_SATURATION = ('saturated_tilt', 'saturated_collective', 'saturated_cyclic')
 
 
 class _TopicMessages:
@@ -199,7 +199,7 @@ def _fill_status(out: dict, bag: _Bag, uh: int, c: int, last_step: int) -> None:
     ``out['isolation'][uh]``.
     """
     name = topics.uh_topic(uh, topics.STATUS)
-    cols = bag.columns(name, topics.STATUS.type, _STATUS_P + _STATUS_W + _xyz('u_p') + _SATURATION)
+    cols = bag.columns(name, topics.STATUS.type, _STATUS_P + _STATUS_W + _xyz('u_p') + SATURATION_FLAGS)
     if cols is None:
         return
     ok = (cols['step'] <= last_step) & (cols['uh_id'] == uh)
@@ -210,7 +210,7 @@ def _fill_status(out: dict, bag: _Bag, uh: int, c: int, last_step: int) -> None:
     out['fault_est_p'][steps, c] = _stack(cols, _STATUS_P)[take]
     out['fault_est_w'][steps, c] = _stack(cols, _STATUS_W)[take]
     out['u_p'][steps, c] = _stack(cols, _xyz('u_p'))[take]
-    out['saturated'][steps, c] = _stack(cols, _SATURATION)[take].any(axis=1)
+    out['saturated'][steps, c] = _stack(cols, SATURATION_FLAGS)[take].any(axis=1)
     index = np.flatnonzero(ok)
     last = index[len(index) - 1 - np.argmax(cols['step'][index][::-1])]
     out['isolation'][uh] = _isolation_of(bag.decode(name, int(last)))
