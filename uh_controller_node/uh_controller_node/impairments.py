@@ -1,19 +1,26 @@
 """What a controller receives under communication and sensing impairments (docs/campaigns.md#impairments).
 
 The impairments of a scenario (:class:`uh_topology.scenario.ImpairmentSpec`) act in the receiving
-controller, on control steps, and draw no random stream: every loss and every noise sample is a
-pure function of ``(seed, receiver, sender, step)`` (a SplitMix64 hash). So the in-process kernel
-(:func:`uh_team.team_kernel.run_team_steps`), the object loop and the distributed controller nodes
-(:class:`ReceivedStates`), whatever the order in which they meet the steps, compute the same
-received states with the same compiled functions: the runs stay bit-identical.
+controller, on control steps, and draw no random stream: every loss, every jitter and every noise
+sample is a pure function of ``(seed, receiver, sender, step)`` (a SplitMix64 hash). So the
+in-process kernel (:func:`uh_team.team_kernel.run_team_steps`), the object loop and the distributed
+controller nodes (:class:`ReceivedStates`), whatever the order in which they meet the steps, compute
+the same received states with the same compiled functions: the runs stay bit-identical.
 
-At step k, receiver i uses from neighbour j (:func:`delivered_step`) the newest state j sent at a step
-``s <= k - d_ij`` that the link did not lose (each sent state is lost with probability ``l_ij``) and
-that j sent before its dropout; the state of step 0 is always delivered (every UH starts knowing
-its neighbours' initial states), and before step ``d_ij`` it is the one used. Noise is added to the
-delivered state (:func:`add_noise`), keyed by the step it was sent at, so a state kept because
-later ones were lost keeps its noise. The own state gets noise too (sensing), keyed by ``sender =
-receiver``; it is never delayed nor lost. The reference is received unimpaired.
+The state neighbour j sends at step s reaches receiver i at step ``s + d_ij + e`` (:func:`arrival_extra`:
+``e`` drawn in ``0..J_ij``, the link's jitter), unless the link loses it (probability ``l_ij``) or j
+sent it at or after its dropout. At step k, i uses (:func:`newest_delivered`, :func:`delivered_step`)
+the state with the *newest sent step* among those that have arrived: a state overtaken by a newer one
+is never used, whatever the order of arrival. The state of step 0 is always delivered (every UH
+starts knowing its neighbours' initial states). Noise is added to the delivered state
+(:func:`add_noise`), keyed by the step it was sent at, so a state kept because later ones were lost
+keeps its noise. The own state gets noise too (sensing), keyed by ``sender = receiver``; it is never
+delayed nor lost. The reference is received unimpaired.
+
+Delay compensation (docs/delay.md): with ``delay_compensation: predict`` the controller predicts a
+state sent ``age = k - s`` steps ago to step k (:func:`predict_state`) from its velocity and an
+acceleration estimated against an older delivered state of the same sender (:func:`older_step`);
+at age 0 the state is used as received, bit for bit.
 """
 from __future__ import annotations
 
@@ -22,13 +29,16 @@ import math
 import numpy as np
 from numba import njit
 
-from uh_core.layout import STATE_SIZE
+from uh_core.layout import STATE_SIZE, X_P, X_V
 
-__all__ = ['LOSS_STREAM', 'hash_uniform', 'delivered_step', 'add_noise', 'ReceivedStates', 'reference_hash',
+__all__ = ['LOSS_STREAM', 'JITTER_STREAM', 'hash_uniform', 'arrival_extra', 'newest_delivered',
+           'delivered_step', 'older_step', 'add_noise', 'predict_state', 'ReceivedStates', 'reference_hash',
            'compile_impairment_kernels']
 
 #: Stream of the loss draws; the noise of state component c uses streams 1 + 2c and 2 + 2c.
 LOSS_STREAM = 0
+#: Stream of the jitter draws (after the 2 x 12 noise streams).
+JITTER_STREAM = 1 + 2 * STATE_SIZE
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -76,21 +86,63 @@ def reference_hash(seed: int, receiver: int, sender: int, step: int, stream: int
 
 
 @njit(cache=True)
-def delivered_step(k, delay, loss, drop_step, seed, receiver, sender):
-    """Step of the state of ``sender`` that ``receiver`` uses at step ``k`` (see the module docstring).
+def arrival_extra(jitter, seed, receiver, sender, step):
+    """Extra steps, in ``0..jitter``, by which the link delays the state ``sender`` sent at ``step``.
 
-    ``delay`` steps >= 0, ``loss`` probability in [0, 1), ``drop_step`` the sender's first step
-    nobody receives; ``receiver`` and ``sender`` are UH ids.
+    A uniform draw of :func:`hash_uniform` on :data:`JITTER_STREAM`; 0 without a hash when ``jitter`` is 0.
+    """
+    if jitter == 0:
+        return 0
+    extra = int(hash_uniform(seed, receiver, sender, step, JITTER_STREAM) * (jitter + 1))
+    return extra if extra < jitter else jitter
+
+
+@njit(cache=True)
+def newest_delivered(k, newest, delay, jitter, loss, drop_step, seed, receiver, sender):
+    """Newest step ``s <= newest`` whose state of ``sender`` has reached ``receiver`` by step ``k``.
+
+    A state sent at step s arrives at step ``s + delay + arrival_extra(s)`` unless it is lost
+    (probability ``loss``) or sent at or after ``drop_step``; step 0 always counts as delivered.
+    ``delay``, ``jitter`` steps >= 0; ``receiver`` and ``sender`` are UH ids. Returns 0 when
+    ``newest <= 0``.
     """
     s = k - delay
+    if s > newest:
+        s = newest
     if s >= drop_step:
         s = drop_step - 1
-    if loss > 0.0:
-        while s > 0 and hash_uniform(seed, receiver, sender, s, LOSS_STREAM) < loss:
-            s -= 1
+    while s > 0 and ((loss > 0.0 and hash_uniform(seed, receiver, sender, s, LOSS_STREAM) < loss)
+                     or s + delay + arrival_extra(jitter, seed, receiver, sender, s) > k):
+        s -= 1
     if s < 0:
         s = 0
     return s
+
+
+@njit(cache=True)
+def delivered_step(k, delay, jitter, loss, drop_step, seed, receiver, sender):
+    """Step of the state of ``sender`` that ``receiver`` uses at step ``k`` (see the module docstring).
+
+    ``delay`` and ``jitter`` steps >= 0, ``loss`` probability in [0, 1), ``drop_step`` the sender's
+    first step nobody receives; ``receiver`` and ``sender`` are UH ids. It never decreases with ``k``:
+    the set of arrived states only grows, and the newest of them is used.
+    """
+    return newest_delivered(k, k, delay, jitter, loss, drop_step, seed, receiver, sender)
+
+
+@njit(cache=True)
+def older_step(k, s, delay, jitter, loss, drop_step, seed, receiver, sender):
+    """Step of the older state the acceleration of :func:`predict_state` is estimated against, or -1.
+
+    The newest state delivered by step ``k`` that was sent at least ``max(1, delay)`` steps before
+    step ``s`` (the delivered one): a baseline as long as the link's delay, so the noise of the
+    velocity difference is divided by the same time it is extrapolated over (docs/delay.md). -1 when
+    ``s`` is less than that baseline. Like ``s`` it never decreases with ``k``.
+    """
+    baseline = delay if delay > 1 else 1
+    if s < baseline:
+        return -1
+    return newest_delivered(k, s - baseline, delay, jitter, loss, drop_step, seed, receiver, sender)
 
 
 @njit(cache=True)
@@ -110,6 +162,37 @@ def add_noise(state, sigma, seed, receiver, sender, step, out):
             out[c] = state[c] + sigma[c] * g
 
 
+@njit(cache=True)
+def predict_state(state, older, gap, age, dt, out):
+    """Write ``out`` = ``state``, sent ``age`` steps ago, predicted to the current step (docs/delay.md).
+
+    Parameters
+    ----------
+    state : ndarray (12,)
+        The state as received, ``[p m, v m/s, Theta rad, omega rad/s]`` (inertial p and v).
+    older : ndarray (12,)
+        The same sender's state sent ``gap`` steps before ``state`` (read only when ``gap > 0``).
+    gap, age : int
+        Steps >= 0; ``gap = 0``: no older state (the acceleration estimate is zero).
+    dt : float
+        Control period, s.
+
+    With ``tau = age dt`` and ``a = (v - v_older) / (gap dt)`` (m/s^2), position and velocity become
+    ``p + v tau + a tau^2 / 2`` and ``v + a tau``; attitude and body rates are copied. At ``age == 0``
+    every component is copied unchanged, bit for bit (no arithmetic on it at all).
+    """
+    for c in range(STATE_SIZE):
+        out[c] = state[c]
+    if age == 0:
+        return
+    tau = age * dt
+    for c in range(3):
+        v = state[X_V + c]
+        a = (v - older[X_V + c]) / (gap * dt) if gap > 0 else 0.0
+        out[X_P + c] = state[X_P + c] + v * tau + 0.5 * a * tau * tau
+        out[X_V + c] = v + a * tau
+
+
 class ReceivedStates:
     """The states one controller receives, step by step (a distributed node or the object loop).
 
@@ -121,45 +204,67 @@ class ReceivedStates:
         The UHs it hears, ascending.
     impairments : ImpairmentSpec
     dt : float
-        Control period, s (for the dropout times).
+        Control period, s (for the dropout times and the prediction).
 
     :meth:`receive` is called once per step, in step order, with the states *sent* at that step
-    (lockstep); it keeps only the states a later step may still deliver.
+    (lockstep); it keeps only the states a later step may still deliver or predict from.
     """
 
     def __init__(self, uh_id: int, neighbours, impairments, dt: float):
         self.uh_id = int(uh_id)
         self.neighbours = tuple(int(j) for j in neighbours)
         self.seed = int(impairments.seed)
+        self.dt = float(dt)
         self.delay = {j: int(impairments.delays[(self.uh_id, j)]) for j in self.neighbours}
+        self.jitter = {j: int(impairments.jitters[(self.uh_id, j)]) for j in self.neighbours}
         self.loss = {j: float(impairments.losses[(self.uh_id, j)]) for j in self.neighbours}
         self.drop = {j: impairments.drop_step(j, dt) for j in self.neighbours}
         self.sigma = np.ascontiguousarray(impairments.noise, dtype=float)
+        self.predict = impairments.compensation == 'predict'
         self.history = {j: {} for j in self.neighbours}
         self.sample_steps = {}
+        self.delivered = {}
 
     def receive(self, k: int, own, neighbours: dict):
         """Return the own state and the neighbour states the controller uses at step ``k``.
 
-        From those sent at step ``k``: ``(own, {j: state})`` (new arrays); :attr:`sample_steps`
-        then holds the step each neighbour's state was sent at.
+        From those sent at step ``k``: ``(own, {j: state})`` (new arrays), each neighbour's state
+        predicted to step ``k`` when the scenario asks for it; :attr:`sample_steps` then holds the
+        step each neighbour's state was sent at and :attr:`delivered` the states as delivered
+        (noise included, not predicted).
         """
         own_out = np.empty(STATE_SIZE)
         add_noise(np.ascontiguousarray(own, dtype=float), self.sigma, self.seed, self.uh_id, self.uh_id, k, own_out)
-        out = {}
+        out, self.delivered = {}, {}
         for j in self.neighbours:
             history = self.history[j]
             if k < self.drop[j] or k == 0:   # later states of a UH that dropped out are never delivered;
                 # the initial state always is (a dropout at t = 0 leaves its neighbours with it)
                 history[k] = np.array(neighbours[j], dtype=float)   # a copy: the sender may reuse its array
-            s = delivered_step(k, self.delay[j], self.loss[j], self.drop[j], self.seed, self.uh_id, j)
-            state = np.empty(STATE_SIZE)
+            link = (self.delay[j], self.jitter[j], self.loss[j], self.drop[j], self.seed, self.uh_id, j)
+            s = delivered_step(k, *link)
+            state = self.delivered[j] = np.empty(STATE_SIZE)
             add_noise(history[s], self.sigma, self.seed, self.uh_id, j, s, state)
-            out[j] = state
+            out[j], keep = state, s
+            if self.predict:
+                keep = q = older_step(k, s, *link)
+                if s < k:
+                    out[j] = self._predicted(j, k, s, q, state)
+                if q < 0:
+                    keep = 0   # no older state yet: step 0 may become the older one
             self.sample_steps[j] = s
-            for old in [step for step in history if step < s]:   # never delivered again (s only grows)
+            for old in [step for step in history if step < keep]:   # never used again (s and q only grow)
                 del history[old]
         return own_out, out
+
+    def _predicted(self, j: int, k: int, s: int, q: int, state):
+        """``state`` (of neighbour j, sent at step s) predicted to step k against its state of step q (-1: none)."""
+        older = np.zeros(STATE_SIZE)
+        if q >= 0:
+            add_noise(self.history[j][q], self.sigma, self.seed, self.uh_id, j, q, older)
+        predicted = np.empty(STATE_SIZE)
+        predict_state(state, older, s - q if q >= 0 else 0, k - s, self.dt, predicted)
+        return predicted
 
 
 def compile_impairment_kernels() -> float:
@@ -167,6 +272,8 @@ def compile_impairment_kernels() -> float:
     import time
 
     start = time.perf_counter()
-    delivered_step(5, 1, 0.5, 3, 1, 2, 3)
+    delivered_step(5, 1, 2, 0.5, 3, 1, 2, 3)
+    older_step(5, 3, 1, 2, 0.5, 3, 1, 2, 3)
     add_noise(np.zeros(STATE_SIZE), np.ones(STATE_SIZE), 1, 2, 3, 4, np.empty(STATE_SIZE))
+    predict_state(np.zeros(STATE_SIZE), np.zeros(STATE_SIZE), 1, 2, 0.01, np.empty(STATE_SIZE))
     return time.perf_counter() - start
