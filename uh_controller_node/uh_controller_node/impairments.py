@@ -18,9 +18,10 @@ keeps its noise. The own state gets noise too (sensing), keyed by ``sender = rec
 delayed nor lost. The reference is received unimpaired.
 
 Delay compensation (docs/delay.md): with ``delay_compensation: predict`` the controller predicts a
-state sent ``age = k - s`` steps ago to step k (:func:`predict_state`) from its velocity and an
-acceleration estimated against an older delivered state of the same sender (:func:`older_step`);
-at age 0 the state is used as received, bit for bit.
+state sent ``k - s`` steps ago to step k (:func:`predict_state`; over at most the link's delay and
+jitter plus :data:`PREDICTION_MARGIN`, :func:`prediction_age`) from its velocity and an acceleration
+estimated against an older delivered state of the same sender (:func:`older_step`); a state of the
+current step is used as received, bit for bit.
 """
 from __future__ import annotations
 
@@ -30,15 +31,20 @@ import numpy as np
 from numba import njit
 
 from uh_core.layout import STATE_SIZE, X_P, X_V
+from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
-__all__ = ['LOSS_STREAM', 'JITTER_STREAM', 'hash_uniform', 'arrival_extra', 'newest_delivered',
-           'delivered_step', 'older_step', 'add_noise', 'predict_state', 'ReceivedStates', 'reference_hash',
-           'compile_impairment_kernels']
+__all__ = ['LOSS_STREAM', 'JITTER_STREAM', 'PREDICTION_MARGIN', 'hash_uniform', 'arrival_extra', 'newest_delivered',
+           'delivered_step', 'older_step', 'prediction_age', 'add_noise', 'predict_state', 'ReceivedStates',
+           'reference_hash', 'compile_impairment_kernels']
 
 #: Stream of the loss draws; the noise of state component c uses streams 1 + 2c and 2 + 2c.
 LOSS_STREAM = 0
 #: Stream of the jitter draws (after the 2 x 12 noise streams).
 JITTER_STREAM = 1 + 2 * STATE_SIZE
+#: s a state is predicted beyond the link's delay and jitter at most (:func:`prediction_age`): the
+#: realtime stale timeout, so a state kept through losses is still predicted, that of a sender that
+#: dropped out is not extrapolated without bound.
+PREDICTION_MARGIN = DEFAULT_STALE_TIMEOUT
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -163,6 +169,17 @@ def add_noise(state, sigma, seed, receiver, sender, step, out):
 
 
 @njit(cache=True)
+def prediction_age(k, s, delay, jitter, dt):
+    """Return the steps over which the state sent at step ``s`` is predicted at step ``k`` (``dt`` s).
+
+    ``k - s``, but at most ``delay + jitter`` plus :data:`PREDICTION_MARGIN` in steps.
+    """
+    horizon = delay + jitter + int(PREDICTION_MARGIN / dt + 0.5)
+    age = k - s
+    return age if age < horizon else horizon
+
+
+@njit(cache=True)
 def predict_state(state, older, gap, age, dt, out):
     """Write ``out`` = ``state``, sent ``age`` steps ago, predicted to the current step (docs/delay.md).
 
@@ -249,7 +266,7 @@ class ReceivedStates:
             if self.predict:
                 keep = q = older_step(k, s, *link)
                 if s < k:
-                    out[j] = self._predicted(j, k, s, q, state)
+                    out[j] = self._predicted(j, k, s, q, state, prediction_age(k, s, *link[:2], self.dt))
                 if q < 0:
                     keep = 0   # no older state yet: step 0 may become the older one
             self.sample_steps[j] = s
@@ -257,13 +274,13 @@ class ReceivedStates:
                 del history[old]
         return own_out, out
 
-    def _predicted(self, j: int, k: int, s: int, q: int, state):
-        """``state`` (of neighbour j, sent at step s) predicted to step k against its state of step q (-1: none)."""
+    def _predicted(self, j: int, k: int, s: int, q: int, state, age: int):
+        """Return ``state`` (of neighbour j, sent at step s) predicted ``age`` steps on, against step q (-1: none)."""
         older = np.zeros(STATE_SIZE)
         if q >= 0:
             add_noise(self.history[j][q], self.sigma, self.seed, self.uh_id, j, q, older)
         predicted = np.empty(STATE_SIZE)
-        predict_state(state, older, s - q if q >= 0 else 0, k - s, self.dt, predicted)
+        predict_state(state, older, s - q if q >= 0 else 0, age, self.dt, predicted)
         return predicted
 
 
@@ -275,5 +292,6 @@ def compile_impairment_kernels() -> float:
     delivered_step(5, 1, 2, 0.5, 3, 1, 2, 3)
     older_step(5, 3, 1, 2, 0.5, 3, 1, 2, 3)
     add_noise(np.zeros(STATE_SIZE), np.ones(STATE_SIZE), 1, 2, 3, 4, np.empty(STATE_SIZE))
-    predict_state(np.zeros(STATE_SIZE), np.zeros(STATE_SIZE), 1, 2, 0.01, np.empty(STATE_SIZE))
+    predict_state(np.zeros(STATE_SIZE), np.zeros(STATE_SIZE), 1, prediction_age(5, 3, 1, 2, 0.01), 0.01,
+                  np.empty(STATE_SIZE))
     return time.perf_counter() - start
