@@ -17,11 +17,10 @@ starts knowing its neighbours' initial states). Noise is added to the delivered 
 keeps its noise. The own state gets noise too (sensing), keyed by ``sender = receiver``; it is never
 delayed nor lost. The reference is received unimpaired.
 
-Delay compensation (docs/delay.md): with ``delay_compensation: predict`` the controller predicts a
-state sent ``k - s`` steps ago to step k (:func:`predict_state`; over at most the link's delay and
-jitter plus :data:`PREDICTION_MARGIN`, :func:`prediction_age`) from its velocity and an acceleration
-estimated against an older delivered state of the same sender (:func:`older_step`); a state of the
-current step is used as received, bit for bit.
+Delay compensation (docs/delay.md): with ``delay_compensation: predict`` the controller predicts the
+position of a state sent ``k - s`` steps ago to step k from the velocity it carries
+(:func:`predict_state`; over at most the link's delay and jitter plus :data:`PREDICTION_MARGIN`,
+:func:`prediction_age`); a state of the current step is used as received, bit for bit.
 """
 from __future__ import annotations
 
@@ -34,7 +33,7 @@ from uh_core.layout import STATE_SIZE, X_P, X_V
 from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
 __all__ = ['LOSS_STREAM', 'JITTER_STREAM', 'PREDICTION_MARGIN', 'hash_uniform', 'arrival_extra', 'newest_delivered',
-           'delivered_step', 'older_step', 'prediction_age', 'add_noise', 'predict_state', 'ReceivedStates',
+           'delivered_step', 'prediction_age', 'add_noise', 'predict_state', 'ReceivedStates',
            'reference_hash', 'compile_impairment_kernels']
 
 #: Stream of the loss draws; the noise of state component c uses streams 1 + 2c and 2 + 2c.
@@ -137,21 +136,6 @@ def delivered_step(k, delay, jitter, loss, drop_step, seed, receiver, sender):
 
 
 @njit(cache=True)
-def older_step(k, s, delay, jitter, loss, drop_step, seed, receiver, sender):
-    """Step of the older state the acceleration of :func:`predict_state` is estimated against, or -1.
-
-    The newest state delivered by step ``k`` that was sent at least ``max(1, delay)`` steps before
-    step ``s`` (the delivered one): a baseline as long as the link's delay, so the noise of the
-    velocity difference is divided by the same time it is extrapolated over (docs/delay.md). -1 when
-    ``s`` is less than that baseline. Like ``s`` it never decreases with ``k``.
-    """
-    baseline = delay if delay > 1 else 1
-    if s < baseline:
-        return -1
-    return newest_delivered(k, s - baseline, delay, jitter, loss, drop_step, seed, receiver, sender)
-
-
-@njit(cache=True)
 def add_noise(state, sigma, seed, receiver, sender, step, out):
     """Write ``out = state + sigma * g``, ``g`` standard normal per component.
 
@@ -180,23 +164,21 @@ def prediction_age(k, s, delay, jitter, dt):
 
 
 @njit(cache=True)
-def predict_state(state, older, gap, age, dt, out):
+def predict_state(state, age, dt, out):
     """Write ``out`` = ``state``, sent ``age`` steps ago, predicted to the current step (docs/delay.md).
 
     Parameters
     ----------
     state : ndarray (12,)
         The state as received, ``[p m, v m/s, Theta rad, omega rad/s]`` (inertial p and v).
-    older : ndarray (12,)
-        The same sender's state sent ``gap`` steps before ``state`` (read only when ``gap > 0``).
-    gap, age : int
-        Steps >= 0; ``gap = 0``: no older state (the acceleration estimate is zero).
+    age : int
+        Steps >= 0 since it was sent (:func:`prediction_age`).
     dt : float
         Control period, s.
 
-    With ``tau = age dt`` and ``a = (v - v_older) / (gap dt)`` (m/s^2), position and velocity become
-    ``p + v tau + a tau^2 / 2`` and ``v + a tau``; attitude and body rates are copied. At ``age == 0``
-    every component is copied unchanged, bit for bit (no arithmetic on it at all).
+    The position becomes ``p + v tau`` with ``tau = age dt`` s (the first-order lag removed); the
+    velocity, attitude and body rates are copied (docs/delay.md says why the velocity is not
+    extrapolated). At ``age == 0`` every component is copied unchanged, bit for bit.
     """
     for c in range(STATE_SIZE):
         out[c] = state[c]
@@ -204,10 +186,7 @@ def predict_state(state, older, gap, age, dt, out):
         return
     tau = age * dt
     for c in range(3):
-        v = state[X_V + c]
-        a = (v - older[X_V + c]) / (gap * dt) if gap > 0 else 0.0
-        out[X_P + c] = state[X_P + c] + v * tau + 0.5 * a * tau * tau
-        out[X_V + c] = v + a * tau
+        out[X_P + c] = state[X_P + c] + state[X_V + c] * tau
 
 
 class ReceivedStates:
@@ -224,7 +203,7 @@ class ReceivedStates:
         Control period, s (for the dropout times and the prediction).
 
     :meth:`receive` is called once per step, in step order, with the states *sent* at that step
-    (lockstep); it keeps only the states a later step may still deliver or predict from.
+    (lockstep); it keeps only the states a later step may still deliver.
     """
 
     def __init__(self, uh_id: int, neighbours, impairments, dt: float):
@@ -262,26 +241,14 @@ class ReceivedStates:
             s = delivered_step(k, *link)
             state = self.delivered[j] = np.empty(STATE_SIZE)
             add_noise(history[s], self.sigma, self.seed, self.uh_id, j, s, state)
-            out[j], keep = state, s
-            if self.predict:
-                keep = q = older_step(k, s, *link)
-                if s < k:
-                    out[j] = self._predicted(j, k, s, q, state, prediction_age(k, s, *link[:2], self.dt))
-                if q < 0:
-                    keep = 0   # no older state yet: step 0 may become the older one
+            out[j] = state
+            if self.predict and s < k:
+                out[j] = np.empty(STATE_SIZE)
+                predict_state(state, prediction_age(k, s, *link[:2], self.dt), self.dt, out[j])
             self.sample_steps[j] = s
-            for old in [step for step in history if step < keep]:   # never used again (s and q only grow)
+            for old in [step for step in history if step < s]:   # never delivered again (s only grows)
                 del history[old]
         return own_out, out
-
-    def _predicted(self, j: int, k: int, s: int, q: int, state, age: int):
-        """Return ``state`` (of neighbour j, sent at step s) predicted ``age`` steps on, against step q (-1: none)."""
-        older = np.zeros(STATE_SIZE)
-        if q >= 0:
-            add_noise(self.history[j][q], self.sigma, self.seed, self.uh_id, j, q, older)
-        predicted = np.empty(STATE_SIZE)
-        predict_state(state, older, s - q if q >= 0 else 0, age, self.dt, predicted)
-        return predicted
 
 
 def compile_impairment_kernels() -> float:
@@ -290,8 +257,6 @@ def compile_impairment_kernels() -> float:
 
     start = time.perf_counter()
     delivered_step(5, 1, 2, 0.5, 3, 1, 2, 3)
-    older_step(5, 3, 1, 2, 0.5, 3, 1, 2, 3)
     add_noise(np.zeros(STATE_SIZE), np.ones(STATE_SIZE), 1, 2, 3, 4, np.empty(STATE_SIZE))
-    predict_state(np.zeros(STATE_SIZE), np.zeros(STATE_SIZE), 1, prediction_age(5, 3, 1, 2, 0.01), 0.01,
-                  np.empty(STATE_SIZE))
+    predict_state(np.zeros(STATE_SIZE), prediction_age(5, 3, 1, 2, 0.01), 0.01, np.empty(STATE_SIZE))
     return time.perf_counter() - start

@@ -42,7 +42,7 @@ from uh_sim_node.plant_kernels import lumped_faults, plant_step
 
 from uh_controller_node import control_kernels as _ctl
 from uh_controller_node import impairments as _impairments
-from uh_controller_node.impairments import add_noise, delivered_step, older_step, predict_state, prediction_age
+from uh_controller_node.impairments import add_noise, delivered_step, predict_state, prediction_age
 from uh_controller_node.control_kernels import (
     INPUT_SIZE, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_U_P, S_Z1, STATE_SIZE,
     STATUS_SIZE, STEP_DONE, uh_control_step,
@@ -281,7 +281,6 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
     out_w = np.empty(3)
     own = np.empty(STATE_SIZE)
     sent = np.empty(STATE_SIZE)
-    older = np.zeros(STATE_SIZE)
     for k in range(k0, k1):
         t = k * dt
         finite = True
@@ -306,14 +305,9 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
                     r = hears[c, j]
                     s = delivered_step(k, delay[c, j], jitter[c, j], loss[c, j], drop_step[r], impairment_seed,
                                        ids[c], ids[r])
-                    if predict and s < k:   # the state sent at s, predicted to k (ReceivedStates does the same)
+                    if predict and s < k:   # the state sent at s, predicted to k (as ReceivedStates does)
                         add_noise(states[s, r], noise, impairment_seed, ids[c], ids[r], s, sent)
-                        q = older_step(k, s, delay[c, j], jitter[c, j], loss[c, j], drop_step[r], impairment_seed,
-                                       ids[c], ids[r])
-                        if q >= 0:
-                            add_noise(states[q, r], noise, impairment_seed, ids[c], ids[r], q, older)
-                        predict_state(sent, older, s - q if q >= 0 else 0,
-                                      prediction_age(k, s, delay[c, j], jitter[c, j], dt), dt, nb[j])
+                        predict_state(sent, prediction_age(k, s, delay[c, j], jitter[c, j], dt), dt, nb[j])
                     else:
                         add_noise(states[s, r], noise, impairment_seed, ids[c], ids[r], s, nb[j])
             else:
