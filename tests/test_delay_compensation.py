@@ -18,7 +18,7 @@ from uh_controller_node.impairments import (
 from uh_core.layout import STATE_SIZE, X_P, X_V
 from uh_team.team_simulation import run_team_simulation
 from uh_topology import errors as E
-from uh_topology.scenario import NO_DROPOUT, parse_scenario
+from uh_topology.scenario import DEFAULT_COMPENSATION, NO_DROPOUT, parse_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / 'uh_topology' / 'uh_topology' / 'config'
@@ -141,9 +141,9 @@ def test_an_older_state_arriving_after_a_newer_one_is_ignored():
         DT)
     used = []
     for k in range(k_s + 1):
-        _, states = received.receive(k, np.zeros(STATE_SIZE), {sender: np.full(STATE_SIZE, float(k))})
+        received.receive(k, np.zeros(STATE_SIZE), {sender: np.full(STATE_SIZE, float(k))})
         used.append(received.sample_steps[sender])
-        assert states[sender][0] == used[-1]   # the state of the step it names (no noise, no prediction)
+        assert received.delivered[sender][0] == used[-1]   # the state of the step it names (no noise)
     assert used[k_s] > s and used[k_s - 1] >= s + 1   # s arrived last, and was not used
     assert s not in used[s + delay + extra[s + 1]:]
 
@@ -156,7 +156,7 @@ def test_the_scenario_reads_jitter_and_compensation_with_per_link_overrides():
     assert imp.jitters[(4, 1)] == 9 and imp.jitters[(4, 2)] == 4 and imp.delays[(4, 1)] == 7
     assert set(imp.jitters) == set(imp.delays)
     plain = parse_scenario(_paper_with('impairments: {delay_steps: 2}'), source='p').impairments
-    assert plain.compensation == 'none' and not any(plain.jitters.values())
+    assert plain.compensation == DEFAULT_COMPENSATION == 'predict' and not any(plain.jitters.values())
     only_jitter = parse_scenario(_paper_with('impairments: {jitter_steps: 1}'), source='p').impairments
     assert only_jitter is not None   # jitter alone is an impairment
 

@@ -342,7 +342,7 @@ _LINK_OPTIONAL = ('delay_steps', 'jitter_steps', 'loss')
 #: The values of ``impairments.delay_compensation``: states used as received, or predicted to the current step.
 COMPENSATIONS = ('none', 'predict')
 #: ``impairments.delay_compensation`` when the key is absent (docs/delay.md says why).
-DEFAULT_COMPENSATION = 'none'
+DEFAULT_COMPENSATION = 'predict'
 _NOISE_KEYS = (('position', 'm'), ('velocity', 'm/s'), ('attitude', 'rad'), ('rate', 'rad/s'))
 
 DEFAULT_SUBSTEPS = 5
