@@ -19,6 +19,7 @@ from uh_core.layout import STATE_SIZE, X_P, X_V
 from uh_team.team_simulation import run_team_simulation
 from uh_topology import errors as E
 from uh_topology.scenario import DEFAULT_COMPENSATION, NO_DROPOUT, parse_scenario
+from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / 'uh_topology' / 'uh_topology' / 'config'
@@ -87,8 +88,8 @@ def test_a_state_of_the_current_step_is_used_bit_for_bit_as_received():
 
 
 def test_the_prediction_horizon_is_the_links_delay_and_jitter_plus_the_stale_timeout():
+    assert PREDICTION_MARGIN == DEFAULT_STALE_TIMEOUT   # the realtime stale timeout, kept as a literal for numba
     margin = round(PREDICTION_MARGIN / DT)
-    assert margin == 25
     assert prediction_age(100, 97, 3, 0, DT) == 3
     assert prediction_age(1000, 10, 3, 4, DT) == 3 + 4 + margin   # a sender that dropped out long ago
     assert prediction_age(100, 100, 3, 4, DT) == 0

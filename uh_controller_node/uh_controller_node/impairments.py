@@ -30,7 +30,6 @@ import numpy as np
 from numba import njit
 
 from uh_core.layout import STATE_SIZE, X_P, X_V
-from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
 __all__ = ['LOSS_STREAM', 'JITTER_STREAM', 'PREDICTION_MARGIN', 'hash_uniform', 'arrival_extra', 'newest_delivered',
            'delivered_step', 'prediction_age', 'add_noise', 'predict_state', 'ReceivedStates',
@@ -41,9 +40,11 @@ LOSS_STREAM = 0
 #: Stream of the jitter draws (after the 2 x 12 noise streams).
 JITTER_STREAM = 1 + 2 * STATE_SIZE
 #: s a state is predicted beyond the link's delay and jitter at most (:func:`prediction_age`): the
-#: realtime stale timeout, so a state kept through losses is still predicted, that of a sender that
-#: dropped out is not extrapolated without bound.
-PREDICTION_MARGIN = DEFAULT_STALE_TIMEOUT
+#: realtime stale timeout (``uh_wire.run_config.DEFAULT_STALE_TIMEOUT``, equal by test), so a state
+#: kept through losses is still predicted, that of a sender that dropped out is not extrapolated
+#: without bound. A literal here: numba compiles it into the cached kernels, which it re-validates
+#: against this file only.
+PREDICTION_MARGIN = 0.25
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MIX1 = np.uint64(0xBF58476D1CE4E5B9)
