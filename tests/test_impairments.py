@@ -50,14 +50,14 @@ def test_loss_draws_are_uniform_enough_to_give_the_requested_rate():
 
 
 def test_delivered_step_without_loss_is_the_delayed_step_from_the_initial_state_on():
-    assert [delivered_step(k, 3, 0.0, NO_DROPOUT, 0, 2, 1) for k in range(6)] == [0, 0, 0, 0, 1, 2]
-    assert [delivered_step(k, 0, 0.0, NO_DROPOUT, 0, 2, 1) for k in range(4)] == [0, 1, 2, 3]
+    assert [delivered_step(k, 3, 0, 0.0, NO_DROPOUT, 0, 2, 1) for k in range(6)] == [0, 0, 0, 0, 1, 2]
+    assert [delivered_step(k, 0, 0, 0.0, NO_DROPOUT, 0, 2, 1) for k in range(4)] == [0, 1, 2, 3]
 
 
 def test_delivered_step_is_the_newest_state_not_lost_and_never_goes_back():
     seed, receiver, sender, delay, loss = 5, 4, 1, 2, 0.4
     lost = [hash_uniform(seed, receiver, sender, s, LOSS_STREAM) < loss for s in range(400)]
-    steps = [delivered_step(k, delay, loss, NO_DROPOUT, seed, receiver, sender) for k in range(400)]
+    steps = [delivered_step(k, delay, 0, loss, NO_DROPOUT, seed, receiver, sender) for k in range(400)]
     for k, s in enumerate(steps):
         newest = k - delay
         expected = max([t for t in range(1, max(newest, 0) + 1) if not lost[t]], default=0)
@@ -67,8 +67,8 @@ def test_delivered_step_is_the_newest_state_not_lost_and_never_goes_back():
 
 
 def test_a_dropped_out_sender_is_heard_up_to_the_step_before_its_dropout():
-    assert [delivered_step(k, 0, 0.0, 3, 0, 2, 1) for k in range(6)] == [0, 1, 2, 2, 2, 2]
-    assert delivered_step(50, 0, 0.0, 0, 0, 2, 1) == 0   # dropped at t = 0: only the initial state
+    assert [delivered_step(k, 0, 0, 0.0, 3, 0, 2, 1) for k in range(6)] == [0, 1, 2, 2, 2, 2]
+    assert delivered_step(50, 0, 0, 0.0, 0, 0, 2, 1) == 0   # dropped at t = 0: only the initial state
 
 
 def test_noise_has_the_requested_spread_is_zero_where_asked_and_repeats_for_a_kept_state():
@@ -150,8 +150,8 @@ def test_edge_cases_receive_the_same_states_in_the_kernel_and_the_object_loop(bl
     received = ReceivedStates(2, (1,), scenario.impairments, scenario.dt)
     initial = np.arange(12.0)
     for k in range(60):
-        _, states = received.receive(k, np.zeros(12), {1: initial + k})
-        assert np.array_equal(states[1], initial) and received.sample_steps[1] == 0
+        received.receive(k, np.zeros(12), {1: initial + k})
+        assert np.array_equal(received.delivered[1], initial) and received.sample_steps[1] == 0
 
 
 def test_the_kernel_and_the_object_loop_receive_the_same_states(impaired):
@@ -220,8 +220,8 @@ def test_a_lockstep_distributed_run_with_impairments_equals_the_in_process_run(t
         assert _vector(msg.states[0]) == expected.tolist() and msg.states[0].step == k
         for state in msg.states[1:]:
             j = state.uh_id
-            s = delivered_step(k, imp.delays[(4, j)], imp.losses[(4, j)], imp.drop_step(j, impaired.dt),
-                               imp.seed, 4, j)
+            s = delivered_step(k, imp.delays[(4, j)], imp.jitters[(4, j)], imp.losses[(4, j)],
+                               imp.drop_step(j, impaired.dt), imp.seed, 4, j)
             add_noise(reference.states[s, col[j]], imp.noise, imp.seed, 4, j, s, expected)
             assert state.step == s and _vector(state) == expected.tolist(), (k, j)
     assert received[300].states[3].step < 150   # UH 5 dropped out at step 150

@@ -57,11 +57,12 @@ Top-level keys
     containment_rms_m: 0.02}`` (m); a given mapping replaces the default (``{}``: every ``ok``
     run succeeds).
 ``impairments``
-    Optional mapping, the scenario key ``impairments`` (docs/scenario.md): delays, losses, noise,
-    dropouts of the communication. Copied into every resolved scenario (replacing any of the base
-    scenario). Its ``seed`` is not given here: each draw gets its own, drawn from the draw's
-    generator, so loss and noise patterns differ between draws and repeat for the same draw (the
-    seed of impairments that come from the base scenario or a sweep is replaced the same way).
+    Optional mapping, the scenario key ``impairments`` (docs/scenario.md): delays, jitter, losses,
+    noise, dropouts of the communication and the controllers' ``delay_compensation``. Copied into
+    every resolved scenario (replacing any of the base scenario). Its ``seed`` is not given here:
+    each draw gets its own, drawn from the draw's generator, so loss and noise patterns differ
+    between draws and repeat for the same draw (the seed of impairments that come from the base
+    scenario or a sweep is replaced the same way).
 ``sweep``
     Optional mapping ``{parameter, values}``: every draw is run once per value, with the value
     written at ``parameter`` of the resolved scenario. ``parameter`` is a key path into the
@@ -453,7 +454,8 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
     impairments = None
     if top.get('impairments') is not None:
         impairments = ctx.mapping(top['impairments'], ('impairments',), (),
-                                  ('delay_steps', 'loss', 'links', 'noise', 'dropouts', 'seed'),
+                                  ('delay_steps', 'jitter_steps', 'loss', 'links', 'noise', 'dropouts',
+                                   'delay_compensation', 'seed'),
                                   what='an impairments mapping (docs/scenario.md)')
         if 'seed' in impairments:
             raise ctx.error(E.InvalidValueError, ('impairments', 'seed'),

@@ -17,9 +17,9 @@ and mixing step-k and step-(k-1) neighbour data makes the consensus error jitter
 command filters' derivatives amplify into chattering commands.
 
 Impairments (docs/campaigns.md#impairments): when the scenario has them, the controller uses what
-:class:`~uh_controller_node.impairments.ReceivedStates` makes of the released states (delay, loss,
-dropout, noise; the same functions as the in-process run) and publishes it on ``received``, so a
-bag shows what each controller actually got. They are defined on control steps: lockstep only.
+:class:`~uh_controller_node.impairments.ReceivedStates` makes of the released states (delay, jitter,
+loss, dropout, noise, prediction; the functions of the in-process run) and publishes the states as
+delivered on ``received``, so a bag shows what each controller got. Lockstep only (control steps).
 
 Received messages carrying NaN/inf (or another UH's id) are rejected: the node logs the reason
 (at most once a second per input, with a count) and keeps its last valid input, which then ages
@@ -168,8 +168,8 @@ class ControllerNode(rt.Node):
             self.published['command'] += 1
             self.published['status'] += 1
             if self.received is not None:
-                self.received_pub.publish(received_states_to_msg(self.uh_id, k, self.dt, own, neighbours,
-                                                                 self.received.sample_steps))
+                self.received_pub.publish(received_states_to_msg(   # as delivered, not as predicted
+                    self.uh_id, k, self.dt, own, self.received.delivered, self.received.sample_steps))
                 self.published['received'] += 1
             if self.views.enabled:
                 report = self.diagnostics.add(k, inputs, status, self.sync)

@@ -42,7 +42,7 @@ from uh_sim_node.plant_kernels import lumped_faults, plant_step
 
 from uh_controller_node import control_kernels as _ctl
 from uh_controller_node import impairments as _impairments
-from uh_controller_node.impairments import add_noise, delivered_step
+from uh_controller_node.impairments import add_noise, delivered_step, predict_state, prediction_age
 from uh_controller_node.control_kernels import (
     INPUT_SIZE, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_U_P, S_Z1, STATE_SIZE,
     STATUS_SIZE, STEP_DONE, uh_control_step,
@@ -102,12 +102,14 @@ class TeamImpairments(NamedTuple):
     impaired : bool
         Whether the scenario has impairments; when False the fields below are not read.
     seed : int
-    delay, loss : ndarray (n, max_nb) int64, (n, max_nb)
-        Per link (row, neighbour slot): delay in steps, loss probability.
+    delay, jitter, loss : ndarray (n, max_nb) int64, (n, max_nb) int64, (n, max_nb)
+        Per link (row, neighbour slot): delay and largest extra delay in steps, loss probability.
     drop_step : ndarray (n,) int64
         Per sender row: first step whose state no other UH receives.
     noise : ndarray (12,)
         Standard deviation of the noise on every received state, per component.
+    predict : bool
+        Whether the controllers predict each received state to the current step (docs/delay.md).
     """
 
     impaired: bool
@@ -116,6 +118,8 @@ class TeamImpairments(NamedTuple):
     loss: np.ndarray
     drop_step: np.ndarray
     noise: np.ndarray
+    jitter: np.ndarray
+    predict: bool
 
 
 class TeamState(NamedTuple):
@@ -208,11 +212,12 @@ def _team_impairments(ids, controllers, impairments, dt, max_nb) -> TeamImpairme
     """Build the per-link impairments of the team (all zero, ``impaired`` False, when ``impairments`` is None)."""
     n = len(ids)
     delay = np.zeros((n, max_nb), dtype=np.int64)
+    jitter = np.zeros((n, max_nb), dtype=np.int64)
     loss = np.zeros((n, max_nb))
     drop_step = np.zeros(n, dtype=np.int64)
     noise = np.zeros(STATE_SIZE)
     if impairments is None:
-        return TeamImpairments(False, 0, delay, loss, drop_step, noise)
+        return TeamImpairments(False, 0, delay, loss, drop_step, noise, jitter, False)
     if dt is None:
         raise ValueError('team kernel: impairments need the control period dt (for the dropout steps)')
     for c, controller in enumerate(controllers):
@@ -220,9 +225,11 @@ def _team_impairments(ids, controllers, impairments, dt, max_nb) -> TeamImpairme
         drop_step[c] = impairments.drop_step(i, dt)
         for slot, j in enumerate(controller.neighbours):
             delay[c, slot] = impairments.delays[(i, int(j))]
+            jitter[c, slot] = impairments.jitters[(i, int(j))]
             loss[c, slot] = impairments.losses[(i, int(j))]
     noise[:] = impairments.noise
-    return TeamImpairments(True, int(impairments.seed), delay, loss, drop_step, noise)
+    return TeamImpairments(True, int(impairments.seed), delay, loss, drop_step, noise, jitter,
+                           impairments.compensation == 'predict')
 
 
 @njit(cache=True)
@@ -262,6 +269,7 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
     plant_params, faults, disturbance, substeps = team.plant_params, team.faults, team.disturbance, team.substeps
     impaired, impairment_seed, noise = links_impaired.impaired, links_impaired.seed, links_impaired.noise
     delay, loss, drop_step = links_impaired.delay, links_impaired.loss, links_impaired.drop_step
+    jitter, predict = links_impaired.jitter, links_impaired.predict
     x, weights_p, weights_w, memory = live.x, live.weights_p, live.weights_w, live.memory
     states, commands, saturated = record.states, record.commands, record.saturated
     fault_true_p, fault_true_w = record.fault_true_p, record.fault_true_w
@@ -272,6 +280,7 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
     out_p = np.empty(3)
     out_w = np.empty(3)
     own = np.empty(STATE_SIZE)
+    sent = np.empty(STATE_SIZE)
     for k in range(k0, k1):
         t = k * dt
         finite = True
@@ -294,8 +303,13 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
                 received = own
                 for j in range(m):
                     r = hears[c, j]
-                    s = delivered_step(k, delay[c, j], loss[c, j], drop_step[r], impairment_seed, ids[c], ids[r])
-                    add_noise(states[s, r], noise, impairment_seed, ids[c], ids[r], s, nb[j])
+                    s = delivered_step(k, delay[c, j], jitter[c, j], loss[c, j], drop_step[r], impairment_seed,
+                                       ids[c], ids[r])
+                    if predict and s < k:   # the state sent at s, predicted to k (as ReceivedStates does)
+                        add_noise(states[s, r], noise, impairment_seed, ids[c], ids[r], s, sent)
+                        predict_state(sent, prediction_age(k, s, delay[c, j], jitter[c, j], dt), dt, nb[j])
+                    else:
+                        add_noise(states[s, r], noise, impairment_seed, ids[c], ids[r], s, nb[j])
             else:
                 for j in range(m):
                     nb[j] = x[hears[c, j]]
@@ -359,7 +373,8 @@ def compile_team_kernel() -> float:
         faults=np.zeros((n, _plant.NUM_CHANNELS, _plant.FAULT_FIELDS)),
         disturbance=np.zeros((n, 3, _plant.DISTURBANCE_FIELDS)), substeps=1, ids=np.ones(n, dtype=np.int64))
     links_impaired = TeamImpairments(False, 0, np.zeros((n, max_nb), dtype=np.int64), np.zeros((n, max_nb)),
-                                     np.zeros(n, dtype=np.int64), np.zeros(STATE_SIZE))
+                                     np.zeros(n, dtype=np.int64), np.zeros(STATE_SIZE),
+                                     np.zeros((n, max_nb), dtype=np.int64), False)
     live = TeamState(np.zeros((n, STATE_SIZE)), np.zeros((n, 3, 3)), np.zeros((n, 3, 3)),
                      np.zeros((n, _ctl.MEMORY_ROWS, 3)))
     run_team_steps(0, 0, 0, 0.01, np.zeros((steps, _ctl.REFERENCE_SIZE)), team, links_impaired, live,

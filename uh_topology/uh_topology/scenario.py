@@ -26,10 +26,12 @@ A scenario is one YAML file (see ``uh_topology/config/paper.yaml`` for a comment
       - {uh: 2, channel: collective, rho: 0.8, bias_constant: 0, bias_amplitude: 0.01,
          bias_frequency: 0.5, onset_time: 10}
     impairments:                # optional; what the controllers receive (docs/campaigns.md#impairments)
-      seed: 0                   # int >= 0: the loss draws and the noise
+      seed: 0                   # int >= 0: the loss and jitter draws and the noise
       delay_steps: 0            # int >= 0: a link delivers the state sent delay_steps steps earlier
+      jitter_steps: 0           # int >= 0: each state is delayed by a further draw in 0..jitter_steps steps
       loss: 0.0                 # [0, 1): probability that a link loses a state
-      links: [{uh: 4, hears: 1, delay_steps: 5, loss: 0.2}]    # per-link overrides (an edge)
+      links: [{uh: 4, hears: 1, delay_steps: 5, jitter_steps: 2, loss: 0.2}]    # per-link overrides (an edge)
+      delay_compensation: predict   # none | predict: states predicted to the current step (docs/delay.md)
       noise: {position: 0.01, velocity: 0.0, attitude: 0.0, rate: 0.0}   # std devs m, m/s, rad, rad/s
       dropouts: [{uh: 3, time: 30.0}]   # from this time on no other UH receives uh 3's state
 
@@ -111,9 +113,12 @@ class ImpairmentSpec:
     Attributes
     ----------
     seed : int
-        Seeds the loss draws and the noise (with receiver, sender and step: no random stream).
+        Seeds the loss and jitter draws and the noise (with receiver, sender and step: no random stream).
     delays : mapping {(i, j): int}
         Steps by which the link "UH i hears UH j" delays every state, for every edge (>= 0).
+    jitters : mapping {(i, j): int}
+        Largest extra delay of the link, steps (>= 0): each state is delayed by a further draw in
+        ``0..jitter``, so states may arrive out of order (the newest sent one is used).
     losses : mapping {(i, j): float}
         Probability in [0, 1) that the link loses a state (the receiver keeps the newest one it got).
     noise : ndarray (12,)
@@ -121,6 +126,9 @@ class ImpairmentSpec:
         (its own and its neighbours'), per state component: m, m/s, rad, rad/s.
     dropouts : mapping {uh id: float}
         Time from which no other UH receives the UH's state, s.
+    compensation : str
+        ``'none'`` or ``'predict'``: whether a controller predicts each neighbour's state from the
+        step it was sent at to the current step (docs/delay.md).
     """
 
     seed: int
@@ -128,12 +136,14 @@ class ImpairmentSpec:
     losses: Mapping
     noise: np.ndarray
     dropouts: Mapping
+    jitters: Mapping
+    compensation: str
 
     @property
     def is_active(self) -> bool:
         """Whether anything is impaired (all zero: the run is that without impairments)."""
-        return (any(self.delays.values()) or any(self.losses.values()) or bool(np.any(self.noise))
-                or bool(self.dropouts))
+        return (any(self.delays.values()) or any(self.jitters.values()) or any(self.losses.values())
+                or bool(np.any(self.noise)) or bool(self.dropouts))
 
     def drop_step(self, uh: int, dt: float) -> int:
         """First step whose state of ``uh`` no other UH receives (a huge number without a dropout)."""
@@ -326,7 +336,13 @@ _REF_OPTIONAL = ('initial_yaw',)
 _DIST_OPTIONAL = ('amplitude', 'frequency', 'phase', 'phase_per_id')
 _FAULT_REQUIRED = ('uh', 'channel', 'rho')
 _FAULT_OPTIONAL = ('bias_constant', 'bias_amplitude', 'bias_frequency', 'onset_time')
-_IMPAIRMENT_OPTIONAL = ('seed', 'delay_steps', 'loss', 'links', 'noise', 'dropouts')
+_IMPAIRMENT_OPTIONAL = ('seed', 'delay_steps', 'jitter_steps', 'loss', 'links', 'noise', 'dropouts',
+                        'delay_compensation')
+_LINK_OPTIONAL = ('delay_steps', 'jitter_steps', 'loss')
+#: The values of ``impairments.delay_compensation``: states used as received, or predicted to the current step.
+COMPENSATIONS = ('none', 'predict')
+#: ``impairments.delay_compensation`` when the key is absent (docs/delay.md says why).
+DEFAULT_COMPENSATION = 'predict'
 _NOISE_KEYS = (('position', 'm'), ('velocity', 'm/s'), ('attitude', 'rad'), ('rate', 'rad/s'))
 
 DEFAULT_SUBSTEPS = 5
@@ -681,29 +697,25 @@ def _impairments(ctx, raw, adjacency, known, duration) -> ImpairmentSpec:
     path = ('impairments',)
     ctx.mapping(raw, path, (), _IMPAIRMENT_OPTIONAL, what='an impairments mapping')
     seed = ctx.integer(raw.get('seed', 0), path + ('seed',), lo=0, what='an integer seed >= 0')
-    delay = ctx.integer(raw.get('delay_steps', 0), path + ('delay_steps',), lo=0,
-                        what='a whole number of steps >= 0')
-    loss = ctx.number(raw.get('loss', 0.0), path + ('loss',), lo=0.0, hi=1.0, hi_open=True)
+    compensation = ctx.string(raw.get('delay_compensation', DEFAULT_COMPENSATION), path + ('delay_compensation',),
+                              choices=COMPENSATIONS)
     edges = [(int(i), int(j) + 1) for i, j in zip(*np.nonzero(adjacency[:, 1:] > 0.0))]   # (uh, hears)
-    delays = {e: delay for e in edges}
-    losses = {e: loss for e in edges}
+    per_link = {key: dict.fromkeys(edges, _link_value(ctx, raw, path, key, 0)) for key in _LINK_OPTIONAL}
     links = raw.get('links') or []
     if not isinstance(links, list):
         raise ctx.error(E.WrongTypeError, path + ('links',), f'expected a list of links, got {type_name(links)}')
     for idx, link in enumerate(links):
         lp = path + ('links', idx)
-        ctx.mapping(link, lp, ('uh', 'hears'), ('delay_steps', 'loss'),
-                    what='a link mapping {uh, hears, delay_steps, loss}')
+        ctx.mapping(link, lp, ('uh', 'hears'), _LINK_OPTIONAL,
+                    what='a link mapping {uh, hears, delay_steps, jitter_steps, loss}')
         i = ctx.uh_id(link['uh'], lp + ('uh',), known)
         j = ctx.uh_id(link['hears'], lp + ('hears',), known)
-        if (i, j) not in delays:
+        if (i, j) not in per_link['loss']:
             raise ctx.error(E.InvalidValueError, lp, f'UH {i} does not hear UH {j}: no such edge in `edges`; '
                             f'impairments act on existing links only')
-        if 'delay_steps' in link:
-            delays[(i, j)] = ctx.integer(link['delay_steps'], lp + ('delay_steps',), lo=0,
-                                         what='a whole number of steps >= 0')
-        if 'loss' in link:
-            losses[(i, j)] = ctx.number(link['loss'], lp + ('loss',), lo=0.0, hi=1.0, hi_open=True)
+        for key in _LINK_OPTIONAL:
+            if key in link:
+                per_link[key][(i, j)] = _link_value(ctx, link, lp, key, None)
     noise_raw = raw.get('noise') or {}
     ctx.mapping(noise_raw, path + ('noise',), (), tuple(k for k, _ in _NOISE_KEYS), what='a noise mapping')
     noise = np.concatenate([np.full(3, ctx.number(noise_raw.get(key, 0.0), path + ('noise', key), lo=0.0, unit=unit))
@@ -719,8 +731,18 @@ def _impairments(ctx, raw, adjacency, known, duration) -> ImpairmentSpec:
         if i in dropouts:
             raise ctx.error(E.InvalidValueError, dp + ('uh',), f'UH {i} already drops out; one dropout per UH')
         dropouts[i] = ctx.number(drop['time'], dp + ('time',), lo=0.0, hi=duration, unit='s')
-    return ImpairmentSpec(seed=seed, delays=MappingProxyType(delays), losses=MappingProxyType(losses),
-                          noise=read_only_array(noise), dropouts=MappingProxyType(dropouts))
+    return ImpairmentSpec(seed=seed, delays=MappingProxyType(per_link['delay_steps']),
+                          losses=MappingProxyType(per_link['loss']), noise=read_only_array(noise),
+                          dropouts=MappingProxyType(dropouts), jitters=MappingProxyType(per_link['jitter_steps']),
+                          compensation=compensation)
+
+
+def _link_value(ctx, raw, path, key, default):
+    """Read a link setting ``key`` (one of :data:`_LINK_OPTIONAL`) of mapping ``raw`` at ``path``."""
+    value = raw.get(key, default)
+    if key == 'loss':
+        return ctx.number(0.0 if value is None else value, path + (key,), lo=0.0, hi=1.0, hi_open=True)
+    return ctx.integer(0 if value is None else value, path + (key,), lo=0, what='a whole number of steps >= 0')
 
 
 def parse_scenario(text: str, *, source: str | None = None, base_dir=None) -> Scenario:

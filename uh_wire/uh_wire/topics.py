@@ -94,8 +94,9 @@ DIAGNOSTICS = TopicSpec('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray', V
                         'OK/WARN/ERROR of every simulator and controller, a few times per simulated second')
 
 RECEIVED = TopicSpec('received', 'uh_msgs/msg/ReceivedStates', STEP_QOS, True, 'controller (impaired runs)',
-                     'recorder', 'the own and neighbour states the controller used at step k, after the '
-                     'scenario\'s delay, loss, dropout and noise (docs/campaigns.md#impairments)')
+                     'recorder', 'the own and neighbour states the controller received for step k, after the '
+                     'scenario\'s delay, jitter, loss, dropout and noise, before any prediction '
+                     '(docs/campaigns.md#impairments)')
 
 PER_UH = (STATE, COMMAND, STATUS, FAULT_TRUTH, FAULT, ODOM)
 #: Per-UH topics of a run whose scenario has impairments, besides PER_UH.
