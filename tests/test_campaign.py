@@ -5,6 +5,7 @@ re-run to the stored numbers, failure recording, resume after Ctrl-C, and a Dask
 the local pool's rows. Runs are short (12 s simulated, faults from 2-4 s so that the fault
 estimation is scored) so the file stays well under a minute.
 """
+import dataclasses
 import math
 import os
 import signal
@@ -123,6 +124,8 @@ def test_bad_specs_are_refused_with_file_line_and_key(tmp_path, tail, error, lin
     ('name: g\nruns: 1\ngenerator:\n  leaders: 3\n  followers: 1\n  reference_links: [0, 1]\n',
      E.InvalidValueError, 6, 'generator.reference_links[0]'),
     ('name: g\nruns: 0\ngenerator: {leaders: 2, followers: 2}\n', E.InvalidValueError, 2, 'runs'),
+    ('name: g\nruns: 1\ngenerator:\n  leaders: 2\n  followers: 2\n  weights: degree\n',
+     E.InvalidValueError, 6, 'generator.weights'),
     # a new graph per draw: a link named in the spec would exist in some draws only
     ('name: g\nruns: 1\ngenerator: {leaders: 2, followers: 2}\nimpairments:\n  links: [{uh: 3, hears: 1}]\n',
      E.InvalidValueError, 5, 'impairments.links'),
@@ -168,6 +171,25 @@ def test_bundled_specs_load_and_draw_from_their_own_seed():
     assert d0['uhs'] == d4['uhs'] and (d0['impairments']['delay_steps'], d4['impairments']['delay_steps']) == (0, 20)
     other_draw = resolve_scenario(sweep, 6, 0)
     assert d0['impairments']['seed'] == d4['impairments']['seed'] != other_draw['impairments']['seed']
+
+
+def test_normalised_weights_sum_to_one_per_uh_on_the_same_graphs():
+    """generator.weights: normalised divides each UH's incoming weights by how many it hears; the graph is the same."""
+    graphs = load_spec('campaign_random_graphs')
+    assert graphs.generator.weights == 'normalised'
+    unit = dataclasses.replace(graphs, generator=dataclasses.replace(graphs.generator, weights='unit'))
+    for draw in range(5):
+        normalised, plain = resolve_scenario(graphs, draw), resolve_scenario(unit, draw)
+        links = lambda data: [(e['uh'], e['hears']) for e in data['edges']] + [  # noqa: E731
+            (r['uh'], 0) for r in data['reference_links']]
+        assert links(normalised) == links(plain)
+        assert all(e['weight'] == 1.0 for e in plain['edges'] + plain['reference_links'])
+        heard = {}
+        for e in normalised['edges'] + normalised['reference_links']:
+            heard.setdefault(e['uh'], []).append(e['weight'])
+        for uh, weights in heard.items():
+            assert len(set(weights)) == 1 and weights[0] == 1.0 / len(weights), (draw, uh, weights)
+        assert any(len(w) > 1 for w in heard.values())     # the rule did change some weight
 
 
 # ----------------------------------------------------------------------------------------------

@@ -144,6 +144,12 @@ positions, reference, disturbance and gains are those of :func:`uh_topology.gene
 ``follower_edge_probability``
     In (0, 1], default 0.5: each follower hears each leader and each other follower with this
     probability (weight 1). Leaders never hear followers.
+``weights``
+    ``unit`` (default: every link weight 1, as the paper's graph) or ``normalised``: each UH's
+    incoming weights (its edges and its reference link) are ``1 / d_i``, ``d_i`` the number of
+    UHs (and virtual leader) it hears, so they sum to 1 and a UH's consensus error, and with it its
+    command, does not grow with how many it hears (docs/campaigns.md#second-study-random-graphs).
+    The same graphs are drawn either way.
 ``attempts``
     Integer >= 1, default 100: a drawn graph that fails the topology checks of
     :func:`uh_topology.scenario.scenario_from_mapping` (the source of truth) is redrawn, from the
@@ -211,7 +217,10 @@ _DRAW_KEYS = ('position_spread', 'attitude_spread', 'yaw_spread', 'model_mismatc
 _FAULT_KEYS = ('faulted_uhs', 'candidates', 'channels', 'channels_per_uh', 'rho', 'bias_constant',
                'bias_amplitude', 'bias_frequency', 'onset_time')
 _GENERATOR_REQUIRED = ('leaders', 'followers')
-_GENERATOR_OPTIONAL = ('reference_links', 'leader_edge_probability', 'follower_edge_probability', 'attempts')
+_GENERATOR_OPTIONAL = ('reference_links', 'leader_edge_probability', 'follower_edge_probability', 'weights',
+                       'attempts')
+#: The link weights a generator can give (``generator.weights``).
+GENERATOR_WEIGHTS = ('unit', 'normalised')
 
 # The independent random streams of a draw, in spawn order (adding a stream at the end keeps the
 # others' numbers): each kind of draw has its own, so e.g. a wider position spread leaves the
@@ -270,6 +279,7 @@ class GeneratorSpec:
     leader_edge_probability: float = 0.5
     follower_edge_probability: float = 0.5
     attempts: int = 100
+    weights: str = 'unit'
 
 
 @dataclass(frozen=True)
@@ -534,6 +544,7 @@ def _generator(ctx, raw) -> GeneratorSpec:
                             lo=0.0, hi=1.0)
     attempts = ctx.integer(raw.get('attempts', 100), path + ('attempts',), lo=1,
                            what='an integer number of attempts >= 1')
+    weights = ctx.string(raw.get('weights', 'unit'), path + ('weights',), choices=GENERATOR_WEIGHTS)
     # Assumption 1 (docs/graph.md): every leader needs a path from the virtual leader, every
     # follower one from a leader; refuse the options under which no draw can give them
     if p_follower == 0.0:
@@ -547,7 +558,7 @@ def _generator(ctx, raw) -> GeneratorSpec:
                         f'leader are reached, never all {n} (Assumption 1); allowed: a probability > 0, or '
                         f'reference_links [{n}, {n}]')
     return GeneratorSpec(leaders=n, followers=m, reference_links=links, leader_edge_probability=p_leader,
-                         follower_edge_probability=p_follower, attempts=attempts)
+                         follower_edge_probability=p_follower, attempts=attempts, weights=weights)
 
 
 def _cases(ctx, raw) -> tuple:
@@ -799,6 +810,8 @@ def _generated_team(spec: CampaignSpec, draw: int, rng) -> dict:
                   if j != k and hears_any[k - 1 - g.leaders, j - 1]]
         data['edges'] = edges
         data['reference_links'] = [{'uh': i, 'weight': 1.0} for i in linked]
+        if g.weights == 'normalised':
+            _normalise_weights(data['edges'], data['reference_links'])
         try:
             scenario_from_mapping(data)
             return data
@@ -808,6 +821,15 @@ def _generated_team(spec: CampaignSpec, draw: int, rng) -> dict:
         f'draw {draw}: no graph satisfying Assumption 1 in {g.attempts} attempt(s) (last: {last.message}); '
         f'allowed: more attempts or larger edge probabilities', path='generator.attempts', source=spec.source,
         line=spec.line('generator', 'attempts'))
+
+
+def _normalise_weights(edges: list, links: list) -> None:
+    """Divide each UH's incoming weights (``edges`` it hears, its reference ``links``) by their count."""
+    heard = {}
+    for link in edges + links:
+        heard[link['uh']] = heard.get(link['uh'], 0) + 1
+    for link in edges + links:
+        link['weight'] = 1.0 / heard[link['uh']]
 
 
 def _set_path(data, tokens: tuple, value) -> None:
