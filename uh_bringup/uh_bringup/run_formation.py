@@ -176,7 +176,9 @@ def run(args) -> int:
             status = EXIT_FAILED
             record.info.update(exit_status=status, metrics_error=problem)
             record.write()
-    print(f'[run] done in {wall:.1f} s wall: {out}', file=sys.stderr)
+    after = time.monotonic() - started - wall
+    print(f'[run] done in {wall + after:.1f} s wall ({wall:.1f} s the team, {after:.1f} s recovery, metrics and '
+          f'report): {out}', file=sys.stderr)
     return status
 
 
