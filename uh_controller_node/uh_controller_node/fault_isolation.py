@@ -380,6 +380,7 @@ class FaultIsolator:
         self._params = params
         self._state = K.new_isolation_state(max(1, int(round(s.coupling_window / self._dt)) + 1))
         self._verdict_out = np.empty(K.VERDICT_SIZE)
+        self._status_out = np.empty((K.STATUS_ROWS, _N))
 
     # -- per step -------------------------------------------------------------------------------
     def update(self, t: float, x, u, fhat_p, fhat_w) -> None:
@@ -515,13 +516,18 @@ class FaultIsolator:
 
         The same numbers as :meth:`report`, without its texts: this runs every control step.
         """
-        rho, bias, code = [math.nan] * _N, [math.nan] * _N, [NOT_ISOLATED] * _N
-        isolated = self.isolated
-        for c in range(_N):
-            if isolated[c]:
-                code[c], rho[c], bias[c] = self._verdict(c)[:3]
-        return IsolationStatus(isolated, self.detection_time, self.filtered_deviation, self.threshold, tuple(rho),
-                               tuple(bias), tuple(code))
+        out = self._status_out
+        K.isolation_status(self._params, self._state, self._verdict_out, out)
+        isolated, detection, deviation, threshold, rho, bias, code, spread = out.tolist()
+        isolated = tuple(v != 0.0 for v in isolated)
+        nan = math.nan
+        for c in range(_N):   # the "none" NaNs as the one math.nan object (same bits), as detection_time
+            if not isolated[c]:
+                detection[c] = rho[c] = bias[c] = nan
+            elif spread[c] == 0.0:
+                bias[c] = nan
+        return IsolationStatus(isolated, tuple(detection), tuple(deviation), tuple(threshold), tuple(rho),
+                               tuple(bias), tuple(int(v) for v in code))
 
 
 def _setup(arrays, scenario, case, settings):

@@ -33,6 +33,7 @@ Arrays
 * ``verdict`` (VERDICT_SIZE,) from :func:`isolation_verdict`: ``V_CODE`` (the identification code as
   a float), ``V_RHO`` (-), ``V_BIAS`` (rad), ``V_FIT_TIME`` (s), ``V_STD_U``, ``V_STD_A``,
   ``V_RESIDUAL`` (rad), ``V_RHO_BOUND`` (-), ``V_BIAS_BOUND`` (rad).
+* ``out`` (STATUS_ROWS, 4) from :func:`isolation_status`: the published status, rows ``O_*``.
 
 The kernels do not check shapes (the Python wrapper does). Division by zero raises
 ``ZeroDivisionError`` (numba's Python error model), as the same expression did in Python.
@@ -56,7 +57,9 @@ from uh_core import layout as _layout
 from uh_core.layout import X_OMEGA, X_THETA
 
 __all__ = ['ISO_PARAMS_SIZE', 'ISO_STATE_SIZE', 'VERDICT_SIZE', 'TRACE_COLUMNS', 'new_isolation_state',
-           'input_deviations', 'isolation_step', 'isolation_run', 'isolation_verdict', 'compile_isolation_kernels',
+           'input_deviations', 'isolation_step', 'isolation_run', 'isolation_verdict', 'isolation_status',
+           'compile_isolation_kernels', 'STATUS_ROWS', 'O_ISOLATED', 'O_DETECTION', 'O_DEVIATION', 'O_THRESHOLD',
+           'O_RHO', 'O_BIAS', 'O_CODE', 'O_SPREAD',
            'P_MASS', 'P_C_Q', 'P_LOWER', 'P_UPPER', 'P_THRESHOLDS', 'P_NOISE_RMS', 'P_RESIDUAL_MAX',
            'P_LEARNING_PHASE', 'P_CONFIRMATION', 'P_ALPHA', 'P_CQ_ERROR', 'P_FORGETTING', 'P_DT', 'P_RHO_TOLERANCE',
            'P_BIAS_TOLERANCE', 'P_MIN_FIT_TIME', 'S_Y', 'S_E', 'S_ABOVE', 'S_ISOLATED', 'S_DETECTION', 'S_D', 'S_U',
@@ -88,6 +91,10 @@ V_CODE, V_RHO, V_BIAS, V_FIT_TIME, V_STD_U, V_STD_A, V_RESIDUAL, V_RHO_BOUND, V_
 VERDICT_SIZE = 9
 # verdict codes (uh_controller_node.fault_isolation's, checked equal by a test)
 _FIT_TOO_SHORT, _BIAS_NOT_CONSTANT, _CONFOUNDED, _IDENTIFIABLE = 1, 2, 3, 4
+
+# isolation_status
+O_ISOLATED, O_DETECTION, O_DEVIATION, O_THRESHOLD, O_RHO, O_BIAS, O_CODE, O_SPREAD = range(8)
+STATUS_ROWS = 8
 
 #: Columns of :func:`isolation_run`'s trace: filtered deviations (4, rad), thresholds (4, rad), deviations (4, rad).
 TRACE_COLUMNS = 3 * _N
@@ -314,6 +321,30 @@ def isolation_verdict(params, state, c, verdict):
     verdict[V_RHO_BOUND], verdict[V_BIAS_BOUND] = rho_bound, bias_bound
 
 
+@njit(cache=True)
+def isolation_status(params, state, verdict, out):
+    """Write what a controller publishes each step to ``out`` (STATUS_ROWS, 4), one column per channel.
+
+    Rows: ``O_ISOLATED`` (1.0 or 0.0), ``O_DETECTION`` (s), ``O_DEVIATION`` (filtered, rad),
+    ``O_THRESHOLD`` (rad), ``O_RHO`` (-), ``O_BIAS`` (rad), ``O_CODE`` (the verdict code) and
+    ``O_SPREAD`` (1.0 when the fit's command has varied, so ``O_RHO`` and ``O_BIAS`` are numbers);
+    ``O_RHO``, ``O_BIAS`` NaN and ``O_CODE`` 0 on a channel not isolated. ``verdict``
+    (VERDICT_SIZE,) is scratch.
+    """
+    for c in range(_N):
+        out[O_ISOLATED, c] = state[S_ISOLATED + c]
+        out[O_DETECTION, c] = state[S_DETECTION + c]
+        out[O_DEVIATION, c] = state[S_Y + c]
+        out[O_THRESHOLD, c] = params[P_THRESHOLDS + c] + state[S_E + c]
+        f = S_FIT + FIT_SIZE * c
+        out[O_SPREAD, c] = 1.0 if state[f + F_W] > 0.0 and state[f + F_SUU] > 0.0 else 0.0
+        if state[S_ISOLATED + c] != 0.0:
+            isolation_verdict(params, state, c, verdict)
+            out[O_RHO, c], out[O_BIAS, c], out[O_CODE, c] = verdict[V_RHO], verdict[V_BIAS], verdict[V_CODE]
+        else:
+            out[O_RHO, c], out[O_BIAS, c], out[O_CODE, c] = math.nan, math.nan, 0.0
+
+
 def compile_isolation_kernels() -> float:
     """Compile (or load from numba's cache) the isolator's kernels for the signatures it uses; seconds spent.
 
@@ -328,6 +359,7 @@ def compile_isolation_kernels() -> float:
     isolation_run(params, state, np.ones(2), np.zeros((2, 12)), np.zeros((2, _N)), np.zeros((2, 3)),
                   np.zeros((2, 3)), np.zeros((0, TRACE_COLUMNS)))
     isolation_verdict(params, state, 0, np.zeros(VERDICT_SIZE))
+    isolation_status(params, state, np.zeros(VERDICT_SIZE), np.zeros((STATUS_ROWS, _N)))
     return time.perf_counter() - start
 
 
