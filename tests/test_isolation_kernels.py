@@ -191,3 +191,55 @@ def test_a_trace_of_the_wrong_shape_is_rejected():
     with pytest.raises(ValueError, match='trace must be'):
         iso.run(np.zeros(3), np.zeros((3, 12)), np.zeros((3, 4)), np.zeros((3, 3)), np.zeros((3, 3)),
                 trace=np.zeros((2, kernels.TRACE_COLUMNS)))
+
+
+USE_EVERY_KERNEL = """
+import json
+import numpy as np
+from uh_controller_node import fault_isolation as fi, isolation_kernels as kernels
+from uh_controller_node.nominal_model import nominal_model
+from uh_core.airframe import load_helicopter_params
+from uh_team.team_simulation import run_team_simulation
+from uh_topology.scenario import load_scenario
+
+public = [kernels.isolation_step, kernels.isolation_run, kernels.isolation_verdict, kernels.isolation_status,
+          kernels.input_deviations]
+kernels.compile_isolation_kernels()
+compiled = {d.py_func.__name__: len(d.signatures) for d in public}
+scenario = load_scenario('paper')
+arrays = run_team_simulation(scenario, 'proposed', duration=11.0).arrays()   # past the 10 s onsets
+isolated = sum(len(fi.isolate_run(arrays, scenario)[f'uh{uh}']['isolated']) for uh in scenario.ids)
+nominal = nominal_model(load_helicopter_params(), scenario.model_mismatch)
+iso = fi.FaultIsolator(nominal, scenario.model_mismatch, float(scenario.dt))
+for k in range(arrays['time'].shape[0]):
+    iso.update(k * float(scenario.dt), arrays['states'][k, 1], arrays['commands'][k, 1], arrays['fault_est_p'][k, 1],
+               arrays['fault_est_w'][k, 1])
+    iso.status()
+iso.report()
+fi.input_deviation(nominal, arrays['states'][0, 0], arrays['commands'][0, 0], np.zeros(3), np.zeros(3))
+used = {d.py_func.__name__: len(d.signatures) for d in public}
+print(json.dumps({'compiled': compiled, 'used': used, 'isolated': isolated, 'uh2_isolated': sum(iso.isolated)}))
+"""
+
+
+def test_the_install_scripts_compile_every_signature_the_isolator_uses():
+    """compile_isolation_kernels (run by uh_team.compile_kernels) compiles what the isolator calls, nothing more later.
+
+    In a fresh process: after it, online (update, status, report), offline (isolate_run) and input_deviation add no
+    signature to any kernel, so a process that loads the cache compiles nothing.
+    """
+    import json
+    import subprocess
+    import sys
+
+    from uh_core import kernel_cache
+
+    done = subprocess.run([sys.executable, '-P', '-c', USE_EVERY_KERNEL], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out['isolated'] > 0 and out['uh2_isolated'] > 0     # the paper's faults: fits and verdicts were used
+    assert out['compiled'] == out['used'] == {name: 1 for name in out['compiled']}, out
+    # the kernels read uh_core/layout.py: their cache is flushed when it changes (marker written on import)
+    assert kernels.isolation_step in kernel_cache.module_dispatchers(vars(kernels))
+    marker = Path(kernels.isolation_step._cache.cache_path) / 'isolation_kernels.dependencies.sha256'
+    assert marker.is_file()

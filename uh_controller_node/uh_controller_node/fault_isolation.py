@@ -282,7 +282,7 @@ def input_deviation(nominal, x, u, fhat_p, fhat_w):
         Thrust deviation, N.
     """
     params = np.zeros(K.ISO_PARAMS_SIZE)
-    params[K.P_MASS:K.P_C_Q + 1] = _constants(nominal)
+    params[K.IP_MASS:K.IP_C_Q + 1] = _constants(nominal)
     d = np.empty(_N)
     dT = K.input_deviations(params, _array(x), _array(u), _array(fhat_p), _array(fhat_w), d)
     return d, dT
@@ -294,7 +294,7 @@ def _array(values) -> np.ndarray:
 
 
 def _constants(P) -> tuple:
-    """Return the nominal constants of :func:`input_deviation`, as floats (``P_MASS`` .. ``P_C_Q`` of the kernels)."""
+    """Return the nominal constants of :func:`input_deviation`, as floats (``IP_MASS`` .. ``IP_C_Q`` of the kernels)."""
     jx, jy, jz = (float(v) for v in P.inertia)
     return (float(P.mass), jx, jy, jz, float(P.c_M1), float(P.c_M2), float(P.K_beta), float(P.h_M),
             float(P.B_lat), float(P.A_lon), float(P.tau_f), float(P.K_tr), float(P.c_Q))
@@ -365,18 +365,18 @@ class FaultIsolator:
         self._dt = float(dt)
         self._s = s = settings if settings is not None else IsolationSettings()
         params = np.zeros(K.ISO_PARAMS_SIZE)
-        params[K.P_MASS:K.P_C_Q + 1] = _constants(nominal)
-        params[K.P_LOWER:K.P_LOWER + _N] = [float(v) for v in nominal.input_lower]
-        params[K.P_UPPER:K.P_UPPER + _N] = [float(v) for v in nominal.input_upper]
-        params[K.P_THRESHOLDS:K.P_THRESHOLDS + _N] = s.thresholds
-        params[K.P_NOISE_RMS:K.P_NOISE_RMS + _N] = s.noise_rms
-        params[K.P_RESIDUAL_MAX:K.P_RESIDUAL_MAX + _N] = s.residual_max
-        params[K.P_LEARNING_PHASE], params[K.P_CONFIRMATION] = s.learning_phase, s.confirmation_time
-        params[K.P_ALPHA] = 1.0 - math.exp(-self._dt / s.filter_tau)
-        params[K.P_CQ_ERROR] = abs(1.0 / float(mismatch) - 1.0)
-        params[K.P_FORGETTING], params[K.P_DT] = s.forgetting, self._dt
-        params[K.P_RHO_TOLERANCE], params[K.P_BIAS_TOLERANCE] = s.rho_tolerance, s.bias_tolerance
-        params[K.P_MIN_FIT_TIME] = s.min_fit_time
+        params[K.IP_MASS:K.IP_C_Q + 1] = _constants(nominal)
+        params[K.IP_LOWER:K.IP_LOWER + _N] = [float(v) for v in nominal.input_lower]
+        params[K.IP_UPPER:K.IP_UPPER + _N] = [float(v) for v in nominal.input_upper]
+        params[K.IP_THRESHOLDS:K.IP_THRESHOLDS + _N] = s.thresholds
+        params[K.IP_NOISE_RMS:K.IP_NOISE_RMS + _N] = s.noise_rms
+        params[K.IP_RESIDUAL_MAX:K.IP_RESIDUAL_MAX + _N] = s.residual_max
+        params[K.IP_LEARNING_PHASE], params[K.IP_CONFIRMATION] = s.learning_phase, s.confirmation_time
+        params[K.IP_ALPHA] = 1.0 - math.exp(-self._dt / s.filter_tau)
+        params[K.IP_CQ_ERROR] = abs(1.0 / float(mismatch) - 1.0)
+        params[K.IP_FORGETTING], params[K.IP_DT] = s.forgetting, self._dt
+        params[K.IP_RHO_TOLERANCE], params[K.IP_BIAS_TOLERANCE] = s.rho_tolerance, s.bias_tolerance
+        params[K.IP_MIN_FIT_TIME] = s.min_fit_time
         self._params = params
         self._state = K.new_isolation_state(max(1, int(round(s.coupling_window / self._dt)) + 1))
         self._verdict_out = np.empty(K.VERDICT_SIZE)
@@ -433,28 +433,28 @@ class FaultIsolator:
     @property
     def filtered_deviation(self) -> tuple:
         """Low-pass filtered deviations per channel, rad."""
-        return tuple(self._state[K.S_Y:K.S_Y + _N].tolist())
+        return tuple(self._state[K.IS_Y:K.IS_Y + _N].tolist())
 
     @property
     def deviation(self) -> tuple:
         """The last step's deviations per channel, rad (zero during the learning phase)."""
-        return tuple(self._state[K.S_D:K.S_D + _N].tolist())
+        return tuple(self._state[K.IS_D:K.IS_D + _N].tolist())
 
     @property
     def threshold(self) -> tuple:
         """The current isolation threshold per channel (constant + filtered allowance), rad."""
-        return tuple(th + e for th, e in zip(self._s.thresholds, self._state[K.S_E:K.S_E + _N].tolist()))
+        return tuple(th + e for th, e in zip(self._s.thresholds, self._state[K.IS_E:K.IS_E + _N].tolist()))
 
     @property
     def isolated(self) -> tuple:
         """Per channel: reported faulty (latched)."""
-        return tuple(v != 0.0 for v in self._state[K.S_ISOLATED:K.S_ISOLATED + _N].tolist())
+        return tuple(v != 0.0 for v in self._state[K.IS_ISOLATED:K.IS_ISOLATED + _N].tolist())
 
     @property
     def detection_time(self) -> tuple:
         """Per channel: time of isolation, s (NaN if not isolated)."""
         # NaN as the one math.nan object, so that equal statuses compare equal (== on tuples tries identity first)
-        times = self._state[K.S_DETECTION:K.S_DETECTION + _N].tolist()
+        times = self._state[K.IS_DETECTION:K.IS_DETECTION + _N].tolist()
         return tuple(t if isolated else math.nan for t, isolated in zip(times, self.isolated))
 
     def channel(self, c: int) -> ChannelReport:
@@ -465,7 +465,7 @@ class FaultIsolator:
         s = self._s
         name = CHANNELS[c]
         nan = math.nan
-        if self._state[K.S_ISOLATED + c] == 0.0:
+        if self._state[K.IS_ISOLATED + c] == 0.0:
             return ChannelReport(name, False, nan, nan, nan, nan, nan, False, 'not isolated',
                                  NOT_ISOLATED, 0.0, nan, nan, nan, nan, nan, nan, nan)
         code, rho_fit, bias_fit, fit_time, std_u, std_a, resid, rho_bound, bias_bound = self._verdict(c)
@@ -484,9 +484,9 @@ class FaultIsolator:
         else:
             reason = 'identifiable'
         ok = code == IDENTIFIABLE
-        fit = K.S_FIT + K.FIT_SIZE * c
+        fit = K.IS_FIT + K.FIT_SIZE * c
         w, mu, md = (float(self._state[fit + i]) for i in (K.F_W, K.F_MU, K.F_MD))
-        return ChannelReport(name, True, float(self._state[K.S_DETECTION + c]), rho_fit if ok else nan,
+        return ChannelReport(name, True, float(self._state[K.IS_DETECTION + c]), rho_fit if ok else nan,
                              bias_fit if ok else nan, rho_fit, bias_fit, ok, reason, code, fit_time, std_u, std_a,
                              resid, rho_bound, bias_bound, mu if w > 0.0 else nan, md if w > 0.0 else nan)
 
@@ -499,7 +499,7 @@ class FaultIsolator:
         K.isolation_verdict(self._params, self._state, c, out)
         v = out.tolist()
         # the "none yet" NaNs as the math.nan object (same bits), as detection_time
-        fit = K.S_FIT + K.FIT_SIZE * c
+        fit = K.IS_FIT + K.FIT_SIZE * c
         if not (self._state[fit + K.F_W] > 0.0 and self._state[fit + K.F_SUU] > 0.0):
             v[K.V_BIAS] = math.nan
         if not self._state[fit + K.F_W] > 0.0:

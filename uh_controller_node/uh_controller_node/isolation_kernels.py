@@ -13,23 +13,23 @@ floats are reproduced as they are, NaN included).
 Arrays
 ------
 * ``params`` (ISO_PARAMS_SIZE,) built once by ``FaultIsolator``: the nominal constants of
-  ``input_deviation`` at ``P_MASS`` .. ``P_C_Q`` (kg, kg m^2, N/rad, N, N m/rad, m, -, -, s,
-  N m/rad, -), the input limits ``P_LOWER`` and ``P_UPPER`` (4 each, rad), the constant thresholds
-  ``P_THRESHOLDS``, healthy noise RMS ``P_NOISE_RMS`` and residual limits ``P_RESIDUAL_MAX`` (4
-  each, rad), and the scalars ``P_LEARNING_PHASE`` (s), ``P_CONFIRMATION`` (s), ``P_ALPHA`` (the
-  filter's ``1 - exp(-dt / filter_tau)``, -), ``P_CQ_ERROR`` (``|1/mismatch - 1|``, -),
-  ``P_FORGETTING`` (-), ``P_DT`` (s), ``P_RHO_TOLERANCE`` (-), ``P_BIAS_TOLERANCE`` (rad),
-  ``P_MIN_FIT_TIME`` (s).
+  ``input_deviation`` at ``IP_MASS`` .. ``IP_C_Q`` (kg, kg m^2, N/rad, N, N m/rad, m, -, -, s,
+  N m/rad, -), the input limits ``IP_LOWER`` and ``IP_UPPER`` (4 each, rad), the constant thresholds
+  ``IP_THRESHOLDS``, healthy noise RMS ``IP_NOISE_RMS`` and residual limits ``IP_RESIDUAL_MAX`` (4
+  each, rad), and the scalars ``IP_LEARNING_PHASE`` (s), ``IP_CONFIRMATION`` (s), ``IP_ALPHA`` (the
+  filter's ``1 - exp(-dt / filter_tau)``, -), ``IP_CQ_ERROR`` (``|1/mismatch - 1|``, -),
+  ``IP_FORGETTING`` (-), ``IP_DT`` (s), ``IP_RHO_TOLERANCE`` (-), ``IP_BIAS_TOLERANCE`` (rad),
+  ``IP_MIN_FIT_TIME`` (s).
 * ``state`` (ISO_STATE_SIZE + window,) of one isolator, all zeros but the NaNs set by
-  :func:`new_isolation_state`: per channel (4 each) the filtered deviation ``S_Y`` (rad), the
-  filtered coupling allowance ``S_E`` (rad), the time since which ``|y|`` is above its threshold
-  ``S_ABOVE`` (s, NaN when it is not), ``S_ISOLATED`` (1.0 once isolated), ``S_DETECTION`` (s,
-  NaN while not isolated), the last step's deviation ``S_D`` (rad) and its limited command ``S_U``
-  (rad); the least-squares fit of channel c at ``S_FIT + FIT_SIZE c`` with entries ``F_W`` (sum of
+  :func:`new_isolation_state`: per channel (4 each) the filtered deviation ``IS_Y`` (rad), the
+  filtered coupling allowance ``IS_E`` (rad), the time since which ``|y|`` is above its threshold
+  ``IS_ABOVE`` (s, NaN when it is not), ``IS_ISOLATED`` (1.0 once isolated), ``IS_DETECTION`` (s,
+  NaN while not isolated), the last step's deviation ``IS_D`` (rad) and its limited command ``IS_U``
+  (rad); the least-squares fit of channel c at ``IS_FIT + FIT_SIZE c`` with entries ``F_W`` (sum of
   weights), ``F_MU``, ``F_MD`` (weighted means of u and d, rad), ``F_SUU``, ``F_SUD``, ``F_SDD``
   (weighted centred sums, rad^2), ``F_T0``, ``F_T1`` (first and last time, s; NaN while empty);
-  then the window of recent thrust deviations (N): a ring of ``state.size - S_WINDOW`` entries
-  holding ``S_WINDOW_COUNT`` values, the next written at ``S_WINDOW_NEXT``.
+  then the window of recent thrust deviations (N): a ring of ``state.size - IS_WINDOW`` entries
+  holding ``IS_WINDOW_COUNT`` values, the next written at ``IS_WINDOW_NEXT``.
 * ``verdict`` (VERDICT_SIZE,) from :func:`isolation_verdict`: ``V_CODE`` (the identification code as
   a float), ``V_RHO`` (-), ``V_BIAS`` (rad), ``V_FIT_TIME`` (s), ``V_STD_U``, ``V_STD_A``,
   ``V_RESIDUAL`` (rad), ``V_RHO_BOUND`` (-), ``V_BIAS_BOUND`` (rad).
@@ -56,35 +56,36 @@ from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
 from uh_core.layout import X_OMEGA, X_THETA
 
-__all__ = ['ISO_PARAMS_SIZE', 'ISO_STATE_SIZE', 'VERDICT_SIZE', 'TRACE_COLUMNS', 'new_isolation_state',
+__all__ = ['ISO_PARAMS_SIZE', 'ISO_STATE_SIZE', 'VERDICT_SIZE', 'TRACE_COLUMNS', 'STATUS_ROWS', 'new_isolation_state',
            'input_deviations', 'isolation_step', 'isolation_run', 'isolation_verdict', 'isolation_status',
-           'compile_isolation_kernels', 'STATUS_ROWS', 'O_ISOLATED', 'O_DETECTION', 'O_DEVIATION', 'O_THRESHOLD',
-           'O_RHO', 'O_BIAS', 'O_CODE', 'O_SPREAD',
-           'P_MASS', 'P_C_Q', 'P_LOWER', 'P_UPPER', 'P_THRESHOLDS', 'P_NOISE_RMS', 'P_RESIDUAL_MAX',
-           'P_LEARNING_PHASE', 'P_CONFIRMATION', 'P_ALPHA', 'P_CQ_ERROR', 'P_FORGETTING', 'P_DT', 'P_RHO_TOLERANCE',
-           'P_BIAS_TOLERANCE', 'P_MIN_FIT_TIME', 'S_Y', 'S_E', 'S_ABOVE', 'S_ISOLATED', 'S_DETECTION', 'S_D', 'S_U',
-           'S_FIT', 'FIT_SIZE', 'F_W', 'F_MU', 'F_MD', 'F_SUU', 'F_SUD', 'F_SDD', 'F_T0', 'F_T1', 'S_WINDOW_COUNT',
-           'S_WINDOW_NEXT', 'S_WINDOW', 'V_CODE', 'V_RHO', 'V_BIAS', 'V_FIT_TIME', 'V_STD_U', 'V_STD_A',
-           'V_RESIDUAL', 'V_RHO_BOUND', 'V_BIAS_BOUND']
+           'compile_isolation_kernels',
+           'O_ISOLATED', 'O_DETECTION', 'O_DEVIATION', 'O_THRESHOLD', 'O_RHO', 'O_BIAS', 'O_CODE', 'O_SPREAD',
+           'IP_MASS', 'IP_C_Q', 'IP_LOWER', 'IP_UPPER', 'IP_THRESHOLDS', 'IP_NOISE_RMS', 'IP_RESIDUAL_MAX',
+           'IP_LEARNING_PHASE', 'IP_CONFIRMATION', 'IP_ALPHA', 'IP_CQ_ERROR', 'IP_FORGETTING', 'IP_DT',
+           'IP_RHO_TOLERANCE', 'IP_BIAS_TOLERANCE', 'IP_MIN_FIT_TIME',
+           'IS_Y', 'IS_E', 'IS_ABOVE', 'IS_ISOLATED', 'IS_DETECTION', 'IS_D', 'IS_U', 'IS_FIT', 'IS_WINDOW_COUNT',
+           'IS_WINDOW_NEXT', 'IS_WINDOW', 'FIT_SIZE', 'F_W', 'F_MU', 'F_MD', 'F_SUU', 'F_SUD', 'F_SDD', 'F_T0', 'F_T1',
+           'V_CODE', 'V_RHO', 'V_BIAS', 'V_FIT_TIME', 'V_STD_U', 'V_STD_A', 'V_RESIDUAL', 'V_RHO_BOUND', 'V_BIAS_BOUND']
 
 _N = 4  # channels
 
-# params: the nominal constants (P_MASS .. P_C_Q), in the order of fault_isolation._constants
-P_MASS, P_JX, P_JY, P_JZ, P_C_M1, P_C_M2, P_K_BETA, P_H_M, P_B_LAT, P_A_LON, P_TAU_F, P_K_TR, P_C_Q = range(13)
-P_LOWER, P_UPPER, P_THRESHOLDS, P_NOISE_RMS, P_RESIDUAL_MAX = 13, 17, 21, 25, 29
-(P_LEARNING_PHASE, P_CONFIRMATION, P_ALPHA, P_CQ_ERROR, P_FORGETTING, P_DT, P_RHO_TOLERANCE, P_BIAS_TOLERANCE,
- P_MIN_FIT_TIME) = range(33, 42)
+# params: the nominal constants (IP_MASS .. IP_C_Q), in the order of fault_isolation._constants
+(IP_MASS, IP_JX, IP_JY, IP_JZ, IP_C_M1, IP_C_M2, IP_K_BETA, IP_H_M, IP_B_LAT, IP_A_LON, IP_TAU_F, IP_K_TR,
+ IP_C_Q) = range(13)
+IP_LOWER, IP_UPPER, IP_THRESHOLDS, IP_NOISE_RMS, IP_RESIDUAL_MAX = 13, 17, 21, 25, 29
+(IP_LEARNING_PHASE, IP_CONFIRMATION, IP_ALPHA, IP_CQ_ERROR, IP_FORGETTING, IP_DT, IP_RHO_TOLERANCE,
+ IP_BIAS_TOLERANCE, IP_MIN_FIT_TIME) = range(33, 42)
 ISO_PARAMS_SIZE = 42
 
 # state
-S_Y, S_E, S_ABOVE, S_ISOLATED, S_DETECTION, S_D, S_U = 0, 4, 8, 12, 16, 20, 24
-S_FIT = 28
+IS_Y, IS_E, IS_ABOVE, IS_ISOLATED, IS_DETECTION, IS_D, IS_U = 0, 4, 8, 12, 16, 20, 24
+IS_FIT = 28
 F_W, F_MU, F_MD, F_SUU, F_SUD, F_SDD, F_T0, F_T1 = range(8)
 FIT_SIZE = 8
-S_WINDOW_COUNT = S_FIT + _N * FIT_SIZE
-S_WINDOW_NEXT = S_WINDOW_COUNT + 1
-S_WINDOW = S_WINDOW_NEXT + 1
-ISO_STATE_SIZE = S_WINDOW
+IS_WINDOW_COUNT = IS_FIT + _N * FIT_SIZE
+IS_WINDOW_NEXT = IS_WINDOW_COUNT + 1
+IS_WINDOW = IS_WINDOW_NEXT + 1
+ISO_STATE_SIZE = IS_WINDOW
 
 # verdict
 V_CODE, V_RHO, V_BIAS, V_FIT_TIME, V_STD_U, V_STD_A, V_RESIDUAL, V_RHO_BOUND, V_BIAS_BOUND = range(9)
@@ -103,11 +104,11 @@ TRACE_COLUMNS = 3 * _N
 def new_isolation_state(window: int) -> np.ndarray:
     """Return the state of a fresh isolator whose thrust-deviation window holds ``window`` (>= 1) values."""
     state = np.zeros(ISO_STATE_SIZE + int(window))
-    state[S_ABOVE:S_ABOVE + _N] = math.nan
-    state[S_DETECTION:S_DETECTION + _N] = math.nan
+    state[IS_ABOVE:IS_ABOVE + _N] = math.nan
+    state[IS_DETECTION:IS_DETECTION + _N] = math.nan
     for c in range(_N):
-        state[S_FIT + FIT_SIZE * c + F_T0] = math.nan
-        state[S_FIT + FIT_SIZE * c + F_T1] = math.nan
+        state[IS_FIT + FIT_SIZE * c + F_T0] = math.nan
+        state[IS_FIT + FIT_SIZE * c + F_T1] = math.nan
     return state
 
 
@@ -126,9 +127,10 @@ def _py_min(a, b):
 @njit(cache=True)
 def _deviation(params, p, q, u0, u2, u3, phi, theta, psi, fp0, fp1, fp2, fw0, fw1, fw2):
     """Return ``(d_col, d_tr, d_lat, d_lon, dT, kTa)`` (rad, N, N m/rad): fault_isolation.input_deviation."""
-    m, jx, jy, jz = params[P_MASS], params[P_JX], params[P_JY], params[P_JZ]
-    c_m1, c_m2, k_beta, h_m = params[P_C_M1], params[P_C_M2], params[P_K_BETA], params[P_H_M]
-    b_lat, a_lon, tau_f, k_tr, c_q = params[P_B_LAT], params[P_A_LON], params[P_TAU_F], params[P_K_TR], params[P_C_Q]
+    m, jx, jy, jz = params[IP_MASS], params[IP_JX], params[IP_JY], params[IP_JZ]
+    c_m1, c_m2, k_beta, h_m = params[IP_C_M1], params[IP_C_M2], params[IP_K_BETA], params[IP_H_M]
+    b_lat, a_lon, tau_f = params[IP_B_LAT], params[IP_A_LON], params[IP_TAU_F]
+    k_tr, c_q = params[IP_K_TR], params[IP_C_Q]
     cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
                               math.cos(psi), math.sin(psi))
     dT = m * ((cp * st * cf + sp * sf) * fp0 + (sp * st * cf - cp * sf) * fp1 + ct * cf * fp2)
@@ -161,17 +163,17 @@ def _window_spread(state, dT):
 
     Max and min are Python's, over the values oldest first.
     """
-    size = state.shape[0] - S_WINDOW
-    count, nxt = int(state[S_WINDOW_COUNT]), int(state[S_WINDOW_NEXT])
-    state[S_WINDOW + nxt] = dT
+    size = state.shape[0] - IS_WINDOW
+    count, nxt = int(state[IS_WINDOW_COUNT]), int(state[IS_WINDOW_NEXT])
+    state[IS_WINDOW + nxt] = dT
     nxt = (nxt + 1) % size
     if count < size:
         count += 1
-    state[S_WINDOW_COUNT], state[S_WINDOW_NEXT] = count, nxt
+    state[IS_WINDOW_COUNT], state[IS_WINDOW_NEXT] = count, nxt
     first = (nxt - count) % size
-    hi = lo = state[S_WINDOW + first]
+    hi = lo = state[IS_WINDOW + first]
     for i in range(1, count):
-        v = state[S_WINDOW + (first + i) % size]
+        v = state[IS_WINDOW + (first + i) % size]
         if v > hi:
             hi = v
         if v < lo:
@@ -182,7 +184,7 @@ def _window_spread(state, dT):
 @njit(cache=True)
 def _fit_add(state, c, lam, t, u, d):
     """Add ``(u, d)`` at time ``t`` to channel ``c``'s fit (weighted Welford recursion, fault_isolation._AffineFit)."""
-    f = S_FIT + FIT_SIZE * c
+    f = IS_FIT + FIT_SIZE * c
     state[f + F_W] *= lam
     state[f + F_SUU] *= lam
     state[f + F_SUD] *= lam
@@ -205,7 +207,7 @@ def _fit_add(state, c, lam, t, u, d):
 @njit(cache=True)
 def _start_fit(state, c):
     """Empty channel ``c``'s fit."""
-    f = S_FIT + FIT_SIZE * c
+    f = IS_FIT + FIT_SIZE * c
     for i in range(F_T0):
         state[f + i] = 0.0
     state[f + F_T0] = math.nan
@@ -219,39 +221,39 @@ def isolation_step(params, state, t, x, u, fhat_p, fhat_w):
     ``x`` (12,) state, ``fhat_p``, ``fhat_w`` (3,) the estimates used at this step (m/s^2, rad/s^2).
     Nothing changes while ``t`` is below the learning phase.
     """
-    if t < params[P_LEARNING_PHASE] - 1e-9:
+    if t < params[IP_LEARNING_PHASE] - 1e-9:
         return
     for c in range(_N):
-        state[S_U + c] = _py_min(_py_max(u[c], params[P_LOWER + c]), params[P_UPPER + c])
+        state[IS_U + c] = _py_min(_py_max(u[c], params[IP_LOWER + c]), params[IP_UPPER + c])
     p, q = x[X_OMEGA], x[X_OMEGA + 1]
-    d0, d1, d2, d3, dT, k_ta = _deviation(params, p, q, state[S_U], state[S_U + 2], state[S_U + 3], x[X_THETA],
+    d0, d1, d2, d3, dT, k_ta = _deviation(params, p, q, state[IS_U], state[IS_U + 2], state[IS_U + 3], x[X_THETA],
                                           x[X_THETA + 1], x[X_THETA + 2], fhat_p[0], fhat_p[1], fhat_p[2],
                                           fhat_w[0], fhat_w[1], fhat_w[2])
-    state[S_D], state[S_D + 1], state[S_D + 2], state[S_D + 3] = d0, d1, d2, d3
+    state[IS_D], state[IS_D + 1], state[IS_D + 2], state[IS_D + 3] = d0, d1, d2, d3
     spread = _window_spread(state, dT)
-    h_m, b_lat, a_lon, tau_f = params[P_H_M], params[P_B_LAT], params[P_A_LON], params[P_TAU_F]
-    k_tr, c_q = params[P_K_TR], params[P_C_Q]
-    allowance1 = c_q * (params[P_CQ_ERROR] * abs(dT) + spread) / k_tr
-    allowance2 = h_m * spread * abs(b_lat * state[S_U + 2] - tau_f * p) / (abs(k_ta) * b_lat)
-    allowance3 = h_m * spread * abs(a_lon * state[S_U + 3] - tau_f * q) / (abs(k_ta) * a_lon)
-    a = params[P_ALPHA]
+    h_m, b_lat, a_lon, tau_f = params[IP_H_M], params[IP_B_LAT], params[IP_A_LON], params[IP_TAU_F]
+    k_tr, c_q = params[IP_K_TR], params[IP_C_Q]
+    allowance1 = c_q * (params[IP_CQ_ERROR] * abs(dT) + spread) / k_tr
+    allowance2 = h_m * spread * abs(b_lat * state[IS_U + 2] - tau_f * p) / (abs(k_ta) * b_lat)
+    allowance3 = h_m * spread * abs(a_lon * state[IS_U + 3] - tau_f * q) / (abs(k_ta) * a_lon)
+    a = params[IP_ALPHA]
     for c in range(_N):
         allowance = 0.0 if c == 0 else (allowance1 if c == 1 else (allowance2 if c == 2 else allowance3))
-        state[S_Y + c] += a * (state[S_D + c] - state[S_Y + c])
-        state[S_E + c] += a * (allowance - state[S_E + c])
+        state[IS_Y + c] += a * (state[IS_D + c] - state[IS_Y + c])
+        state[IS_E + c] += a * (allowance - state[IS_E + c])
     for c in range(_N):
-        if state[S_ISOLATED + c] != 0.0:
-            _fit_add(state, c, params[P_FORGETTING], t, state[S_U + c], state[S_D + c])
+        if state[IS_ISOLATED + c] != 0.0:
+            _fit_add(state, c, params[IP_FORGETTING], t, state[IS_U + c], state[IS_D + c])
             continue
-        if abs(state[S_Y + c]) > params[P_THRESHOLDS + c] + state[S_E + c]:
-            if math.isnan(state[S_ABOVE + c]):
-                state[S_ABOVE + c] = t
-            if t - state[S_ABOVE + c] >= params[P_CONFIRMATION] - 1e-9:
-                state[S_ISOLATED + c] = 1.0
-                state[S_DETECTION + c] = t
+        if abs(state[IS_Y + c]) > params[IP_THRESHOLDS + c] + state[IS_E + c]:
+            if math.isnan(state[IS_ABOVE + c]):
+                state[IS_ABOVE + c] = t
+            if t - state[IS_ABOVE + c] >= params[IP_CONFIRMATION] - 1e-9:
+                state[IS_ISOLATED + c] = 1.0
+                state[IS_DETECTION + c] = t
                 _start_fit(state, c)
         else:
-            state[S_ABOVE + c] = math.nan
+            state[IS_ABOVE + c] = math.nan
 
 
 @njit(cache=True)
@@ -266,9 +268,9 @@ def isolation_run(params, state, times, states, commands, fault_p, fault_w, trac
         isolation_step(params, state, times[k], states[k], commands[k], fault_p[k], fault_w[k])
         if keep:
             for c in range(_N):
-                trace[k, c] = state[S_Y + c]
-                trace[k, _N + c] = params[P_THRESHOLDS + c] + state[S_E + c]
-                trace[k, 2 * _N + c] = state[S_D + c]
+                trace[k, c] = state[IS_Y + c]
+                trace[k, _N + c] = params[IP_THRESHOLDS + c] + state[IS_E + c]
+                trace[k, 2 * _N + c] = state[IS_D + c]
 
 
 @njit(cache=True)
@@ -301,18 +303,18 @@ def isolation_verdict(params, state, c, verdict):
 
     FaultIsolator._verdict (the class docstring of FaultIsolator).
     """
-    f = S_FIT + FIT_SIZE * c
-    fit_time = 0.0 if state[f + F_W] == 0.0 else state[f + F_T1] - state[f + F_T0] + params[P_DT]
+    f = IS_FIT + FIT_SIZE * c
+    fit_time = 0.0 if state[f + F_W] == 0.0 else state[f + F_T1] - state[f + F_T0] + params[IP_DT]
     th1, th2 = _fit_theta(state, f)
     std_u, std_a, resid = _fit_stats(state, f)
-    sigma = _py_max(params[P_NOISE_RMS + c], resid) if not math.isnan(resid) else math.nan
+    sigma = _py_max(params[IP_NOISE_RMS + c], resid) if not math.isnan(resid) else math.nan
     rho_bound = sigma / (std_a - sigma) if std_a > sigma else math.inf
     bias_bound = sigma + rho_bound * abs(state[f + F_MU]) if math.isfinite(rho_bound) else math.inf
-    if fit_time < params[P_MIN_FIT_TIME] - 1e-9:
+    if fit_time < params[IP_MIN_FIT_TIME] - 1e-9:
         code = _FIT_TOO_SHORT
-    elif resid > params[P_RESIDUAL_MAX + c]:
+    elif resid > params[IP_RESIDUAL_MAX + c]:
         code = _BIAS_NOT_CONSTANT
-    elif rho_bound > params[P_RHO_TOLERANCE] or bias_bound > params[P_BIAS_TOLERANCE]:
+    elif rho_bound > params[IP_RHO_TOLERANCE] or bias_bound > params[IP_BIAS_TOLERANCE]:
         code = _CONFOUNDED
     else:
         code = _IDENTIFIABLE
@@ -332,13 +334,13 @@ def isolation_status(params, state, verdict, out):
     (VERDICT_SIZE,) is scratch.
     """
     for c in range(_N):
-        out[O_ISOLATED, c] = state[S_ISOLATED + c]
-        out[O_DETECTION, c] = state[S_DETECTION + c]
-        out[O_DEVIATION, c] = state[S_Y + c]
-        out[O_THRESHOLD, c] = params[P_THRESHOLDS + c] + state[S_E + c]
-        f = S_FIT + FIT_SIZE * c
+        out[O_ISOLATED, c] = state[IS_ISOLATED + c]
+        out[O_DETECTION, c] = state[IS_DETECTION + c]
+        out[O_DEVIATION, c] = state[IS_Y + c]
+        out[O_THRESHOLD, c] = params[IP_THRESHOLDS + c] + state[IS_E + c]
+        f = IS_FIT + FIT_SIZE * c
         out[O_SPREAD, c] = 1.0 if state[f + F_W] > 0.0 and state[f + F_SUU] > 0.0 else 0.0
-        if state[S_ISOLATED + c] != 0.0:
+        if state[IS_ISOLATED + c] != 0.0:
             isolation_verdict(params, state, c, verdict)
             out[O_RHO, c], out[O_BIAS, c], out[O_CODE, c] = verdict[V_RHO], verdict[V_BIAS], verdict[V_CODE]
         else:
