@@ -183,7 +183,13 @@ def _window_spread(state, dT):
 
 @njit(cache=True)
 def _fit_add(state, c, lam, t, u, d):
-    """Add ``(u, d)`` at time ``t`` to channel ``c``'s fit (weighted Welford recursion, fault_isolation._AffineFit)."""
+    """Add ``(u, d)`` (rad) at time ``t`` (s) to channel ``c``'s least-squares fit of ``d = theta_1 u + theta_2``.
+
+    The fit in its exact (sufficient-statistics) form: exponentially weighted means and centred
+    second moments, updated per sample (West's weighted Welford recursion), forgetting factor
+    ``lam``. Equivalent to the covariance form of recursive least squares started with an infinite
+    covariance (no prior), which that form only approximates with a large ``P_0``.
+    """
     f = IS_FIT + FIT_SIZE * c
     state[f + F_W] *= lam
     state[f + F_SUU] *= lam
