@@ -8,8 +8,10 @@ faulty, nor by how much. This module turns them back into per-channel input devi
 which channels are faulty, and fits the fault model of eq. 6 (docs/faults.md#fault-model),
 ``u_act = rho u + b``, to each channel found faulty. It uses only what one controller has at each
 step (its nominal model, its state, its command and its estimates), so it can run beside the
-controller, or afterwards over a recorded run (:func:`isolate_run`). No ROS, numpy and floats
-only, deterministic.
+controller, or afterwards over a recorded run (:func:`isolate_run`). No ROS, deterministic. The
+per-step arithmetic is the numba kernels of :mod:`uh_controller_node.isolation_kernels`, the same
+code online (:meth:`FaultIsolator.update`, one step) and offline (:func:`isolate_run`, every step
+of a run in one compiled call), so both give the same bits.
 
 1. **Input deviations** (:func:`input_deviation`). Inverting the lumped-fault formulas of
    docs/model.md#lumped-faults with the nominal model gives, per step, an estimate ``d`` (rad) of
@@ -33,16 +35,16 @@ publishes its verdicts on ``ControllerStatus`` (:data:`IDENTIFICATION_CODES`).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections import deque
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from uh_core.airframe import load_helicopter_params
-from uh_core.layout import X_OMEGA, X_THETA_SLICE
 
+from . import isolation_kernels as K
 from .gains import ControllerGains
 from .nominal_model import nominal_model
 
@@ -279,97 +281,23 @@ def input_deviation(nominal, x, u, fhat_p, fhat_w):
     dT : float
         Thrust deviation, N.
     """
-    d, dT, _ = _deviation(_constants(nominal), [float(v) for v in x[X_OMEGA:X_OMEGA + 2]], [float(v) for v in u],
-                          [float(v) for v in x[X_THETA_SLICE]], [float(v) for v in fhat_p], [float(v) for v in fhat_w])
-    return np.array(d), dT
+    params = np.zeros(K.ISO_PARAMS_SIZE)
+    params[K.IP_MASS:K.IP_C_Q + 1] = _constants(nominal)
+    d = np.empty(_N)
+    dT = K.input_deviations(params, _array(x), _array(u), _array(fhat_p), _array(fhat_w), d)
+    return d, dT
 
 
-def _floats(values) -> list:
-    """Python floats of a numpy array (one ``tolist``) or of any sequence of numbers."""
-    return values.tolist() if isinstance(values, np.ndarray) else [float(v) for v in values]
+def _array(values) -> np.ndarray:
+    """``values`` as a C-contiguous float64 array (the array itself when it is one)."""
+    return np.ascontiguousarray(values, dtype=np.float64)
 
 
 def _constants(P) -> tuple:
-    """Return the nominal constants :func:`_deviation` uses, as floats."""
+    """Return the nominal constants of :func:`input_deviation`, as floats (``IP_MASS`` .. ``IP_C_Q`` of the kernels)."""
     jx, jy, jz = (float(v) for v in P.inertia)
     return (float(P.mass), jx, jy, jz, float(P.c_M1), float(P.c_M2), float(P.K_beta), float(P.h_M),
             float(P.B_lat), float(P.A_lon), float(P.tau_f), float(P.K_tr), float(P.c_Q))
-
-
-def _deviation(k, pq, u, euler, fp, fw):
-    """Compute :func:`input_deviation` on floats.
-
-    ``k`` from :func:`_constants`, ``pq`` the body rates ``(p, q)``; returns
-    ``([d_col, d_tr, d_lat, d_lon], dT, kTa)``.
-    """
-    m, jx, jy, jz, c_m1, c_m2, k_beta, h_m, b_lat, a_lon, tau_f, k_tr, c_q = k
-    phi, theta, psi = euler
-    cf, sf, ct, st, cp, sp = (math.cos(phi), math.sin(phi), math.cos(theta), math.sin(theta),
-                              math.cos(psi), math.sin(psi))
-    dT = m * ((cp * st * cf + sp * sf) * fp[0] + (sp * st * cf - cp * sf) * fp[1] + ct * cf * fp[2])
-    T = c_m1 * u[0] + c_m2
-    k_t = k_beta + T * h_m
-    k_ta = k_beta + (T + dT) * h_m
-    d = [dT / c_m1,
-         (jz * fw[2] + c_q * dT) / k_tr,
-         (jx * fw[0] - (k_ta - k_t) * (b_lat * u[2] - tau_f * pq[0])) / (k_ta * b_lat),
-         (jy * fw[1] - (k_ta - k_t) * (a_lon * u[3] - tau_f * pq[1])) / (k_ta * a_lon)]
-    return d, dT, k_ta
-
-
-class _AffineFit:
-    """Recursive least squares of ``d = theta_1 u + theta_2`` in its exact (sufficient-statistics) form.
-
-    Exponentially weighted mean and centred second moments, updated per sample (West's
-    weighted Welford recursion). Equivalent to the covariance form of RLS started with an infinite
-    covariance (no prior), which that form only approximates with a large ``P_0``.
-    """
-
-    __slots__ = ('lam', 'w', 'mu', 'md', 'suu', 'sud', 'sdd', 't0', 't1')
-
-    def __init__(self, lam: float):
-        self.lam = lam
-        self.w = 0.0                      # sum of weights
-        self.mu = self.md = 0.0           # weighted means of u and d
-        self.suu = self.sud = self.sdd = 0.0   # weighted centred sums
-        self.t0 = self.t1 = math.nan
-
-    def add(self, t: float, u: float, d: float) -> None:
-        lam = self.lam
-        self.w *= lam
-        self.suu *= lam
-        self.sud *= lam
-        self.sdd *= lam
-        self.w += 1.0
-        du = u - self.mu
-        dd = d - self.md
-        self.mu += du / self.w
-        self.md += dd / self.w
-        self.suu += du * (u - self.mu)
-        self.sud += du * (d - self.md)
-        self.sdd += dd * (d - self.md)
-        if math.isnan(self.t0):
-            self.t0 = t
-        self.t1 = t
-
-    def theta(self):
-        """``(theta_1, theta_2)``; NaN while the command has not varied."""
-        if self.w <= 0.0 or not self.suu > 0.0:
-            return math.nan, math.nan
-        th1 = self.sud / self.suu
-        return th1, self.md - th1 * self.mu
-
-    def stats(self):
-        """``(std u, std (u + d), residual RMS)`` over the fit, rad."""
-        if self.w <= 0.0:
-            return math.nan, math.nan, math.nan
-        var_u = max(self.suu, 0.0) / self.w
-        var_a = max(self.suu + 2.0 * self.sud + self.sdd, 0.0) / self.w
-        if self.suu > 0.0:
-            rss = self.sdd - self.sud * self.sud / self.suu
-        else:
-            rss = self.sdd
-        return math.sqrt(var_u), math.sqrt(var_a), math.sqrt(max(rss, 0.0) / self.w)
 
 
 class FaultIsolator:
@@ -434,27 +362,29 @@ class FaultIsolator:
             raise ValueError(f'mismatch must be a finite number > 0, got {mismatch!r}')
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
             raise ValueError(f'dt must be a finite number > 0, got {dt!r}')
-        self._mismatch = float(mismatch)
         self._dt = float(dt)
-        self._s = settings if settings is not None else IsolationSettings()
-        self._alpha = 1.0 - math.exp(-self._dt / self._s.filter_tau)
-        self._cq_error = abs(1.0 / self._mismatch - 1.0)
-        self._k = _constants(nominal)
-        self._lower = [float(v) for v in nominal.input_lower]
-        self._upper = [float(v) for v in nominal.input_upper]
-        self._thr = list(self._s.thresholds)
-        self._y = [0.0] * _N                   # filtered deviations, rad
-        self._e = [0.0] * _N                   # filtered coupling allowances, rad
-        self._above_since = [math.nan] * _N
-        self._isolated = [False] * _N
-        self._t_iso = [math.nan] * _N
-        self._fits = [None] * _N
-        self._dT_window = deque(maxlen=max(1, int(round(self._s.coupling_window / self._dt)) + 1))
-        self._last_d = [0.0] * _N
+        self._s = s = settings if settings is not None else IsolationSettings()
+        params = np.zeros(K.ISO_PARAMS_SIZE)
+        params[K.IP_MASS:K.IP_C_Q + 1] = _constants(nominal)
+        params[K.IP_LOWER:K.IP_LOWER + _N] = [float(v) for v in nominal.input_lower]
+        params[K.IP_UPPER:K.IP_UPPER + _N] = [float(v) for v in nominal.input_upper]
+        params[K.IP_THRESHOLDS:K.IP_THRESHOLDS + _N] = s.thresholds
+        params[K.IP_NOISE_RMS:K.IP_NOISE_RMS + _N] = s.noise_rms
+        params[K.IP_RESIDUAL_MAX:K.IP_RESIDUAL_MAX + _N] = s.residual_max
+        params[K.IP_LEARNING_PHASE], params[K.IP_CONFIRMATION] = s.learning_phase, s.confirmation_time
+        params[K.IP_ALPHA] = 1.0 - math.exp(-self._dt / s.filter_tau)
+        params[K.IP_CQ_ERROR] = abs(1.0 / float(mismatch) - 1.0)
+        params[K.IP_FORGETTING], params[K.IP_DT] = s.forgetting, self._dt
+        params[K.IP_RHO_TOLERANCE], params[K.IP_BIAS_TOLERANCE] = s.rho_tolerance, s.bias_tolerance
+        params[K.IP_MIN_FIT_TIME] = s.min_fit_time
+        self._params = params
+        self._state = K.new_isolation_state(max(1, int(round(s.coupling_window / self._dt)) + 1))
+        self._verdict_out = np.empty(K.VERDICT_SIZE)
+        self._status_out = np.empty((K.STATUS_ROWS, _N))
 
     # -- per step -------------------------------------------------------------------------------
     def update(self, t: float, x, u, fhat_p, fhat_w) -> None:
-        """Process one control step.
+        """Process one control step (:func:`uh_controller_node.isolation_kernels.isolation_step`).
 
         Parameters
         ----------
@@ -470,39 +400,29 @@ class FaultIsolator:
             The lumped-fault estimates the controller used at this step, m/s^2 (inertial) and
             rad/s^2 (body).
         """
-        t = float(t)
-        if t < self._s.learning_phase - 1e-9:
-            return
-        u = [min(max(v, lo), hi) for v, lo, hi in zip(_floats(u), self._lower, self._upper)]
-        x = _floats(x)
-        d, dT, k_ta = _deviation(self._k, x[X_OMEGA:X_OMEGA + 2], u, x[X_THETA_SLICE], _floats(fhat_p), _floats(fhat_w))
-        self._last_d = d
-        window = self._dT_window
-        window.append(dT)
-        spread = max(window) - min(window)
-        _, _, _, _, _, _, _, h_m, b_lat, a_lon, tau_f, k_tr, c_q = self._k
-        allowance = (0.0,
-                     c_q * (self._cq_error * abs(dT) + spread) / k_tr,
-                     h_m * spread * abs(b_lat * u[2] - tau_f * x[9]) / (abs(k_ta) * b_lat),
-                     h_m * spread * abs(a_lon * u[3] - tau_f * x[10]) / (abs(k_ta) * a_lon))
-        a = self._alpha
-        y, e = self._y, self._e
-        for c in range(_N):
-            y[c] += a * (d[c] - y[c])
-            e[c] += a * (allowance[c] - e[c])
-        for c in range(_N):
-            if self._isolated[c]:
-                self._fits[c].add(t, u[c], d[c])
-                continue
-            if abs(y[c]) > self._thr[c] + e[c]:
-                if math.isnan(self._above_since[c]):
-                    self._above_since[c] = t
-                if t - self._above_since[c] >= self._s.confirmation_time - 1e-9:
-                    self._isolated[c] = True
-                    self._t_iso[c] = t
-                    self._fits[c] = _AffineFit(self._s.forgetting)
-            else:
-                self._above_since[c] = math.nan
+        K.isolation_step(self._params, self._state, float(t), _array(x), _array(u), _array(fhat_p), _array(fhat_w))
+
+    def run(self, times, states, commands, fhat_p, fhat_w, trace=None) -> None:
+        """Process many steps in one compiled call: :meth:`update` for every row ``k``.
+
+        Parameters
+        ----------
+        times : array (K,)
+            Run times of the steps, s (increasing).
+        states, commands, fhat_p, fhat_w : arrays (K, 12), (K, 4), (K, 3), (K, 3)
+            Row ``k``: :meth:`update`'s arguments of step ``k`` (same units).
+        trace : ndarray (K, 12), optional
+            Receives after each step the filtered deviations (4), the thresholds (4) and the
+            deviations (4), rad: :attr:`filtered_deviation`, :attr:`threshold` and
+            :attr:`deviation` after that step.
+        """
+        times = _array(times)
+        if trace is None:
+            trace = np.empty((0, K.TRACE_COLUMNS))
+        elif trace.shape != (times.shape[0], K.TRACE_COLUMNS) or trace.dtype != np.float64:
+            raise ValueError(f'trace must be a float64 array of shape ({times.shape[0]}, {K.TRACE_COLUMNS})')
+        K.isolation_run(self._params, self._state, times, _array(states), _array(commands), _array(fhat_p),
+                        _array(fhat_w), trace)
 
     # -- results ----------------------------------------------------------------------------------
     @property
@@ -513,27 +433,29 @@ class FaultIsolator:
     @property
     def filtered_deviation(self) -> tuple:
         """Low-pass filtered deviations per channel, rad."""
-        return tuple(float(v) for v in self._y)
+        return tuple(self._state[K.IS_Y:K.IS_Y + _N].tolist())
 
     @property
     def deviation(self) -> tuple:
         """The last step's deviations per channel, rad (zero during the learning phase)."""
-        return tuple(float(v) for v in self._last_d)
+        return tuple(self._state[K.IS_D:K.IS_D + _N].tolist())
 
     @property
     def threshold(self) -> tuple:
         """The current isolation threshold per channel (constant + filtered allowance), rad."""
-        return tuple(th + e for th, e in zip(self._thr, self._e))
+        return tuple(th + e for th, e in zip(self._s.thresholds, self._state[K.IS_E:K.IS_E + _N].tolist()))
 
     @property
     def isolated(self) -> tuple:
         """Per channel: reported faulty (latched)."""
-        return tuple(self._isolated)
+        return tuple(v != 0.0 for v in self._state[K.IS_ISOLATED:K.IS_ISOLATED + _N].tolist())
 
     @property
     def detection_time(self) -> tuple:
         """Per channel: time of isolation, s (NaN if not isolated)."""
-        return tuple(self._t_iso)
+        # NaN as the one math.nan object, so that equal statuses compare equal (== on tuples tries identity first)
+        times = self._state[K.IS_DETECTION:K.IS_DETECTION + _N].tolist()
+        return tuple(t if isolated else math.nan for t, isolated in zip(times, self.isolated))
 
     def channel(self, c: int) -> ChannelReport:
         """Return the report of channel ``c`` (0..3) now (see the class docstring for the verdict)."""
@@ -543,7 +465,7 @@ class FaultIsolator:
         s = self._s
         name = CHANNELS[c]
         nan = math.nan
-        if not self._isolated[c]:
+        if self._state[K.IS_ISOLATED + c] == 0.0:
             return ChannelReport(name, False, nan, nan, nan, nan, nan, False, 'not isolated',
                                  NOT_ISOLATED, 0.0, nan, nan, nan, nan, nan, nan, nan)
         code, rho_fit, bias_fit, fit_time, std_u, std_a, resid, rho_bound, bias_bound = self._verdict(c)
@@ -562,34 +484,28 @@ class FaultIsolator:
         else:
             reason = 'identifiable'
         ok = code == IDENTIFIABLE
-        fit = self._fits[c]
-        return ChannelReport(name, True, self._t_iso[c], rho_fit if ok else nan, bias_fit if ok else nan,
-                             rho_fit, bias_fit, ok, reason, code, fit_time, std_u, std_a, resid,
-                             rho_bound, bias_bound, fit.mu if fit.w > 0.0 else nan,
-                             fit.md if fit.w > 0.0 else nan)
+        fit = K.IS_FIT + K.FIT_SIZE * c
+        w, mu, md = (float(self._state[fit + i]) for i in (K.F_W, K.F_MU, K.F_MD))
+        return ChannelReport(name, True, float(self._state[K.IS_DETECTION + c]), rho_fit if ok else nan,
+                             bias_fit if ok else nan, rho_fit, bias_fit, ok, reason, code, fit_time, std_u, std_a,
+                             resid, rho_bound, bias_bound, mu if w > 0.0 else nan, md if w > 0.0 else nan)
 
     def _verdict(self, c: int) -> tuple:
         """Return the numbers and verdict code of isolated channel ``c`` (class docstring).
 
         ``(code, rho_fit, bias_fit, fit_time, std u, std (u + d), residual RMS, rho_bound, bias_bound)``.
         """
-        s = self._s
-        fit = self._fits[c]
-        fit_time = 0.0 if fit.w == 0.0 else fit.t1 - fit.t0 + self._dt
-        th1, th2 = fit.theta()
-        std_u, std_a, resid = fit.stats()
-        sigma = max(s.noise_rms[c], resid) if not math.isnan(resid) else math.nan
-        rho_bound = sigma / (std_a - sigma) if std_a > sigma else math.inf
-        bias_bound = sigma + rho_bound * abs(fit.mu) if math.isfinite(rho_bound) else math.inf
-        if fit_time < s.min_fit_time - 1e-9:
-            code = FIT_TOO_SHORT
-        elif resid > s.residual_max[c]:
-            code = BIAS_NOT_CONSTANT
-        elif rho_bound > s.rho_tolerance or bias_bound > s.bias_tolerance:
-            code = CONFOUNDED
-        else:
-            code = IDENTIFIABLE
-        return code, 1.0 + th1, th2, fit_time, std_u, std_a, resid, rho_bound, bias_bound
+        out = self._verdict_out
+        K.isolation_verdict(self._params, self._state, c, out)
+        v = out.tolist()
+        # the "none yet" NaNs as the math.nan object (same bits), as detection_time
+        fit = K.IS_FIT + K.FIT_SIZE * c
+        if not (self._state[fit + K.F_W] > 0.0 and self._state[fit + K.F_SUU] > 0.0):
+            v[K.V_BIAS] = math.nan
+        if not self._state[fit + K.F_W] > 0.0:
+            v[K.V_STD_U] = v[K.V_STD_A] = v[K.V_RESIDUAL] = math.nan
+        return (int(v[K.V_CODE]), v[K.V_RHO], v[K.V_BIAS], v[K.V_FIT_TIME], v[K.V_STD_U], v[K.V_STD_A],
+                v[K.V_RESIDUAL], v[K.V_RHO_BOUND], v[K.V_BIAS_BOUND])
 
     def report(self) -> tuple:
         """:class:`ChannelReport` of every channel, in channel order."""
@@ -600,13 +516,18 @@ class FaultIsolator:
 
         The same numbers as :meth:`report`, without its texts: this runs every control step.
         """
-        rho, bias, code = [math.nan] * _N, [math.nan] * _N, [NOT_ISOLATED] * _N
-        for c in range(_N):
-            if self._isolated[c]:
-                code[c], rho[c], bias[c] = self._verdict(c)[:3]
-        return IsolationStatus(tuple(self._isolated), tuple(self._t_iso), tuple(self._y),
-                               tuple(th + e for th, e in zip(self._thr, self._e)), tuple(rho),
-                               tuple(bias), tuple(code))
+        out = self._status_out
+        K.isolation_status(self._params, self._state, self._verdict_out, out)
+        isolated, detection, deviation, threshold, rho, bias, code, spread = out.tolist()
+        isolated = tuple(v != 0.0 for v in isolated)
+        nan = math.nan
+        for c in range(_N):   # the "none" NaNs as the one math.nan object (same bits), as detection_time
+            if not isolated[c]:
+                detection[c] = rho[c] = bias[c] = nan
+            elif spread[c] == 0.0:
+                bias[c] = nan
+        return IsolationStatus(isolated, tuple(detection), tuple(deviation), tuple(threshold), tuple(rho),
+                               tuple(bias), tuple(int(v) for v in code))
 
 
 def _setup(arrays, scenario, case, settings):
@@ -658,14 +579,12 @@ def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSet
         ``{"uh<i>": {"isolated": [channel names], "channels": {name: ChannelReport.as_dict()}}}``
         for every UH, and ``"settings"``: the settings used, as a dict. Deterministic.
     """
-    import dataclasses
-
     nominal, settings, data = _setup(arrays, scenario, case, settings)
     out = {}
     for j, uh in enumerate(tuple(scenario.ids)):
         iso = FaultIsolator(nominal, scenario.model_mismatch, float(scenario.dt), settings)
-        for step in _steps(data, j):
-            iso.update(*step)
+        iso.run(data['time'], data['states'][:, j], data['commands'][:, j], data['fault_est_p'][:, j],
+                data['fault_est_w'][:, j])
         reports = iso.report()
         out[f'uh{uh}'] = {
             'isolated': [r.channel for r in reports if r.isolated],
