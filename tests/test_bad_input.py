@@ -137,7 +137,7 @@ def test_missing_scenario_file(tmp_path, capsys):
 
 GAINS_CASES = {
     'unknown_key': (lambda g: g['/**']['ros__parameters']['outer'].__setitem__('kk', 1.0),
-                    r"gains\.yaml: outer: unknown key\(s\) \['kk'\]; allowed: k, r, "),
+                    r"gains\.yaml:\d+: outer: unknown key\(s\) \['kk'\]; allowed: k, r, "),
     'missing_key': (lambda g: g['/**']['ros__parameters']['outer'].pop('k'), r"missing key\(s\) \['k'\]"),
     'wrong_type': (lambda g: g['/**']['ros__parameters'].__setitem__('beta', 'two'),
                    r"beta must be a number, got 'two'"),

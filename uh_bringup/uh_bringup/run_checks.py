@@ -12,7 +12,7 @@ from pathlib import Path
 
 from uh_bringup import netns
 from uh_controller_node.controller import ControllerError, UHController
-from uh_controller_node.gains import ControllerGains
+from uh_controller_node.gains import scenario_gains
 from uh_core.airframe import HelicopterParamsError, load_helicopter_params
 from uh_runtime import live_view, scheduling
 from uh_runtime.network import MAX_DOMAIN_ID, default_cyclonedds_uri
@@ -73,9 +73,8 @@ def validate_team(scenario, case: str) -> None:
 
     Each UH's controller and plant, and the reference; raises the node's own error.
     """
-    # the gains first, named by their file (the controllers would name the scenario)
-    ControllerGains.from_mapping(scenario.gains, case, source=str(scenario.gains_path or
-                                                                  f'gains of scenario {scenario.name!r}'))
+    # the gains first, named by their file and line
+    scenario_gains(scenario, case)
     params = load_helicopter_params(scenario.helicopter)
     for i in scenario.ids:
         UHController(i, scenario, case=case, helicopter_params=params)
