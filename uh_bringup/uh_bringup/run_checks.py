@@ -129,6 +129,8 @@ def check_run(args) -> tuple:
     :class:`UsageError` or one of :data:`CONFIG_ERRORS`.
     """
     check_args(args)
+    if args.out is not None and not str(args.out).strip():
+        raise UsageError("--out '': give a directory (or leave --out out for runs/<timestamp>)")
     scenario = load_scenario(args.scenario)
     if args.duration is not None:
         try:
