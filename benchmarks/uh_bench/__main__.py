@@ -1,12 +1,13 @@
 """``python -P -m uh_bench [--quick] [--sections ...] [--out FILE]`` (run by ``scripts/bench.sh``)."""
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import sys
 import tempfile
 from pathlib import Path
+
+from uh_runtime.command_line import ArgumentParser
 
 from .suite import markdown, run_suite
 
@@ -14,7 +15,7 @@ SECTIONS = ('transport', 'paper', 'components', 'scaling', 'realtime', 'backends
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog='bench.sh', description='Benchmarks of the UH stack: real-time factors, '
+    p = ArgumentParser(prog='bench.sh', description='Benchmarks of the UH stack: real-time factors, '
                                 'scaling, real-time latency, per-step costs, memory. Writes a JSON results '
                                 'file and prints a markdown table.')
     p.add_argument('--quick', action='store_true', help='short runs (under 5 minutes in all)')

@@ -19,6 +19,7 @@ import re
 import sys
 import time
 
+from uh_runtime.command_line import ArgumentParser
 import uh_runtime as rt
 from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
 from uh_runtime import messages as m
@@ -30,7 +31,7 @@ __all__ = ['main']
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog='inject_fault.sh', description=__doc__.split('\n\n')[0])
+    p = ArgumentParser(prog='inject_fault.sh', description=__doc__.split('\n\n')[0])
     p.add_argument('--uh', type=int, required=True, help='helicopter index N (topic /uhN/fault)')
     p.add_argument('--channel', required=True, choices=sorted(CHANNEL_NAMES), help='actuator channel')
     p.add_argument('--rho', type=float, default=1.0, help='loss-of-effectiveness factor in [0, 1] (0 = stuck)')

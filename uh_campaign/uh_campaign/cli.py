@@ -21,6 +21,7 @@ import sys
 import threading
 from pathlib import Path
 
+from uh_runtime.command_line import ArgumentParser
 from uh_report.report import main as report_main
 from uh_topology.errors import ScenarioError
 
@@ -40,7 +41,7 @@ def _directory(text: str) -> Path:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog=PROG,
         description='Run a Monte Carlo campaign: random draws of a team scenario (initial states, faults, '
                     'model mismatch, disturbance, random graphs), each for every controller case and sweep '

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from uh_runtime.command_line import ArgumentParser
 from uh_core.layout import CHANNEL_NAMES, X_P_SLICE
 from uh_runtime.bag_reader import BagError, open_bag
 from uh_team.fault_metrics import fault_list
@@ -643,7 +644,7 @@ def _directory(text: str) -> Path:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog=PROG,
         description='Figures (the paper\'s Figures 4-12) and a side-by-side metrics table of one or '
                     'several runs of run_formation.sh (MCAP bag) or uh-simulate (timeseries.npz).',

@@ -35,6 +35,7 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
+from .command_line import ArgumentParser
 from .bag_reader import BagError, ReadResult, bag_file, read_messages
 from .messages import type_hash, typestore, uh_msg_texts
 from .qos import qos_profile_yaml
@@ -257,9 +258,7 @@ def recover_bag(bag_dir) -> ReadResult:
 
 
 def _main(argv=None) -> int:
-    import argparse
-
-    parser = argparse.ArgumentParser(prog='python -m uh_runtime.bag',
+    parser = ArgumentParser(prog='python -m uh_runtime.bag',
                                      description='Check or recover a bag a killed recorder left behind.')
     sub = parser.add_subparsers(dest='command', required=True)
     for name, text in (('check', 'read the bag up to its last complete chunk and report'),

@@ -36,6 +36,7 @@ import time
 import uh_runtime as rt
 from uh_runtime import live_view, messages
 from uh_runtime.bag_reader import BagError, BagInfo, iter_bag_messages, open_bag
+from uh_runtime.command_line import ArgumentParser
 from uh_runtime.network import MAX_DOMAIN_ID, loopback_environment
 from uh_runtime.qos import QoSWords, profile_from_words
 
@@ -232,7 +233,7 @@ class ReplayNode(rt.Node):
 # Entry point
 # ----------------------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog=PROG,
         description='Republish a recorded rosbag2 MCAP bag over DDS with its original timing scaled by '
                     '--rate, its recorded QoS and its payload bytes as recorded, and /clock.',

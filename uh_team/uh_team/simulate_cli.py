@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from uh_runtime.command_line import ArgumentParser
 from uh_controller_node.gains import CASES
 from uh_topology.errors import ScenarioError
 from uh_topology.scenario import duration_steps, load_scenario
@@ -40,7 +41,7 @@ def _directory(text: str) -> Path:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog=PROG,
         description='Run a UH team scenario in one process with the per-UH composite-learning '
                     'inverse-optimal fault-tolerant controllers and write DIR/metrics.json and '
