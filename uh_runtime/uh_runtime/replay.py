@@ -271,7 +271,7 @@ def _prepare(opts):
     if not (math.isfinite(opts.rate) and 0.01 <= opts.rate <= 1000):
         return _fail(f'--rate {opts.rate:g}: allowed 0.01 .. 1000 (bag seconds per wall second)')
     if not (math.isfinite(opts.delay) and opts.delay >= 0):
-        return _fail(f'--delay {opts.delay:g}: must be >= 0 s')
+        return _fail(f'--delay {opts.delay:g}: allowed a finite number of seconds >= 0')
     domain = opts.domain_id
     if domain is None:
         env_domain = os.environ.get('ROS_DOMAIN_ID', '').strip()
