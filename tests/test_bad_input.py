@@ -246,14 +246,14 @@ def test_run_script_error_has_no_traceback(tmp_path):
 
 
 def test_node_entry_point_with_a_bad_scenario_exits_cleanly(tmp_path):
-    """A node started by hand with a broken scenario says why and exits 1; it never joins a team."""
+    """A node started by hand with a broken scenario says why and exits 2 (bad input); it never joins a team."""
     data = _paper_data()
     _drop_link(data)
     path = _write_scenario(tmp_path, data)
     script = Path(sys.executable).with_name('sim_node')
     proc = subprocess.run([str(script), '--ros-args', '-p', f'scenario:={path}', '-p', 'uh_id:=1'],
                           capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 1
+    assert proc.returncode == 2
     assert 'Traceback' not in proc.stderr
     assert not (tmp_path / 'run').exists()     # refused before anything was written
     assert 'error:' in proc.stderr and 'no directed path from the virtual leader' in proc.stderr
