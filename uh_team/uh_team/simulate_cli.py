@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from uh_runtime.command_line import ArgumentParser
-from uh_controller_node.gains import CASES
+from uh_controller_node.gains import CASES, scenario_gains
 from uh_topology.errors import ScenarioError
 from uh_topology.scenario import duration_steps, load_scenario
 
@@ -143,7 +143,7 @@ def _main(argv) -> int:
         return _fail(f'--duration must be a finite number of seconds > 0, got {args.duration!r}')
     try:
         scenario = load_scenario(args.scenario)
-        scenario.gains      # the gains file is read here, so its errors are reported before anything runs
+        scenario_gains(scenario, args.case)    # the gains file, checked before anything is written
     except ScenarioError as exc:
         return _fail(f'invalid scenario: {exc}')
     if args.duration is not None:
