@@ -7,8 +7,9 @@ valid: rho in [0, 1], finite numbers, onset >= 0) and again by the simulator, wh
 injections with a logged reason and keeps running. rho = 0 (a stuck actuator) is sent with a
 warning: the controller cannot compensate it.
 
-Exit status: 0 sent; 1 the team is not running in that DDS domain; 2 bad input (an option's value,
-or a UH the running team does not have).
+Exit status: 0 sent; 1 the team is not running in that DDS domain (without ``--timeout``: no node
+at all discovered there within :data:`NO_TEAM_S`); 2 bad input (an option's value, or a UH the
+running team does not have).
 """
 from __future__ import annotations
 

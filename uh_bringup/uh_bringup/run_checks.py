@@ -86,7 +86,7 @@ def prepare_out(out: Path, force: bool) -> None:
     """Make ``out`` an empty, writable directory (emptied only with ``force``); else :class:`UsageError`."""
     try:
         if out.exists() and not out.is_dir():
-            raise UsageError(f'--out {out}: exists and is not a directory')
+            raise UsageError(f'--out {out}: exists and is not a directory; give a directory')
         if out.exists() and any(out.iterdir()):
             if not force:
                 raise UsageError(f'--out {out}: exists and is not empty (use --force to replace its content)')
@@ -98,7 +98,8 @@ def prepare_out(out: Path, force: bool) -> None:
         probe.unlink()
     except OSError as exc:
         where = f' ({exc.filename})' if exc.filename and str(exc.filename) != str(out) else ''
-        raise UsageError(f'--out {out}: cannot write there: {exc.strerror}{where}') from None
+        raise UsageError(f'--out {out}: cannot write there: {exc.strerror}{where}; choose a directory you can '
+                         'write to') from None
 
 
 def _check_environment(args) -> None:

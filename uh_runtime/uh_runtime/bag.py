@@ -265,6 +265,8 @@ def _main(argv=None) -> int:
                        ('recover', 'rewrite the bag complete (summary, metadata.yaml) from what is readable')):
         sub.add_parser(name, help=text).add_argument('bag', help='bag directory or .mcap file')
     args = parser.parse_args(argv)
+    if not args.bag.strip():
+        parser.error("bag '': give a bag directory or an .mcap file")
     try:
         result = read_messages(bag_file(args.bag)) if args.command == 'check' else recover_bag(args.bag)
     except BagError as exc:

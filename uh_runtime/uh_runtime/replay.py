@@ -268,6 +268,8 @@ def _fail(message: str, status: int = 2) -> int:
 
 def _prepare(opts):
     """Check the options, open the bag and set the network up; return ``(domain, bag info)`` or an exit status."""
+    if not opts.bag.strip():
+        return _fail("RUN_DIR|BAG_DIR '': give a run directory, a bag directory or an .mcap file")
     if not (math.isfinite(opts.rate) and 0.01 <= opts.rate <= 1000):
         return _fail(f'--rate {opts.rate:g}: allowed 0.01 .. 1000 (bag seconds per wall second)')
     if not (math.isfinite(opts.delay) and opts.delay >= 0):
