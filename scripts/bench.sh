@@ -6,6 +6,8 @@
 # under 5 minutes. Sets up .venv on first use. See docs/performance.md.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
+# relative --out and --keep are the caller's: uh_bench resolves them against this directory
+export UH_BENCH_CALLER_DIR="$PWD"
 cd "$REPO_ROOT"
 export PYTHONPATH="$REPO_ROOT/benchmarks${PYTHONPATH:+:$PYTHONPATH}"
 exec python -P -m uh_bench "$@"

@@ -7,36 +7,8 @@
 # (uh-simulate) instead: same controllers, same numbers, a few seconds per case.
 # Output: DIR/proposed, DIR/case1, DIR/case2 (the runs) and DIR/report/ (report.md, index.html,
 # metrics_table.csv, figures). DIR defaults to runs/compare-<date>-<time>.
+# Exit status: 0 done, 2 bad input (checked before the first run: nothing ran), else the status of
+# the run or report that failed (uh_bringup/uh_bringup/compare.py).
 set -euo pipefail
-usage() { sed -n '2,9s/^# \{0,1\}//p' "${BASH_SOURCE[0]}"; }
-OUT="" DURATION="" SIMULATE=0 SCENARIO="paper"
-while [ $# -gt 0 ]; do
-  case "$1" in
-    --out) OUT="${2:?--out needs a directory}"; shift 2 ;;
-    --duration) DURATION="${2:?--duration needs seconds}"; shift 2 ;;
-    --scenario) SCENARIO="${2:?--scenario needs a file or name}"; shift 2 ;;
-    --simulate) SIMULATE=1; shift ;;
-    -h|--help) usage; exit 0 ;;
-    *) echo "compare.sh: error: unknown argument '$1'" >&2; usage >&2; exit 2 ;;
-  esac
-done
 source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
-OUT="${OUT:-$REPO_ROOT/runs/compare-$(date +%Y%m%d-%H%M%S)}"
-if [ -e "$OUT" ] && [ -n "$(ls -A "$OUT" 2>/dev/null)" ]; then
-  echo "compare.sh: error: --out $OUT exists and is not empty; choose a new directory" >&2
-  exit 2
-fi
-mkdir -p "$OUT"
-extra=()
-[ -n "$DURATION" ] && extra+=(--duration "$DURATION")
-for case in proposed case1 case2; do
-  echo "[compare] $case" >&2
-  if [ "$SIMULATE" = 1 ]; then
-    uh-simulate --scenario "$SCENARIO" --case "$case" --out "$OUT/$case" "${extra[@]}"
-  else
-    "$REPO_ROOT/scripts/run_formation.sh" --scenario "$SCENARIO" --case "$case" --clock lockstep \
-      --out "$OUT/$case" "${extra[@]}"
-  fi
-done
-uh-report "$OUT/proposed" "$OUT/case1" "$OUT/case2" --scenario "$SCENARIO" --out "$OUT/report"
-echo "[compare] report: $OUT/report/report.md and $OUT/report/index.html" >&2
+exec python -P -m uh_bringup.compare --default-root "$REPO_ROOT/runs" "$@"

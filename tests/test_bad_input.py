@@ -137,7 +137,7 @@ def test_missing_scenario_file(tmp_path, capsys):
 
 GAINS_CASES = {
     'unknown_key': (lambda g: g['/**']['ros__parameters']['outer'].__setitem__('kk', 1.0),
-                    r"gains\.yaml: outer: unknown key\(s\) \['kk'\]; allowed: k, r, "),
+                    r"gains\.yaml:\d+: outer: unknown key\(s\) \['kk'\]; allowed: k, r, "),
     'missing_key': (lambda g: g['/**']['ros__parameters']['outer'].pop('k'), r"missing key\(s\) \['k'\]"),
     'wrong_type': (lambda g: g['/**']['ros__parameters'].__setitem__('beta', 'two'),
                    r"beta must be a number, got 'two'"),
@@ -246,14 +246,14 @@ def test_run_script_error_has_no_traceback(tmp_path):
 
 
 def test_node_entry_point_with_a_bad_scenario_exits_cleanly(tmp_path):
-    """A node started by hand with a broken scenario says why and exits 1; it never joins a team."""
+    """A node started by hand with a broken scenario says why and exits 2 (bad input); it never joins a team."""
     data = _paper_data()
     _drop_link(data)
     path = _write_scenario(tmp_path, data)
     script = Path(sys.executable).with_name('sim_node')
     proc = subprocess.run([str(script), '--ros-args', '-p', f'scenario:={path}', '-p', 'uh_id:=1'],
                           capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 1
+    assert proc.returncode == 2
     assert 'Traceback' not in proc.stderr
     assert not (tmp_path / 'run').exists()     # refused before anything was written
     assert 'error:' in proc.stderr and 'no directed path from the virtual leader' in proc.stderr
@@ -438,3 +438,268 @@ def test_a_bad_discovery_range_is_named_with_what_is_allowed(command, tmp_path):
     assert 'Traceback' not in proc.stderr
     assert not (tmp_path / 'run').exists()     # refused before anything was written
     assert not (tmp_path / 'run').exists()     # refused before anything was written
+
+
+# -- every command: one line, exit 2, nothing started ----------------------------------------------
+def _status(main, argv, capsys):
+    """Run a command's main in-process; return (exit status, stderr) whether it returns or exits."""
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    return code, capsys.readouterr().err
+
+
+def _one_line(err: str) -> bool:
+    return err.count('\n') == 1 and 'Traceback' not in err
+
+
+def _gains_scenario(tmp_path, edit) -> Path:
+    """Write the paper scenario naming a copy of its gains file changed by ``edit`` (text -> text)."""
+    (tmp_path / 'gains.yaml').write_text(edit(GAINS.read_text()))
+    data = _paper_data()
+    data['gains'] = 'gains.yaml'
+    path = tmp_path / 'team.yaml'
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _nan_beta(text):
+    return text.replace('    beta: 2.0 ', '    beta: .nan ', 1)
+
+
+def _repeated_beta(text):
+    return text.replace('    beta: 2.0 ', '    beta: 2.0\n    beta: 3.0 ', 1)
+
+
+def _line_of(text: str, start: str, nth: int = 1) -> int:
+    """1-based line of the ``nth`` line of ``text`` starting with ``start``."""
+    return [n for n, row in enumerate(text.splitlines(), 1) if row.startswith(start)][nth - 1]
+
+
+@pytest.mark.parametrize('edit, message', [
+    # the gains file and the line of the entry ({n}: computed from the edited file), not the scenario's name
+    (_nan_beta, r'gains\.yaml:{beta}: beta must be finite, got nan'),
+    (_repeated_beta, r"gains\.yaml:{beta2}: key 'beta' repeated \(first at line {beta}\)"),
+    (lambda t: t.replace('      kappa: 20.0 ', '      kappx: 20.0 ', 1),
+     r"gains\.yaml:{kappx}: outer: unknown key\(s\) \['kappx'\]"),
+])
+@pytest.mark.parametrize('command', ['uh-simulate', 'run_formation', 'compare'])
+def test_a_bad_gains_file_is_named_with_its_line_by_every_command(command, edit, message, tmp_path, capsys):
+    from uh_bringup import compare
+    from uh_team import simulate_cli
+    main = {'uh-simulate': simulate_cli.main, 'run_formation': run_formation.main, 'compare': compare.main}[command]
+    scenario = _gains_scenario(tmp_path, edit)
+    text = (tmp_path / 'gains.yaml').read_text()
+    message = message.format(beta=_line_of(text, '    beta:'), beta2=_line_of(text, '    beta:', 2) if
+                             text.count('    beta:') > 1 else 0, kappx=_line_of(text, '      kappx:') if
+                             'kappx' in text else 0)
+    out = tmp_path / 'out'
+    code, err = _status(main, ['--scenario', str(scenario), '--out', str(out)], capsys)
+    assert code == 2 and _one_line(err), err
+    assert __import__('re').search(message, err), err
+    assert 'Error:' not in err      # no exception class name in front of the message
+    assert not out.exists()
+
+
+SIMULATE_CASES = {
+    # (arguments besides --out, regex of the one-line message); every one refused before the simulation
+    'unwritable_out': (['--out', '{tmp}/file/sub'], r"--out '.*file/sub': cannot write there \(Not a directory\)"),
+    'out_is_a_file': (['--out', '{tmp}/file'], r"--out '.*file' exists and is not a directory"),
+    'empty_out': (['--out', ''], r"argument --out: '': give a directory"),
+    'scenario_is_a_directory': (['--scenario', '{tmp}'], r"scenario '.*' is a directory; give a YAML file"),
+    'empty_scenario': (['--scenario', ''], r"scenario '': give a path to a YAML file or a bundled name"),
+    'duration_steps': (['--duration', '1.234'], r'--duration 1\.234 s is not a whole number of control periods'),
+    'duration_nan': (['--duration', 'nan'], r'--duration must be a finite number of seconds > 0, got nan'),
+    'unknown_case': (['--case', 'case3'], r"argument --case: invalid choice: 'case3'"),
+    'unknown_option': (['--speed', '2'], r'unrecognized arguments: --speed 2; see uh-simulate --help'),
+}
+
+
+@pytest.mark.parametrize('case', sorted(SIMULATE_CASES))
+def test_uh_simulate_rejects_bad_input_before_running(case, tmp_path, capsys):
+    from uh_team import simulate_cli
+    argv, message = SIMULATE_CASES[case]
+    (tmp_path / 'file').write_text('')
+    argv = [a.replace('{tmp}', str(tmp_path)) for a in argv]
+    if '--out' not in argv:
+        argv += ['--out', str(tmp_path / 'out')]
+    code, err = _status(simulate_cli.main, argv, capsys)
+    assert code == 2 and _one_line(err), err
+    assert __import__('re').search(message, err), err
+    assert not (tmp_path / 'out').exists() and not list(tmp_path.glob('**/metrics.json'))
+
+
+def test_uh_simulate_defaults_to_the_paper_scenario():
+    from uh_team import simulate_cli
+    assert simulate_cli.build_parser().parse_args(['--out', 'x']).scenario == 'paper'
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['campaign_paper_faults', '--out', '{tmp}/file/sub', '--runs', '1'],
+     r"--out '.*file/sub': cannot write there \(Not a directory\); choose a directory you can write to"),
+    (['campaign_paper_faults', '--out', ''], r"argument --out: '': give a directory"),
+    (['', '--out', '{tmp}/out'], r"SPEC '': give a campaign spec YAML file or a bundled name"),
+    (['{tmp}', '--out', '{tmp}/out'], r"campaign spec '.*' is a directory"),
+])
+def test_uh_campaign_rejects_bad_input_in_one_line(argv, message, tmp_path, capsys):
+    from uh_campaign import cli
+    (tmp_path / 'file').write_text('')
+    code, err = _status(cli.main, [a.replace('{tmp}', str(tmp_path)) for a in argv], capsys)
+    assert code == 2 and _one_line(err), err
+    assert __import__('re').search(message, err), err
+    assert not (tmp_path / 'out').exists() and not (tmp_path / 'file').is_dir()
+
+
+@pytest.fixture(scope='module')
+def simulated_run(tmp_path_factory):
+    """Run uh-simulate for 1 s of the paper scenario, for the report's cases."""
+    from uh_team import simulate_cli
+    out = tmp_path_factory.mktemp('sim') / 'run'
+    assert simulate_cli.main(['--duration', '1', '--out', str(out)]) == 0
+    return out
+
+
+def test_uh_report_names_a_broken_scenario_file_not_a_missing_one(simulated_run, tmp_path, capsys):
+    from uh_report import report
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text('name: x\ndt: 0.01\n  oops: [\n')
+    code, err = _status(report.main, [str(simulated_run), '--scenario', str(broken), '--out', str(tmp_path / 'r')],
+                        capsys)
+    assert code == 2 and 'broken.yaml:3: YAML syntax error' in err, err
+    assert not (tmp_path / 'r').exists()
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['{run}', '--out', '{tmp}/file'], r'--out .*file: exists and is not a directory'),
+    (['{run}', '--out', ''], r"argument --out: '': give a directory"),
+    ([''], r"RUN_DIR '': give a run directory"),
+])
+def test_uh_report_rejects_bad_input(argv, message, simulated_run, tmp_path, capsys):
+    from uh_report import report
+    (tmp_path / 'file').write_text('keep')
+    argv = [a.replace('{run}', str(simulated_run)).replace('{tmp}', str(tmp_path)) for a in argv]
+    code, err = _status(report.main, argv, capsys)
+    assert code == 2 and __import__('re').search(message, err), err
+    assert 'Traceback' not in err and (tmp_path / 'file').read_text() == 'keep'
+
+
+COMPARE_CASES = {
+    'unwritable_out': (['--out', '{tmp}/file/sub'], r'--out .*file/sub: cannot write there: Not a directory'),
+    'out_is_a_file': (['--out', '{tmp}/file'], r'--out .*file: exists and is not a directory'),
+    'out_not_empty': (['--out', '{tmp}/full'], r'--out .*full: exists and is not empty; choose a new or empty'),
+    'missing_value': (['--out'], r'argument --out: expected one argument; see compare.sh --help'),
+    'duration': (['--duration', '-1'], r'--duration -1 s is shorter than one control period'),
+    'duration_steps': (['--duration', '0.1234'], r'--duration 0\.1234 s is not a whole number of control periods'),
+    'scenario': (['--scenario', 'nope.yaml'], r"no scenario file 'nope\.yaml'"),
+    'unknown_option': (['--bogus'], r'unrecognized arguments: --bogus; see compare.sh --help'),
+}
+
+
+@pytest.mark.parametrize('case', sorted(COMPARE_CASES))
+def test_compare_checks_everything_before_the_first_run(case, tmp_path, capsys):
+    from uh_bringup import compare
+    argv, message = COMPARE_CASES[case]
+    (tmp_path / 'file').write_text('')
+    (tmp_path / 'full').mkdir()
+    (tmp_path / 'full' / 'precious.txt').write_text('keep me')
+    argv = [a.replace('{tmp}', str(tmp_path)) for a in argv]
+    if '--out' not in argv:
+        argv += ['--out', str(tmp_path / 'out')]
+    code, err = _status(compare.main, ['--simulate', *argv], capsys)
+    assert code == 2 and _one_line(err), err
+    assert __import__('re').search(message, err), err
+    assert not (tmp_path / 'out').exists() and (tmp_path / 'full' / 'precious.txt').read_text() == 'keep me'
+
+
+def test_compare_script_with_an_unwritable_out_is_one_line(tmp_path):
+    """The shell entry point: before, a raw mkdir error and exit 1."""
+    (tmp_path / 'file').write_text('')
+    proc = subprocess.run([str(ROOT / 'scripts' / 'compare.sh'), '--simulate', '--out', str(tmp_path / 'file' / 'x')],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and _one_line(proc.stderr), proc.stderr
+    assert proc.stderr.startswith('compare.sh: error: --out ')
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['--out', '{tmp}/file/x.json'], r'--out .*file/x\.json: .*file is a file, not a directory'),
+    (['--out', '{tmp}'], r'--out .*: is a directory; give the results file'),
+    (['--keep', '{tmp}/file'], r'--keep .*file: exists and is not a directory'),
+    (['--sections', 'bogus'], r"argument --sections: invalid choice: 'bogus'"),
+])
+def test_bench_checks_its_paths_before_any_benchmark(argv, message, tmp_path):
+    (tmp_path / 'file').write_text('')
+    argv = [a.replace('{tmp}', str(tmp_path)) for a in argv]
+    if '--out' not in argv:
+        argv += ['--out', str(tmp_path / 'results.json')]
+    proc = subprocess.run([str(ROOT / 'scripts' / 'bench.sh'), '--quick', '--sections', 'components', *argv],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and _one_line(proc.stderr), proc.stderr
+    assert __import__('re').search(message, proc.stderr), proc.stderr
+    assert not (tmp_path / 'results.json').exists()
+
+
+def test_bench_resolves_a_relative_out_against_where_it_was_started(tmp_path):
+    (tmp_path / 'here').mkdir()
+    proc = subprocess.run([str(ROOT / 'scripts' / 'bench.sh'), '--out', 'here'], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    # 'here' is the caller's directory tmp_path/here, not a path under the repository
+    assert proc.returncode == 2 and '--out here: is a directory' in proc.stderr, proc.stderr
+    assert not (ROOT / 'here').exists()
+
+
+@pytest.mark.parametrize('argv, message', [
+    (['node', 'list', '--spin-time', 'nan'], r"argument --spin-time: 'nan': allowed a finite number of seconds > 0"),
+    (['topic', 'echo', '/uh1/state', '--timeout', '-1'], r"argument --timeout: '-1': allowed a finite number"),
+    (['topic', 'hz', '/uh1/state', '--window', '0'], r"argument --window/-w: '0': allowed an integer >= 1"),
+    (['topic', 'echo', 'bad name', '--timeout', '1'], r"invalid topic name '/bad name'"),
+    (['topic', 'info', '1bad'], r"invalid topic name '/1bad'"),
+    (['param', 'get', 'bad node', 'x', '--spin-time', '1'], r"node '/bad node': invalid node name 'bad node'"),
+    (['node', 'list', '--domain-id', '-1'], r'--domain-id -1 is outside 0\.\.232'),
+    (['bogus'], r"invalid choice: 'bogus'.*; see uh --help"),
+])
+def test_uh_cli_rejects_bad_input_with_exit_2(argv, message, domain_id, capsys):
+    from uh_runtime import cli
+    code, err = _status(cli.main, argv, capsys)
+    assert code == 2 and _one_line(err), err
+    assert __import__('re').search(message, err), err
+
+
+def test_usage_errors_are_one_line_naming_the_help(tmp_path, capsys):
+    # argparse printed the whole usage first: 13 lines for run_formation.sh
+    code, err = _run_cli(run_formation, ['--domain-id', 'abc', '--out', str(tmp_path / 'o')], capsys)
+    assert code == 2 and _one_line(err), err
+    assert err == ("run_formation.sh: error: argument --domain-id: invalid int value: 'abc'; "
+                   'see run_formation.sh --help\n')
+
+
+@pytest.mark.parametrize('params, message', [
+    (['output:={tmp}/file/bag'], "parameter 'output': cannot create bag in"),
+    (['output:={tmp}/full'], "parameter 'output': bag directory .*full exists and is not empty"),
+    (['output:='], "parameter 'output' is empty: give the bag directory to create"),
+    (['output:={tmp}/bag', "topics:=['bad name']"], "parameter 'topics': invalid topic name 'bad name'"),
+])
+def test_recorder_with_a_bad_parameter_exits_2_in_one_line(params, message, tmp_path, domain_id):
+    (tmp_path / 'file').write_text('')
+    (tmp_path / 'full').mkdir()
+    (tmp_path / 'full' / 'precious.txt').write_text('keep me')
+    args = [a for p in params for a in ('-p', p.replace('{tmp}', str(tmp_path)))]
+    proc = subprocess.run([str(Path(sys.executable).with_name('recorder_node')), '--ros-args', *args],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and _one_line(proc.stderr), proc.stderr
+    assert __import__('re').search(message, proc.stderr), proc.stderr
+    assert not (tmp_path / 'bag').exists() and (tmp_path / 'full' / 'precious.txt').read_text() == 'keep me'
+
+
+def test_inject_fault_decides_quickly_that_no_team_is_there(domain_id):
+    """Without --timeout, an empty domain is reported after the 2 s discovery window, not after 10 s."""
+    import time
+    start = time.monotonic()
+    proc = subprocess.run([str(ROOT / 'scripts' / 'inject_fault.sh'), '--uh', '2', '--channel', 'collective',
+                           '--domain-id', str(domain_id)], capture_output=True, text=True, timeout=60)
+    elapsed = time.monotonic() - start
+    assert proc.returncode == 1 and _one_line(proc.stderr), proc.stderr
+    assert f'no node at all was discovered there within {inject_fault.NO_TEAM_S:g} s' in proc.stderr
+    # the window plus the start of a Python process: under 1 s on an idle machine; 8 s leaves room
+    # for a loaded one and is still below the 10 s wait (DEFAULT_TIMEOUT_S) that applied before
+    assert elapsed < 8.0, elapsed

@@ -38,16 +38,17 @@ def test_console_script_is_installed_and_exits_non_zero_on_errors(tmp_path):
     assert script.is_file()
     result = subprocess.run([str(script), 'topic', 'list', '--domain-id', '300'],
                             capture_output=True, text=True, cwd=tmp_path, timeout=60)
-    assert result.returncode == 1
+    assert result.returncode == 2      # bad input
     assert 'uh: error: --domain-id 300 is outside 0..232' in result.stderr
 
 
 def test_unknown_topic_and_bad_type_are_clear_errors(domain_id, capsys):
     assert cli.main(['topic', 'info', '/missing', '--spin-time', '0.2']) == 1
     assert "uh: error: Unknown topic '/missing'" in capsys.readouterr().err
-    assert cli.main(['topic', 'echo', '/x', 'nope/msg/Bad', '--timeout', '0.2']) == 1
+    # a type or a field given on the command line that does not exist is bad input (2)
+    assert cli.main(['topic', 'echo', '/x', 'nope/msg/Bad', '--timeout', '0.2']) == 2
     assert "unknown message type 'nope/msg/Bad'" in capsys.readouterr().err
-    assert cli.main(['topic', 'echo', '/x', 'uh_msgs/msg/UHState', '--field', 'position.w']) == 1
+    assert cli.main(['topic', 'echo', '/x', 'uh_msgs/msg/UHState', '--field', 'position.w']) == 2
     assert "'position.w' is not a field of UHState (no 'w' in Vector3)" in capsys.readouterr().err
 
 

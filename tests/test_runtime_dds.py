@@ -201,7 +201,7 @@ def test_bad_parameters_exit_non_zero_with_a_clear_message(processes, domain_id,
                                                            ros_args, expected):
     proc = _start(processes, 'talker.py', *ros_args, cwd=tmp_path)
     _, err = proc.communicate(timeout=TIMEOUT)
-    assert proc.returncode == 1
+    assert proc.returncode == 2      # bad input
     assert expected in err
     assert 'Traceback' not in err
 
@@ -219,7 +219,7 @@ def test_params_file_with_wildcard_and_node_keys(processes, domain_id, tmp_path,
     bad.write_text('/**:\n  ros__parameters:\n    uh_id: 0\n')
     proc = _start(processes, 'talker.py', '--params-file', str(bad), cwd=tmp_path)
     _, err = proc.communicate(timeout=TIMEOUT)
-    assert proc.returncode == 1 and "parameter 'uh_id': value 0 rejected" in err
+    assert proc.returncode == 2 and "parameter 'uh_id': value 0 rejected" in err
 
 
 def test_a_second_sigint_does_not_cut_the_teardown_short(processes, domain_id, tmp_path, graph):

@@ -10,7 +10,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ],
-    install_requires=['numpy', 'PyYAML', 'uh_core', 'uh_topology', 'uh_controller_node', 'uh_team', 'uh_report'],
+    install_requires=['numpy', 'PyYAML', 'uh_runtime', 'uh_core', 'uh_topology', 'uh_controller_node', 'uh_team', 'uh_report'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',

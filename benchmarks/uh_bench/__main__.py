@@ -1,20 +1,58 @@
 """``python -P -m uh_bench [--quick] [--sections ...] [--out FILE]`` (run by ``scripts/bench.sh``)."""
 from __future__ import annotations
 
-import argparse
 import json
+import os
 import shutil
 import sys
 import tempfile
 from pathlib import Path
+
+from uh_runtime.command_line import ArgumentParser
 
 from .suite import markdown, run_suite
 
 SECTIONS = ('transport', 'paper', 'components', 'scaling', 'realtime', 'backends', 'campaign')
 
 
+def _given_path(text: str) -> Path:
+    """Return a path given on the command line, a relative one taken from where bench.sh was started.
+
+    bench.sh works from the repository root; it passes the caller's directory in ``UH_BENCH_CALLER_DIR``.
+    """
+    return Path(os.environ.get('UH_BENCH_CALLER_DIR', '.')) / text
+
+
+def _check_paths(args) -> str | None:
+    """Check --out and --keep before any benchmark runs (hours may be lost otherwise); return the problem or None."""
+    for option, text in (('--out', args.out), ('--keep', args.keep)):
+        if text is not None and not text.strip():
+            return f"{option} '': give a {'file' if option == '--out' else 'directory'}"
+    if args.keep:
+        keep = _given_path(args.keep)
+        if keep.exists() and not keep.is_dir():
+            return f'--keep {args.keep}: exists and is not a directory'
+        if keep.is_dir() and any(keep.iterdir()):
+            return f'--keep {args.keep}: exists and is not empty; choose a new or empty directory'
+    out = _given_path(args.out)
+    if out.is_dir():
+        return f'--out {args.out}: is a directory; give the results file (e.g. {args.out.rstrip("/")}/latest.json)'
+    if out.parent.exists() and not out.parent.is_dir():
+        return f'--out {args.out}: {out.parent} is a file, not a directory'
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        probe = out.parent / '.write_test'
+        probe.write_text('')
+        probe.unlink()
+        if args.keep:
+            _given_path(args.keep).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        return f'{exc.filename}: cannot write there ({exc.strerror}); give --out and --keep paths you can write'
+    return None
+
+
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog='bench.sh', description='Benchmarks of the UH stack: real-time factors, '
+    p = ArgumentParser(prog='bench.sh', description='Benchmarks of the UH stack: real-time factors, '
                                 'scaling, real-time latency, per-step costs, memory. Writes a JSON results '
                                 'file and prints a markdown table.')
     p.add_argument('--quick', action='store_true', help='short runs (under 5 minutes in all)')
@@ -26,10 +64,12 @@ def main(argv=None) -> int:
                    help='keep the runs (bags, logs, per-process records) in DIR instead of a temporary directory')
     args = p.parse_args(argv)
     mode = 'quick' if args.quick else 'full'
+    problem = _check_paths(args)
+    if problem:
+        p.exit(2, f'bench.sh: error: {problem}\n')
+    out = _given_path(args.out)
     if args.keep:
-        workdir = Path(args.keep)
-        if workdir.exists() and any(workdir.iterdir()):
-            p.exit(2, f'bench.sh: error: --keep {workdir}: exists and is not empty\n')
+        workdir = _given_path(args.keep)
     else:
         workdir = Path(tempfile.mkdtemp(prefix='uh-bench-'))
     try:
@@ -40,8 +80,6 @@ def main(argv=None) -> int:
     finally:
         if not args.keep:
             shutil.rmtree(workdir, ignore_errors=True)
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(results, indent=1, default=str) + '\n')
     print(markdown(results))
     print(f'[bench] results: {out}', file=sys.stderr)

@@ -7,8 +7,9 @@ valid: rho in [0, 1], finite numbers, onset >= 0) and again by the simulator, wh
 injections with a logged reason and keeps running. rho = 0 (a stuck actuator) is sent with a
 warning: the controller cannot compensate it.
 
-Exit status: 0 sent; 1 the team is not running in that DDS domain; 2 bad input (an option's value,
-or a UH the running team does not have).
+Exit status: 0 sent; 1 the team is not running in that DDS domain (without ``--timeout``: no node
+at all discovered there within :data:`NO_TEAM_S`); 2 bad input (an option's value, or a UH the
+running team does not have).
 """
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ import re
 import sys
 import time
 
+from uh_runtime.command_line import ArgumentParser
 import uh_runtime as rt
 from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
 from uh_runtime import messages as m
@@ -30,7 +32,7 @@ __all__ = ['main']
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog='inject_fault.sh', description=__doc__.split('\n\n')[0])
+    p = ArgumentParser(prog='inject_fault.sh', description=__doc__.split('\n\n')[0])
     p.add_argument('--uh', type=int, required=True, help='helicopter index N (topic /uhN/fault)')
     p.add_argument('--channel', required=True, choices=sorted(CHANNEL_NAMES), help='actuator channel')
     p.add_argument('--rho', type=float, default=1.0, help='loss-of-effectiveness factor in [0, 1] (0 = stuck)')
@@ -39,12 +41,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--frequency', type=float, default=0.0, help='sinusoidal bias frequency, rad/s')
     p.add_argument('--onset', type=float, default=0.0, help='simulation time from which the fault acts, s')
     p.add_argument('--domain-id', type=int, default=None, help='DDS domain id of the running team')
-    p.add_argument('--timeout', type=float, default=10.0, help='s to wait for the simulator to be discovered')
+    p.add_argument('--timeout', type=float, default=None, metavar='S',
+                   help='wait up to S s for the UH\'s simulator, e.g. of a team that is still starting '
+                        f'(default: {DEFAULT_TIMEOUT_S:g} s once the team is seen; without a node in the domain '
+                        f'after {NO_TEAM_S:g} s there is no team)')
     return p
 
 
 #: s after the first team topic is seen before a UH without a subscriber counts as not in the team
 SETTLE_S = 1.5
+#: Without --timeout: s of discovery after which a domain without any node holds no team. A running
+#: team's nodes are discovered within tens of ms on one host; the margin is for a loaded machine.
+NO_TEAM_S = 2.0
+#: Without --timeout: longest wait, s, for the UH's simulator once some node is seen in the domain.
+DEFAULT_TIMEOUT_S = 10.0
+#: s between two looks at the discovered graph.
+POLL_S = 0.02
 #: Longest wait for the simulator to acknowledge the fault (a reliable topic), s.
 ACK_TIMEOUT_S = 2.0
 
@@ -69,19 +81,19 @@ def _team_uhs(node) -> list:
     return sorted(ids)
 
 
-def main(argv=None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+def _checked_fault(parser, args) -> ActuatorFault:
+    """Check the options (exit 2 naming the one at fault and what is allowed); return the fault to send."""
     for name in ('rho', 'bias', 'amplitude', 'frequency', 'onset', 'timeout'):
-        if not math.isfinite(getattr(args, name)):
-            parser.exit(2, f'{parser.prog}: error: --{name} {getattr(args, name)}: must be a finite number\n')
+        value = getattr(args, name)
+        if value is not None and not math.isfinite(value):
+            parser.exit(2, f'{parser.prog}: error: --{name} {value}: must be a finite number\n')
     if not 0.0 <= args.rho <= 1.0:
         parser.exit(2, f'{parser.prog}: error: --rho {args.rho}: allowed 0 .. 1 (1 = healthy, 0 = stuck)\n')
     if args.uh < 1:
         parser.exit(2, f'{parser.prog}: error: --uh {args.uh}: helicopter indices start at 1\n')
     if args.domain_id is not None and not 0 <= args.domain_id <= MAX_DOMAIN_ID:
         parser.exit(2, f'{parser.prog}: error: --domain-id {args.domain_id}: allowed 0..{MAX_DOMAIN_ID}\n')
-    if not 0 < args.timeout <= 3600:
+    if args.timeout is not None and not 0 < args.timeout <= 3600:
         parser.exit(2, f'{parser.prog}: error: --timeout {args.timeout}: allowed > 0 .. 3600 s\n')
     try:
         fault = ActuatorFault(channel=CHANNEL_ALIASES[args.channel], rho=args.rho, bias_constant=args.bias,
@@ -91,6 +103,58 @@ def main(argv=None) -> int:
     if fault.is_stuck:
         print(f'{parser.prog}: warning: --rho 0 makes the {args.channel} actuator stuck at its bias, which is '
               'outside what the controller can compensate', file=sys.stderr)
+    return fault
+
+
+def _others_in_domain(node) -> bool:
+    """Whether discovery has found any node in the domain besides this one."""
+    own = (node.get_name(), node.get_namespace())
+    return any(entry != own for entry in node.get_node_names_and_namespaces())
+
+
+def _wait_for_simulator(node, topic: str, args, prog: str) -> int | None:
+    """Spin until the UH's simulator subscribes to ``topic``; return None then, else the exit status (said why).
+
+    Without ``--timeout``: a domain where no node at all is discovered within :data:`NO_TEAM_S`
+    holds no team (exit 1 then); once some node is seen, wait up to :data:`DEFAULT_TIMEOUT_S`.
+    """
+    start = time.monotonic()
+    deadline = start + (DEFAULT_TIMEOUT_S if args.timeout is None else args.timeout)
+    domain = os.environ.get('ROS_DOMAIN_ID', '0')
+    team_seen = None
+    someone_seen = args.timeout is not None     # an explicit --timeout waits for a team still starting
+    fix = (f'is the team running in that domain? `uh node list --domain-id {domain}` lists the nodes there; '
+           'a run prints its domain at start and writes it to <out>/env.sh, so pass it with --domain-id N '
+           '(or source that file)')
+    while not _sim_listens(node, topic):
+        now = time.monotonic()
+        team = _team_uhs(node)
+        if team and team_seen is None:
+            team_seen = now
+        if team and args.uh not in team and now - team_seen > SETTLE_S:
+            print(f'{prog}: error: --uh {args.uh}: the team running in DDS domain {domain} has no '
+                  f'UH {args.uh}; its UHs: {", ".join(map(str, team))}', file=sys.stderr)
+            return 2
+        someone_seen = someone_seen or _others_in_domain(node)
+        if not someone_seen and now - start > NO_TEAM_S:
+            print(f'{prog}: error: nobody subscribes to {topic} in DDS domain {domain}: no node at all was '
+                  f'discovered there within {NO_TEAM_S:g} s; {fix}; --timeout S waits for a team that is '
+                  'still starting', file=sys.stderr)
+            return 1
+        if now > deadline:
+            print(f'{prog}: error: nobody subscribes to {topic} in DDS domain {domain} within '
+                  f'{deadline - start:g} s: {fix}', file=sys.stderr)
+            return 1
+        # discovery runs in the DDS stack's threads: nothing to spin, so wait without using the CPU
+        # (spin_once returns at once with no callbacks to run, which made this loop busy)
+        time.sleep(POLL_S)
+    return None
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    _checked_fault(parser, args)
     if args.domain_id is not None:
         os.environ['ROS_DOMAIN_ID'] = str(args.domain_id)
     try:
@@ -99,29 +163,14 @@ def main(argv=None) -> int:
         parser.error(str(exc))
 
     rt.init(args=[sys.argv[0]])
-    node = rt.Node('inject_fault')
+    # a one-shot publisher: no /rosout and no parameter services, which would only slow its start
+    node = rt.Node('inject_fault', enable_rosout=False, start_parameter_services=False)
     try:
         topic = topics.uh_topic(args.uh, topics.FAULT)
         pub = node.create_publisher(m.ActuatorFault, topic, topics.qos_profile(topics.FAULT.qos))
-        deadline = time.monotonic() + args.timeout
-        domain = os.environ.get('ROS_DOMAIN_ID', '0')
-        team_seen = None
-        while not _sim_listens(node, topic):
-            now = time.monotonic()
-            team = _team_uhs(node)
-            if team and team_seen is None:
-                team_seen = now
-            if team and args.uh not in team and now - team_seen > SETTLE_S:
-                print(f'{parser.prog}: error: --uh {args.uh}: the team running in DDS domain {domain} has no '
-                      f'UH {args.uh}; its UHs: {", ".join(map(str, team))}', file=sys.stderr)
-                return 2
-            if now > deadline:
-                print(f'{parser.prog}: error: nobody subscribes to {topic} in DDS domain {domain} within '
-                      f'{args.timeout:g} s: is the team running in that domain? `uh node list --domain-id {domain}` '
-                      'lists the nodes there; a run prints its domain at start and writes it to <out>/env.sh, '
-                      'so pass it with --domain-id N (or source that file)', file=sys.stderr)
-                return 1
-            rt.spin_once(node, timeout_sec=0.05)
+        status = _wait_for_simulator(node, topic, args, parser.prog)
+        if status is not None:
+            return status
         msg = m.ActuatorFault()
         msg.uh_id, msg.channel, msg.rho = args.uh, CHANNEL_ALIASES[args.channel], args.rho
         msg.bias_constant, msg.bias_amplitude = args.bias, args.amplitude

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from uh_bringup import netns
 from uh_controller_node.controller import ControllerError, UHController
-from uh_controller_node.gains import ControllerGains
+from uh_controller_node.gains import scenario_gains
 from uh_core.airframe import HelicopterParamsError, load_helicopter_params
 from uh_runtime import live_view, scheduling
 from uh_runtime.network import MAX_DOMAIN_ID, default_cyclonedds_uri
@@ -73,9 +73,8 @@ def validate_team(scenario, case: str) -> None:
 
     Each UH's controller and plant, and the reference; raises the node's own error.
     """
-    # the gains first, named by their file (the controllers would name the scenario)
-    ControllerGains.from_mapping(scenario.gains, case, source=str(scenario.gains_path or
-                                                                  f'gains of scenario {scenario.name!r}'))
+    # the gains first, named by their file and line
+    scenario_gains(scenario, case)
     params = load_helicopter_params(scenario.helicopter)
     for i in scenario.ids:
         UHController(i, scenario, case=case, helicopter_params=params)
@@ -87,7 +86,7 @@ def prepare_out(out: Path, force: bool) -> None:
     """Make ``out`` an empty, writable directory (emptied only with ``force``); else :class:`UsageError`."""
     try:
         if out.exists() and not out.is_dir():
-            raise UsageError(f'--out {out}: exists and is not a directory')
+            raise UsageError(f'--out {out}: exists and is not a directory; give a directory')
         if out.exists() and any(out.iterdir()):
             if not force:
                 raise UsageError(f'--out {out}: exists and is not empty (use --force to replace its content)')
@@ -99,7 +98,8 @@ def prepare_out(out: Path, force: bool) -> None:
         probe.unlink()
     except OSError as exc:
         where = f' ({exc.filename})' if exc.filename and str(exc.filename) != str(out) else ''
-        raise UsageError(f'--out {out}: cannot write there: {exc.strerror}{where}') from None
+        raise UsageError(f'--out {out}: cannot write there: {exc.strerror}{where}; choose a directory you can '
+                         'write to') from None
 
 
 def _check_environment(args) -> None:
@@ -130,6 +130,8 @@ def check_run(args) -> tuple:
     :class:`UsageError` or one of :data:`CONFIG_ERRORS`.
     """
     check_args(args)
+    if args.out is not None and not str(args.out).strip():
+        raise UsageError("--out '': give a directory (or leave --out out for runs/<timestamp>)")
     scenario = load_scenario(args.scenario)
     if args.duration is not None:
         try:

@@ -50,6 +50,7 @@ import signal
 import sys
 import time
 
+from uh_runtime.command_line import ArgumentParser
 from uh_bringup.netns import NetnsError
 from uh_bringup.run_checks import CLOCKS, CONFIG_ERRORS, HOSTS, LAYOUTS, UsageError, check_run, validate_team
 from uh_bringup.run_outcome import (EXIT_DEGRADED, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, RunRecord,
@@ -71,7 +72,7 @@ __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_t
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the parser of ``run_formation.sh``'s command line."""
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog='run_formation.sh',
         description='Run a UH formation-containment team: one process per node, recorded to MCAP, '
                     'metrics computed from the bag.')

@@ -21,6 +21,7 @@ import sys
 import threading
 from pathlib import Path
 
+from uh_runtime.command_line import ArgumentParser
 from uh_report.report import main as report_main
 from uh_topology.errors import ScenarioError
 
@@ -32,8 +33,15 @@ __all__ = ['main', 'build_parser', 'PROG']
 PROG = 'uh-campaign'
 
 
+def _directory(text: str) -> Path:
+    """Read an --out value: any non-empty path (an empty one would mean the current directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("'': give a directory")
+    return Path(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog=PROG,
         description='Run a Monte Carlo campaign: random draws of a team scenario (initial states, faults, '
                     'model mismatch, disturbance, random graphs), each for every controller case and sweep '
@@ -47,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('spec', metavar='SPEC',
                    help='campaign spec YAML file, or the name of a bundled spec (campaign_paper_faults, '
                         'campaign_delay_sweep, campaign_delay_sweep_none, campaign_random_graphs)')
-    p.add_argument('--out', required=True, type=Path, metavar='DIR',
+    p.add_argument('--out', required=True, type=_directory, metavar='DIR',
                    help='campaign directory: new or empty, or holding this same campaign (then it resumes)')
     p.add_argument('--runs', type=int, metavar='N',
                    help="number of draws, replacing the spec's runs; another number than the spec's is part "
@@ -92,6 +100,8 @@ def main(argv=None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:
         return int(exc.code or 0)
+    if not str(args.spec).strip():
+        return _fail("SPEC '': give a campaign spec YAML file or a bundled name")
     if args.workers is not None and args.workers < 1:
         return _fail(f'--workers must be >= 1, got {args.workers}')
     if args.runs is not None and args.runs < 1:

@@ -335,7 +335,11 @@ def _open_campaign_dir(spec: CampaignSpec, directory: Path):
     if directory.is_dir() and not db.exists() and any(directory.iterdir()):
         raise CampaignError(f'--out {str(directory)!r} is not empty and holds no campaign ({store.DB_NAME}); '
                             'choose a new or empty directory')
-    (directory / 'scenarios').mkdir(parents=True, exist_ok=True)
+    try:
+        (directory / 'scenarios').mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CampaignError(f'--out {str(directory)!r}: cannot write there ({exc.strerror}); choose a directory '
+                            'you can write to') from None
     try:
         con = store.open_store(db)
     except store.StoreError as exc:

@@ -49,7 +49,7 @@ from .control_kernels import (
     R_P, R_V, R_YAW, REFERENCE_SIZE, STATE_SIZE, STATUS_SIZE, STEP_DONE, ControlArrays, control_parameters,
     uh_control_step)
 from .fault_isolation import FaultIsolator, IsolationSettings, IsolationStatus
-from .gains import ControllerGains
+from .gains import ControllerGains, scenario_gains
 from .nominal_model import nominal_model
 
 __all__ = ['ControllerError', 'ControllerStatusData', 'LoopState', 'UHController']
@@ -317,8 +317,7 @@ class UHController:
             self._graph[j, 0] = float(scenario.leader_link(j))
         self.case = case
         if gains is None:
-            gains = ControllerGains.from_mapping(scenario.gains, case, source=f'gains of scenario '
-                                                 f'{getattr(scenario, "name", "?")!r}')
+            gains = scenario_gains(scenario, case)
         elif gains.case != case:
             raise ControllerError(f'gains are those of case {gains.case!r}, the controller is {case!r}')
         self.gains = gains

@@ -26,8 +26,10 @@ import math
 from dataclasses import dataclass
 
 from uh_topology.errors import ScenarioError
+from uh_topology.schema import parse_yaml
 
-__all__ = ['CASES', 'GainsError', 'RBFSpec', 'LoopGains', 'ControllerGains', 'GainParameter',
+__all__ = ['CASES', 'GainsError', 'gains_source', 'scenario_gains', 'located',
+           'RBFSpec', 'LoopGains', 'ControllerGains', 'GainParameter',
            'gain_parameters', 'nest_gains']
 
 #: The comparison cases of docs/control_law.md#comparison-cases, in report order.
@@ -40,7 +42,14 @@ class GainsError(ScenarioError):
     A scenario's error, like the ``GainsFileError`` of a gains file that cannot be read
     (``uh_topology.errors``), so a caller that loads a scenario and builds its controllers catches
     either as a ``ScenarioError``.
+
+    ``keys`` is the key path of the entry at fault inside the gains mapping (e.g. ``('outer', 'k')``),
+    empty when the error is not about one entry; :func:`scenario_gains` turns it into a line of the file.
     """
+
+    def __init__(self, message: str, *, keys=()):
+        self.keys = tuple(keys)
+        super().__init__(message)
 
 
 @dataclass(frozen=True)
@@ -177,7 +186,7 @@ class ControllerGains:
         beta = _number(data, 'beta', source, minimum=0.0, strict=True)
         tilt_deg = _number(data, 'tilt_limit_deg', source, minimum=0.0, strict=True)
         if tilt_deg >= 90.0:
-            raise GainsError(f'{source}: tilt_limit_deg must be < 90, got {tilt_deg!r}')
+            raise GainsError(f'{source}: tilt_limit_deg must be < 90, got {tilt_deg!r}', keys=('tilt_limit_deg',))
         gains = cls(
             case='proposed',
             beta=beta,
@@ -237,26 +246,27 @@ def _unwrap(mapping, source):
     return mapping
 
 
-def _check_keys(data, required, where, optional=()):
+def _check_keys(data, required, where, optional=(), keys=()):
     allowed = tuple(required) + tuple(optional)
     unknown = sorted(str(k) for k in data if k not in allowed)
     if unknown:
-        raise GainsError(f'{where}: unknown key(s) {unknown}; allowed: {", ".join(allowed)}')
+        raise GainsError(f'{where}: unknown key(s) {unknown}; allowed: {", ".join(allowed)}',
+                         keys=keys + (unknown[0],))
     missing = [k for k in required if k not in data]
     if missing:
-        raise GainsError(f'{where}: missing key(s) {missing}')
+        raise GainsError(f'{where}: missing key(s) {missing}', keys=keys)
 
 
-def _number(data, key, where, minimum=None, strict=False):
+def _number(data, key, where, minimum=None, strict=False, keys=()):
     value = data[key]
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise GainsError(f'{where}: {key} must be a number, got {value!r}')
+        raise GainsError(f'{where}: {key} must be a number, got {value!r}', keys=keys + (key,))
     value = float(value)
     if not math.isfinite(value):
-        raise GainsError(f'{where}: {key} must be finite, got {value!r}')
+        raise GainsError(f'{where}: {key} must be finite, got {value!r}', keys=keys + (key,))
     if minimum is not None and (value < minimum or (strict and value == minimum)):
         relation = '>' if strict else '>='
-        raise GainsError(f'{where}: {key} must be {relation} {minimum:g}, got {value!r}')
+        raise GainsError(f'{where}: {key} must be {relation} {minimum:g}, got {value!r}', keys=keys + (key,))
     return value
 
 
@@ -264,18 +274,18 @@ def _loop(data, name, source):
     where = f'{source}: {name}'
     loop = data[name]
     if not isinstance(loop, dict):
-        raise GainsError(f'{where} must be a mapping of loop gains, got {type(loop).__name__}')
+        raise GainsError(f'{where} must be a mapping of loop gains, got {type(loop).__name__}', keys=(name,))
     keys = _LOOP_KEYS + (('tau_rate',) if name == 'inner' else ())
-    _check_keys(loop, keys, where, optional=_LOOP_LATE)
-    values = {key: _number(loop, key, where, minimum=0.0, strict=strict)
+    _check_keys(loop, keys, where, optional=_LOOP_LATE, keys=(name,))
+    values = {key: _number(loop, key, where, minimum=0.0, strict=strict, keys=(name,))
               for key, strict in _LOOP_POSITIVE.items() if key in keys or key in loop}
     nodes = loop['rbf_nodes']
     if isinstance(nodes, bool) or not isinstance(nodes, int) or nodes < 1:
-        raise GainsError(f'{where}: rbf_nodes must be an integer >= 1, got {nodes!r}')
-    low = _number(loop, 'rbf_low', where)
-    high = _number(loop, 'rbf_high', where)
+        raise GainsError(f'{where}: rbf_nodes must be an integer >= 1, got {nodes!r}', keys=(name, 'rbf_nodes'))
+    low = _number(loop, 'rbf_low', where, keys=(name,))
+    high = _number(loop, 'rbf_high', where, keys=(name,))
     if nodes > 1 and not low < high:
-        raise GainsError(f'{where}: rbf_low must be < rbf_high, got {low!r} and {high!r}')
+        raise GainsError(f'{where}: rbf_low must be < rbf_high, got {low!r} and {high!r}', keys=(name, 'rbf_low'))
     return LoopGains(
         k=values['k'], r=values['r'], tau_command=values['tau_command'], tau_rate=values.get('tau_rate'),
         kappa=values['kappa'], learning_rate=values['learning_rate'], gamma=values['gamma'],
@@ -331,6 +341,43 @@ class GainParameter:
     description: str
     minimum: float | None
     read_only: bool
+
+
+def gains_source(scenario) -> str:
+    """How errors name a scenario's gains: the gains file, else ``gains of scenario '<name>'`` (inline gains)."""
+    path = getattr(scenario, 'gains_path', None)
+    return str(path) if path is not None else f'gains of scenario {getattr(scenario, "name", "?")!r}'
+
+
+def located(exc: GainsError, scenario) -> GainsError:
+    """Give ``exc`` with the line of its entry in the scenario's gains file (``<file>:<line>: ...``).
+
+    ``exc`` itself when the gains are inline, the file cannot be read again or the entry has no line.
+    """
+    path = getattr(scenario, 'gains_path', None)
+    source = gains_source(scenario)
+    if path is None or not exc.keys or not str(exc).startswith(source + ':'):
+        return exc
+    try:
+        _, lines = parse_yaml(path.read_text(), source)
+    except (OSError, ScenarioError):
+        return exc
+    for prefix in ((), ('/**', 'ros__parameters')):
+        keys = prefix + exc.keys
+        while len(keys) > len(prefix) and keys not in lines:
+            keys = keys[:-1]        # a missing key: the line of the mapping that lacks it
+        if keys in lines and len(keys) > len(prefix):
+            rest = str(exc)[len(source) + 1:]
+            return GainsError(f'{source}:{lines[keys]}:{rest}', keys=exc.keys)
+    return exc
+
+
+def scenario_gains(scenario, case: str) -> 'ControllerGains':
+    """Build the gains of ``case`` from a scenario's gains; an error names the gains file and the line."""
+    try:
+        return ControllerGains.from_mapping(scenario.gains, case, source=gains_source(scenario))
+    except GainsError as exc:
+        raise located(exc, scenario) from None
 
 
 def gain_parameters(mapping, source: str = 'gains') -> list:

@@ -10,7 +10,8 @@ only if the gains it makes pass the gains file's checks.
 from __future__ import annotations
 
 import uh_runtime as rt
-from uh_controller_node.gains import CASES, ControllerGains, GainsError, gain_parameters, nest_gains
+from uh_controller_node.gains import (CASES, ControllerGains, GainsError, gain_parameters, gains_source, located,
+                                      nest_gains)
 from uh_wire.run_config import DEFAULT_STALE_TIMEOUT, RunConfigError, declare_float_parameter
 
 __all__ = ['SYNC_PARAMETERS', 'declare_controller_parameters', 'GainParameters']
@@ -62,7 +63,11 @@ class GainParameters:
     def __init__(self, node, scenario, case: str, uh_id: int):
         self.node, self.case, self.uh_id = node, case, uh_id
         names = []
-        for g in gain_parameters(scenario.gains, source=f'gains of scenario {scenario.name!r}'):
+        try:
+            parameters = gain_parameters(scenario.gains, source=gains_source(scenario))
+        except GainsError as exc:
+            raise located(exc, scenario) from None
+        for g in parameters:
             ranges = {}
             if isinstance(g.value, int):
                 ranges['integer_range'] = [rt.IntegerRange(from_value=1, to_value=100000, step=1)]

@@ -108,6 +108,8 @@ def make_writable_dir(out, error=ValueError) -> None:
 
     Raise ``error`` with the reason otherwise.
     """
+    if out.exists() and not out.is_dir():
+        raise error(f'--out {out}: exists and is not a directory; give a directory')
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = out / '.write_test'

@@ -44,13 +44,14 @@ from pathlib import Path
 
 import numpy as np
 
+from uh_runtime.command_line import ArgumentParser
 from uh_core.layout import CHANNEL_NAMES, X_P_SLICE
 from uh_runtime.bag_reader import BagError, open_bag
 from uh_team.fault_metrics import fault_list
 from uh_team.metrics import (FALSE_ESTIMATE_START, FAULT_WINDOW_DELAY, LUMPED_FAULTS, NOT_MEANINGFUL_MARK,
                              NRMSE_FLOOR_P, NRMSE_FLOOR_W, MetricsError, faulted_uhs, metrics_from_arrays,
                              nrmse_below_floor)
-from uh_topology.errors import ScenarioError
+from uh_topology.errors import ScenarioError, ScenarioNotFoundError
 from uh_topology.scenario import load_scenario
 
 from . import report_figures as F
@@ -161,13 +162,15 @@ def _load_scenario(name, run_dir: Path, where: str):
     candidates = [name]
     if not Path(str(name)).is_absolute() and name != 'paper':
         candidates.append(run_dir / str(name))
-    last = None
+    problems = []
     for candidate in candidates:
         try:
             return load_scenario(candidate)
         except ScenarioError as exc:
-            last = exc
-    raise ReportError(f'{where}: scenario {name!r}: {last}')
+            problems.append(exc)
+    # what is wrong with a file that exists, else that the name as given (relative to here) names none
+    found = [exc for exc in problems if not isinstance(exc, ScenarioNotFoundError)]
+    raise ReportError(f'{where}: scenario {name!r}: {(found or problems)[0]}')
 
 
 def _bag_dir(run_dir: Path) -> Path | None:
@@ -633,15 +636,22 @@ def run_of_arrays(run_dir, scenario, case: str, arrays: dict, metrics: dict) -> 
 # ----------------------------------------------------------------------------------------------
 # Entry point
 # ----------------------------------------------------------------------------------------------
+def _directory(text: str) -> Path:
+    """Read an --out value: any non-empty path (an empty one would mean the current directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("'': give a directory")
+    return Path(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog=PROG,
         description='Figures (the paper\'s Figures 4-12) and a side-by-side metrics table of one or '
                     'several runs of run_formation.sh (MCAP bag) or uh-simulate (timeseries.npz).',
         epilog='Example: uh-report runs/proposed runs/case1 runs/case2 --out runs/report')
     p.add_argument('runs', nargs='+', metavar='RUN_DIR',
                    help='run directories (or bag directories), or one campaign directory (campaign.sqlite)')
-    p.add_argument('--out', type=Path, default=None,
+    p.add_argument('--out', type=_directory, default=None,
                    help='output directory (default: RUN_DIR/report for one run, report/ next to the runs for several)')
     p.add_argument('--scenario', default='paper',
                    help='scenario of runs without run.json (uh-simulate output, bare bags); default paper')
@@ -686,6 +696,8 @@ def main(argv=None) -> int:
     matplotlib.use('Agg')
 
     args = build_parser().parse_args(argv)
+    if any(not str(d).strip() for d in args.runs):
+        return _fail("RUN_DIR '': give a run directory (e.g. runs/proposed)")
     campaigns = [d for d in args.runs if is_campaign_dir(d)]
     if campaigns:
         return _campaign_main(args, campaigns[0])

@@ -35,6 +35,7 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
+from .command_line import ArgumentParser
 from .bag_reader import BagError, ReadResult, bag_file, read_messages
 from .messages import type_hash, typestore, uh_msg_texts
 from .qos import qos_profile_yaml
@@ -257,15 +258,15 @@ def recover_bag(bag_dir) -> ReadResult:
 
 
 def _main(argv=None) -> int:
-    import argparse
-
-    parser = argparse.ArgumentParser(prog='python -m uh_runtime.bag',
+    parser = ArgumentParser(prog='python -m uh_runtime.bag',
                                      description='Check or recover a bag a killed recorder left behind.')
     sub = parser.add_subparsers(dest='command', required=True)
     for name, text in (('check', 'read the bag up to its last complete chunk and report'),
                        ('recover', 'rewrite the bag complete (summary, metadata.yaml) from what is readable')):
         sub.add_parser(name, help=text).add_argument('bag', help='bag directory or .mcap file')
     args = parser.parse_args(argv)
+    if not args.bag.strip():
+        parser.error("bag '': give a bag directory or an .mcap file")
     try:
         result = read_messages(bag_file(args.bag)) if args.command == 'check' else recover_bag(args.bag)
     except BagError as exc:

@@ -23,7 +23,9 @@ import os
 import sys
 import time
 
-from .arguments import parse_parameter_value
+from .command_line import ArgumentParser
+from .arguments import (InvalidNameError, parse_parameter_value, validate_full_topic_name, validate_namespace,
+                        validate_node_name)
 from .names import ROS_TOPIC_PREFIX
 from .network import MAX_DOMAIN_ID, apply_network_default
 
@@ -35,7 +37,35 @@ __all__ = ['main', 'build_parser']
 
 
 class CliError(Exception):
-    """A user-facing failure: printed as ``uh: error: ...`` with exit status 1."""
+    """A user-facing failure (nothing found in the domain, no answer): ``uh: error: ...``, exit status 1."""
+
+
+class UsageError(CliError):
+    """Bad input (a value out of range, an invalid name): printed as ``uh: error: ...`` with exit status 2."""
+
+
+def _seconds(text: str) -> float:
+    """Read a duration option: a finite number of seconds > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f'{text!r}: allowed a finite number of seconds > 0')
+    return value
+
+
+def _count(lowest: int):
+    """Return an argparse type for an integer option of at least ``lowest``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = lowest - 1
+        if value < lowest:
+            raise argparse.ArgumentTypeError(f'{text!r}: allowed an integer >= {lowest}')
+        return value
+    return parse
 
 
 def _domain_default():
@@ -47,12 +77,12 @@ def _common(parser, spin_time=True):
     parser.add_argument('--domain-id', type=int, default=None,
                         help='DDS domain id (default: ROS_DOMAIN_ID, else 0)')
     if spin_time:
-        parser.add_argument('--spin-time', type=float, default=2.0,
+        parser.add_argument('--spin-time', type=_seconds, default=2.0,
                             help='longest time to wait for discovery, s (default: 2.0)')
 
 
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         prog='uh', description='Inspect ROS 2 topics and nodes of a DDS domain over Cyclone DDS '
         '(works without ROS; output like the ros2 CLI).')
     commands = parser.add_subparsers(dest='command', metavar='{topic,node,param}')
@@ -72,17 +102,17 @@ def build_parser():
                    'e.g. uh_msgs/msg/UHState')
     p.add_argument('--once', action='store_true', help='print the first message and exit')
     p.add_argument('--field', help='print only this field, e.g. position.x')
-    p.add_argument('--timeout', type=float, default=None,
+    p.add_argument('--timeout', type=_seconds, default=None,
                    help='give up (exit 1) if nothing arrives within this many seconds')
-    p.add_argument('--truncate-length', type=int, default=128,
+    p.add_argument('--truncate-length', type=_count(0), default=128,
                    help='longest array or string printed in full (default 128)')
-    p.add_argument('--qos-depth', type=int, default=10, help='history depth of the reader')
+    p.add_argument('--qos-depth', type=_count(1), default=10, help='history depth of the reader')
     _common(p, spin_time=False)
 
     p = verbs.add_parser('hz', help='print the receive rate of a topic')
     p.add_argument('topic_name')
-    p.add_argument('--window', '-w', type=int, default=10000, help='window size in messages')
-    p.add_argument('--timeout', type=float, default=None,
+    p.add_argument('--window', '-w', type=_count(1), default=10000, help='window size in messages')
+    p.add_argument('--timeout', type=_seconds, default=None,
                    help='exit after this many seconds (status 1 if nothing arrived)')
     _common(p, spin_time=False)
 
@@ -120,14 +150,17 @@ def _graph(args):
     from .graph import Graph
     domain = _domain_default() if args.domain_id is None else args.domain_id
     if not 0 <= domain <= MAX_DOMAIN_ID:
-        raise CliError(f'--domain-id {domain} is outside 0..{MAX_DOMAIN_ID} (the range ROS 2 allows)')
+        raise UsageError(f'--domain-id {domain} is outside 0..{MAX_DOMAIN_ID} (the range ROS 2 allows)')
     return Graph(domain_id=domain)
 
 
 def _check_topic(name):
     if not name.startswith('/'):
         name = '/' + name
-    return name
+    try:
+        return validate_full_topic_name(name)
+    except InvalidNameError as exc:
+        raise UsageError(str(exc)) from None
 
 
 # ----------------------------------------------------------------------------------------------
@@ -274,9 +307,13 @@ def cmd_topic_echo(args):
     try:
         cls = messages.dds_message(type_name)
     except messages.MessageError as exc:
-        raise CliError(str(exc)) from None
+        # a type given on the command line is bad input; one announced by the publishers is not
+        raise (UsageError if args.message_type else CliError)(str(exc)) from None
     if args.field:
-        _field(cls(), args.field)  # fail early on a wrong field
+        try:
+            _field(cls(), args.field)  # fail early on a wrong field
+        except CliError as exc:
+            raise UsageError(str(exc)) from None
     reader, condition = _reader(graph, topic, cls, pubs, args.qos_depth)
     while True:
         for msg in reader.take(N=256):
@@ -383,7 +420,15 @@ class _ParamClients:
 
 
 def _node_name(name: str) -> str:
-    return name if name.startswith('/') else '/' + name
+    """Return the fully qualified node name (``/ns/name``) of ``name``; :class:`UsageError` for an invalid one."""
+    name = name if name.startswith('/') else '/' + name
+    namespace, _, base = name.rpartition('/')
+    try:
+        validate_namespace(namespace or '/')
+        validate_node_name(base)
+    except InvalidNameError as exc:
+        raise UsageError(f'node {name!r}: {exc}') from None
+    return name
 
 
 def _value_text(msg) -> str:
@@ -439,7 +484,7 @@ def cmd_param_set(args):
         param = dds_message('rcl_interfaces/msg/Parameter')(name=args.parameter_name, value=value_message(value))
         result = clients.call(_node_name(args.node_name), 'set_parameters', parameters=[param]).results[0]
     except TypeError as exc:
-        raise CliError(f'value {args.value!r}: {exc}') from None
+        raise UsageError(f'value {args.value!r}: {exc}') from None
     finally:
         clients.close()
     if result.successful:
@@ -483,13 +528,17 @@ COMMANDS.update({('param', 'list'): cmd_param_list, ('param', 'get'): cmd_param_
 
 
 def main(argv=None) -> int:
-    """Console script ``uh``; returns the exit status."""
+    """Console script ``uh``; returns the exit status.
+
+    0 done; 1 what was asked for is not there (no such topic, no publisher, no node answering in
+    time); 2 bad input (an option's value, an invalid name, an unknown type or field); 130 interrupted.
+    """
     args = build_parser().parse_args(argv)
     try:
         apply_network_default()     # the runs' network default, unless CYCLONEDDS_URI says otherwise
-    except ValueError as exc:
+    except ValueError as exc:       # a bad ROS_AUTOMATIC_DISCOVERY_RANGE
         print(f'uh: error: {exc}', file=sys.stderr)
-        return 1
+        return 2
     try:
         with _graph(args) as graph:
             args.graph = graph
@@ -498,7 +547,7 @@ def main(argv=None) -> int:
         return 130
     except CliError as exc:
         print(f'uh: error: {exc}', file=sys.stderr)
-        return 1
+        return 2 if isinstance(exc, UsageError) else 1
     except BrokenPipeError:
         return 0
 

@@ -42,14 +42,17 @@ class LiveViewError(ValueError):
     """The live view cannot start (port, host or the foxglove-sdk package)."""
 
 
-def check_port(host: str, port: int) -> None:
-    """Raise :class:`LiveViewError` unless a TCP server can bind ``host:port`` now."""
+def check_port(host: str, port: int, names=('--foxglove port', '--foxglove-host')) -> None:
+    """Raise :class:`LiveViewError` unless a TCP server can bind ``host:port`` now.
+
+    ``names`` are how the messages name the port and the host: the options, or a node's parameters.
+    """
     if not 1 <= int(port) <= 65535:
-        raise LiveViewError(f'--foxglove port {port}: allowed 1..65535')
+        raise LiveViewError(f'{names[0]} {port}: allowed 1..65535')
     try:
         infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
     except socket.gaierror as exc:
-        raise LiveViewError(f'--foxglove-host {host!r}: cannot resolve it ({exc.strerror})') from None
+        raise LiveViewError(f'{names[1]} {host!r}: cannot resolve it ({exc.strerror})') from None
     family, kind, proto, _, address = infos[0]
     with socket.socket(family, kind, proto) as sock:
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -110,7 +113,7 @@ class LiveViewNode(rt.Node):
         host, port = str(self.get_parameter('host').value), int(self.get_parameter('port').value)
         self.wanted = {t for t in self.get_parameter('topics').value if t}
         foxglove = require_foxglove()
-        check_port(host, port)
+        check_port(host, port, names=("parameter 'port'", "parameter 'host'"))
         self._foxglove = foxglove
         self.channels = {}
         self.subscriptions_by_topic = {}

@@ -214,8 +214,8 @@ def type_hash(name_or_class) -> str:
     store = typestore()
     if name not in store.fielddefs:
         raise MessageError(f'unknown message type {name!r}')
-    # the second store is built (once, about 0.1 s) only for a type that holds a char somewhere
-    return (_hash_store() if _holds_char(name) else store).hash_rihs01(name)
+    # a second store, of this type and the types it holds only, for a type that holds a char somewhere
+    return (_hash_store(name) if _holds_char(name) else store).hash_rihs01(name)
 
 
 @functools.lru_cache(maxsize=None)
@@ -244,14 +244,34 @@ def _char_as_uint8(field):
     return field
 
 
-@functools.lru_cache(maxsize=1)
-def _hash_store():
-    """:func:`typestore` with ``char`` fields as ``uint8`` (see :func:`type_hash`); for hashing only."""
+def _held_types(name: str, found: set) -> set:
+    """Add ``name`` and every type it holds (nested, in arrays and sequences) to ``found``; return it."""
+    from rosbags.interfaces import Nodetype
+
+    def visit(field):
+        kind, payload = field
+        if kind == Nodetype.NAME and payload not in found:
+            _held_types(payload, found)
+        elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+            visit(payload[0])
+    found.add(name)
+    for _, field in typestore().fielddefs[name][1]:
+        visit(field)
+    return found
+
+
+@functools.lru_cache(maxsize=None)
+def _hash_store(name: str):
+    """Type ``name`` and the types it holds, with ``char`` fields as ``uint8`` (see :func:`type_hash`).
+
+    For hashing only. Only these few types are copied: a copy of the whole :func:`typestore`
+    took about 0.1 s, a noticeable part of a short-lived tool's start (``inject_fault.sh``).
+    """
     from rosbags.typesys import Stores, get_typestore
-    source = typestore()
+    source = typestore().fielddefs
     store = get_typestore(Stores.EMPTY)
-    store.register({name: (consts, [(fname, _char_as_uint8(f)) for fname, f in fields])
-                    for name, (consts, fields) in source.fielddefs.items()})
+    store.register({held: (source[held][0], [(fname, _char_as_uint8(f)) for fname, f in source[held][1]])
+                    for held in _held_types(name, set())})
     return store
 
 

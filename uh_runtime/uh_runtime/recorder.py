@@ -38,6 +38,7 @@ import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_runtime.bag import FLUSH_PERIOD_S, BagWriter
 from uh_runtime.bag_reader import BagError
+from uh_runtime.arguments import InvalidNameError, validate_full_topic_name
 from uh_runtime.names import RECORDER_PROGRESS_TOPIC
 from uh_runtime.qos import QoSWords, merge_offered, profile_from_words, qos_profile_yaml, words_of
 
@@ -133,18 +134,26 @@ class RecorderNode(rt.Node):
                         '(e.g. wall-clock time) is logged at that /clock instead', read_only=True))
         output = str(self.get_parameter('output').value)
         if not output:
-            raise BagError("parameter 'output' is empty: give the bag directory to create")
+            raise ValueError("parameter 'output' is empty: give the bag directory to create")
         self.wanted = {t for t in self.get_parameter('topics').value if t}
+        for topic in sorted(self.wanted):
+            try:
+                validate_full_topic_name(topic)
+            except InvalidNameError as exc:
+                raise ValueError(f"parameter 'topics': {exc}") from None
         self.progress_topics = {t for t in self.get_parameter('progress_topics').value if t}
         expected = []
         for entry in (e for e in self.get_parameter('expected_topics').value if e):
             name, sep, type_name = entry.partition('=')
             if not (sep and name.startswith('/') and type_name.count('/') == 2):
-                raise BagError(f"parameter 'expected_topics': {entry!r} is not name=pkg/msg/Type "
+                raise ValueError(f"parameter 'expected_topics': {entry!r} is not name=pkg/msg/Type "
                                f"(e.g. /uh1/fault=uh_msgs/msg/ActuatorFault)")
             m.get_message(type_name)   # an unknown type is refused before the bag exists
             expected.append((name, type_name))
-        self.bag = BagWriter(output)
+        try:
+            self.bag = BagWriter(output)
+        except BagError as exc:    # a bad 'output' (a ValueError: one line, exit 2, from run_node)
+            raise ValueError(f"parameter 'output': {exc}") from None
         self.latest_stamp: dict[str, int] = {}
         self.log_clock = LogClock(sim_time=bool(self.get_parameter('sim_time').value))
         self.progress_ns = -1
@@ -192,6 +201,8 @@ class RecorderNode(rt.Node):
                     self.progress_pub.publish(msg)
 
     def destroy_node(self):
+        if getattr(self, 'bag', None) is None:   # refused before its bag was created: nothing to close
+            return super().destroy_node()
         self.bag.close()
         counts = ', '.join(f'{t.name}: {t.message_count}' for t in self.bag.topics.values())
         rt.log_on_exit(self, f'bag closed: {self.bag.directory} ({counts})')

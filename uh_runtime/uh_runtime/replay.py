@@ -36,6 +36,7 @@ import time
 import uh_runtime as rt
 from uh_runtime import live_view, messages
 from uh_runtime.bag_reader import BagError, BagInfo, iter_bag_messages, open_bag
+from uh_runtime.command_line import ArgumentParser
 from uh_runtime.network import MAX_DOMAIN_ID, loopback_environment
 from uh_runtime.qos import QoSWords, profile_from_words
 
@@ -232,7 +233,7 @@ class ReplayNode(rt.Node):
 # Entry point
 # ----------------------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog=PROG,
         description='Republish a recorded rosbag2 MCAP bag over DDS with its original timing scaled by '
                     '--rate, its recorded QoS and its payload bytes as recorded, and /clock.',
@@ -267,10 +268,12 @@ def _fail(message: str, status: int = 2) -> int:
 
 def _prepare(opts):
     """Check the options, open the bag and set the network up; return ``(domain, bag info)`` or an exit status."""
+    if not opts.bag.strip():
+        return _fail("RUN_DIR|BAG_DIR '': give a run directory, a bag directory or an .mcap file")
     if not (math.isfinite(opts.rate) and 0.01 <= opts.rate <= 1000):
         return _fail(f'--rate {opts.rate:g}: allowed 0.01 .. 1000 (bag seconds per wall second)')
     if not (math.isfinite(opts.delay) and opts.delay >= 0):
-        return _fail(f'--delay {opts.delay:g}: must be >= 0 s')
+        return _fail(f'--delay {opts.delay:g}: allowed a finite number of seconds >= 0')
     domain = opts.domain_id
     if domain is None:
         env_domain = os.environ.get('ROS_DOMAIN_ID', '').strip()

@@ -125,6 +125,10 @@ def end_with_supervisor() -> None:
         os.kill(os.getpid(), signal.SIGTERM)
 
 
+#: Exit status of a node stopped by bad input (parameters, --ros-args, configuration files).
+USAGE_STATUS = 2
+
+
 def _prog(args) -> str:
     argv0 = (args or sys.argv or ['node'])[0]
     return os.path.basename(str(argv0)) or 'node'
@@ -142,7 +146,8 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
     destroy the nodes and ``try_shutdown()``, so a recorder's ``destroy_node`` always runs.
 
     A user's mistake prints ``<prog>: error: <message>`` on stderr (no traceback) and exits with
-    status 1: bad ``--ros-args``, a parameter error (unknown override, wrong type, out of range,
+    status 2 (:data:`USAGE_STATUS`, bad input, as for every command of the project): bad ``--ros-args``,
+    a parameter error (unknown override, wrong type, out of range,
     on either backend), an exception listed in ``user_errors``, and, while the nodes are being
     built, any ``ValueError``, ``LookupError`` or ``OSError`` (bad configuration, missing file).
     Errors raised later in callbacks keep their traceback.
@@ -163,7 +168,7 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
         rt.init(args=args)
     except Exception as exc:  # bad --ros-args: rclpy raises RCLError subclasses, we RosArgsError
         print(f'{prog}: error: {exc}', file=sys.stderr)
-        raise SystemExit(1) from None
+        raise SystemExit(USAGE_STATUS) from None
     nodes = []
     status = 0
     try:
@@ -175,7 +180,7 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
                 check_parameter_overrides(node, ignore=ignore_overrides)
         except clear + (ValueError, LookupError, OSError) as exc:
             print(f'{prog}: error: {exc}', file=sys.stderr)
-            status = 1
+            status = USAGE_STATUS
         else:
             # rclpy's SingleThreadedExecutor rebuilds its wait set on every wait; this one keeps
             # it (docs/runtime.md#executors-on-rclpy)
@@ -193,7 +198,7 @@ def run_node(node_factory, args=None, *, until=None, exit_code=None, user_errors
             status = int(exit_code(nodes[0]))
     except clear as exc:
         print(f'{prog}: error: {exc}', file=sys.stderr)
-        status = 1
+        status = USAGE_STATUS
     finally:
         with sigint_ignored():   # a second Ctrl-C must not cut the teardown short
             for node in nodes:

@@ -20,9 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from uh_controller_node.gains import CASES
+from uh_runtime.command_line import ArgumentParser
+from uh_controller_node.gains import CASES, scenario_gains
 from uh_topology.errors import ScenarioError
-from uh_topology.scenario import load_scenario
+from uh_topology.scenario import duration_steps, load_scenario
 
 from .metrics import LUMPED_FAULTS, NOT_MEANINGFUL_MARK, metrics_from_arrays, nrmse_below_floor
 from .team_simulation import SimulationError, run_team_simulation
@@ -32,18 +33,25 @@ __all__ = ['main', 'build_parser']
 PROG = 'uh-simulate'
 
 
+def _directory(text: str) -> Path:
+    """Read an --out value: any non-empty path (an empty one would mean the current directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("'': give a directory")
+    return Path(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = ArgumentParser(
         prog=PROG,
         description='Run a UH team scenario in one process with the per-UH composite-learning '
                     'inverse-optimal fault-tolerant controllers and write DIR/metrics.json and '
                     'DIR/timeseries.npz.',
         epilog='Example: uh-simulate --scenario paper --case proposed --out runs/proposed')
-    p.add_argument('--scenario', required=True, metavar='FILE|NAME',
-                   help="scenario YAML file, or the name of a bundled scenario ('paper')")
+    p.add_argument('--scenario', default='paper', metavar='FILE|NAME',
+                   help="scenario YAML file, or the name of a bundled scenario (default: paper)")
     p.add_argument('--case', default='proposed', choices=CASES,
                    help='controller case of docs/control_law.md#comparison-cases (default: proposed)')
-    p.add_argument('--out', required=True, type=Path, metavar='DIR',
+    p.add_argument('--out', required=True, type=_directory, metavar='DIR',
                    help='output directory (created; must be empty unless --force)')
     p.add_argument('--duration', type=float, metavar='S',
                    help='simulated time in seconds (default: the scenario duration)')
@@ -77,10 +85,18 @@ def _fail(message: str, status: int = 2) -> int:
 
 
 def _check_out_dir(out: Path, force: bool):
+    """Make ``out`` a writable directory before anything runs; return what is wrong with it, or None."""
     if out.exists() and not out.is_dir():
         return f'--out {str(out)!r} exists and is not a directory'
     if out.is_dir() and any(out.iterdir()) and not force:
         return f'--out {str(out)!r} is not empty; choose a new directory or pass --force to overwrite'
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / '.write_test'
+        probe.write_text('')
+        probe.unlink()
+    except OSError as exc:
+        return f'--out {str(out)!r}: cannot write there ({exc.strerror}); choose a directory you can write to'
     return None
 
 
@@ -125,14 +141,19 @@ def _main(argv) -> int:
     args = build_parser().parse_args(argv)
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0.0):
         return _fail(f'--duration must be a finite number of seconds > 0, got {args.duration!r}')
+    try:
+        scenario = load_scenario(args.scenario)
+        scenario_gains(scenario, args.case)    # the gains file, checked before anything is written
+    except ScenarioError as exc:
+        return _fail(f'invalid scenario: {exc}')
+    if args.duration is not None:
+        try:
+            duration_steps(args.duration, scenario.dt)
+        except ValueError as exc:
+            return _fail(f'--duration {exc}')
     problem = _check_out_dir(args.out, args.force)
     if problem:
         return _fail(problem)
-
-    try:
-        scenario = load_scenario(args.scenario)
-    except ScenarioError as exc:
-        return _fail(f'invalid scenario: {exc}')
     progress = _Progress(sys.stderr, f'{scenario.name}/{args.case}') if sys.stderr.isatty() else None
     try:
         run = run_team_simulation(scenario, args.case, duration=args.duration, progress=progress)
@@ -143,6 +164,8 @@ def _main(argv) -> int:
         if progress is not None:
             sys.stderr.write('\n')
         return _fail('interrupted', status=130)
+    except ScenarioError as exc:     # the gains (named by their file and line)
+        return _fail(str(exc))
     except ValueError as exc:        # scenario content the plant or controller rejects (own types)
         return _fail(f'{type(exc).__name__}: {exc}')
 

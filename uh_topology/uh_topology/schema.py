@@ -272,9 +272,15 @@ def read_config_file(path_or_name, what: str, bundled_names, base_dir=None) -> t
     (:class:`~uh_topology.errors.ScenarioNotFoundError`).
     """
     text = str(path_or_name)
+    if not text.strip():
+        raise E.ScenarioNotFoundError(f'{what} {text!r}: give a path to a YAML file or a bundled name '
+                                      f'({", ".join(bundled_names()) or "none"})')
     path = Path(text)
     if base_dir is not None and not path.is_absolute():
         path = Path(base_dir) / path
+    if path.is_dir():
+        raise E.ScenarioNotFoundError(f'{what} {text!r} is a directory; give a YAML file or a bundled name '
+                                      f'({", ".join(bundled_names()) or "none"})')
     if not path.is_file():
         bundled = CONFIG_DIR / f'{text}.yaml'
         if Path(text).suffix == '' and Path(text).parent == Path('.') and bundled.is_file():

@@ -1,0 +1,19 @@
+"""The argument parser of the project's commands: a usage error is one line, exit status 2.
+
+:class:`ArgumentParser` is :class:`argparse.ArgumentParser` whose error is the single line
+``<prog>: error: <what was wrong>; see <prog> --help`` on stderr (the standard parser prints the
+whole usage first, a dozen lines for ``run_formation.sh``, before the line that matters).
+"""
+from __future__ import annotations
+
+import argparse
+
+__all__ = ['ArgumentParser']
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """``argparse.ArgumentParser`` with one-line errors (module docstring); subcommand parsers are of this class too."""
+
+    def error(self, message: str):
+        """Print ``<prog>: error: <message>; see <prog> --help`` on stderr and exit with status 2."""
+        self.exit(2, f'{self.prog}: error: {message}; see {self.prog} --help\n')
