@@ -92,7 +92,9 @@ def _commands(args, out: Path) -> list:
         if args.simulate:
             argv = python + ['uh_team.simulate_cli', '--scenario', args.scenario]
         else:
-            argv = python + ['uh_bringup.run_formation', '--scenario', args.scenario, '--clock', 'lockstep']
+            # the combined report below replaces the per-run ones
+            argv = python + ['uh_bringup.run_formation', '--scenario', args.scenario, '--clock', 'lockstep',
+                             '--no-report']
         steps.append((case, argv + ['--case', case, '--out', str(out / case), *extra]))
     steps.append(('report', python + ['uh_report.report', *(str(out / case) for case in CASES),
                                       '--scenario', args.scenario, '--out', str(out / 'report')]))
