@@ -485,6 +485,9 @@ COMMANDS.update({('param', 'list'): cmd_param_list, ('param', 'get'): cmd_param_
 def main(argv=None) -> int:
     """Console script ``uh``; returns the exit status."""
     args = build_parser().parse_args(argv)
+    # uh reads the graph through Cyclone DDS (uh_runtime.graph): its message classes and QoS must be that
+    # backend's also where rclpy is importable (a sourced ROS 2, .venv-rclpy), or it silently finds nothing
+    os.environ['UH_BACKEND'] = 'dds'
     try:
         apply_network_default()     # the runs' network default, unless CYCLONEDDS_URI says otherwise
     except ValueError as exc:
