@@ -142,3 +142,14 @@ def test_a_sourced_environment_script_gives_a_shell_the_runs_domain_and_discover
                            capture_output=True, text=True, check=True).stdout.splitlines()
     assert 'ROS_DOMAIN_ID=42' in shown and 'ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST' in shown
     assert any(line.startswith('CYCLONEDDS_URI=<CycloneDDS>') for line in shown)
+
+
+def test_a_mixed_team_names_the_processes_on_cyclone_dds_and_only_existing_ones():
+    from uh_bringup.run_checks import UsageError
+    from uh_bringup.run_setup import dds_processes
+    names = ['recorder', 'uh1', 'uh2', 'team']
+    assert dds_processes({'UH_DDS_PROCESSES': ' uh2, team ,'}, names) == {'uh2', 'team'}
+    assert dds_processes({}, names) == set()
+    with pytest.raises(UsageError, match='UH_DDS_PROCESSES names uh3, which this run does not start; '
+                                         'its processes: recorder, uh1, uh2, team'):
+        dds_processes({'UH_DDS_PROCESSES': 'uh3,uh1'}, names)
