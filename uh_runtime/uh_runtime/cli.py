@@ -497,8 +497,20 @@ def main(argv=None) -> int:
     """Console script ``uh``; returns the exit status."""
     args = build_parser().parse_args(argv)
     # uh reads the graph through Cyclone DDS (uh_runtime.graph): its message classes and QoS must be that
-    # backend's also where rclpy is importable (a sourced ROS 2, .venv-rclpy), or it silently finds nothing
+    # backend's also where rclpy is importable (a sourced ROS 2, .venv-rclpy), or it silently finds nothing.
+    # Set for the command only: a caller in the same process keeps its own choice.
+    previous = os.environ.get('UH_BACKEND')
     os.environ['UH_BACKEND'] = 'dds'
+    try:
+        return _run(args)
+    finally:
+        if previous is None:
+            os.environ.pop('UH_BACKEND', None)
+        else:
+            os.environ['UH_BACKEND'] = previous
+
+
+def _run(args) -> int:
     try:
         apply_network_default()     # the runs' network default, unless CYCLONEDDS_URI says otherwise
     except ValueError as exc:
@@ -515,7 +527,6 @@ def main(argv=None) -> int:
         return 1
     except BrokenPipeError:
         return 0
-
 
 if __name__ == '__main__':
     sys.exit(main())
