@@ -10,7 +10,14 @@
 # Exit status: 0 ok, 1 run failed, 2 bad input (nothing started), 3 completed with node failures,
 # 130 interrupted. Failures, respawns, lossy links: docs/reliability.md.
 # Sets up .venv on first use. On a ROS 2 machine with the workspace sourced, nodes start with ros2 run.
+# UH_ROS_WHEELS=1: the team's nodes on real rclpy (Fast DDS) without a ROS 2 install, from .venv-rclpy
+# (PyPI's unofficial ROS 2 Jazzy wheels, for testing; docs/ros2.md#rclpy-from-pypi-wheels), started
+# through that virtualenv's entry points; UH_DDS_PROCESSES=uh1_controller,... puts some on Cyclone DDS.
 set -euo pipefail
+if [ "${UH_ROS_WHEELS:-}" = 1 ]; then
+  source "$(dirname "${BASH_SOURCE[0]}")/_venv_rclpy.sh"
+  exec python -P -m uh_bringup.run_formation "$@"
+fi
 if [ -n "${ROS_DISTRO:-}" ] && command -v ros2 >/dev/null && [ "${UH_BACKEND:-}" != "dds" ]; then
   exec python3 -P -m uh_bringup.run_formation "$@"
 fi

@@ -1,19 +1,43 @@
 #!/usr/bin/env bash
 # Runs the lint step and the test suite: sets up .venv (pinned dependencies + the project's packages)
 # if needed, checks the code with ruff (ruff.toml: pycodestyle, pyflakes, pep257 docstrings), then
-# runs pytest. Extra arguments go to pytest, e.g. scripts/test.sh -k topology -x
+# runs pytest, then the real-rclpy tier. Extra arguments go to pytest, e.g. scripts/test.sh -k topology -x
 #   scripts/test.sh --quick   the quick tier: every package, no DDS processes and no long runs
 #                             (under 2 minutes on 2 cores; the full suite is the default and CI's)
+#   scripts/test.sh --rclpy   only the real-rclpy tier (extra arguments go to its pytest)
+# The real-rclpy tier (docs/testing.md#the-real-rclpy-tier) runs the tests marked rclpy_real in
+# .venv-rclpy, a Python 3.12 virtualenv with ROS 2 Jazzy's rclpy on Fast DDS from PyPI's unofficial
+# wheels (scripts/_venv_rclpy.sh builds it on first use). It follows the main suite when that is run
+# whole (no arguments); UH_TEST_RCLPY=0 leaves it out.
 set -euo pipefail
+here="$(dirname "${BASH_SOURCE[0]}")"
+rclpy_tier() {  # in a subshell: the tier's virtualenv is activated there only
+  ( source "$here/_venv_rclpy.sh" && cd "$REPO_ROOT" && echo "[test] the real-rclpy tier (.venv-rclpy)" >&2 \
+    && python -P -m pytest -m rclpy_real "$@" )
+}
+if [ "${1:-}" = "--rclpy" ]; then
+  shift
+  rclpy_tier "$@"
+  exit
+fi
+tier=full
 if [ "${1:-}" = "--quick" ]; then
   shift
+  tier=quick
   export UH_TEST_TIER=quick
   set -- -m "not slow and not dds" "$@"
 fi
-source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
+whole=$(( $# == 0 ))
+source "$here/_venv.sh"
 cd "$REPO_ROOT"
 if ! python -P -m ruff check --quiet .; then
   echo "lint: the findings above break the rules of ruff.toml (.venv/bin/ruff check --fix repairs some of them)" >&2
   exit 1
 fi
-exec python -P -m pytest "$@"
+if [ "$tier" = quick ] || [ "$whole" = 0 ] || [ "${UH_TEST_RCLPY:-1}" = 0 ]; then
+  exec python -P -m pytest "$@"
+fi
+status=0
+python -P -m pytest "$@" || status=$?
+rclpy_tier || status=$(( status ? status : $? ))
+exit "$status"

@@ -116,3 +116,40 @@ def test_static_peers_and_off():
     assert '<Tag>ros_discovery_off_' in off and 'Peer' not in off
     with pytest.raises(ValueError, match="ROS_AUTOMATIC_DISCOVERY_RANGE='LAN'; allowed: LOCALHOST, SUBNET"):
         default_cyclonedds_uri({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LAN'})
+
+
+@pytest.mark.parametrize('env, expect_range, expect_uri', [
+    ({}, 'LOCALHOST', 'loopback'),
+    ({'ROS_AUTOMATIC_DISCOVERY_RANGE': ' ', 'CYCLONEDDS_URI': ''}, 'LOCALHOST', 'loopback'),   # empty is unset
+    ({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'}, 'SUBNET', None),           # the user's choice stands
+    ({'CYCLONEDDS_URI': '<CycloneDDS/>'}, 'LOCALHOST', '<CycloneDDS/>'),
+])
+def test_the_network_default_sets_the_discovery_range_every_rmw_reads(env, expect_range, expect_uri):
+    """Fast DDS ignores CYCLONEDDS_URI: the range is what makes an rclpy node on it meet the Cyclone DDS nodes."""
+    from uh_runtime.network import apply_network_default, environment_script, loopback_config
+    got = apply_network_default(dict(env))
+    assert got['ROS_AUTOMATIC_DISCOVERY_RANGE'] == expect_range
+    assert got.get('CYCLONEDDS_URI') == (loopback_config() if expect_uri == 'loopback' else expect_uri)
+    script = environment_script({**got, 'ROS_DOMAIN_ID': '7'})
+    assert f'export ROS_AUTOMATIC_DISCOVERY_RANGE={expect_range}\n' in script
+    assert 'export ROS_DOMAIN_ID=7\n' in script
+
+
+def test_a_sourced_environment_script_gives_a_shell_the_runs_domain_and_discovery(tmp_path):
+    from uh_runtime.network import environment_script, loopback_environment
+    (tmp_path / 'env.sh').write_text(environment_script(loopback_environment(42, base={})))
+    shown = subprocess.run(['env', '-i', 'bash', '-c', f'source {tmp_path / "env.sh"} && env'],
+                           capture_output=True, text=True, check=True).stdout.splitlines()
+    assert 'ROS_DOMAIN_ID=42' in shown and 'ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST' in shown
+    assert any(line.startswith('CYCLONEDDS_URI=<CycloneDDS>') for line in shown)
+
+
+def test_a_mixed_team_names_the_processes_on_cyclone_dds_and_only_existing_ones():
+    from uh_bringup.run_checks import UsageError
+    from uh_bringup.run_setup import dds_processes
+    names = ['recorder', 'uh1', 'uh2', 'team']
+    assert dds_processes({'UH_DDS_PROCESSES': ' uh2, team ,'}, names) == {'uh2', 'team'}
+    assert dds_processes({}, names) == set()
+    with pytest.raises(UsageError, match='UH_DDS_PROCESSES names uh3, which this run does not start; '
+                                         'its processes: recorder, uh1, uh2, team'):
+        dds_processes({'UH_DDS_PROCESSES': 'uh3,uh1'}, names)

@@ -166,3 +166,50 @@ def test_the_documented_ros_install_skips_exactly_the_keys_requirements_ros_prov
     pip_line = next(line for line in block.splitlines() if line.startswith('pip install'))
     assert '--break-system-packages' in pip_line and '-c constraints-ros-jazzy.txt' in pip_line
     assert '--break-system-packages' in (ROOT / 'requirements-ros.txt').read_text().split('\n\n')[0]
+
+
+#: ROS packages imported by module name that follow no naming pattern (message packages end in _msgs or
+#: _interfaces, or are named by a type string 'pkg/msg/Name')
+ROS_MODULES = {'rclpy', 'launch', 'launch_ros', 'ament_index_python', 'rmw_dds_common', 'builtin_interfaces',
+               'rosidl_runtime_py', 'tf2_ros', 'rosbag2_py'}
+TYPE_NAME = re.compile(r"""['"]([a-z][a-z0-9_]*)/(?:msg|srv|action)/[A-Z]\w*['"]""")
+
+
+def _ros_packages_used(path):
+    """``{ROS package: line}`` that the module ``path`` imports or names a message or service type of."""
+    used = {}
+    text = path.read_text()
+    for node in ast.walk(ast.parse(text, str(path))):
+        names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+            [node.module] if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module else []
+        for name in names:
+            top = name.split('.')[0]
+            if top in ROS_MODULES or top.endswith(('_msgs', '_interfaces')):
+                used.setdefault(top, node.lineno)
+    for match in TYPE_NAME.finditer(text):
+        used.setdefault(match.group(1), text.count('\n', 0, match.start()) + 1)
+    return used
+
+
+@pytest.mark.parametrize('pkg', PYTHON_PACKAGES)
+def test_every_ros_package_the_code_uses_is_declared_in_package_xml(pkg):
+    """A ROS package the code imports or names a type of ('nav_msgs/msg/Odometry') is in package.xml.
+
+    rosdep installs, and colcon orders the build by, package.xml alone: an undeclared message package
+    makes a fresh ROS 2 install fail at run time.
+    """
+    root = ET.parse(ROOT / pkg / 'package.xml').getroot()
+    declared = {e.text for e in root.iter() if e.tag.endswith('depend')}
+    missing = {}
+    for path in sorted((ROOT / pkg / pkg).rglob('*.py')):
+        for used, line in _ros_packages_used(path).items():
+            if used not in declared and used not in (pkg, 'pkg'):   # 'pkg/msg/Type': a docstring's placeholder
+                missing.setdefault(used, f'{path.relative_to(ROOT)}:{line}')
+    assert not missing, f'{pkg}/package.xml lacks exec_depend {missing}'
+
+
+def test_the_ros_package_check_sees_imports_and_type_names(tmp_path):
+    module = tmp_path / 'm.py'
+    module.write_text("import rclpy.node\nfrom tf2_msgs.msg import TFMessage\nimport numpy\n"
+                      "ODOM = 'nav_msgs/msg/Odometry'\nX = 'not/a/type'\n")
+    assert _ros_packages_used(module) == {'rclpy': 1, 'tf2_msgs': 2, 'nav_msgs': 4}

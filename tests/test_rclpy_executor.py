@@ -17,7 +17,7 @@ from std_msgs.msg import Int64  # noqa: E402
 
 from uh_runtime.rclpy_executor import StaticSingleThreadedExecutor  # noqa: E402
 
-pytestmark = [pytest.mark.ros, pytest.mark.dds]
+pytestmark = [pytest.mark.ros, pytest.mark.rclpy_real, pytest.mark.dds]
 BOUND = 20.0  # s of wall time; bounds a failure only
 
 

@@ -157,7 +157,9 @@ def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkey
     arguments.update(backend='dds')
     actions = opaque.kwargs['function'](None)
     nodes = [a for a in actions if isinstance(a, mods['launch_ros.actions'].Node)]
-    assert nodes and all(n.kwargs['additional_env'] == {'UH_BACKEND': 'dds'} for n in nodes)
+    assert nodes and all(n.kwargs['additional_env']['UH_BACKEND'] == 'dds' for n in nodes)
+    # and every node the runs' discovery settings, which rclpy on Fast DDS and Cyclone DDS meet on
+    assert all(n.kwargs['additional_env'].get('ROS_AUTOMATIC_DISCOVERY_RANGE') for n in nodes)
     arguments.update(backend='zenoh')
     with pytest.raises(ValueError, match="backend:='zenoh'; allowed: rclpy, dds"):
         opaque.kwargs['function'](None)

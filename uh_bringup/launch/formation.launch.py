@@ -24,6 +24,7 @@ from launch.events import Shutdown
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 from uh_bringup.team_nodes import NODES, backend_environment, node_specs
+from uh_runtime.network import apply_network_default
 from uh_runtime.scheduling import DEFAULT_PRIORITY, MAX_PRIORITY
 from uh_topology.scenario import load_scenario
 # the default stale timeout from its one home (the nodes' parameter and the run script's option)
@@ -52,11 +53,15 @@ def _team(context):
                        standard_views=arg('standard_views') == 'true', realtime_priority=priority)
     actions = []
     completed = []   # the clock's end with status 0: the run is complete
+    # the runs' discovery settings (uh_runtime.network.apply_network_default), which rclpy on Fast DDS
+    # and the Cyclone DDS nodes meet on whatever the user has or has not set
+    network = {key: value for key, value in apply_network_default(dict(os.environ)).items()
+               if key in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'CYCLONEDDS_URI')}
     for name, kind, ros_args in specs:
         # the namespace and parameters are in ros_args (--ros-args ...), as the run script passes them
         # backend:=dds: every node on the Cyclone DDS backend; else the recorder and the visualisation
         # there (where it is installed) and the team's nodes on rclpy
-        env = {'UH_BACKEND': 'dds'} if backend == 'dds' else backend_environment(kind, os.environ)
+        env = {**network, **({'UH_BACKEND': 'dds'} if backend == 'dds' else backend_environment(kind, os.environ))}
         node = Node(package=NODES[kind].package, executable=NODES[kind].executable, arguments=ros_args,
                     output='both', additional_env=env)
         actions.append(node)

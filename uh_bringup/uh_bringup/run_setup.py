@@ -17,7 +17,8 @@ from uh_bringup.team_nodes import backend_environment, node_specs
 from uh_runtime import live_view, scheduling
 from uh_runtime.network import environment_script, loopback_environment, reserve_domain_id
 
-__all__ = ['run_environment', 'realtime_priority', 'write_environment_script', 'open_network', 'start_team']
+__all__ = ['run_environment', 'realtime_priority', 'write_environment_script', 'open_network', 'start_team',
+           'dds_processes']
 
 
 def run_environment(domain_id) -> tuple[int, dict]:
@@ -68,6 +69,20 @@ def open_network(args, scenario):
     return network
 
 
+def dds_processes(env: dict, names: list) -> set:
+    """Return the process names ``UH_DDS_PROCESSES`` (comma-separated) puts on the Cyclone DDS backend.
+
+    A mixed team: those processes run on the Cyclone DDS backend, the others on rclpy where it is
+    importable (docs/ros2.md#rclpy-from-pypi-wheels). A name the run does not have is a usage error.
+    """
+    wanted = {n.strip() for n in env.get('UH_DDS_PROCESSES', '').split(',') if n.strip()}
+    unknown = sorted(wanted - set(names))
+    if unknown:
+        raise UsageError(f'UH_DDS_PROCESSES names {", ".join(unknown)}, which this run does not start; '
+                         f'its processes: {", ".join(names)}')
+    return wanted
+
+
 def start_team(args, scenario, scenario_arg: str, out: Path, env: dict, priority: int, sup, network) -> None:
     """Start every process of the team under supervisor ``sup`` (the clock's last)."""
     specs = node_specs(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
@@ -78,9 +93,11 @@ def start_team(args, scenario, scenario_arg: str, out: Path, env: dict, priority
                        realtime_priority=priority)
     if args.foxglove is not None:
         print(f'[run] live view: {live_view.connect_hint(args.foxglove_host, args.foxglove)}', file=sys.stderr)
-    for name, kind, cmd in processes(specs, args.processes, out / 'logs'):
+    started = processes(specs, args.processes, out / 'logs')
+    on_dds = dds_processes(env, [name for name, _kind, _cmd in started])
+    for name, kind, cmd in started:
         # composed processes: only the recorder's own process (per-uh) is of an infrastructure kind
-        node_env = {**env, **backend_environment(kind, env)}
+        node_env = {**env, **backend_environment(kind, env), **({'UH_BACKEND': 'dds'} if name in on_dds else {})}
         if network is not None:
             sup.prefix[name] = network.prefix(name)
             node_env = network.environment(name, node_env)

@@ -36,6 +36,16 @@ from .network import MAX_DOMAIN_ID, apply_network_default
 __all__ = ['main', 'build_parser']
 
 
+#: How long the graph must stay unchanged before a listing is complete, s. A Cyclone DDS participant
+#: answers this one's announcement at once, a Fast DDS one (rclpy on Fast DDS, ROS 2's default RMW)
+#: in its next periodic announcement, every 3 s: measured 0.03 s to over 2 s on loopback. A shorter
+#: wait lists the Cyclone DDS nodes of a mixed graph and sometimes none of the Fast DDS ones.
+QUIET = 3.2
+
+#: Default ``--spin-time``: the longest wait, which the quiet time must fit in.
+SPIN_TIME = 4.0
+
+
 class CliError(Exception):
     """A user-facing failure (nothing found in the domain, no answer): ``uh: error: ...``, exit status 1."""
 
@@ -77,8 +87,9 @@ def _common(parser, spin_time=True):
     parser.add_argument('--domain-id', type=int, default=None,
                         help='DDS domain id (default: ROS_DOMAIN_ID, else 0)')
     if spin_time:
-        parser.add_argument('--spin-time', type=_seconds, default=2.0,
-                            help='longest time to wait for discovery, s (default: 2.0)')
+        parser.add_argument('--spin-time', type=_seconds, default=SPIN_TIME,
+                            help=f'longest time to wait for discovery, s (default: {SPIN_TIME}; the answer comes '
+                                 f'once nothing new was discovered for {QUIET} s)')
 
 
 def build_parser():
@@ -166,7 +177,7 @@ def _check_topic(name):
 # ----------------------------------------------------------------------------------------------
 def cmd_topic_list(args):
     graph = args.graph
-    graph.settle(args.spin_time)
+    graph.settle(args.spin_time, quiet=min(QUIET, args.spin_time))
     for name, types in graph.topic_names_and_types():
         if args.show_types:
             print(f"{name} [{', '.join(types)}]")
@@ -177,7 +188,7 @@ def cmd_topic_list(args):
 
 def cmd_node_list(args):
     graph = args.graph
-    graph.settle(args.spin_time)
+    graph.settle(args.spin_time, quiet=min(QUIET, args.spin_time))
     nodes = graph.node_names_and_namespaces()
     if args.count_nodes:
         print(len(nodes))
@@ -221,7 +232,7 @@ def cmd_topic_info(args):
     from .graph import format_gid
     topic = _check_topic(args.topic_name)
     graph = args.graph
-    graph.settle(args.spin_time)
+    graph.settle(args.spin_time, quiet=min(QUIET, args.spin_time))
     types = dict(graph.topic_names_and_types()).get(topic)
     if not types:
         raise CliError(f"Unknown topic '{topic}'")
@@ -439,7 +450,7 @@ def _value_text(msg) -> str:
 
 def cmd_param_list(args):
     graph = args.graph
-    graph.settle(args.spin_time)
+    graph.settle(args.spin_time, quiet=min(QUIET, args.spin_time))
     nodes = [f"{ns.rstrip('/')}/{n}" for n, ns in graph.node_names_and_namespaces()]
     if args.node_name:
         wanted = _node_name(args.node_name)
@@ -534,6 +545,21 @@ def main(argv=None) -> int:
     time); 2 bad input (an option's value, an invalid name, an unknown type or field); 130 interrupted.
     """
     args = build_parser().parse_args(argv)
+    # uh reads the graph through Cyclone DDS (uh_runtime.graph): its message classes and QoS must be that
+    # backend's also where rclpy is importable (a sourced ROS 2, .venv-rclpy), or it silently finds nothing.
+    # Set for the command only: a caller in the same process keeps its own choice.
+    previous = os.environ.get('UH_BACKEND')
+    os.environ['UH_BACKEND'] = 'dds'
+    try:
+        return _run(args)
+    finally:
+        if previous is None:
+            os.environ.pop('UH_BACKEND', None)
+        else:
+            os.environ['UH_BACKEND'] = previous
+
+
+def _run(args) -> int:
     try:
         apply_network_default()     # the runs' network default, unless CYCLONEDDS_URI says otherwise
     except ValueError as exc:       # a bad ROS_AUTOMATIC_DISCOVERY_RANGE
@@ -550,7 +576,6 @@ def main(argv=None) -> int:
         return 2 if isinstance(exc, UsageError) else 1
     except BrokenPipeError:
         return 0
-
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -1,4 +1,4 @@
-"""Cyclone DDS network configuration for runs and tests on one machine.
+"""DDS network configuration for runs and tests on one machine, for Cyclone DDS and Fast DDS alike.
 
 Every run and every test picks its own DDS domain id, so parallel runs never see each other
 (docs/architecture.md#isolation-of-runs). On a machine without multicast on loopback, discovery uses
@@ -89,12 +89,19 @@ def default_cyclonedds_uri(env: dict | None = None) -> str | None:
 
 
 def apply_network_default(env: dict | None = None) -> dict:
-    """Set ``CYCLONEDDS_URI`` in ``env`` (default ``os.environ``) to :func:`default_cyclonedds_uri`; return ``env``.
+    """Give ``env`` (default ``os.environ``) the project's discovery settings for every DDS vendor; return ``env``.
 
-    The variable is set only when that default is not None. What ``uh``, the scripts and the runs do first.
+    ``ROS_AUTOMATIC_DISCOVERY_RANGE`` becomes ``LOCALHOST`` when it is not set (empty counts as not
+    set): rmw_fastrtps and rmw_cyclonedds read it, and ROS 2's own default, ``SUBNET``, would have an
+    rclpy node on Fast DDS announce addresses that the loopback-only Cyclone DDS configuration of
+    the project's other nodes never reaches, so the two would not meet. ``CYCLONEDDS_URI`` is set to
+    :func:`default_cyclonedds_uri` when that is not None (the user has not set one), which follows the
+    same range for the Cyclone DDS backend. What ``uh``, the scripts and the runs do first.
     """
     env = os.environ if env is None else env
     uri = default_cyclonedds_uri(env)
+    if not env.get('ROS_AUTOMATIC_DISCOVERY_RANGE', '').strip():
+        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     if uri is not None:
         env['CYCLONEDDS_URI'] = uri
     return env
@@ -114,10 +121,11 @@ def loopback_environment(domain_id: int, base: dict | None = None) -> dict:
 
 
 def environment_script(env: dict) -> str:
-    """Return a POSIX shell script that exports the ``ROS_DOMAIN_ID`` and ``CYCLONEDDS_URI`` of ``env``.
+    """Return a POSIX shell script that exports the ``ROS_DOMAIN_ID`` and discovery settings of ``env``.
 
-    A second terminal that sources it (``ros2 topic list``, ``uh topic list``) joins the same DDS domain
-    with the same discovery settings.
+    ``CYCLONEDDS_URI`` for Cyclone DDS, ``ROS_AUTOMATIC_DISCOVERY_RANGE`` (and ``ROS_STATIC_PEERS``)
+    for Fast DDS and every other RMW: a second terminal that sources it (``ros2 topic list``, ``uh
+    topic list``) joins the same DDS domain with the same discovery settings, whichever RMW it uses.
     """
     import shlex
     lines = ['# source this file to reach the run from another terminal (ros2 CLI, uh CLI)']
