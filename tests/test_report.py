@@ -204,8 +204,9 @@ def test_index_html_shows_every_figure_and_the_table(report):
     assert images == on_disk and len(on_disk) == 2 + len(runs) * len(PER_RUN_FIGURES)
     metrics_table = page.split('</table>')[0]
     assert metrics_table.count('<tr>') == len(markdown_table((out / 'report.md').read_text()))
-    # one fault isolation table per run (each faulted channel of the paper scenario a row)
-    assert page.count('<table>') == 1 + len(runs)
+    # per run a table of its faults and one of its fault isolation (the paper scenario has faults)
+    assert page.count('<table>') == 1 + 2 * len(runs)
+    assert page.count('Faults: scheduled by the scenario, and injected during the run') == len(runs)
 
 
 def _run_with_metrics(name: str, metrics: dict):
