@@ -174,8 +174,15 @@ def _exercise_the_running_team(out: Path) -> None:
     for _ in range(3):   # every time: Fast DDS participants answer up to half a second after Cyclone DDS ones
         listed = _second_terminal(out, f'{UH} node list')
         assert set(listed.stdout.split()) == expected, listed
-    probe = ("import rclpy, time; rclpy.init(); n = rclpy.create_node('second_terminal'); time.sleep(3); "
-             "print('\\n'.join(f\"{ns.rstrip('/')}/{name}\" for name, ns in n.get_node_names_and_namespaces()))")
+    # rclpy on Fast DDS learns of a participant from its announcements (every 3 s by default), then of
+    # its nodes from ros_discovery_info: poll until every node is seen; 15 s bounds a failure only
+    probe = ("import rclpy, time\nrclpy.init()\nn = rclpy.create_node('second_terminal')\n"
+             f"want = set({sorted(expected)!r})\nend = time.monotonic() + 15.0\nnames = set()\n"
+             "while time.monotonic() < end:\n"
+             "    names = {f\"{ns.rstrip('/')}/{name}\" for name, ns in n.get_node_names_and_namespaces()}\n"
+             "    if want <= names:\n        break\n"
+             "    time.sleep(0.2)\n"
+             "print('\\n'.join(sorted(names)))")
     fast = _second_terminal(out, f'{sys.executable} -c {shlex.quote(probe)}')
     assert expected <= set(fast.stdout.split()), fast
     _set_gain(node, '/uh3/controller', 1.2)               # rclpy -> rclpy controller
