@@ -16,6 +16,8 @@ import html
 import io
 import re
 
+from uh_runtime.command_line import unwritable_reason
+
 __all__ = ['NumberCell', 'Document', 'inline_html', 'markdown_table', 'html_table', 'html_figure', 'html_page',
            'csv_text', 'make_writable_dir', 'CSS_NUMBERS', 'CSS_CODE']
 
@@ -110,13 +112,9 @@ def make_writable_dir(out, error=ValueError) -> None:
     """
     if out.exists() and not out.is_dir():
         raise error(f'--out {out}: exists and is not a directory; give a directory')
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / '.write_test'
-        probe.write_text('')
-        probe.unlink()
-    except OSError as exc:
-        raise error(f'--out {out}: cannot write there ({exc.strerror})') from None
+    reason = unwritable_reason(out)
+    if reason is not None:
+        raise error(f'--out {out}: cannot write there ({reason})')
 
 
 class Document:

@@ -7,8 +7,9 @@ whole usage first, a dozen lines for ``run_formation.sh``, before the line that 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-__all__ = ['ArgumentParser']
+__all__ = ['ArgumentParser', 'unwritable_reason']
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -17,3 +18,15 @@ class ArgumentParser(argparse.ArgumentParser):
     def error(self, message: str):
         """Print ``<prog>: error: <message>; see <prog> --help`` on stderr and exit with status 2."""
         self.exit(2, f'{self.prog}: error: {message}; see {self.prog} --help\n')
+
+
+def unwritable_reason(out: Path) -> str | None:
+    """Create the directory ``out`` if needed and write a probe file in it; return why not (``strerror``), or None."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / '.write_test'
+        probe.write_text('')
+        probe.unlink()
+    except OSError as exc:
+        return exc.strerror
+    return None

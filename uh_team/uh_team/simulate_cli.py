@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uh_runtime.command_line import ArgumentParser
+from uh_runtime.command_line import ArgumentParser, unwritable_reason
 from uh_controller_node.gains import CASES, scenario_gains
 from uh_topology.errors import ScenarioError
 from uh_topology.scenario import duration_steps, load_scenario
@@ -90,13 +90,9 @@ def _check_out_dir(out: Path, force: bool):
         return f'--out {str(out)!r} exists and is not a directory'
     if out.is_dir() and any(out.iterdir()) and not force:
         return f'--out {str(out)!r} is not empty; choose a new directory or pass --force to overwrite'
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / '.write_test'
-        probe.write_text('')
-        probe.unlink()
-    except OSError as exc:
-        return f'--out {str(out)!r}: cannot write there ({exc.strerror}); choose a directory you can write to'
+    reason = unwritable_reason(out)
+    if reason is not None:
+        return f'--out {str(out)!r}: cannot write there ({reason}); choose a directory you can write to'
     return None
 
 
