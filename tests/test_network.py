@@ -153,3 +153,16 @@ def test_a_mixed_team_names_the_processes_on_cyclone_dds_and_only_existing_ones(
     with pytest.raises(UsageError, match='UH_DDS_PROCESSES names uh3, which this run does not start; '
                                          'its processes: recorder, uh1, uh2, team'):
         dds_processes({'UH_DDS_PROCESSES': 'uh3,uh1'}, names)
+
+
+def test_every_local_configuration_repeats_discovery_every_second():
+    """Local configurations announce each participant to every port index once a second.
+
+    A Fast DDS process started later announces itself to participant indices 0..3 only; the team's other
+    participants find it by their own announcements (docs/ros2.md#discovery-from-fast-dds).
+    """
+    from uh_runtime.network import SPDP_INTERVAL_XML, default_cyclonedds_uri, loopback_config
+    assert SPDP_INTERVAL_XML == '<SPDPInterval>1 s</SPDPInterval>'
+    for config in (loopback_config(), default_cyclonedds_uri({'ROS_STATIC_PEERS': '10.0.0.2'})):
+        discovery = config.split('<Discovery>')[1].split('</Discovery>')[0]
+        assert SPDP_INTERVAL_XML in discovery and '<Peer address="127.0.0.1"/>' in discovery, config

@@ -38,6 +38,8 @@ import shutil
 import subprocess
 from dataclasses import dataclass, field
 
+from uh_runtime.network import SPDP_INTERVAL_XML
+
 __all__ = ['NetnsError', 'Host', 'TeamNetwork', 'check_available', 'sweep_stale', 'SUBNET', 'PREFIX',
            'host_of_process', 'cyclone_config', 'FAST_RECOVERY_XML']
 
@@ -135,13 +137,14 @@ def host_of_process(name: str) -> str:
 #: heartbeat reveals a gap, so a lost sample arrives 100-200 ms late, more when a repair is lost
 #: too): heartbeats every 20 ms (at least 5 ms apart) and a NACK 10 ms after one. Per-step data
 #: comes every 10 ms, so a repair then takes a few steps instead of tens. And participant
-#: discovery is repeated every second instead of every 30 s: when the few discovery packets two
+#: discovery is repeated every second instead of every 30 s (as on loopback,
+#: :data:`uh_runtime.network.SPDP_INTERVAL_XML`): when the few discovery packets two
 #: participants exchange at start-up are lost, they would otherwise not find each other for half
 #: a minute (seen at 25 % loss). Set the environment variable UH_NETNS_CYCLONE_DEFAULTS=1 to run
 #: with Cyclone's defaults instead.
 FAST_RECOVERY_XML = ('<Internal><HeartbeatInterval min="5 ms">20 ms</HeartbeatInterval>'
                      '<NackDelay>10 ms</NackDelay></Internal>')
-FAST_DISCOVERY_XML = '<SPDPInterval>1 s</SPDPInterval>'
+FAST_DISCOVERY_XML = SPDP_INTERVAL_XML   # as on loopback (uh_runtime.network)
 
 
 def cyclone_config(host: Host, peers: list, max_participants: int = 10) -> str:
