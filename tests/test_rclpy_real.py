@@ -174,8 +174,9 @@ def _exercise_the_running_team(out: Path) -> None:
     for _ in range(3):   # every time: Fast DDS participants answer up to half a second after Cyclone DDS ones
         listed = _second_terminal(out, f'{UH} node list')
         assert set(listed.stdout.split()) == expected, listed
-    # rclpy on Fast DDS learns of a participant from its announcements (every 3 s by default), then of
-    # its nodes from ros_discovery_info: poll until every node is seen; 15 s bounds a failure only
+    # rclpy on Fast DDS learns of a participant from its announcements (a Cyclone DDS participant of the
+    # run repeats them every second, a Fast DDS one every 3 s: docs/ros2.md#discovery-from-fast-dds), then
+    # of its nodes from ros_discovery_info: poll until every node is seen; 15 s bounds a failure only
     probe = ("import rclpy, time\nrclpy.init()\nn = rclpy.create_node('second_terminal')\n"
              f"want = set({sorted(expected)!r})\nend = time.monotonic() + 15.0\nnames = set()\n"
              "while time.monotonic() < end:\n"
