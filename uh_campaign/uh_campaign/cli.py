@@ -21,7 +21,7 @@ import sys
 import threading
 from pathlib import Path
 
-from uh_runtime.command_line import ArgumentParser
+from uh_runtime.command_line import ArgumentParser, directory_argument
 from uh_report.report import main as report_main
 from uh_topology.errors import ScenarioError
 
@@ -31,13 +31,6 @@ from .spec import load_spec
 __all__ = ['main', 'build_parser', 'PROG']
 
 PROG = 'uh-campaign'
-
-
-def _directory(text: str) -> Path:
-    """Read an --out value: any non-empty path (an empty one would mean the current directory)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("'': give a directory")
-    return Path(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('spec', metavar='SPEC',
                    help='campaign spec YAML file, or the name of a bundled spec (campaign_paper_faults, '
                         'campaign_delay_sweep, campaign_delay_sweep_none, campaign_random_graphs)')
-    p.add_argument('--out', required=True, type=_directory, metavar='DIR',
+    p.add_argument('--out', required=True, type=directory_argument, metavar='DIR',
                    help='campaign directory: new or empty, or holding this same campaign (then it resumes)')
     p.add_argument('--runs', type=int, metavar='N',
                    help="number of draws, replacing the spec's runs; another number than the spec's is part "

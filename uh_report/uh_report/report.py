@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uh_runtime.command_line import ArgumentParser
+from uh_runtime.command_line import ArgumentParser, directory_argument
 from uh_core.layout import CHANNEL_NAMES, X_P_SLICE
 from uh_runtime.bag_reader import BagError, open_bag
 from uh_team.fault_metrics import fault_list
@@ -636,13 +636,6 @@ def run_of_arrays(run_dir, scenario, case: str, arrays: dict, metrics: dict) -> 
 # ----------------------------------------------------------------------------------------------
 # Entry point
 # ----------------------------------------------------------------------------------------------
-def _directory(text: str) -> Path:
-    """Read an --out value: any non-empty path (an empty one would mean the current directory)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("'': give a directory")
-    return Path(text)
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(
         prog=PROG,
@@ -651,7 +644,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog='Example: uh-report runs/proposed runs/case1 runs/case2 --out runs/report')
     p.add_argument('runs', nargs='+', metavar='RUN_DIR',
                    help='run directories (or bag directories), or one campaign directory (campaign.sqlite)')
-    p.add_argument('--out', type=_directory, default=None,
+    p.add_argument('--out', type=directory_argument, default=None,
                    help='output directory (default: RUN_DIR/report for one run, report/ next to the runs for several)')
     p.add_argument('--scenario', default='paper',
                    help='scenario of runs without run.json (uh-simulate output, bare bags); default paper')

@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-__all__ = ['ArgumentParser', 'unwritable_reason']
+__all__ = ['ArgumentParser', 'unwritable_reason', 'directory_argument']
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -30,3 +30,10 @@ def unwritable_reason(out: Path) -> str | None:
     except OSError as exc:
         return exc.strerror
     return None
+
+
+def directory_argument(text: str) -> Path:
+    """``type=`` of an ``--out DIR`` option: any non-empty path (an empty one would mean the current directory)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("'': give a directory")
+    return Path(text)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uh_runtime.command_line import ArgumentParser, unwritable_reason
+from uh_runtime.command_line import ArgumentParser, directory_argument, unwritable_reason
 from uh_controller_node.gains import CASES, scenario_gains
 from uh_topology.errors import ScenarioError
 from uh_topology.scenario import duration_steps, load_scenario
@@ -31,13 +31,6 @@ from .team_simulation import SimulationError, run_team_simulation
 __all__ = ['main', 'build_parser']
 
 PROG = 'uh-simulate'
-
-
-def _directory(text: str) -> Path:
-    """Read an --out value: any non-empty path (an empty one would mean the current directory)."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("'': give a directory")
-    return Path(text)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -51,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scenario YAML file, or the name of a bundled scenario (default: paper)")
     p.add_argument('--case', default='proposed', choices=CASES,
                    help='controller case of docs/control_law.md#comparison-cases (default: proposed)')
-    p.add_argument('--out', required=True, type=_directory, metavar='DIR',
+    p.add_argument('--out', required=True, type=directory_argument, metavar='DIR',
                    help='output directory (created; must be empty unless --force)')
     p.add_argument('--duration', type=float, metavar='S',
                    help='simulated time in seconds (default: the scenario duration)')
