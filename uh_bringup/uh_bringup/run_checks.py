@@ -139,9 +139,6 @@ def check_run(args) -> tuple:
         except ValueError as exc:
             raise UsageError(f'--duration {exc}') from None
     validate_team(scenario, args.case)
-    if scenario.impairments is not None and args.clock != 'lockstep':
-        raise UsageError(f'scenario {scenario.name!r} has impairments (docs/campaigns.md#impairments), which are '
-                         'defined on control steps: run it with --clock lockstep')
     scenario_arg = args.scenario if args.scenario == 'paper' else str(Path(args.scenario).resolve())
     _check_environment(args)
     out = Path(args.out or Path('runs') / datetime.datetime.now().strftime('%Y%m%d-%H%M%S')).resolve()

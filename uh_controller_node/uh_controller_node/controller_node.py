@@ -16,10 +16,10 @@ slow check every ``SLOW_POLL_S``. The short wait matters: the sims publish step 
 and mixing step-k and step-(k-1) neighbour data makes the consensus error jitter by v dt, which the
 command filters' derivatives amplify into chattering commands.
 
-Impairments (docs/campaigns.md#impairments): when the scenario has them, the controller uses what
-:class:`~uh_controller_node.impairments.ReceivedStates` makes of the released states (delay, jitter,
-loss, dropout, noise, prediction; the functions of the in-process run) and publishes the states as
-delivered on ``received``, so a bag shows what each controller got. Lockstep only (control steps).
+Impairments (docs/campaigns.md#impairments; in real time docs/runtime.md#impairments-in-real-time):
+the controller uses what :mod:`~uh_controller_node.realtime_received` makes of its inputs (delay,
+jitter, loss, dropout, noise, prediction; the functions of the in-process run) and publishes them as
+delivered on ``received``. Status and ``/diagnostics`` carry each neighbour's age (:class:`NeighbourAges`).
 
 Received messages carrying NaN/inf (or another UH's id) are rejected: the node logs the reason
 (at most once a second per input, with a count) and keeps its last valid input, which then ages
@@ -37,13 +37,13 @@ from __future__ import annotations
 import uh_runtime as rt
 from uh_controller_node.control_kernels import compile_control_kernels
 from uh_controller_node.controller import ControllerError, UHController
-from uh_controller_node.controller_diagnostics import ControllerDiagnostics
-from uh_controller_node.impairments import ReceivedStates, compile_impairment_kernels
+from uh_controller_node.controller_diagnostics import ControllerDiagnostics, NeighbourAges
 from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser
 from uh_controller_node.node_parameters import GainParameters, declare_controller_parameters
+from uh_controller_node.realtime_received import received_states_for
 from uh_runtime import messages as m
 from uh_wire import topics
-from uh_wire.run_config import RunConfigError, declare_run_parameters, declare_view_parameters
+from uh_wire.run_config import declare_run_parameters, declare_view_parameters
 from uh_wire.standard_msgs import diagnostic_array_msg, view_publisher
 from uh_wire.wire import (WireError, command_to_msg, msg_to_reference, msg_to_state, received_states_to_msg,
                           status_to_msg)
@@ -70,13 +70,10 @@ class ControllerNode(rt.Node):
         compile_control_kernels()
         neighbours = tuple(scenario.neighbours(self.uh_id))
         linked = scenario.leader_link(self.uh_id) > 0
-        self.received = None
-        if scenario.impairments is not None:
-            if run.clock_mode != 'lockstep':
-                raise RunConfigError(f'scenario {scenario.name!r} has impairments, which are defined on control '
-                                     'steps: run it with clock_mode lockstep (--clock lockstep)')
-            self.received = ReceivedStates(self.uh_id, neighbours, scenario.impairments, self.dt)
-            compile_impairment_kernels()
+        # what this UH receives under the scenario's impairments (None without them)
+        self.received = received_states_for(self.uh_id, neighbours, scenario, self.dt, run.clock_mode)
+        self._arrive = getattr(self.received, 'arrive', None)   # realtime: every valid neighbour state is kept
+        self.ages = NeighbourAges(neighbours, self.dt)
         self.sync = InputSynchroniser(self.uh_id, neighbours, linked, mode=run.clock_mode, dt=run.dt,
                                       last_step=run.last_step, reachable=self.controller.reachable_without,
                                       logger=self.get_logger(), **sync)
@@ -133,6 +130,8 @@ class ControllerNode(rt.Node):
         except WireError as exc:
             self.sync.reject(what, exc)
             return
+        if self._arrive is not None and key not in (OWN, REFERENCE):
+            self._arrive(key, int(msg.step), value)
         self._compute(self.sync.offer(key, int(msg.step), value))
         if key == OWN and self._deadline is not None and self.sync.waiting is not None:
             self._deadline.reset()     # fires once, sync_wait from now, unless the step is released first
@@ -152,6 +151,7 @@ class ControllerNode(rt.Node):
             own, neighbours = inputs.own, inputs.neighbours
             if self.received is not None:   # what this UH receives under the scenario's impairments
                 own, neighbours = self.received.receive(k, own, neighbours)
+            self.ages.add(k, neighbours, self.received, self.sync.lag)
             try:
                 if inputs.stale:
                     u, status = self.controller.step_degraded(k, own, neighbours, inputs.reference,
@@ -164,7 +164,7 @@ class ControllerNode(rt.Node):
                 continue
             t = k * self.dt
             self.command_pub.publish(command_to_msg(self.uh_id, k, t, u))
-            self.status_pub.publish(status_to_msg(self.uh_id, k, t, status, inputs.stale_labels))
+            self.status_pub.publish(status_to_msg(self.uh_id, k, t, status, inputs.stale_labels, self.ages.overall()))
             self.published['command'] += 1
             self.published['status'] += 1
             if self.received is not None:
@@ -172,7 +172,7 @@ class ControllerNode(rt.Node):
                     self.uh_id, k, self.dt, own, self.received.delivered, self.received.sample_steps))
                 self.published['received'] += 1
             if self.views.enabled:
-                report = self.diagnostics.add(k, inputs, status, self.sync)
+                report = self.diagnostics.add(k, inputs, status, self.sync, self.ages)
                 if report is not None:
                     self.diag_pub.publish(diagnostic_array_msg(t, [report]))
 

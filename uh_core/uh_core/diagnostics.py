@@ -57,6 +57,8 @@ class ControllerWindow:
     fault_isolated: tuple = (False, False, False, False)
     fault_estimate_position: float = 0.0
     fault_estimate_attitude: float = 0.0
+    #: ``(label, mean s, max s)`` per neighbour: age of its state used over the last simulated second
+    neighbour_ages: tuple = ()
 
 
 @dataclass
@@ -106,6 +108,9 @@ def controller_diagnostic(uh_id: int, w: ControllerWindow) -> Diagnostic:
               '|Fhat_p| (m/s^2)': f'{w.fault_estimate_position:.4g}',
               '|Fhat_w| (rad/s^2)': f'{w.fault_estimate_attitude:.4g}',
               'steps not computed': w.not_computed}
+    for label, mean, worst in w.neighbour_ages:
+        values[f'age of {label}, mean over 1 s (s)'] = f'{mean:.4g}'
+        values[f'age of {label}, max over 1 s (s)'] = f'{worst:.4g}'
     return _report(f'uh{uh_id}/controller', f'uh{uh_id}', errors, warnings, values)
 
 

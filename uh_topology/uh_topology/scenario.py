@@ -108,7 +108,8 @@ class ImpairmentSpec:
     """Deterministic communication and sensing impairments: what each controller receives.
 
     See docs/campaigns.md#impairments. They act in the receiving controller, on control steps, so
-    they are defined for the in-process run and the lockstep distributed run (identically).
+    they are defined for the in-process run and the lockstep distributed run (identically), and in
+    real time on the states' sent steps (docs/runtime.md#impairments-in-real-time).
 
     Attributes
     ----------

@@ -161,11 +161,13 @@ _STATUS_FLAGS = tuple(name for name, kind in STATUS_LAYOUT if kind == STATUS_FLA
 _NAN4 = (math.nan,) * 4
 
 
-def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=()):
+def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=(), ages=(math.nan, math.nan)):
     """Build a ``ControllerStatus`` from the controller core's status record.
 
     The fields of :data:`uh_core.layout.STATUS_LAYOUT` have the record's names; the fault isolation
-    fields come from its ``isolation``, or say "nothing isolated" when that is None.
+    fields come from its ``isolation``, or say "nothing isolated" when that is None. ``ages`` is
+    ``(mean, max)`` of the neighbours' ages in s
+    (:meth:`uh_controller_node.controller_diagnostics.NeighbourAges.overall`).
     """
     fields = {name: vector3(getattr(status, name)) for name in _STATUS_VECTORS}
     fields.update((name, float(getattr(status, name))) for name in _STATUS_SCALARS)
@@ -183,4 +185,5 @@ def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=()):
                       identified_effectiveness=_floats(iso.effectiveness), identified_bias=_floats(iso.bias),
                       fault_identification=[int(v) for v in iso.identification])
     return m.ControllerStatus(header=_header(t), uh_id=int(uh_id), step=int(k),
-                              stale_neighbours=[str(s) for s in stale_neighbours], **fields)
+                              stale_neighbours=[str(s) for s in stale_neighbours],
+                              neighbour_age_mean=float(ages[0]), neighbour_age_max=float(ages[1]), **fields)
