@@ -3,7 +3,8 @@
 # controller case and sweep value, in parallel (docs/campaigns.md).
 #   scripts/campaign.sh SPEC --out DIR [--runs N] [--workers K] [--cluster ADDRESS] [--quiet]
 # SPEC: a campaign spec YAML file (keys: uh_campaign/uh_campaign/spec.py) or a bundled spec
-# (campaign_paper_faults, campaign_delay_sweep, campaign_delay_sweep_none, campaign_random_graphs).
+# (campaign_paper_faults, campaign_delay_sweep, campaign_delay_sweep_none, campaign_delay_sweep_jitter,
+# campaign_random_graphs).
 # Output: DIR/campaign.sqlite (one row of metrics per run), DIR/scenarios/ (the resolved scenario of
 # every draw, loadable on its own). Re-running the same command on DIR resumes. Report: uh-report DIR.
 # --cluster tcp://HOST:8786 runs on a Dask cluster whose workers run this project's .venv

@@ -158,7 +158,7 @@ def test_bundled_specs_load_and_draw_from_their_own_seed():
     faults = load_spec('campaign_paper_faults')
     assert (faults.runs, faults.cases, faults.total_runs) == (200, ('proposed', 'case1', 'case2'), 600)
     sweep = load_spec('campaign_delay_sweep')
-    assert sweep.sweep.parameter == 'impairments.delay_steps' and sweep.sweep.values == (0, 1, 2, 3, 5, 10, 20)
+    assert sweep.sweep.parameter == 'impairments.delay_steps' and sweep.sweep.values == (0, 1, 2, 5, 10, 20, 50)
     graphs = load_spec('campaign_random_graphs')
     assert (graphs.generator.leaders, graphs.generator.followers) == (4, 4)
     # draw i depends on (spec, seed, i) only: the same mapping however often and in whatever order
@@ -168,7 +168,7 @@ def test_bundled_specs_load_and_draw_from_their_own_seed():
     assert a['edges'] != b['edges']                    # a new random graph per draw
     # the delay sweep: the same draw at every delay, with one impairments seed per draw
     d0, d4 = resolve_scenario(sweep, 5, 0), resolve_scenario(sweep, 5, 6)
-    assert d0['uhs'] == d4['uhs'] and (d0['impairments']['delay_steps'], d4['impairments']['delay_steps']) == (0, 20)
+    assert d0['uhs'] == d4['uhs'] and (d0['impairments']['delay_steps'], d4['impairments']['delay_steps']) == (0, 50)
     other_draw = resolve_scenario(sweep, 6, 0)
     assert d0['impairments']['seed'] == d4['impairments']['seed'] != other_draw['impairments']['seed']
 

@@ -269,3 +269,65 @@ def test_a_campaign_spec_may_set_jitter_and_compensation(tmp_path):
     spec.write_text(yaml.safe_dump({'name': 'j', 'scenario': 'paper', 'runs': 1,
                                     'impairments': {'jitter_steps': 2, 'delay_compensation': 'predict'}}))
     assert load_spec(spec).impairments == {'jitter_steps': 2, 'delay_compensation': 'predict'}
+
+
+# --- why the leader ring oscillates from about ten steps of delay on (docs/delay.md#why-the-ring-oscillates) ---
+
+def _loop_gains():
+    """Give the paper gains of the ring model: outer k1, z2 gain, tau_1; inner k3, z4 gain, tau_2, tau_w (1/s, s)."""
+    raw = yaml.safe_load((CONFIG / 'paper_gains.yaml').read_text())['/**']['ros__parameters']
+    beta, outer, inner = raw['beta'], raw['outer'], raw['inner']
+    return (outer['k'], beta / (2 * outer['r']), outer['tau_command'],
+            inner['k'], beta / (2 * inner['r']), inner['tau_command'], inner['tau_rate'])
+
+
+def _follow(s, d, x_of, v_of):
+    """Transfer from a neighbour's position to a UH's position, one axis, small angles (docs/delay.md).
+
+    The UH hears that one neighbour with weight 1 among degree ``d`` (the rest held still); it receives
+    the neighbour's position as ``x_of * P_j`` and velocity as ``v_of * P_j``. Outer loop as in
+    docs/control_law.md (the networks and observers left out), the inner loop's filters and gains,
+    the command held over a step (dt / 2 of lag).
+    """
+    k1, kz2, tau1, k3, kz4, tau2, tauw = _loop_gains()
+    fw = 1 / (1 + tauw * s)
+    attitude = ((s + kz4) * fw * (k3 + s) + 1) / (s ** 2 + kz4 * s + 1 + (s + kz4) * fw * k3)
+    attitude = attitude / (1 + tau2 * s) * np.exp(-s * DT / 2)   # acceleration achieved / u_p
+    f1 = 1 / (1 + tau1 * s)
+    lhs = s ** 2 / attitude + kz2 * s + (s + kz2) * f1 * k1 + d * d
+    return ((s + kz2) * f1 * k1 / d + d) * x_of / lhs, (s + kz2) * f1 / d * v_of / lhs, attitude
+
+
+def _first_unstable_delay(predict: bool, leaders_hear_reference: bool = False, most: int = 40):
+    """First delay (steps on every ring link, <= most) at which the leader ring's loop encircles 1, or None."""
+    w = np.linspace(0.005, 80.0, 20000)
+    s = 1j * w
+    for steps in range(most + 1):
+        delay = np.exp(-s * steps * DT)
+        x_of, v_of = delay * (1 + s * steps * DT) if predict else delay, delay * s
+        h2 = sum(_follow(s, 2, x_of, v_of)[:2])         # UH 1 (and all three with the reference)
+        loop = h2 ** 3 if leaders_hear_reference else h2 * sum(_follow(s, 1, x_of, v_of)[:2]) ** 2
+        turn = np.unwrap(np.angle(1 - loop))
+        if abs(turn[-1] - turn[0]) > np.pi:   # 1 - L(jw) winds around 0: a pair of unstable poles
+            return steps
+    return None
+
+
+def test_the_leader_ring_has_a_loop_gain_above_one_near_7_rad_s_from_the_velocity_feed_forward():
+    """docs/delay.md: a leader copies its neighbour with gain 1.34 at 7.5 rad/s, all of it through the velocity path."""
+    w = np.array([0.1, 1.0, 7.5, 10.0])
+    pos, vel, attitude = _follow(1j * w, 1, 1.0, 1j * w)
+    follow = np.abs(pos + vel)
+    assert abs(follow[0] - 1) < 1e-3 and 1.3 < follow[2] < 1.4          # copies slow motion, amplifies 7.5 rad/s
+    assert abs(vel[2]) > 1.3 and abs(pos[2]) < 0.25                     # the velocity path carries it
+    assert np.all(np.abs(np.abs(attitude) - 1) < 0.02)                  # the attitude loop is not the cause
+    ring = np.abs(sum(_follow(1j * w, 2, 1.0, 1j * w)[:2]) * (pos + vel) ** 2)
+    assert 1.2 < ring[2] < 1.3                                          # > 1: stable without delay by its phase only
+
+
+def test_the_ring_model_puts_the_limit_where_the_sweep_measures_it():
+    """Unstable from 9 steps without prediction, from 6 with p + v tau (measured: fine at 5, oscillating at 10)."""
+    assert _first_unstable_delay(predict=False) == 9
+    assert _first_unstable_delay(predict=True) == 6
+    # a shorter chain: every leader hears the virtual leader, the ring's gain stays below 1
+    assert _first_unstable_delay(predict=False, leaders_hear_reference=True) is None
