@@ -238,18 +238,32 @@ class ReceivedStates:
             if k < self.drop[j] or k == 0:   # later states of a UH that dropped out are never delivered;
                 # the initial state always is (a dropout at t = 0 leaves its neighbours with it)
                 history[k] = np.array(neighbours[j], dtype=float)   # a copy: the sender may reuse its array
-            link = (self.delay[j], self.jitter[j], self.loss[j], self.drop[j], self.seed, self.uh_id, j)
-            s = delivered_step(k, *link)
-            state = self.delivered[j] = np.empty(STATE_SIZE)
-            add_noise(history[s], self.sigma, self.seed, self.uh_id, j, s, state)
-            out[j] = state
-            if self.predict and s < k:
-                out[j] = np.empty(STATE_SIZE)
-                predict_state(state, prediction_age(k, s, *link[:2], self.dt), self.dt, out[j])
-            self.sample_steps[j] = s
-            for old in [step for step in history if step < s]:   # never delivered again (s only grows)
-                del history[old]
+            link = self.link(j)
+            out[j] = self.use(j, k, delivered_step(k, *link), link)
         return own_out, out
+
+    def link(self, j: int) -> tuple:
+        """``(delay, jitter, loss, drop_step, seed, receiver, sender)`` of the link from neighbour ``j``."""
+        return self.delay[j], self.jitter[j], self.loss[j], self.drop[j], self.seed, self.uh_id, j
+
+    def use(self, j: int, k: int, s: int, link: tuple):
+        """Return the state neighbour ``j`` sent at step ``s`` as used at step ``k`` (a new array).
+
+        Noise added (:attr:`delivered` keeps it so), predicted to step ``k`` when the scenario asks for it;
+        :attr:`sample_steps` records ``s``, and the held states older than ``s`` are dropped (the step
+        used never goes back).
+        """
+        history = self.history[j]
+        state = self.delivered[j] = np.empty(STATE_SIZE)
+        add_noise(history[s], self.sigma, self.seed, self.uh_id, j, s, state)
+        used = state
+        if self.predict and s < k:
+            used = np.empty(STATE_SIZE)
+            predict_state(state, prediction_age(k, s, *link[:2], self.dt), self.dt, used)
+        self.sample_steps[j] = s
+        for old in [step for step in history if step < s]:
+            del history[old]
+        return used
 
 
 def compile_impairment_kernels() -> float:

@@ -24,8 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uh_controller_node.impairments import (ReceivedStates, add_noise, compile_impairment_kernels, newest_delivered,
-                                            predict_state, prediction_age)
+from uh_controller_node.impairments import ReceivedStates, add_noise, compile_impairment_kernels, newest_delivered
 from uh_core.layout import STATE_SIZE
 
 __all__ = ['newest_arrived', 'RealtimeReceivedStates', 'received_states_for']
@@ -93,19 +92,9 @@ class RealtimeReceivedStates(ReceivedStates):
             history = self.history[j]
             if j not in neighbours or not history:
                 continue
-            link = (self.delay[j], self.jitter[j], self.loss[j], self.drop[j], self.seed, self.uh_id, j)
+            link = self.link(j)
             s = newest_arrived(k, history, link)
-            if s is None:
-                s = min(history)
-            state = self.delivered[j] = np.empty(STATE_SIZE)
-            add_noise(history[s], self.sigma, self.seed, self.uh_id, j, s, state)
-            out[j] = state
-            if self.predict and s < k:
-                out[j] = np.empty(STATE_SIZE)
-                predict_state(state, prediction_age(k, s, *link[:2], self.dt), self.dt, out[j])
-            self.sample_steps[j] = s
-            for old in [step for step in history if step < s]:   # never used again (s never goes back)
-                del history[old]
+            out[j] = self.use(j, k, min(history) if s is None else s, link)
         return own_out, out
 
 
