@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from scenario_texts import paper_yaml
 from uh_campaign import cli
 from uh_team import campaign_store as store
 from uh_campaign.runner import run_campaign
@@ -437,9 +438,7 @@ def test_an_impaired_campaign_stores_what_its_resolved_scenarios_give(tmp_path):
 
 
 def test_an_attitude_spread_that_could_tip_a_base_attitude_past_pi_2_is_refused(tmp_path):
-    config = Path(__file__).resolve().parents[1] / 'uh_topology' / 'uh_topology' / 'config'
-    text = (config / 'paper.yaml').read_text().replace('gains: paper_gains.yaml',
-                                                       f'gains: {config / "paper_gains.yaml"}')
+    text = paper_yaml()
     base = 'initial_state: {position: [2.0, -1.0, 8.0]}'
     assert base in text
     _write(tmp_path, text.replace(base, 'initial_state: {position: [2.0, -1.0, 8.0], euler: [1.2, 0.0, 0.0]}'),

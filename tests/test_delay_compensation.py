@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
+from scenario_texts import paper_yaml
 from uh_bringup import run_formation
 from uh_controller_node.impairments import (
     JITTER_STREAM, LOSS_STREAM, PREDICTION_MARGIN, ReceivedStates, add_noise, arrival_extra, delivered_step,
@@ -27,12 +28,6 @@ IMPAIRED = ROOT / 'tests' / 'data' / 'paper_impaired.yaml'
 DT = 0.01
 EPS = np.finfo(float).eps
 
-
-def _paper_with(impairments_text: str) -> str:
-    """Give the paper scenario's YAML with an `impairments` block appended (gains by absolute path)."""
-    text = (CONFIG / 'paper.yaml').read_text().replace('gains: paper_gains.yaml',
-                                                      f'gains: {CONFIG / "paper_gains.yaml"}')
-    return text + '\n' + impairments_text
 
 
 def _jittered(compensation: str) -> str:
@@ -137,7 +132,7 @@ def test_an_older_state_arriving_after_a_newer_one_is_ignored():
     s = next(s for s in range(1, 399) if extra[s] > extra[s + 1] + 1)
     k_s = s + delay + extra[s]
     assert s + 1 + delay + extra[s + 1] < k_s
-    received = ReceivedStates(receiver, (sender,), parse_scenario(_paper_with(
+    received = ReceivedStates(receiver, (sender,), parse_scenario(paper_yaml(
         f'impairments: {{seed: {seed}, delay_steps: {delay}, jitter_steps: {jitter}}}'), source='j').impairments,
         DT)
     used = []
@@ -152,13 +147,13 @@ def test_an_older_state_arriving_after_a_newer_one_is_ignored():
 # -- the scenario keys -------------------------------------------------------------------------------
 
 def test_the_scenario_reads_jitter_and_compensation_with_per_link_overrides():
-    imp = parse_scenario(_paper_with(_jittered('predict')), source='j').impairments
+    imp = parse_scenario(paper_yaml(_jittered('predict')), source='j').impairments
     assert imp.compensation == 'predict'
     assert imp.jitters[(4, 1)] == 9 and imp.jitters[(4, 2)] == 4 and imp.delays[(4, 1)] == 7
     assert set(imp.jitters) == set(imp.delays)
-    plain = parse_scenario(_paper_with('impairments: {delay_steps: 2}'), source='p').impairments
+    plain = parse_scenario(paper_yaml('impairments: {delay_steps: 2}'), source='p').impairments
     assert plain.compensation == DEFAULT_COMPENSATION == 'predict' and not any(plain.jitters.values())
-    only_jitter = parse_scenario(_paper_with('impairments: {jitter_steps: 1}'), source='p').impairments
+    only_jitter = parse_scenario(paper_yaml('impairments: {jitter_steps: 1}'), source='p').impairments
     assert only_jitter is not None   # jitter alone is an impairment
 
 
@@ -176,7 +171,7 @@ BAD = [
 
 @pytest.mark.parametrize('block, key, words', BAD)
 def test_bad_jitter_and_compensation_are_refused_with_line_and_key(block, key, words):
-    text = _paper_with(block)
+    text = paper_yaml(block)
     with pytest.raises(E.ScenarioError) as info:
         parse_scenario(text, source='bad.yaml')
     message = str(info.value)
@@ -188,7 +183,7 @@ def test_bad_jitter_and_compensation_are_refused_with_line_and_key(block, key, w
 @pytest.mark.parametrize('block, key, words', BAD[:2] + BAD[3:4])
 def test_a_run_with_a_bad_key_exits_2_with_one_line_and_starts_nothing(block, key, words, tmp_path, capsys):
     scenario = tmp_path / 'team.yaml'
-    scenario.write_text(_paper_with(block))
+    scenario.write_text(paper_yaml(block))
     out = tmp_path / 'out'
     with pytest.raises(SystemExit) as info:
         run_formation.main(['--scenario', str(scenario), '--out', str(out)])
@@ -202,17 +197,17 @@ def test_a_run_with_a_bad_key_exits_2_with_one_line_and_starts_nothing(block, ke
 
 def test_zero_delay_runs_are_the_same_bit_for_bit_with_and_without_prediction():
     noisy = 'impairments:\n  seed: 3\n  noise: {position: 0.01, velocity: 0.01}\n'
-    runs = [run_team_simulation(parse_scenario(_paper_with(noisy + f'  delay_compensation: {c}\n'), source=c),
+    runs = [run_team_simulation(parse_scenario(paper_yaml(noisy + f'  delay_compensation: {c}\n'), source=c),
                                 'proposed', duration=2.0) for c in ('none', 'predict')]
     for key in runs[0].ARRAY_KEYS:
         assert np.array_equal(getattr(runs[0], key), getattr(runs[1], key), equal_nan=True), key
-    delayed = [run_team_simulation(parse_scenario(_paper_with(noisy + f'  delay_steps: 2\n  delay_compensation: {c}\n'),
+    delayed = [run_team_simulation(parse_scenario(paper_yaml(noisy + f'  delay_steps: 2\n  delay_compensation: {c}\n'),
                                                   source=c), 'proposed', duration=2.0) for c in ('none', 'predict')]
     assert not np.array_equal(delayed[0].commands, delayed[1].commands)   # with a delay, prediction acts
 
 
 def test_the_kernel_and_the_object_loop_agree_with_jitter_and_prediction():
-    scenario = parse_scenario(_paper_with(_jittered('predict')), source='jittered')
+    scenario = parse_scenario(paper_yaml(_jittered('predict')), source='jittered')
     kernel = run_team_simulation(scenario, 'case1', duration=2.0)
     objects = run_team_simulation(scenario, 'case1', duration=2.0, engine='objects')
     for key in kernel.ARRAY_KEYS:
@@ -234,7 +229,7 @@ def test_a_lockstep_distributed_run_with_jitter_and_prediction_equals_the_in_pro
     from uh_runtime.messages import typestore
     from uh_runtime.network import reserve_domain_id
 
-    text = _paper_with(_jittered('predict'))
+    text = paper_yaml(_jittered('predict'))
     scenario = parse_scenario(text, source='jittered')
     scenario_file = tmp_path / 'jittered.yaml'
     scenario_file.write_text(text)

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from scenario_texts import paper_yaml
 from uh_controller_node.impairments import (LOSS_STREAM, ReceivedStates, add_noise, delivered_step, hash_uniform,
                                             reference_hash)
 from uh_team.team_simulation import run_team_simulation
@@ -19,16 +20,10 @@ CONFIG = ROOT / 'uh_topology' / 'uh_topology' / 'config'
 IMPAIRED = ROOT / 'tests' / 'data' / 'paper_impaired.yaml'
 
 
-def _paper_with(impairments_text: str) -> str:
-    """Give the paper scenario's YAML with an `impairments` block appended (gains by absolute path)."""
-    text = (CONFIG / 'paper.yaml').read_text().replace('gains: paper_gains.yaml',
-                                                      f'gains: {CONFIG / "paper_gains.yaml"}')
-    return text + '\n' + impairments_text
-
 
 @pytest.fixture(scope='module')
 def impaired():
-    return parse_scenario(_paper_with(IMPAIRED.read_text()), source='paper_impaired')
+    return parse_scenario(paper_yaml(IMPAIRED.read_text()), source='paper_impaired')
 
 
 # -- the hash, the delivered step and the noise ------------------------------------------------------
@@ -118,7 +113,7 @@ def test_the_scenario_reads_per_link_values_noise_and_dropouts(impaired):
      '[0.0, 60.0]'),
 ])
 def test_bad_impairments_are_refused_with_line_and_key(block, error, where, words):
-    text = _paper_with(block)
+    text = paper_yaml(block)
     with pytest.raises(error) as info:
         parse_scenario(text, source='bad.yaml')
     message = str(info.value)
@@ -131,7 +126,7 @@ def test_bad_impairments_are_refused_with_line_and_key(block, error, where, word
 
 def test_zero_impairments_are_the_run_without_impairments():
     plain = run_team_simulation(load_scenario('paper'), 'proposed', duration=2.0)
-    zero_scenario = parse_scenario(_paper_with('impairments: {seed: 4, delay_steps: 0, loss: 0.0}'), source='zero')
+    zero_scenario = parse_scenario(paper_yaml('impairments: {seed: 4, delay_steps: 0, loss: 0.0}'), source='zero')
     assert zero_scenario.impairments is None   # so any clock runs it, and nothing extra is published
     zero = run_team_simulation(zero_scenario, 'proposed', duration=2.0)
     assert np.array_equal(plain.states, zero.states) and np.array_equal(plain.commands, zero.commands)
@@ -142,7 +137,7 @@ def test_zero_impairments_are_the_run_without_impairments():
     'impairments: {delay_steps: 500}',                          # longer than the run: initial states only
 ])
 def test_edge_cases_receive_the_same_states_in_the_kernel_and_the_object_loop(block):
-    scenario = parse_scenario(_paper_with(block), source='edge')
+    scenario = parse_scenario(paper_yaml(block), source='edge')
     kernel = run_team_simulation(scenario, 'proposed', duration=0.5)
     objects = run_team_simulation(scenario, 'proposed', duration=0.5, engine='objects')
     assert np.array_equal(kernel.states, objects.states) and np.array_equal(kernel.commands, objects.commands)
@@ -181,7 +176,7 @@ def test_a_lockstep_distributed_run_with_impairments_equals_the_in_process_run(t
     from uh_runtime.network import reserve_domain_id
 
     scenario_file = tmp_path / 'impaired.yaml'
-    scenario_file.write_text(_paper_with(IMPAIRED.read_text()))
+    scenario_file.write_text(paper_yaml(IMPAIRED.read_text()))
     out = tmp_path / 'run'
     proc = start_run(out, reserve_domain_id(), '--clock', 'lockstep', '--scenario', str(scenario_file),
                      '--duration', '3', '--no-visualization')

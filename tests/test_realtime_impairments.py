@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from scenario_texts import paper_yaml
 from uh_bringup import run_formation
 from uh_controller_node.controller_diagnostics import NeighbourAges
 from uh_controller_node.impairments import (LOSS_STREAM, ReceivedStates, arrival_extra, delivered_step, hash_uniform,
@@ -25,12 +26,6 @@ ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / 'uh_topology' / 'uh_topology' / 'config'
 IMPAIRED = ROOT / 'tests' / 'data' / 'paper_impaired.yaml'
 
-
-def _paper_with(impairments_text: str) -> str:
-    """Give the paper scenario's YAML with an `impairments` block appended (gains by absolute path)."""
-    text = (CONFIG / 'paper.yaml').read_text().replace('gains: paper_gains.yaml',
-                                                      f'gains: {CONFIG / "paper_gains.yaml"}')
-    return text + '\n' + impairments_text
 
 
 def _jittered():
@@ -63,7 +58,7 @@ def test_states_arriving_at_once_are_received_as_in_lockstep_bit_for_bit():
 
     Delay, jitter, loss, noise, a dropout and the prediction: one implementation of what a controller receives.
     """
-    scenario = parse_scenario(_paper_with(_jittered()), source='jittered')
+    scenario = parse_scenario(paper_yaml(_jittered()), source='jittered')
     lockstep = ReceivedStates(4, (1, 2, 5), scenario.impairments, scenario.dt)
     realtime = received_states_for(4, (1, 2, 5), scenario, scenario.dt, 'realtime')
     assert isinstance(realtime, RealtimeReceivedStates)
@@ -83,7 +78,7 @@ def test_states_arriving_at_once_are_received_as_in_lockstep_bit_for_bit():
 
 
 def test_a_state_the_network_brings_late_is_used_older_and_predicted_over_its_actual_age():
-    imp = parse_scenario(_paper_with('impairments: {seed: 5, delay_steps: 4, jitter_steps: 2, loss: 0.2}'),
+    imp = parse_scenario(paper_yaml('impairments: {seed: 5, delay_steps: 4, jitter_steps: 2, loss: 0.2}'),
                          source='late').impairments
     received = RealtimeReceivedStates(2, (1,), imp, 0.01)
     latency = {s: int(s % 7 == 3) * 8 for s in range(200)}   # every 7th state: 8 steps over the network
@@ -107,7 +102,7 @@ def test_a_state_the_network_brings_late_is_used_older_and_predicted_over_its_ac
 
 
 def test_a_stale_neighbour_is_left_out_and_a_late_joiner_starts_from_its_oldest_state():
-    imp = parse_scenario(_paper_with('impairments: {delay_steps: 10}'), source='d').impairments
+    imp = parse_scenario(paper_yaml('impairments: {delay_steps: 10}'), source='d').impairments
     received = RealtimeReceivedStates(4, (1, 2, 5), imp, 0.01)
     for s in range(500, 505):          # joined a running team: no state of step 0 ever comes
         received.arrive(1, s, _sent(1, s))
@@ -150,7 +145,7 @@ def test_neighbour_ages_are_the_mean_and_max_over_the_last_simulated_second():
 def test_a_realtime_run_with_a_bad_impairment_exits_2_with_one_line_and_starts_nothing(block, key, words, tmp_path,
                                                                                        capsys):
     scenario = tmp_path / 'team.yaml'
-    scenario.write_text(_paper_with(block))
+    scenario.write_text(paper_yaml(block))
     out = tmp_path / 'out'
     with pytest.raises(SystemExit) as info:
         run_formation.main(['--scenario', str(scenario), '--clock', 'realtime', '--out', str(out)])
@@ -180,7 +175,7 @@ def test_a_realtime_run_applies_the_impairments_and_reports_the_ages(tmp_path):
     from uh_runtime.messages import typestore
     from uh_runtime.network import reserve_domain_id
 
-    text = _paper_with(f'impairments:\n  seed: {SEED}\n  delay_steps: {DELAY}\n  jitter_steps: {JITTER}\n'
+    text = paper_yaml(f'impairments:\n  seed: {SEED}\n  delay_steps: {DELAY}\n  jitter_steps: {JITTER}\n'
                        f'  loss: {LOSS}\n  dropouts:\n    - {{uh: 5, time: 0.0}}\n')
     scenario = parse_scenario(text, source='rt')
     (tmp_path / 'rt.yaml').write_text(text)
