@@ -126,6 +126,20 @@ def test_without_a_writable_cache_everything_works(tmp_path, monkeypatch):
     assert typestore().fielddefs == messages._build_store().fielddefs
 
 
+def test_without_a_home_directory_there_is_no_cache(monkeypatch):
+    for name in ('UH_CACHE_DIR', 'XDG_CACHE_HOME'):
+        monkeypatch.delenv(name, raising=False)
+
+    def no_home():
+        raise RuntimeError('Could not determine home directory.')
+    monkeypatch.setattr(message_cache.Path, 'home', staticmethod(no_home))
+    _fresh_process_state(monkeypatch)
+    assert message_cache.cache_dir() is None
+    assert message_cache.read('typestore-x.json', json.loads) is None
+    message_cache.write('typestore-x.json', {})
+    assert typestore().fielddefs == messages._build_store().fielddefs
+
+
 def _fresh_type_data(cls):
     """Return the serialised TypeInformation and TypeMapping as cyclonedds' own ``IDL.fill_type_data`` makes them."""
     info, mapping = XTBuilder.process_type(cls)

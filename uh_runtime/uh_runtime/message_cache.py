@@ -21,25 +21,36 @@ from pathlib import Path
 __all__ = ['cache_dir', 'read', 'write', 'files_digest', 'encode_fielddefs', 'decode_fielddefs', 'cache_type_data']
 
 
-def cache_dir() -> Path:
-    """Directory of the cache: ``$UH_CACHE_DIR``, else ``$XDG_CACHE_HOME/uh_runtime`` (``~/.cache/uh_runtime``)."""
+def cache_dir() -> Path | None:
+    """Directory of the cache: ``$UH_CACHE_DIR``, else ``$XDG_CACHE_HOME/uh_runtime`` (``~/.cache/uh_runtime``).
+
+    None (no cache) when neither is set and the user has no home directory.
+    """
     override = os.environ.get('UH_CACHE_DIR', '').strip()
     if override:
         return Path(override)
-    return Path(os.environ.get('XDG_CACHE_HOME', '').strip() or Path.home() / '.cache') / 'uh_runtime'
+    base = os.environ.get('XDG_CACHE_HOME', '').strip()
+    try:
+        return Path(base or Path.home() / '.cache') / 'uh_runtime'
+    except RuntimeError:
+        return None
 
 
 def read(name: str, decode):
     """Return ``decode(data)`` of the JSON cache file ``name``, or None if it is missing or unreadable."""
+    folder = cache_dir()
     try:
-        return decode(json.loads((cache_dir() / name).read_text()))
+        return decode(json.loads((folder / name).read_text())) if folder else None
     except (OSError, ValueError, TypeError, KeyError, IndexError):
         return None
 
 
 def write(name: str, data) -> None:
     """Write ``data`` as JSON to cache file ``name`` atomically (nothing if the cache cannot be written)."""
-    path = cache_dir() / name
+    folder = cache_dir()
+    if folder is None:
+        return
+    path = folder / name
     temporary = path.with_name(f'.{path.name}.{os.getpid()}.tmp')
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
