@@ -24,6 +24,7 @@ type name ``uh_msgs::msg::dds_::UHState_``.
 """
 import dataclasses
 import functools
+import hashlib
 import importlib
 import os
 import re
@@ -32,6 +33,7 @@ import threading
 from collections import OrderedDict
 from pathlib import Path
 
+from . import message_cache as _cache
 from .backend import select_backend
 
 __all__ = [
@@ -134,34 +136,96 @@ def _uh_msgs_dir() -> Path:
 
 _lock = threading.RLock()
 _store = None
+_store_digest = None   # of what the store was made of (:func:`_store_key`)
 _classes: dict = {}
 
 
 def typestore():
     """Return the rosbags type store: ROS 2 Jazzy standard types plus every ``uh_msgs`` type.
 
-    Built once per process; it is the reference for type hashes and CDR bytes.
+    Built once per process; it is the reference for type hashes and CDR bytes. When a process built
+    the same store before, its definitions come from :mod:`uh_runtime.message_cache` and rosbags'
+    own message classes are built at first use only (:func:`_cached_store`).
     """
-    global _store
+    global _store, _store_digest
     with _lock:
         if _store is None:
-            from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-            store = get_typestore(Stores.ROS2_JAZZY)
-            types = {}
-            for name, text in uh_msg_texts().items():
-                types.update(get_types_from_msg(text, name))
-            store.register(types)
-            # service parts: parsed as pkg/msg/X so their field types resolve in pkg (rosbags knows
-            # no srv), stored under pkg/srv/X, the name ROS hashes them by
-            parts = {}
-            for service, texts in SERVICE_DEFINITIONS.items():
-                pkg, _, typ = service.split('/')
-                for part, text in zip(('Request', 'Response'), texts):
-                    parsed = get_types_from_msg(text, f'{pkg}/msg/{typ}_{part}')
-                    parts[f'{pkg}/srv/{typ}_{part}'] = parsed[f'{pkg}/msg/{typ}_{part}']
-            store.register(parts)
-            _store = store
+            _store_digest = _store_key()
+            name = f'typestore-{_store_digest}.json'
+            fielddefs = _cache.read(name, _cache.decode_fielddefs) if _store_digest else None
+            if fielddefs is None:
+                _store = _build_store()
+                if _store_digest:
+                    _cache.write(name, _cache.encode_fielddefs(_store.fielddefs))
+            else:
+                _store = _cached_store(fielddefs)
         return _store
+
+
+def _build_store():
+    """Build the store of :func:`typestore` from rosbags' Jazzy store, the ``.msg`` files and the services."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = {}
+    for name, text in uh_msg_texts().items():
+        types.update(get_types_from_msg(text, name))
+    store.register(types)
+    # service parts: parsed as pkg/msg/X so their field types resolve in pkg (rosbags knows
+    # no srv), stored under pkg/srv/X, the name ROS hashes them by
+    parts = {}
+    for service, texts in SERVICE_DEFINITIONS.items():
+        pkg, _, typ = service.split('/')
+        for part, text in zip(('Request', 'Response'), texts):
+            parsed = get_types_from_msg(text, f'{pkg}/msg/{typ}_{part}')
+            parts[f'{pkg}/srv/{typ}_{part}'] = parsed[f'{pkg}/msg/{typ}_{part}']
+    store.register(parts)
+    return store
+
+
+def _store_key() -> str | None:
+    """Digest of what :func:`_build_store` and the classes are made of (None if it cannot be known).
+
+    This module and :mod:`uh_runtime.message_cache` (how), the installed rosbags type system (its
+    standard types and its ``.msg`` parser) and the ``uh_msgs`` definitions.
+    """
+    import rosbags.typesys
+    try:
+        digest = hashlib.sha256(Path(__file__).read_bytes() + Path(_cache.__file__).read_bytes())
+        _cache.files_digest(digest, Path(rosbags.typesys.__file__).parent)
+    except OSError:
+        return None
+    for name, text in uh_msg_texts().items():
+        digest.update(f'{name}\0{text}\0'.encode())
+    return digest.hexdigest()[:32]
+
+
+def _cached_store(fielddefs):
+    """Return a store like :func:`_build_store`'s with the definitions ``fielddefs`` (from the cache).
+
+    Type hashes, this module's classes and the CDR codecs (:mod:`uh_runtime.cdr`) read the
+    definitions only. rosbags' message classes (``types``: ``serialize_cdr``, ``deserialize_cdr``,
+    ``register``) are those of :func:`_build_store`, called at first use: importing rosbags'
+    standard store, which defines ~1000 classes, took 0.1 s of every node's start.
+    """
+    from rosbags.typesys.store import Typestore
+
+    class CachedTypestore(Typestore):
+        def __init__(self):
+            super().__init__()
+            self.fielddefs.update(fielddefs)
+
+        @property
+        def types(self):
+            with _lock:
+                if self._types is None:
+                    self._types = _build_store().types
+                return self._types
+
+        @types.setter
+        def types(self, value):
+            self._types = value or None    # Typestore.__init__ sets {}: not built yet
+
+    return CachedTypestore()
 
 
 @functools.lru_cache(maxsize=None)
@@ -320,11 +384,12 @@ def _field_type(types, spec):
     raise MessageError(f'unsupported field specification {spec!r}')
 
 
-def _idl_class(name: str, consts, fields, module: str):
+def _idl_class(name: str, consts, fields, module: str, key: str):
     """Build the ``IdlStruct`` dataclass of ROS type ``name`` with rosbags ``fields`` and ``consts``.
 
     It has DDS type name :func:`dds_type_name`, ROS-like defaults, constants as class attributes,
-    ``__ros_typename__`` and ``__ros_typehash__``, module ``<pkg>.<module>`` like rosidl's.
+    ``__ros_typename__`` and ``__ros_typehash__``, module ``<pkg>.<module>`` like rosidl's. Its
+    XTypes type information is cached under ``key`` (:func:`uh_runtime.message_cache.cache_type_data`).
     """
     from cyclonedds.idl import IdlStruct, types
     from cyclonedds.idl._main import IdlMeta
@@ -341,7 +406,9 @@ def _idl_class(name: str, consts, fields, module: str):
     namespace['__ros_typehash__'] = type_hash(name)
     namespace['__module__'] = f'{pkg}.{module}'
     namespace['__qualname__'] = typ
-    return dataclasses.dataclass(IdlMeta(typ, bases, namespace))
+    cls = dataclasses.dataclass(IdlMeta(typ, bases, namespace))
+    _cache.cache_type_data(cls, key, _store_digest)
+    return cls
 
 
 def dds_message(name: str):
@@ -360,7 +427,7 @@ def dds_message(name: str):
             raise MessageError(
                 f'unknown message type {name!r}: not a uh_msgs type (.msg files in '
                 f'{_uh_msgs_dir()}) nor a ROS 2 Jazzy standard type')
-        return _idl_class(name, *store.fielddefs[name], module='msg')
+        return _idl_class(name, *store.fielddefs[name], module='msg', key=name)
 
     return _cached_class(name, build)
 
@@ -395,7 +462,7 @@ def dds_service_message(name: str):
         consts, fields = store.fielddefs[name]
         header = [('client_guid', (Nodetype.BASE, ('uint64', 0))),
                   ('sequence_number', (Nodetype.BASE, ('int64', 0)))]
-        return _idl_class(name, consts, header + list(fields), module='srv')
+        return _idl_class(name, consts, header + list(fields), module='srv', key='wrapped:' + name)
 
     return _cached_class('wrapped:' + name, build)
 
