@@ -2,8 +2,7 @@
 from __future__ import annotations
 
 import math
-
-import numpy as np
+import numbers
 
 __all__ = ['finite_real']
 
@@ -13,7 +12,7 @@ def finite_real(value, what: str, error: type[Exception]) -> float:
 
     ``what`` names the value for the message, e.g. ``"fault parameter 'rho'"``.
     """
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise error(f'{what} must be a real number, got {value!r} of type {type(value).__name__}')
     value = float(value)
     if not math.isfinite(value):

@@ -7,8 +7,10 @@ scenario lists (``uh_topology.scenario``) and the simulator acts on (``uh_sim_no
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import numpy as np
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ['Reference', 'FaultSpec']
 

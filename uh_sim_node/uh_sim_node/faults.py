@@ -32,14 +32,16 @@ schedule changed.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
-from typing import Iterable
-
-import numpy as np
+from typing import TYPE_CHECKING, Iterable
 
 from uh_core.checks import finite_real
 from uh_core.layout import INPUT_NAMES, NUM_CHANNELS
 from uh_core.records import FaultSpec
+
+if TYPE_CHECKING:
+    import numpy as np
 
 __all__ = ['FaultError', 'ActuatorFault', 'FaultSchedule', 'ONSET_TOLERANCE']
 
@@ -80,7 +82,7 @@ class ActuatorFault(FaultSpec):
 
     def __post_init__(self):
         ch = self.channel
-        if isinstance(ch, bool) or not isinstance(ch, (int, np.integer)) or not 0 <= ch < NUM_CHANNELS:
+        if isinstance(ch, bool) or not isinstance(ch, numbers.Integral) or not 0 <= ch < NUM_CHANNELS:
             raise FaultError(f'fault channel must be an int in 0..3 '
                              f'(0 theta_col, 1 theta_tr, 2 delta_lat, 3 delta_lon), got {ch!r}')
         object.__setattr__(self, 'channel', int(ch))
@@ -212,6 +214,7 @@ class FaultSchedule:
 
         Physical limits are not applied here. ``switch_time`` as in :meth:`ActuatorFault.apply`.
         """
+        import numpy as np
         out = np.array(u, dtype=float)
         for f in self._list:
             out[f.channel] = f.apply(out[f.channel], t, switch_time)
