@@ -51,6 +51,7 @@ def test_the_default_arguments_are_the_documented_ones(tmp_path, monkeypatch):
 @pytest.mark.parametrize('name, value, allowed', [
     ('backend', 'zenoh', 'allowed: rclpy, dds'),
     ('clock_mode', 'fast', 'allowed: lockstep, realtime'),
+    ('case', 'case3', 'allowed: proposed, case1, case2'),
     ('realtime_priority', '99', 'allowed an integer 0 (normal scheduling) .. 98'),
     ('report', 'no', 'allowed true or false'),
     ('metrics', 'yes', 'allowed true or false'),

@@ -35,6 +35,7 @@ from typing import NamedTuple
 
 from uh_bringup.run_outcome import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, recover_bag_if_needed, \
     write_metrics, write_run_json
+from uh_controller_node.gains import CASES
 from uh_runtime.command_line import ArgumentParser, unwritable_reason
 from uh_runtime.scheduling import DEFAULT_PRIORITY, MAX_PRIORITY
 from uh_topology.scenario import load_scenario
@@ -131,6 +132,8 @@ def check_arguments(values: dict, now=None) -> LaunchOptions:
     """
     if values['backend'] not in BACKENDS:
         raise _bad('backend', values['backend'], ': ' + ', '.join(BACKENDS))
+    if values['case'] not in CASES:
+        raise _bad('case', values['case'], ': ' + ', '.join(CASES))
     if values['clock_mode'] not in CLOCK_MODES:
         raise _bad('clock_mode', values['clock_mode'], ': ' + ', '.join(CLOCK_MODES))
     text = values['realtime_priority']
