@@ -7,6 +7,7 @@ Run in a shell where ROS 2 and the project's colcon workspace are sourced:
 
 Skipped (with the reason) where rclpy or the ros2 CLI is missing, as in CI.
 """
+import json
 import os
 import re
 import shutil
@@ -96,6 +97,11 @@ def test_ros2_launch_ends_by_itself_and_ros2_bag_reads_the_bag(domain_id, tmp_pa
     info = _ros2('bag', 'info', str(out / 'bag'))
     assert info.returncode == 0 and 'Storage id:        mcap' in info.stdout
     assert 'Topic: /uh1/state | Type: uh_msgs/msg/UHState | Count: 301' in info.stdout
+    # and what run_formation.sh leaves: metrics.json and the report, after the kernels were compiled first
+    assert 'kernels ready: ' in text and '[run] metrics: ' in text
+    assert json.loads((out / 'metrics.json').read_text())['sim_time_s'] == 3.0
+    assert (out / 'report' / 'index.html').stat().st_size > 0
+    assert json.loads((out / 'run.json').read_text())['exit_status'] == 0
 
 
 def test_ros2_launch_fails_with_status_1_when_a_lockstep_node_dies(domain_id, tmp_path):
@@ -155,10 +161,8 @@ def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain
     It runs on this machine's cores while as many busy-looping processes plus one want them too: formation and
     containment within the acceptance thresholds (formation < 0.05 m, containment < 0.02 m; the lockstep run reaches
     0.0138 m and 0.0028 m), and, where the control loop may run under SCHED_FIFO (the launch's default
-    realtime_priority), at most 10 late commands in 10,000 simulator steps (docs/performance.md#real-time-scheduling).
+    realtime_priority), at most 200 late commands in 10,000 simulator steps (docs/performance.md#real-time-scheduling).
     """
-    from uh_report.bag_metrics import write_metrics_from_bag
-    from uh_topology.scenario import load_scenario
     from uh_runtime import scheduling
     sys.path.insert(0, str(ROOT / 'benchmarks'))
     from uh_bench.suite import busy_load
@@ -174,11 +178,15 @@ def test_realtime_paper_scenario_on_rclpy_holds_formation_and_containment(domain
     assert len(late) == 5, text[-3000:]
     if scheduling.permitted(scheduling.DEFAULT_PRIORITY) is None:
         assert text.count(f'real-time scheduling: SCHED_FIFO priority {scheduling.DEFAULT_PRIORITY}') == 12
-        # at most 0.1 % of the 10,000 simulator steps: this VM stalls whole now and then, the same
-        # step in every simulator (docs/performance.md#real-time-scheduling; 0 in 5 of 7 runs, 1 in one,
-        # 16 in a run_formation run); at normal priority the same load gives thousands (4826 measured)
-        assert sum(late) <= 10
-    metrics, _ = write_metrics_from_bag(out / 'bag', load_scenario('paper'), 'proposed', tmp_path / 'm.json')
+        # at most 2 % of the 10,000 simulator steps (docs/performance.md#real-time-scheduling). Sums of
+        # this launch under this load with SCHED_FIFO: 0, 0, 0, 0, 1, 13, 34, 66 on the 2-core machine of
+        # performance.md (rclpy on Fast DDS), 42, 13, 31 on a Jazzy with rmw_cyclonedds: mostly none,
+        # now and then a stall of one node or of the whole team for tens of ms that makes dozens; the
+        # former limit of 10 failed 6 of those 11 runs. At normal priority the same load gives
+        # thousands (9392 and 4826 measured) and the formation is lost: 200 keeps that apart.
+        assert sum(late) <= 200
+    # the launch computed the metrics from the bag, as run_formation.sh does (docs/ros2.md#launching-the-team)
+    metrics = json.loads((out / 'metrics.json').read_text())
     assert metrics['formation_rms_m'] < 0.05 and metrics['containment_rms_m'] < 0.02, metrics
 
 

@@ -4,6 +4,7 @@ The entry points, the composition, the run script and the launch file all use it
 """
 import ast
 import importlib
+import json
 import runpy
 import sys
 import types
@@ -12,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from uh_bringup import run_formation
+from uh_bringup.launch_run import RunFailed
 from uh_bringup.team_nodes import NODES, node_class, node_specs
 from uh_topology.scenario import load_scenario
 from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
@@ -70,21 +72,34 @@ def _fake_launch_modules(monkeypatch):
     Each class records how it was built, so the launch file's own logic runs.
     """
     mods = {name: types.ModuleType(name) for name in
-            ('launch', 'launch.actions', 'launch.event_handlers', 'launch.events', 'launch.substitutions',
-             'launch_ros', 'launch_ros.actions')}
+            ('launch', 'launch.actions', 'launch.event_handlers', 'launch.events', 'launch.events.process',
+             'launch.substitutions', 'launch_ros', 'launch_ros.actions')}
     classes = {'launch': ['LaunchDescription'],
-               'launch.actions': ['DeclareLaunchArgument', 'EmitEvent', 'OpaqueFunction', 'RegisterEventHandler'],
+               'launch.actions': ['DeclareLaunchArgument', 'EmitEvent', 'ExecuteProcess', 'LogInfo', 'OpaqueFunction',
+                                  'RegisterEventHandler'],
                'launch.event_handlers': ['OnProcessExit', 'OnShutdown'], 'launch.events': ['Shutdown'],
+               'launch.events.process': ['ShutdownProcess'],
                'launch.substitutions': ['LaunchConfiguration'], 'launch_ros.actions': ['Node']}
     for mod, names in classes.items():
         for name in names:
             setattr(mods[mod], name, type(name, (_Recorder,), {}))
+    mods['launch.events'].matches_action = lambda action: ('matches', action)
     for name, mod in mods.items():
         monkeypatch.setitem(sys.modules, name, mod)
     return mods
 
 
+def _registered(actions, mods, kind):
+    return [a.args[0] for a in actions
+            if isinstance(a, mods['launch.actions'].RegisterEventHandler)
+            and isinstance(a.args[0], getattr(mods['launch.event_handlers'], kind))]
+
+
 def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkeypatch, tmp_path):
+    """The launch file compiles the kernels, then starts node_specs' nodes; the clock's end leads to the metrics.
+
+    The decisions themselves are tested in tests/test_launch_run.py; here, that the launch file wires them.
+    """
     mods = _fake_launch_modules(monkeypatch)
     launch_file = runpy.run_path(str(ROOT / 'uh_bringup' / 'launch' / 'formation.launch.py'))
     description = launch_file['generate_launch_description']()
@@ -93,55 +108,75 @@ def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkey
     arguments.update(clock_mode='lockstep', out=str(tmp_path))
     opaque = description.args[0][-1]
     mods['launch.substitutions'].LaunchConfiguration.perform = lambda self, context: arguments[self.args[0]]
-    actions = opaque.kwargs['function'](None)
+    running, stopping = types.SimpleNamespace(is_shutdown=False), types.SimpleNamespace(is_shutdown=True)
 
-    nodes = [a for a in actions if isinstance(a, mods['launch_ros.actions'].Node)]
+    def started(actions):
+        """Return the team's actions, once the kernel compilation (the launch's first process) ended with status 0."""
+        [compiling] = [a for a in actions if isinstance(a, mods['launch.actions'].ExecuteProcess)]
+        assert compiling.kwargs['cmd'] == [sys.executable, '-m', 'uh_team.compile_kernels']
+        [compiled] = _registered(actions, mods, 'OnProcessExit')
+        assert compiled.kwargs['target_action'] is compiling
+        assert not any(isinstance(a, mods['launch_ros.actions'].Node) for a in actions)   # not before it
+        return compiled.kwargs['on_exit'](types.SimpleNamespace(returncode=0), running)
+
+    actions = opaque.kwargs['function'](None)
+    [idle] = _registered(actions, mods, 'OnShutdown')
+    team = started(actions)
+    assert json.loads((tmp_path / 'run.json').read_text())['scenario'] == 'paper'   # what uh-report OUT reads
+    nodes = [a for a in team if isinstance(a, mods['launch_ros.actions'].Node)]
     expected = node_specs(load_scenario('paper'), 'paper', arguments['case'], 'lockstep', 1.0, None,
                           f'{tmp_path}/bag', 60.0, DEFAULT_STALE_TIMEOUT)
     assert [(n.kwargs['package'], n.kwargs['executable'], n.kwargs['arguments']) for n in nodes] == \
         [(NODES[kind].package, NODES[kind].executable, args) for _, kind, args in expected]
-    registered = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
-    handlers = [h for h in registered if isinstance(h, mods['launch.event_handlers'].OnProcessExit)]
-    [idle] = [h for h in registered if isinstance(h, mods['launch.event_handlers'].OnShutdown)]
-    # lockstep: the death of any node ends the launch, the clock's with 'run complete'
+    handlers = _registered(team, mods, 'OnProcessExit')
+    # lockstep: the death of any node ends the launch
     assert [h.kwargs['target_action'] for h in handlers] == nodes
-    running, stopping = types.SimpleNamespace(is_shutdown=False), types.SimpleNamespace(is_shutdown=True)
 
     def outcome(handler, status, context=running):
         try:
-            done = handler.kwargs['on_exit'](types.SimpleNamespace(returncode=status), context)
-        except launch_file['RunFailed'] as exc:
+            return handler.kwargs['on_exit'](types.SimpleNamespace(returncode=status), context)
+        except RunFailed as exc:
             return f'failed: {exc}'
+
+    def reasons(done):
         return [a.kwargs['event'].kwargs['reason'] for a in done]
-    assert outcome(handlers[-1], 0) == ['run complete']
-    assert outcome(handlers[-1], 1).startswith('failed: clock exited with status 1')
-    assert outcome(handlers[0], 0)[0].endswith('(lockstep needs every node)')
+    assert reasons(outcome(handlers[0], 0))[0].endswith('(the run needs its recording)')
+    assert reasons(outcome(handlers[1], 0))[0].endswith('(lockstep needs every node)')
     assert outcome(handlers[1], -9).startswith('failed: uh1_sim exited with status -9')
+    assert outcome(handlers[-1], 1).startswith('failed: clock exited with status 1')
     # nodes stopped by the launch's own shutdown end quietly, whatever their status
     assert outcome(handlers[1], -2, stopping) == [] and outcome(handlers[-1], 1, stopping) == []
+    # the clock completes the run: the recorder is stopped (it finalises the bag), then the metrics are computed
+    [stop] = outcome(handlers[-1], 0)
+    assert stop.kwargs['event'].kwargs['process_matcher'] == ('matches', nodes[0])
+    assert outcome(handlers[1], -9) == []      # after the completion no node is needed
+    after_run, on_after_run = outcome(handlers[0], -2)
+    assert after_run.kwargs['cmd'][:4] == [sys.executable, '-m', 'uh_bringup.launch_run', str(tmp_path)]
+    assert on_after_run.args[0].kwargs['target_action'] is after_run
+    assert reasons(outcome(on_after_run.args[0], 0)) == ['run complete']
+    assert outcome(on_after_run.args[0], 1).startswith('failed: the run completed, but its metrics were not written')
 
     # a launch that ends idle (no node could even start: launch sends no exit event) failed,
     # unless the clock completed the run; Ctrl-C is not a failure of the run
     def ends(reason, handler=idle):
         try:
-            return handler.kwargs['on_shutdown'](types.SimpleNamespace(reason=reason), stopping)
-        except launch_file['RunFailed'] as exc:
+            return handler.kwargs['on_shutdown'](types.SimpleNamespace(reason=reason, due_to_sigint='ctrl-c' in reason),
+                                                 stopping)
+        except RunFailed as exc:
             return f'failed: {exc}'
-    fresh = [a.args[0] for a in opaque.kwargs['function'](None)
-             if isinstance(a, mods['launch.actions'].RegisterEventHandler)]
-    fresh_idle = next(h for h in fresh if isinstance(h, mods['launch.event_handlers'].OnShutdown))
+    [fresh_idle] = _registered(opaque.kwargs['function'](None), mods, 'OnShutdown')
     assert ends('idle', fresh_idle).startswith('failed: every process has ended, and the clock never completed')
-    assert ends('ctrl-c (SIGINT)', fresh_idle) == []
-    assert ends('idle') == []   # this launch's clock completed above (outcome(handlers[-1], 0))
+    assert ends('ctrl-c (SIGINT)', fresh_idle) is None
+    assert ends('idle') is None   # this launch's clock completed above
 
     arguments.update(clock_mode='realtime', visualization='false')
-    actions = opaque.kwargs['function'](None)
-    handlers = [a.args[0] for a in actions if isinstance(a, mods['launch.actions'].RegisterEventHandler)
-                and isinstance(a.args[0], mods['launch.event_handlers'].OnProcessExit)]
-    assert len(handlers) == 1 and handlers[0].kwargs['target_action'].kwargs['executable'] == 'lockstep_clock_node'
+    team = started(opaque.kwargs['function'](None))
+    handlers = _registered(team, mods, 'OnProcessExit')
+    assert [h.kwargs['target_action'].kwargs['executable'] for h in handlers] == ['recorder_node',
+                                                                                  'lockstep_clock_node']
     # realtime: the control loop's nodes get the SCHED_FIFO priority (default 20), the recorder not
     priority = {n.kwargs['executable']: [a for a in n.kwargs['arguments'] if a.startswith('realtime_priority:=')]
-                for n in actions if isinstance(n, mods['launch_ros.actions'].Node)}
+                for n in team if isinstance(n, mods['launch_ros.actions'].Node)}
     assert priority.pop('recorder_node') == []
     assert set(map(tuple, priority.values())) == {('realtime_priority:=20',)}
     for bad in ('99', '-1', 'high'):
@@ -149,14 +184,13 @@ def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkey
         with pytest.raises(ValueError, match=f"realtime_priority:='{bad}'; allowed an integer 0"):
             opaque.kwargs['function'](None)
     arguments['realtime_priority'] = '20'
-    assert 'visualization_node' not in [a.kwargs.get('executable') for a in actions]
+    assert 'visualization_node' not in [a.kwargs.get('executable') for a in team]
     # backend:=dds puts every node on the DDS backend; by default only the infrastructure may be
-    nodes = [a for a in actions if isinstance(a, mods['launch_ros.actions'].Node)]
+    nodes = [a for a in team if isinstance(a, mods['launch_ros.actions'].Node)]
     assert all(n.kwargs['additional_env'].get('UH_BACKEND') != 'dds' for n in nodes
                if n.kwargs['executable'] in ('sim_node', 'controller_node'))
     arguments.update(backend='dds')
-    actions = opaque.kwargs['function'](None)
-    nodes = [a for a in actions if isinstance(a, mods['launch_ros.actions'].Node)]
+    nodes = [a for a in started(opaque.kwargs['function'](None)) if isinstance(a, mods['launch_ros.actions'].Node)]
     assert nodes and all(n.kwargs['additional_env']['UH_BACKEND'] == 'dds' for n in nodes)
     # and every node the runs' discovery settings, which rclpy on Fast DDS and Cyclone DDS meet on
     assert all(n.kwargs['additional_env'].get('ROS_AUTOMATIC_DISCOVERY_RANGE') for n in nodes)

@@ -14,7 +14,7 @@ setup(
         ('share/' + package_name + '/launch', glob('launch/*.launch.py')),
     ],
     install_requires=['numpy', 'PyYAML', 'rosbags', 'uh_runtime', 'uh_core', 'uh_topology', 'uh_wire', 'uh_sim_node',
-                      'uh_controller_node', 'uh_report'],
+                      'uh_controller_node', 'uh_team', 'uh_report'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',

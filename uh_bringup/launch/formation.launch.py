@@ -8,132 +8,85 @@ uses: a recorder (bag in ``out``), one simulator and one controller per helicopt
 visualisation node (``visualization:=false`` leaves it out), the virtual leader and the clock;
 ``standard_views:=false`` switches off /tf, /uhN/odom and /diagnostics; in realtime the control loop's
 nodes run under SCHED_FIFO priority ``realtime_priority`` (default 20, 0 = normal scheduling) where
-the user may (docs/performance.md#real-time-scheduling).
-The launch ends when the clock ends (run complete), and in lockstep also when any node dies (every
-step needs every node); it exits with status 1 when the clock or (in lockstep) a node failed. The
-recorder and the visualisation run on the Cyclone DDS backend when its Python binding is installed
-(``uh_bringup.team_nodes.backend_environment``).
+the user may (docs/performance.md#real-time-scheduling). The recorder and the visualisation run on
+the Cyclone DDS backend when its Python binding is installed (``uh_bringup.team_nodes.backend_environment``).
+
+Around the nodes, :mod:`uh_bringup.launch_run` decides (docs/ros2.md#launching-the-team): the
+kernels are compiled before any node starts; when the clock completes the run, the recorder
+finalises the bag and ``OUT/metrics.json`` and ``OUT/report`` are written as after
+``run_formation.sh`` (``metrics:=false``, ``report:=false`` switch them off); then the launch ends.
+It exits with status 1 when the clock, the recorder, (in lockstep) any node or the metrics failed.
 """
-import datetime
 import os
+import sys
 
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, EmitEvent, OpaqueFunction, RegisterEventHandler
+from launch.actions import (DeclareLaunchArgument, EmitEvent, ExecuteProcess, LogInfo, OpaqueFunction,
+                            RegisterEventHandler)
 from launch.event_handlers import OnProcessExit, OnShutdown
-from launch.events import Shutdown
+from launch.events import Shutdown, matches_action
+from launch.events.process import ShutdownProcess
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+from uh_bringup.launch_run import ARGUMENTS, LaunchRun, check_arguments, compile_command, write_launch_record
 from uh_bringup.team_nodes import NODES, backend_environment, node_specs
 from uh_runtime.network import apply_network_default
-from uh_runtime.scheduling import DEFAULT_PRIORITY, MAX_PRIORITY
 from uh_topology.scenario import load_scenario
-# the default stale timeout from its one home (the nodes' parameter and the run script's option)
-from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
 
 def _team(context):
-    def arg(name):
-        return LaunchConfiguration(name).perform(context)
-
-    scenario_arg, clock_mode, backend = arg('scenario'), arg('clock_mode'), arg('backend')
-    if backend not in ('rclpy', 'dds'):
-        raise ValueError(f"launch argument backend:={backend!r}; allowed: rclpy, dds")
-    try:
-        priority = int(arg('realtime_priority'))
-    except ValueError:
-        priority = -1
-    if not 0 <= priority <= MAX_PRIORITY:
-        raise ValueError(f"launch argument realtime_priority:={arg('realtime_priority')!r}; allowed an integer "
-                         f'0 (normal scheduling) .. {MAX_PRIORITY}')
-    out = arg('out') or f'runs/launch_{datetime.datetime.now():%Y%m%d_%H%M%S}'
-    duration = float(arg('duration')) if arg('duration') else None
-    specs = node_specs(load_scenario(scenario_arg), scenario_arg, arg('case'), clock_mode, float(arg('rate')),
-                       duration, f'{out}/bag', float(arg('startup_timeout')), float(arg('stale_timeout')),
-                       visualization=arg('visualization') == 'true',
-                       standard_views=arg('standard_views') == 'true', realtime_priority=priority)
-    actions = []
-    completed = []   # the clock's end with status 0: the run is complete
+    options = check_arguments({name: LaunchConfiguration(name).perform(context) for name, _, _ in ARGUMENTS})
+    scenario = load_scenario(options.scenario)
+    specs = node_specs(scenario, options.scenario, options.case, options.clock_mode, options.rate, options.duration,
+                       f'{options.out}/bag', options.startup_timeout, options.stale_timeout,
+                       visualization=options.visualization, standard_views=options.standard_views,
+                       realtime_priority=options.realtime_priority)
+    write_launch_record(options, options.duration if options.duration is not None else scenario.duration)
+    run = LaunchRun(options, sys.executable)
     # the runs' discovery settings (uh_runtime.network.apply_network_default), which rclpy on Fast DDS
     # and the Cyclone DDS nodes meet on whatever the user has or has not set
     network = {key: value for key, value in apply_network_default(dict(os.environ)).items()
                if key in ('ROS_AUTOMATIC_DISCOVERY_RANGE', 'CYCLONEDDS_URI')}
+    nodes, team = {}, []
     for name, kind, ros_args in specs:
         # the namespace and parameters are in ros_args (--ros-args ...), as the run script passes them
         # backend:=dds: every node on the Cyclone DDS backend; else the recorder and the visualisation
         # there (where it is installed) and the team's nodes on rclpy
-        env = {**network, **({'UH_BACKEND': 'dds'} if backend == 'dds' else backend_environment(kind, os.environ))}
-        node = Node(package=NODES[kind].package, executable=NODES[kind].executable, arguments=ros_args,
-                    output='both', additional_env=env)
-        actions.append(node)
-        if kind == 'clock' or clock_mode == 'lockstep':
-            actions.append(RegisterEventHandler(OnProcessExit(
-                target_action=node, on_exit=_on_exit(name, kind, completed))))
-    actions.append(RegisterEventHandler(OnShutdown(on_shutdown=_on_idle(completed))))
-    return actions
+        env = {**network, **({'UH_BACKEND': 'dds'} if options.backend == 'dds'
+                             else backend_environment(kind, os.environ))}
+        nodes[name] = Node(package=NODES[kind].package, executable=NODES[kind].executable, arguments=ros_args,
+                           output='both', additional_env=env)
+        team.append(nodes[name])
+        if kind in ('clock', 'recorder') or options.clock_mode == 'lockstep':
+            team.append(_on_exit(nodes[name], lambda event, context, name=name, kind=kind: run.node_ended(
+                name, kind, event.returncode, context.is_shutdown), run, nodes))
+
+    compiling = ExecuteProcess(cmd=compile_command(sys.executable), name='compile_kernels', output='both')
+
+    def compiled(event, context):
+        return team if run.kernels_compiled(event.returncode, context.is_shutdown) else []
+    return [LogInfo(msg='compiling the numba kernels before the nodes start (a minute or more after an install or '
+                        'an update, about a second from the cache)'),
+            compiling, RegisterEventHandler(OnProcessExit(target_action=compiling, on_exit=compiled)),
+            RegisterEventHandler(OnShutdown(on_shutdown=lambda event, context: run.launch_shut_down(
+                event.reason, event.due_to_sigint)))]
 
 
-class RunFailed(RuntimeError):
-    """A node the run needs died: ``ros2 launch`` shuts everything down and exits with status 1."""
-
-
-def _on_exit(name, kind, completed):
-    """Build the handler of the end of node ``name``.
-
-    The clock's end with status 0 ends the launch ('run complete'); a failed clock, or a lockstep
-    node that fails before the shutdown, ends it with exit status 1 (launch turns an exception in
-    an event handler into shutdown and status 1).
-    """
+def _on_exit(action, decide, run, nodes):
+    """Register ``decide(event, context)`` (a :class:`uh_bringup.launch_run.Step`) for the end of ``action``."""
     def on_exit(event, context):
-        status = event.returncode
-        if kind == 'clock' and status == 0:
-            completed.append(name)
-            return [EmitEvent(event=Shutdown(reason='run complete'))]
-        if context.is_shutdown:
-            return []
-        if status != 0:
-            raise RunFailed(f'{name} exited with status {status}: the run did not complete '
-                            '(its log is above)')
-        return [EmitEvent(event=Shutdown(reason=f'{name} exited (lockstep needs every node)'))]
-    return on_exit
-
-
-def _on_idle(completed):
-    """Build the handler of the launch's shutdown when nothing is left running ('idle').
-
-    The launch also ends when nothing is left running ('idle'). That happens without a process
-    exit event when no node could be started at all (launch logs the exec error and sends none):
-    without the clock's completion, that is a failed run, status 1.
-    """
-    def on_shutdown(event, context):
-        if event.reason == 'idle' and not completed:
-            raise RunFailed('every process has ended, and the clock never completed the run (a node that '
-                            'could not be started is logged above)')
+        step = decide(event, context)
+        if step.what == 'shutdown':
+            return [EmitEvent(event=Shutdown(reason=step.detail))]
+        if step.what == 'stop':
+            return [EmitEvent(event=ShutdownProcess(process_matcher=matches_action(nodes[step.detail])))]
+        if step.what == 'run':
+            after_run = ExecuteProcess(cmd=step.detail, name='metrics', output='both')
+            return [after_run, _on_exit(after_run, lambda ended, _: run.after_run_ended(ended.returncode), run, nodes)]
         return []
-    return on_shutdown
+    return RegisterEventHandler(OnProcessExit(target_action=action, on_exit=on_exit))
 
 
 def generate_launch_description():
-    return LaunchDescription([
-        DeclareLaunchArgument('scenario', default_value='paper', description='scenario YAML or "paper"'),
-        DeclareLaunchArgument('case', default_value='proposed', description='proposed | case1 | case2'),
-        DeclareLaunchArgument('clock_mode', default_value='realtime', description='lockstep | realtime'),
-        DeclareLaunchArgument('rate', default_value='1.0', description='realtime factor'),
-        DeclareLaunchArgument('duration', default_value='', description="simulated s (default: the scenario's)"),
-        DeclareLaunchArgument('out', default_value='', description='run directory; the bag goes to OUT/bag '
-                              '(default runs/launch_<timestamp>)'),
-        DeclareLaunchArgument('visualization', default_value='true', description='start the visualisation node'),
-        DeclareLaunchArgument('standard_views', default_value='true',
-                              description='publish /tf, /uhN/odom and /diagnostics (docs/visualization.md)'),
-        DeclareLaunchArgument('backend', default_value='rclpy',
-                              description='rclpy: the team on rclpy (recorder, visualisation on the DDS backend); '
-                              'dds: every node on the Cyclone DDS backend (for realtime on small machines, '
-                              'docs/performance.md)'),
-        DeclareLaunchArgument('startup_timeout', default_value='60.0', description='s to wait for all nodes'),
-        DeclareLaunchArgument('stale_timeout', default_value=str(DEFAULT_STALE_TIMEOUT),
-                              description='realtime: simulated s after which a neighbour is stale'),
-        DeclareLaunchArgument('realtime_priority', default_value=str(DEFAULT_PRIORITY),
-                              description='realtime: SCHED_FIFO priority of the clock, simulators, controllers and '
-                              'virtual leader (needs CAP_SYS_NICE (root has it) or an rtprio limit; each node logs '
-                              'whether it got it); 0: normal scheduling (docs/performance.md)'),
-        OpaqueFunction(function=_team),
-    ])
+    return LaunchDescription([DeclareLaunchArgument(name, default_value=default, description=description)
+                              for name, default, description in ARGUMENTS] + [OpaqueFunction(function=_team)])

@@ -16,7 +16,7 @@ from uh_runtime.bag import recover_bag
 from uh_runtime.bag_reader import BagError
 
 __all__ = ['EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED', 'RunRecord',
-           'run_info', 'recover_bag_if_needed', 'exit_status', 'write_metrics', 'write_run_report',
+           'run_info', 'write_run_json', 'recover_bag_if_needed', 'exit_status', 'write_metrics', 'write_run_report',
            'RUN_REPORT_FIGURES']
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DEGRADED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -34,6 +34,13 @@ def run_info(args, duration: float, domain: int, priority: int) -> dict:
             'foxglove': None if args.foxglove is None else f'ws://{args.foxglove_host}:{args.foxglove}',
             'hosts': args.hosts, 'loss_pct': args.loss, 'respawn': args.respawn, 'realtime_priority': priority,
             'exit_status': None}
+
+
+def write_run_json(out: Path, info: dict) -> None:
+    """Write ``info`` to ``out/run.json`` atomically (a reader never sees half a file)."""
+    tmp = out / 'run.json.tmp'
+    tmp.write_text(json.dumps(info, indent=2) + '\n')
+    tmp.replace(out / 'run.json')
 
 
 class RunRecord:
@@ -54,9 +61,7 @@ class RunRecord:
                          all_pids={n.name: n.pids for n in sup.nodes},
                          respawns={n.name: n.restarts for n in sup.nodes if n.restarts},
                          node_failures=self.watcher.failures if self.watcher else [])
-        tmp = self.out / 'run.json.tmp'
-        tmp.write_text(json.dumps(self.info, indent=2) + '\n')
-        tmp.replace(self.out / 'run.json')
+        write_run_json(self.out, self.info)
 
 
 def recover_bag_if_needed(bag_dir: Path) -> dict | None:
