@@ -4,9 +4,10 @@
 #                           [--frequency W] [--onset T] [--domain-id N] [--timeout S]
 # Exit status: 0 sent, 1 no team in that DDS domain, 2 bad input (a value outside what the fault
 # model allows, or a UH the running team does not have). rho 0 (stuck) is sent with a warning.
-# A domain where no node is discovered within 2 s holds no team (exit 1, said 2.5-3 s after the start);
+# A domain where no node is discovered within 2 s holds no team (exit 1, said 2.3-3 s after the start);
 # --timeout S waits up to S s for a team that is still starting. With a team running it answers once the
-# simulator has acknowledged the fault: 0.7-1 s, 0.3 s of CPU (2 cores loaded by other runs).
+# simulator has acknowledged the fault: 0.6-0.7 s beside a realtime paper team on 2 cores (0.3 s of CPU;
+# up to 1 s and more when other work loads the machine).
 # On a ROS 2 machine the same can be done with:
 #   ros2 topic pub --once /uh4/fault uh_msgs/msg/ActuatorFault "{uh_id: 4, channel: 0, rho: 0.7, onset_time: 30.0}"
 set -euo pipefail
