@@ -96,3 +96,25 @@ def test_a_live_gain_change_is_validated_applied_and_logged(controller, capfd):
     assert node.get_parameter('outer.k').value == 1.2 and node.controller.gains.outer.k == 1.2
     assert math.isclose(node.controller.gains.tilt_limit, math.radians(30.0))
     assert 'rejected' in capfd.readouterr().err
+
+
+@pytest.mark.dds
+def test_a_new_controller_node_has_loaded_every_kernel_it_steps_with(domain_id):
+    """The law's and the fault isolator's kernels are loaded while the node is built, not at its first step.
+
+    A kernel first called mid-run is loaded then (0.05-0.4 s): a late step. Checked in a fresh process, where
+    nothing else has called a kernel before.
+    """
+    import subprocess
+    import sys
+    probe = ("from uh_runtime import dds_backend as rt\n"
+             "from uh_controller_node.controller_node import ControllerNode\n"
+             "from uh_controller_node import control_kernels as C, isolation_kernels as K\n"
+             "ctx = rt.Context()\nctx.init(args=['probe'])\n"
+             "node = ControllerNode(context=ctx, cli_args=['--ros-args', '-r', '__ns:=/uh3', '-p', 'uh_id:=3'])\n"
+             "print(len(C.uh_control_step.signatures), len(K.isolation_step.signatures),"
+             " len(K.isolation_status.signatures))\n"
+             "node.destroy_node()\nctx.try_shutdown()\n")
+    done = subprocess.run([sys.executable, '-P', '-c', probe], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert [int(n) for n in done.stdout.split()] == [1, 1, 1], done.stdout

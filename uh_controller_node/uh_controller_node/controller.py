@@ -46,13 +46,14 @@ from uh_topology.graph import reachable_from
 from .control_kernels import (
     FLAG_STARTED, FLAG_TIME, INPUT_SIZE, M_ALPHA_F, M_ALPHA_WF, M_F_HAT_P, M_F_HAT_W, M_FLAGS, M_OMEGA_HAT,
     M_V_HAT, MEMORY_ROWS,
-    R_P, R_V, R_YAW, REFERENCE_SIZE, STATE_SIZE, STATUS_SIZE, STEP_DONE, ControlArrays, control_parameters,
-    uh_control_step)
+    R_P, R_V, R_YAW, REFERENCE_SIZE, STATE_SIZE, STATUS_SIZE, STEP_DONE, ControlArrays, compile_control_kernels,
+    control_parameters, uh_control_step)
 from .fault_isolation import FaultIsolator, IsolationSettings, IsolationStatus
+from .isolation_kernels import compile_isolation_kernels
 from .gains import ControllerGains, scenario_gains
 from .nominal_model import nominal_model
 
-__all__ = ['ControllerError', 'ControllerStatusData', 'LoopState', 'UHController']
+__all__ = ['ControllerError', 'ControllerStatusData', 'LoopState', 'UHController', 'load_controller_kernels']
 
 _STATE_SHAPE = (STATE_SIZE,)
 
@@ -82,6 +83,15 @@ def _status_reader():
 
 
 _read_status = _status_reader()
+
+
+def load_controller_kernels() -> float:
+    """Load (or compile) every numba kernel a controller calls, the law's and the fault isolator's; seconds spent.
+
+    A kernel is otherwise loaded at its first call (0.05-0.4 s): a node calls this before it can be
+    stepped, so no step of a run is late for it.
+    """
+    return compile_control_kernels() + compile_isolation_kernels()
 
 
 class ControllerError(ValueError):

@@ -35,8 +35,7 @@ replaying the last ``STEP_DEPTH`` steps of transient-local history.
 from __future__ import annotations
 
 import uh_runtime as rt
-from uh_controller_node.control_kernels import compile_control_kernels
-from uh_controller_node.controller import ControllerError, UHController
+from uh_controller_node.controller import ControllerError, UHController, load_controller_kernels
 from uh_controller_node.controller_diagnostics import ControllerDiagnostics, NeighbourAges
 from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser
 from uh_controller_node.node_parameters import GainParameters, declare_controller_parameters
@@ -66,8 +65,8 @@ class ControllerNode(rt.Node):
         self.controller = UHController(self.uh_id, scenario, case=case, gains=self.gains.gains())
         self.add_on_set_parameters_callback(self.gains.check)
         self.add_post_set_parameters_callback(self._apply_gains)
-        # load the control law's numba kernel now (before the endpoints exist and the clock can start)
-        compile_control_kernels()
+        # load the law's and the fault isolator's numba kernels now, before the endpoints exist and the clock can start
+        load_controller_kernels()
         neighbours = tuple(scenario.neighbours(self.uh_id))
         linked = scenario.leader_link(self.uh_id) > 0
         # what this UH receives under the scenario's impairments (None without them)
