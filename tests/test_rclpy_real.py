@@ -128,8 +128,11 @@ def test_mixed_realtime_team_holds_formation_and_shares_parameters_rosout_and_di
     formation holds (the thresholds of the in-process run's metrics).
     """
     out = tmp_path / 'run'
+    # 60 s: the checks below take 20-35 s after the run starts on a loaded machine (three `uh node list`,
+    # then a Fast DDS process polling up to 15 s); with 35 s the team could end while that process still
+    # looked, which then listed no team node at all
     proc = _start(out, _run_environment('uh2,uh4'), '--clock', 'realtime', '--processes', 'per-uh',
-                  '--duration', '35')
+                  '--duration', '60')
     try:
         wait_for_log(out / 'logs' / 'team.log', 'run of', proc, timeout=180)
         env = {line.split('=', 1)[0].split()[-1]: line.split('=', 1)[1].strip("'")
