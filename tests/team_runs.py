@@ -56,3 +56,28 @@ def kill_session(proc) -> None:
     if proc.poll() is None:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
+
+
+def assert_lockstep_run_equals_in_process(tmp_path, scenario, scenario_text: str, duration: float = 3.0):
+    """Run ``scenario_text`` in lockstep (one process per node, no visualisation); return ``(run dir, in-process run)``.
+
+    Asserts the run ends with status 0 and that its bag's states and commands equal the in-process run of
+    ``scenario`` (the same scenario, parsed) to the bit.
+    """
+    import numpy as np
+
+    from uh_report.bag_metrics import read_team_bag
+    from uh_runtime.network import reserve_domain_id
+    from uh_team.team_simulation import run_team_simulation
+    scenario_file = tmp_path / 'scenario.yaml'
+    scenario_file.write_text(scenario_text)
+    out = tmp_path / 'run'
+    proc = start_run(out, reserve_domain_id(), '--clock', 'lockstep', '--scenario', str(scenario_file),
+                     '--duration', f'{duration:g}', '--no-visualization')
+    output, _ = proc.communicate(timeout=300)
+    assert proc.returncode == 0, output
+    reference = run_team_simulation(scenario, 'proposed', duration=duration)
+    bag = read_team_bag(out / 'bag', scenario)
+    assert np.array_equal(bag['states'], reference.states)
+    assert np.array_equal(bag['commands'], reference.commands)
+    return out, reference

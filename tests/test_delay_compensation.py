@@ -223,25 +223,13 @@ def test_a_lockstep_distributed_run_with_jitter_and_prediction_equals_the_in_pro
     in-process run to the bit; /uh4/received holds the states as delivered, each with its sent step.
     """
     from rosbags.rosbag2 import Reader
-    from team_runs import start_run
+    from team_runs import assert_lockstep_run_equals_in_process
 
-    from uh_report.bag_metrics import read_team_bag
     from uh_runtime.messages import typestore
-    from uh_runtime.network import reserve_domain_id
 
     text = paper_yaml(_jittered('predict'))
     scenario = parse_scenario(text, source='jittered')
-    scenario_file = tmp_path / 'jittered.yaml'
-    scenario_file.write_text(text)
-    out = tmp_path / 'run'
-    proc = start_run(out, reserve_domain_id(), '--clock', 'lockstep', '--scenario', str(scenario_file),
-                     '--duration', '3', '--no-visualization')
-    output, _ = proc.communicate(timeout=300)
-    assert proc.returncode == 0, output
-    reference = run_team_simulation(scenario, 'proposed', duration=3.0)
-    bag = read_team_bag(out / 'bag', scenario)
-    assert np.array_equal(bag['states'], reference.states)
-    assert np.array_equal(bag['commands'], reference.commands)
+    out, reference = assert_lockstep_run_equals_in_process(tmp_path, scenario, text)
     store, imp, col = typestore(), scenario.impairments, {i: c for c, i in enumerate(scenario.ids)}
     expected, steps = np.empty(STATE_SIZE), []
     with Reader(out / 'bag') as reader:

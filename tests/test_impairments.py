@@ -169,23 +169,11 @@ def test_a_lockstep_distributed_run_with_impairments_equals_the_in_process_run(t
     exactly the states each controller used.
     """
     from rosbags.rosbag2 import Reader
-    from team_runs import start_run
+    from team_runs import assert_lockstep_run_equals_in_process
 
-    from uh_report.bag_metrics import read_team_bag
     from uh_runtime.messages import typestore
-    from uh_runtime.network import reserve_domain_id
 
-    scenario_file = tmp_path / 'impaired.yaml'
-    scenario_file.write_text(paper_yaml(IMPAIRED.read_text()))
-    out = tmp_path / 'run'
-    proc = start_run(out, reserve_domain_id(), '--clock', 'lockstep', '--scenario', str(scenario_file),
-                     '--duration', '3', '--no-visualization')
-    output, _ = proc.communicate(timeout=300)
-    assert proc.returncode == 0, output
-    reference = run_team_simulation(impaired, 'proposed', duration=3.0)
-    bag = read_team_bag(out / 'bag', impaired)
-    assert np.array_equal(bag['states'], reference.states)
-    assert np.array_equal(bag['commands'], reference.commands)
+    out, reference = assert_lockstep_run_equals_in_process(tmp_path, impaired, paper_yaml(IMPAIRED.read_text()))
 
     store, received = typestore(), {}
     with Reader(out / 'bag') as reader:
