@@ -2,8 +2,8 @@
 # Benchmarks of the UH stack: real-time factors (lockstep per process layout, in-process
 # reference), scaling to 40 UHs, real-time latency, per-step costs and peak memory.
 #   scripts/bench.sh [--quick] [--sections paper components scaling realtime] [--out FILE] [--keep DIR]
-# Writes benchmarks/results/latest.json (or --out) and prints a markdown table; --quick takes
-# under 5 minutes. Sets up .venv on first use. See docs/performance.md.
+# Writes benchmarks/results/latest.json (or --out) and prints a markdown table; --quick runs
+# every section with short runs (8 min 48 s in its last run). Sets up .venv on first use. See docs/performance.md.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
 # relative --out and --keep are the caller's: uh_bench resolves them against this directory
