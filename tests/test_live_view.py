@@ -77,15 +77,27 @@ def test_a_foxglove_client_receives_odometry_and_markers_that_match_the_simulato
                 assert (c['encoding'], c['schemaEncoding']) == ('cdr', 'ros2msg')
                 assert 'geometry_msgs/PoseWithCovariance' in c['schema'] or topic == '/markers'
             subscriptions = {1: channels['/uh1/odom'], 2: channels['/markers']}
-            ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [
-                {'id': sid, 'channelId': c['id']} for sid, c in subscriptions.items()]}))
+            subscribe = {sid: json.dumps({'op': 'subscribe', 'subscriptions': [{'id': sid, 'channelId': c['id']}]})
+                         for sid, c in subscriptions.items()}
+            for text in subscribe.values():
+                ws.send(text)
+            asked, got = time.monotonic(), {1: odom, 2: markers}
             while len(odom) < 50 or len(markers) < 3:
                 assert time.monotonic() < deadline, f'{len(odom)} odometry, {len(markers)} marker messages'
-                frame = ws.recv(timeout=10)
+                try:
+                    frame = ws.recv(timeout=1)
+                except TimeoutError:
+                    frame = None
                 if isinstance(frame, bytes) and frame[0] == MESSAGE_DATA:
                     sid, _log_time = struct.unpack_from('<IQ', frame, 1)
-                    msg = store.deserialize_cdr(frame[13:], subscriptions[sid]['schemaName'])
-                    (odom if sid == 1 else markers).append(msg)
+                    got[sid].append(store.deserialize_cdr(frame[13:], subscriptions[sid]['schemaName']))
+                # the server once refused a subscription sent right after the channel's advertisement on a
+                # loaded machine ("attempted to subscribe to unknown channel"): ask again, as a viewer would,
+                # for a subscription that brought nothing for a second (odometry is 25 Hz, markers 10 Hz)
+                if time.monotonic() - asked > 1.0:
+                    for sid in [sid for sid, messages in got.items() if not messages]:
+                        ws.send(subscribe[sid])
+                    asked = time.monotonic()
         output, _ = run.communicate(timeout=BOUND)
     finally:
         stop_run(run)
