@@ -26,6 +26,7 @@ from rcl_interfaces.srv import SetParameters  # noqa: E402
 from rclpy.utilities import get_rmw_implementation_identifier  # noqa: E402
 
 from team_runs import kill_session, wait_for_log  # noqa: E402
+from uh_bringup.run_processes import entry_command  # noqa: E402
 from uh_report.bag_metrics import read_team_bag  # noqa: E402
 from uh_runtime.network import reserve_domain_id  # noqa: E402
 from uh_team.team_simulation import run_team_simulation  # noqa: E402
@@ -39,9 +40,9 @@ FAST_DDS, CYCLONE_DDS = b'\x01\x0f', b'\x01\x10'
 #: processes of a mixed team (--processes per-node) that run on the Cyclone DDS backend; the rest on rclpy
 MIXED_LOCKSTEP = 'uh1_controller,uh2_sim,uh4_controller,virtual_leader'
 #: the uh command line of this virtualenv: on Cyclone DDS also where rclpy is importable
-#: the ``uh`` CLI: beside this interpreter in a virtualenv, ``ros2 run uh_runtime uh`` on a ROS 2 install
-UH = (str(Path(sys.executable).with_name('uh')) if Path(sys.executable).with_name('uh').exists()
-      else 'ros2 run uh_runtime uh')
+#: the ``uh`` CLI as the runs start entry points: ``ros2 run uh_runtime uh`` on a ROS 2 install, else beside this
+#: interpreter
+UH = ' '.join(entry_command('uh_runtime', 'uh'))
 #: what sourcing a ROS 2 install (``/opt/ros/jazzy/setup.bash`` and the workspace) gives every terminal
 _SOURCED_ROS = ('AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH', 'COLCON_PREFIX_PATH', 'LD_LIBRARY_PATH', 'PYTHONPATH',
                 'ROS_DISTRO', 'ROS_VERSION', 'ROS_PYTHON_VERSION', 'ROS_AUTOMATIC_DISCOVERY_RANGE',
