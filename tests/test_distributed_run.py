@@ -112,6 +112,10 @@ def test_bag_trajectories_equal_the_in_process_reference(lockstep_run, paper, re
     assert np.array_equal(bag['commands'], reference_run.commands)
     assert np.array_equal(bag['fault_true_p'], reference_run.fault_true_p)
     assert np.array_equal(bag['fault_est_w'], reference_run.fault_est_w)
+    # ... though the nodes ran the kernels compiled ahead of time, without numba, and the
+    # reference numba's JIT (docs/performance.md#memory): each node's start line says which
+    for log in sorted((out / 'logs').glob('uh*_*.log')):
+        assert 'compiled kernels' in log.read_text(), log.name
 
 
 def test_metrics_from_the_bag_meet_the_thresholds(lockstep_run):

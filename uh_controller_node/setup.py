@@ -22,7 +22,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'controller_node = uh_controller_node.controller_node:main',
+            'controller_node = uh_controller_node.entry_points:controller_node',
         ],
     },
 )

@@ -14,7 +14,7 @@ setup(
         ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
     ],
     package_data={package_name: ['config/*.yaml']},
-    install_requires=['numpy', 'PyYAML'],
+    install_requires=['numpy', 'numba', 'PyYAML'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',

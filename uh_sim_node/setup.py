@@ -22,7 +22,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'sim_node = uh_sim_node.sim_node:main',
+            'sim_node = uh_sim_node.entry_points:sim_node',
             'virtual_leader_node = uh_sim_node.virtual_leader_node:main',
             'lockstep_clock_node = uh_sim_node.clock_node:main',
             'visualization_node = uh_sim_node.visualization_node:main',

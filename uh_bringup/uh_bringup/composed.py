@@ -17,6 +17,7 @@ import sys
 
 import uh_runtime as rt
 from uh_bringup.team_nodes import node_class
+from uh_core import compiled_kernels
 
 __all__ = ['main']
 
@@ -32,6 +33,7 @@ def main(argv=None) -> int:
     except (OSError, json.JSONDecodeError) as exc:
         print(f'composed: error: cannot read node list {argv[0]}: {exc}', file=sys.stderr)
         return 2
+    compiled_kernels.prefer_compiled()   # as the node entry points: the nodes' kernels without numba where built
     nodes = []
 
     def build():

@@ -40,6 +40,7 @@ from uh_controller_node.controller_diagnostics import ControllerDiagnostics, Nei
 from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser
 from uh_controller_node.node_parameters import GainParameters, declare_controller_parameters
 from uh_controller_node.realtime_received import received_states_for
+from uh_core import compiled_kernels
 from uh_runtime import messages as m
 from uh_wire import topics
 from uh_wire.run_config import declare_run_parameters, declare_view_parameters
@@ -104,7 +105,7 @@ class ControllerNode(rt.Node):
             self.create_timer(SLOW_POLL_S, self._on_deadline)
         self.get_logger().info(f'uh{self.uh_id} ({case}, {run.clock_mode}): hears '
                                f"{', '.join(f'uh{j}' for j in neighbours) or 'no UH'}"
-                               f"{' and the virtual leader' if linked else ''}")
+                               f"{' and the virtual leader' if linked else ''}, {compiled_kernels.kernel_form()}")
 
     def _apply_gains(self, params) -> None:
         """Give the controller the gains of an accepted parameter change (docs/control_law.md)."""

@@ -27,7 +27,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from uh_core import compiled_kernels as _compiled_kernels
+from uh_core.compiled_kernels import njit
 
 from uh_core.layout import STATE_SIZE, X_P, X_V
 
@@ -272,6 +273,10 @@ def compile_impairment_kernels() -> float:
 
     start = time.perf_counter()
     delivered_step(5, 1, 2, 0.5, 3, 1, 2, 3)
+    newest_delivered(5, 4, 1, 2, 0.5, 3, 1, 2, 3)   # also called from Python (realtime_received)
     add_noise(np.zeros(STATE_SIZE), np.ones(STATE_SIZE), 1, 2, 3, 4, np.empty(STATE_SIZE))
     predict_state(np.zeros(STATE_SIZE), prediction_age(5, 3, 1, 2, 0.01), 0.01, np.empty(STATE_SIZE))
     return time.perf_counter() - start
+
+# run the ahead-of-time compiled kernels instead where this process asks for them (docs/performance.md#memory)
+_compiled_kernels.install(globals())

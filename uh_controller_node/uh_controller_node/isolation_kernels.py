@@ -50,7 +50,8 @@ import math
 import time
 
 import numpy as np
-from numba import njit
+from uh_core import compiled_kernels as _compiled_kernels
+from uh_core.compiled_kernels import njit
 
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
@@ -373,3 +374,6 @@ def compile_isolation_kernels() -> float:
 
 # numba caches each kernel by this file only: empty the cache when the layout it reads changes
 _kernel_cache.refresh_cache(_kernel_cache.module_dispatchers(globals()), [_layout.__file__])
+
+# run the ahead-of-time compiled kernels instead where this process asks for them (docs/performance.md#memory)
+_compiled_kernels.install(globals())

@@ -26,7 +26,7 @@ rho = 0 (stuck actuator) is accepted with a warning that the controller cannot c
 from __future__ import annotations
 
 import uh_runtime as rt
-from uh_core import diagnostics, frames
+from uh_core import compiled_kernels, diagnostics, frames
 from uh_runtime import messages as m
 from uh_sim_node.command_watch import CommandWatch
 from uh_sim_node.faults import ActuatorFault, FaultError
@@ -77,7 +77,7 @@ class SimNode(rt.Node):
             self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
         self.get_logger().info(
             f'uh{self.uh_id}: {self.mode} mode, dt {self.dt} s, {self.last_step} steps, '
-            f'{len(self.plant.faults)} scheduled fault(s)')
+            f'{len(self.plant.faults)} scheduled fault(s), {compiled_kernels.kernel_form()}')
 
     # -- inputs -----------------------------------------------------------------------------------
     def on_clock(self, msg) -> None:

@@ -1,15 +1,20 @@
-"""Compile the numba kernels of the model, the control law and the fault isolator and fill numba's on-disk cache.
+"""Compile the numba kernels of the model, the control law and the fault isolator, and their ahead-of-time form.
 
 ``python -m uh_team.compile_kernels`` (run by ``scripts/_venv.sh`` whenever the kernel
-sources change): without it, the first processes to need a kernel compile it, each on its own (a
-distributed run starts about a dozen node processes at once).
+sources change, and by the launch file before any node starts) fills numba's on-disk cache: without
+it, the first processes to need a kernel compile it, each on its own (a distributed run starts about
+a dozen node processes at once). It then builds the kernels the nodes call into one extension module
+(:func:`uh_core.compiled_kernels.build`), which the node processes load instead of numba
+(docs/performance.md#memory); where that fails (no C compiler), it says so and the nodes run numba.
 """
 from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from uh_controller_node.control_kernels import compile_control_kernels
+from uh_core import compiled_kernels
 from uh_controller_node.impairments import compile_impairment_kernels
 from uh_controller_node.isolation_kernels import compile_isolation_kernels
 from uh_sim_node.plant_kernels import compile_plant_kernels
@@ -32,9 +37,22 @@ def main(argv=None) -> int:
         description='Compile the numba kernels of the helicopter model, the control law, the fault isolator and '
                     'the in-process team loop, and store them in numba\'s cache (__pycache__ next to the sources, or '
                     'NUMBA_CACHE_DIR).')
-    parser.parse_args(argv)
+    parser.add_argument('--no-compiled-module', action='store_true',
+                        help='only fill numba\'s cache; do not build the ahead-of-time compiled kernels the node '
+                             'processes load instead of numba')
+    args = parser.parse_args(argv)
     times = compile_all()
     print('kernels ready: ' + ', '.join(f'{name} {seconds:.1f} s' for name, seconds in times.items()))
+    if not args.no_compiled_module:
+        start = time.perf_counter()
+        try:
+            path, built = compiled_kernels.build(log=print)
+        except Exception as exc:   # a missing C compiler, an unwritable cache: the nodes run numba instead
+            print(f'compile_kernels: warning: the ahead-of-time compiled kernels were not built ({exc}); '
+                  'the nodes will run numba\'s kernels', file=sys.stderr)
+        else:
+            state = 'built' if built else 'up to date'
+            print(f'compiled kernels {state} in {time.perf_counter() - start:.1f} s: {path}')
     return 0
 
 

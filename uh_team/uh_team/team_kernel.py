@@ -47,6 +47,10 @@ from uh_controller_node.control_kernels import (
     INPUT_SIZE, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_U_P, S_Z1, STATE_SIZE,
     STATUS_SIZE, STEP_DONE, uh_control_step,
 )
+from uh_core import compiled_kernels as _compiled_kernels
+
+# this loop calls the kernels from numba code: a process running them compiled cannot import it
+_compiled_kernels.require_numba('uh_team.team_kernel')
 
 __all__ = ['TeamConfig', 'TeamImpairments', 'TeamState', 'TeamRecord', 'TeamArrays', 'team_arrays',
            'empty_record', 'run_team_steps', 'refresh_cache', 'compile_team_kernel', 'TEAM_DONE']

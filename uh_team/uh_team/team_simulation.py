@@ -35,7 +35,6 @@ from uh_controller_node.impairments import ReceivedStates
 
 from .metrics import containment_errors, formation_errors
 from .run_arrays import RUN_REF_POSITION, new_run_arrays
-from .team_kernel import TEAM_DONE, TeamRecord, run_team_steps, team_arrays
 
 __all__ = ['SimulationError', 'TeamRun', 'run_team_simulation', 'ENGINES']
 
@@ -182,6 +181,9 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     reference = VirtualLeaderReference(scenario.reference)
     arrays = None
     if engine == 'kernel':
+        # imported here: the object loop also runs where the kernels are compiled ahead of time,
+        # without numba, and the team loop is numba code (uh_core.compiled_kernels)
+        from .team_kernel import team_arrays
         arrays = team_arrays(ids, controllers, plants, scenario.impairments, dt)
 
     out = new_run_arrays(K + 1, n, with_z1=True)
@@ -224,6 +226,8 @@ def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False
     It runs in chunks of about 1 % of the steps so ``progress`` is called as often as by the object
     loop (``load_only``: one call that runs no step, which loads or compiles the kernel).
     """
+    from .team_kernel import TEAM_DONE, TeamRecord, run_team_steps
+
     record = TeamRecord(**{name: out[name] for name in TeamRecord._fields})
     for k0 in ([0] if load_only else range(0, K + 1, every)):
         k1 = k0 if load_only else min(K + 1, k0 + every)
