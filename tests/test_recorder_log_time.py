@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from uh_runtime.recorder import STAMP_WINDOW_NS, LogClock
+from uh_runtime.recorder import PROGRESS_EVERY, PROGRESS_FLUSH_S, STAMP_WINDOW_NS, LogClock, RecordedProgress
 
 WALL_NS = 1_795_000_000_123_456_789          # a wall-clock stamp of 2026
 
@@ -83,3 +83,29 @@ def test_a_wall_clock_stamped_fault_leaves_the_bags_time_range_that_of_the_run(t
     assert info['starting_time']['nanoseconds_since_epoch'] == 1_000_000_000
     assert info['duration']['nanoseconds'] == 2_000_000_000, info     # 1 s .. 3 s of /clock, the fault at 3 s
     assert '1 message(s) stamped more than 10 s from the simulated time' in output
+
+
+def test_progress_is_published_every_tenth_advance_and_the_rest_on_the_timer():
+    # /recorder/progress: the oldest newest log time of the per-step topics, once each was written
+    progress = RecordedProgress(['/a', '/b'], every=PROGRESS_EVERY)
+    assert not progress.written('/a', 0) and progress.take() is None         # /b never written yet
+    assert not progress.written('/other', 5)                                  # not a per-step topic
+    published = []
+    for step in range(25):
+        progress.written('/a', step * 10)
+        if progress.written('/b', step * 10):
+            published.append(progress.take())
+    # 25 advances (0 .. 240 ns): published at the 10th and 20th by the messages themselves
+    assert published == [90, 190]
+    assert progress.take() == 240 and progress.take() is None    # the timer publishes the rest, once
+    assert not progress.written('/b', 240) and progress.take() is None   # no advance, nothing to publish
+
+
+def test_the_timer_confirms_the_last_step_within_its_period():
+    # the lockstep clock ends the run only once the last step is confirmed: it must not wait for a
+    # tenth advance that never comes
+    progress = RecordedProgress(['/a'], every=PROGRESS_EVERY)
+    for step in range(3):
+        assert not progress.written('/a', step)
+    assert progress.take() == 2
+    assert 0 < PROGRESS_FLUSH_S <= 0.05   # the end of a run waits at most this long for it

@@ -21,7 +21,8 @@ the first) is not the run's time (a message stamped with wall-clock time: a faul
 unchanged, so it never stretches the bag's time range; the recorder logs how many were.
 
 With ``progress_topics`` set, it publishes on ``/recorder/progress`` the sim
-time up to which every one of those topics has been written; the lockstep clock waits on it, so a
+time up to which every one of those topics has been written (every :data:`PROGRESS_EVERY` steps,
+and within :data:`PROGRESS_FLUSH_S` s of an advance); the lockstep clock waits on it, so a
 lockstep run loses nothing however slow the disk.
 
 SIGINT/SIGTERM finalise the bag (summary and ``metadata.yaml``). Every ``FLUSH_PERIOD_S`` the
@@ -42,12 +43,19 @@ from uh_runtime.arguments import InvalidNameError, validate_full_topic_name
 from uh_runtime.names import RECORDER_PROGRESS_TOPIC
 from uh_runtime.qos import QoSWords, merge_offered, profile_from_words, qos_profile_yaml, words_of
 
-__all__ = ['RecorderNode', 'LogClock', 'STAMP_WINDOW_NS', 'main', 'stamp_of', 'stamped_first', 'new_topics']
+__all__ = ['RecorderNode', 'LogClock', 'RecordedProgress', 'STAMP_WINDOW_NS', 'PROGRESS_EVERY', 'PROGRESS_FLUSH_S',
+           'main', 'stamp_of', 'stamped_first', 'new_topics']
 
 _STAMPED_FIRST = {'rosgraph_msgs/msg/Clock', 'builtin_interfaces/msg/Time'}
 _TIME = struct.Struct('<iI')
 #: Keep-last depth of the recorder's subscriptions.
 _RECORD_DEPTH = 10000
+#: ``/recorder/progress`` is published every this many advances of the recorded step, and the rest
+#: within :data:`PROGRESS_FLUSH_S` wall seconds: the lockstep clock only needs the recorder within
+#: ``RECORDER_LAG_STEPS`` (40) steps, and the last step confirmed at the end, and one message per
+#: step was 13 % of the recorder's CPU and one of the clock's six receptions per step.
+PROGRESS_EVERY = 10
+PROGRESS_FLUSH_S = 0.02
 
 
 def stamped_first(type_name: str) -> bool:
@@ -96,6 +104,49 @@ class LogClock:
             self.replaced += 1
             return self.clock_ns
         return log_ns
+
+
+class RecordedProgress:
+    """The sim time up to which every per-step topic has been written, and when to publish it.
+
+    Parameters
+    ----------
+    topics : iterable of str
+        The per-step topics (``progress_topics``); the progress is the oldest of their newest log
+        times, ns, once each has been written at least once.
+    every : int
+        :meth:`written` asks for a publication at every ``every``-th advance; the node publishes
+        the others from a timer (:meth:`take`).
+    """
+
+    def __init__(self, topics, every: int = PROGRESS_EVERY):
+        self.topics = frozenset(topics)
+        self.every = every
+        self.latest: dict[str, int] = {}
+        self.progress_ns = -1        # -1: not every topic written yet
+        self.published_ns = -1
+        self.advances = 0
+
+    def written(self, topic: str, log_ns: int) -> bool:
+        """Note that a message of ``topic`` logged at ``log_ns`` was written; True: publish now."""
+        if topic not in self.topics:
+            return False
+        self.latest[topic] = log_ns
+        if len(self.latest) < len(self.topics):
+            return False
+        progress = min(self.latest.values())
+        if progress <= self.progress_ns:
+            return False
+        self.progress_ns = progress
+        self.advances += 1
+        return self.advances % self.every == 0
+
+    def take(self) -> int | None:
+        """Return the progress, ns, when it advanced since the last call that returned it, else None."""
+        if self.progress_ns <= self.published_ns:
+            return None
+        self.published_ns = self.progress_ns
+        return self.progress_ns
 
 
 def new_topics(node, followed, wanted=(), skip=()):
@@ -154,9 +205,8 @@ class RecorderNode(rt.Node):
             self.bag = BagWriter(output)
         except BagError as exc:    # a bad 'output' (a ValueError: one line, exit 2, from run_node)
             raise ValueError(f"parameter 'output': {exc}") from None
-        self.latest_stamp: dict[str, int] = {}
         self.log_clock = LogClock(sim_time=bool(self.get_parameter('sim_time').value))
-        self.progress_ns = -1
+        self.progress = RecordedProgress(self.progress_topics)
         self.subscriptions_by_topic = {}
         self.progress_pub = self.create_publisher(m.Time, RECORDER_PROGRESS_TOPIC, 10)
         for name, type_name in expected:
@@ -164,6 +214,8 @@ class RecorderNode(rt.Node):
             self._subscribe(name, type_name, words, qos_profile_yaml('reliable', 'volatile', 'keep_last', 10))
         self.create_timer(0.05, self.discover)
         self.create_timer(FLUSH_PERIOD_S, self.bag.flush)
+        if self.progress_topics:
+            self.create_timer(PROGRESS_FLUSH_S, self.publish_progress)
         self.discover()
 
     def discover(self) -> None:
@@ -190,15 +242,16 @@ class RecorderNode(rt.Node):
     def on_message(self, topic: str, data: bytes, stamped: bool) -> None:
         log_ns = self.log_clock.of(topic, data, stamped)
         self.bag.write(topic, data, log_ns)
-        if topic in self.progress_topics:
-            self.latest_stamp[topic] = log_ns
-            if len(self.latest_stamp) == len(self.progress_topics):
-                progress = min(self.latest_stamp.values())
-                if progress > self.progress_ns:
-                    self.progress_ns = progress
-                    msg = m.Time()
-                    msg.sec, msg.nanosec = progress // 1_000_000_000, progress % 1_000_000_000
-                    self.progress_pub.publish(msg)
+        if self.progress.written(topic, log_ns):
+            self.publish_progress()
+
+    def publish_progress(self) -> None:
+        """Publish the progress not yet published (every :data:`PROGRESS_EVERY` advances, and by a timer)."""
+        progress = self.progress.take()
+        if progress is not None:
+            msg = m.Time()
+            msg.sec, msg.nanosec = progress // 1_000_000_000, progress % 1_000_000_000
+            self.progress_pub.publish(msg)
 
     def destroy_node(self):
         if getattr(self, 'bag', None) is None:   # refused before its bag was created: nothing to close
