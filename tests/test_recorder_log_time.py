@@ -109,3 +109,24 @@ def test_the_timer_confirms_the_last_step_within_its_period():
         assert not progress.written('/a', step)
     assert progress.take() == 2
     assert 0 < PROGRESS_FLUSH_S <= 0.05   # the end of a run waits at most this long for it
+
+
+def test_progress_equals_the_oldest_newest_stamp_for_any_order_of_messages():
+    # the incremental minimum against its definition, over shuffled steps, repeats and stale stamps
+    import random
+    rng = random.Random(7)
+    topics = [f'/uh{i}/{kind}' for i in range(1, 9) for kind in ('state', 'command')]
+    progress = RecordedProgress(topics, every=1)
+    newest = {}
+    for step in range(300):
+        batch = [(t, step * 10) for t in topics] + [(rng.choice(topics), max(0, step - 3) * 10) for _ in range(4)]
+        rng.shuffle(batch)
+        for topic, ns in batch:
+            before = progress.progress_ns
+            published = progress.written(topic, ns)
+            newest[topic] = max(newest.get(topic, -1), ns)
+            expected = min(newest.values()) if len(newest) == len(topics) else -1
+            assert progress.progress_ns == expected
+            assert published == (expected > before)    # every=1: each advance asks to be published
+            if published:
+                assert progress.take() == expected

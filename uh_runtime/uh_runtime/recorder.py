@@ -126,17 +126,30 @@ class RecordedProgress:
         self.progress_ns = -1        # -1: not every topic written yet
         self.published_ns = -1
         self.advances = 0
+        self.at_minimum = 0          # topics whose newest log time is progress_ns
 
     def written(self, topic: str, log_ns: int) -> bool:
-        """Note that a message of ``topic`` logged at ``log_ns`` was written; True: publish now."""
+        """Note that a message of ``topic`` logged at ``log_ns`` was written; True: publish now.
+
+        A topic's newest log time never goes back (a replayed older message does not un-write the
+        later ones). The minimum is recomputed only when the last topic that held it advanced, so a
+        step of n topics costs O(n), not O(n^2) (160 topics in a team of 40 UHs).
+        """
         if topic not in self.topics:
+            return False
+        old = self.latest.get(topic, -1)
+        if log_ns <= old:
             return False
         self.latest[topic] = log_ns
         if len(self.latest) < len(self.topics):
             return False
-        progress = min(self.latest.values())
-        if progress <= self.progress_ns:
+        if self.progress_ns >= 0 and old != self.progress_ns:
+            return False          # the minimum is held by other topics
+        self.at_minimum -= 1
+        if self.at_minimum > 0:
             return False
+        progress = min(self.latest.values())
+        self.at_minimum = sum(1 for value in self.latest.values() if value == progress)
         self.progress_ns = progress
         self.advances += 1
         return self.advances % self.every == 0
