@@ -193,6 +193,8 @@ RUN_CASES = {
                        r'--respawn needs --processes per-node'),
     'netns_single': (['--hosts', 'netns', '--processes', 'single'], r'--hosts netns cannot run --processes single'),
     'bad_hosts': (['--hosts', 'cloud'], r"argument --hosts: invalid choice: 'cloud'"),
+    'workers_zero': (['--processes', 'workers', '--workers', '0'], r'--workers 0: allowed 1 or more'),
+    'workers_layout': (['--workers', '2'], r'--workers needs --processes workers \(the layout is per-node\)'),
 }
 
 

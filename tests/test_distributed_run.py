@@ -282,7 +282,7 @@ def test_realtime_run_meets_the_thresholds(tmp_path, paper, reference_run):
     assert np.nanmax(deviation) < 0.1
 
 
-@pytest.mark.parametrize('layout, extra', [('per-uh', ()), ('single', ()),
+@pytest.mark.parametrize('layout, extra', [('per-uh', ()), ('workers', ('--workers', '2')), ('single', ()),
                                            ('per-node', ('--no-visualization', '--no-report'))])
 def test_every_process_layout_gives_the_same_trajectories(tmp_path, paper, layout, extra):
     """Composition (several nodes in one process) changes nothing, nor does leaving out the visualisation.

@@ -14,6 +14,7 @@ import pytest
 
 from uh_bringup import run_formation
 from uh_bringup.launch_run import RunFailed
+from uh_bringup.run_processes import processes, worker_groups
 from uh_bringup.team_nodes import NODES, node_class, node_specs
 from uh_topology.scenario import load_scenario
 from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
@@ -36,9 +37,11 @@ def _console_scripts(pkg: str) -> dict:
 @pytest.mark.parametrize('kind', sorted(NODES))
 def test_every_node_kind_has_its_entry_point_and_class(kind):
     spec = NODES[kind]
-    assert _console_scripts(spec.package).get(spec.executable) == f'{spec.module}:main'
+    assert _console_scripts(spec.package).get(spec.executable) == spec.entry_point
     cls = node_class(kind)
-    assert isinstance(cls, type) and callable(importlib.import_module(spec.module).main)
+    module, function = spec.entry_point.split(':')
+    assert isinstance(cls, type) and callable(getattr(importlib.import_module(module), function))
+    assert callable(importlib.import_module(spec.module).main)
 
 
 def test_unknown_node_kind_is_refused_with_the_allowed_ones():
@@ -57,6 +60,29 @@ def test_per_node_processes_start_the_entry_points_of_the_table(tmp_path):
     assert kinds[0] == 'recorder' and kinds[-1] == 'clock'
     assert kinds.count('sim') == kinds.count('controller') == len(scenario.ids)
     assert 'visualization' in kinds
+
+
+@pytest.mark.parametrize('ids, workers, expected', [
+    ((1, 2, 3, 4, 5), 2, {1: 'uh1-2', 2: 'uh1-2', 3: 'uh3-5', 4: 'uh3-5', 5: 'uh3-5'}),
+    ((3, 1, 2), 5, {1: 'uh1', 2: 'uh2', 3: 'uh3'}),          # at most one worker per UH
+    ((7, 8), 1, {7: 'uh7-8', 8: 'uh7-8'}),
+])
+def test_workers_hold_blocks_of_consecutive_uhs_as_even_as_can_be(ids, workers, expected):
+    assert worker_groups(ids, workers) == expected
+
+
+def test_the_workers_layout_puts_each_uhs_nodes_in_its_block_and_the_team_and_recorder_apart(tmp_path):
+    scenario = load_scenario('paper')    # UHs 1..5
+    specs = node_specs(scenario, 'paper', 'proposed', 'lockstep', 1.0, None, tmp_path / 'bag', 60.0)
+    started = processes(specs, 'workers', tmp_path, workers=2)
+    assert [(name, kind) for name, kind, _cmd in started] == [
+        ('recorder', 'recorder'), ('uh1-2', 'sim'), ('uh3-5', 'sim'), ('team', 'clock')]   # the clock's last
+    nodes = {name: [n['name'] for n in json.loads((tmp_path / f'{name}.nodes.json').read_text())]
+             for name, _kind, _cmd in started}
+    assert nodes['uh1-2'] == ['uh1_sim', 'uh1_controller', 'uh2_sim', 'uh2_controller']
+    assert sorted(nodes['uh3-5']) == sorted(f'uh{i}_{k}' for i in (3, 4, 5) for k in ('sim', 'controller'))
+    assert 'clock' in nodes['team'] and 'virtual_leader' in nodes['team']
+    assert all(cmd[-3:-1] == ['-m', 'uh_bringup.composed'] for _name, _kind, cmd in started)
 
 
 class _Recorder:

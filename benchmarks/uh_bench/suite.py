@@ -65,14 +65,14 @@ __all__ = ['MODES', 'GOALS', 'run_suite', 'markdown', 'machine_info', 'evaluate_
 MODES = {
     'quick': {'transport_quick': True, 'paper_duration': 20.0, 'paper_layouts': ('per-node', 'single'),
               'component_steps': 500, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 3.0,
-              'scaling_layouts': ('per-node', 'single'), 'realtime_duration': 8.0,
-              'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'), (20, 'single')),
+              'scaling_layouts': ('per-node', 'workers', 'single'), 'realtime_duration': 8.0,
+              'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'), (20, 'workers'), (20, 'single')),
               'backend_lockstep_duration': 20.0, 'backend_realtime_duration': 20.0, 'campaign_runs': 100,
               'contention_runs': ('fifo', 'normal')},
     'full': {'transport_quick': False, 'paper_duration': 60.0, 'paper_layouts': ('per-node', 'per-uh', 'single'),
              'component_steps': 3000, 'scaling_sizes': (5, 10, 20, 40), 'scaling_duration': 20.0,
-             'scaling_layouts': ('per-node', 'single'), 'realtime_duration': 60.0,
-             'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'), (20, 'single')),
+             'scaling_layouts': ('per-node', 'workers', 'single'), 'realtime_duration': 60.0,
+             'realtime_runs': ((5, 'per-node'), (5, 'single'), (20, 'per-node'), (20, 'workers'), (20, 'single')),
              'backend_lockstep_duration': 60.0, 'backend_realtime_duration': 60.0, 'campaign_runs': 1000,
              'contention_runs': ('fifo', 'normal')},
 }

@@ -27,7 +27,7 @@ __all__ = ['UsageError', 'CONFIG_ERRORS', 'CLOCKS', 'HOSTS', 'LAYOUTS', 'check_a
 
 CLOCKS = ('lockstep', 'realtime')
 HOSTS = ('local', 'netns')
-LAYOUTS = ('per-node', 'per-uh', 'single')
+LAYOUTS = ('per-node', 'per-uh', 'workers', 'single')
 
 #: errors of a team's configuration (scenario and gains, airframe, faults, reference): exit status 2
 CONFIG_ERRORS = (ScenarioError, ControllerError, HelicopterParamsError, FaultError, ReferenceParameterError)
@@ -63,6 +63,11 @@ def check_args(args) -> None:
     if args.respawn and args.processes != 'per-node':
         raise UsageError(f'--respawn needs --processes per-node (with {args.processes} a controller shares '
                          'its process with its simulator, which cannot be restarted)')
+    workers = getattr(args, 'workers', None)
+    if workers is not None and workers < 1:
+        raise UsageError(f'--workers {workers}: allowed 1 or more (processes holding the UHs)')
+    if workers is not None and args.processes != 'workers':
+        raise UsageError(f'--workers needs --processes workers (the layout is {args.processes})')
     if args.hosts == 'netns' and args.processes == 'single':
         raise UsageError('--hosts netns cannot run --processes single (one process cannot be in several '
                          'network namespaces)')

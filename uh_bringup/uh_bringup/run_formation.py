@@ -88,8 +88,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f'DDS domain id 0..{MAX_DOMAIN_ID} (default: ROS_DOMAIN_ID, else a free one that no other '
                         'run, test or benchmark on this machine holds)')
     p.add_argument('--processes', default='per-node', choices=LAYOUTS,
-                   help='process layout: one process per node (default), one per UH, or a single process; '
-                        'results are identical')
+                   help='process layout: one process per node (default), one per UH, a few workers holding '
+                        'blocks of UHs, or a single process; results are identical')
+    p.add_argument('--workers', type=int, default=None, metavar='N',
+                   help='--processes workers: processes holding the UHs (default: the CPUs available); the team '
+                        'nodes and the recorder run in one more each')
     p.add_argument('--no-metrics', action='store_true',
                    help='do not compute metrics.json after the run (and write no report)')
     p.add_argument('--no-report', action='store_true',

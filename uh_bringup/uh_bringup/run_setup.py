@@ -93,7 +93,7 @@ def start_team(args, scenario, scenario_arg: str, out: Path, env: dict, priority
                        realtime_priority=priority)
     if args.foxglove is not None:
         print(f'[run] live view: {live_view.connect_hint(args.foxglove_host, args.foxglove)}', file=sys.stderr)
-    started = processes(specs, args.processes, out / 'logs')
+    started = processes(specs, args.processes, out / 'logs', getattr(args, 'workers', None))
     on_dds = dds_processes(env, [name for name, _kind, _cmd in started])
     for name, kind, cmd in started:
         # composed processes: only the recorder's own process (per-uh) is of an infrastructure kind

@@ -39,6 +39,9 @@ class NodeKind:
         Moves data for people, not for the control loop (the recorder, the visualisation): runs on
         the Cyclone DDS backend wherever that is installed, also on a ROS 2 machine, where rclpy's
         per-message cost would take the CPU the team needs (:func:`backend_environment`).
+    entry : str
+        ``module:function`` its console script runs, when not the node module's ``main`` (the
+        simulator and the controller choose their kernels' form first: docs/performance.md#memory).
     """
 
     package: str
@@ -46,19 +49,27 @@ class NodeKind:
     node_class: str
     per_uh: bool = False
     infrastructure: bool = False
+    entry: str = ''
+
+    @property
+    def entry_point(self) -> str:
+        """``module:function`` of its console script (``setup.py``)."""
+        return self.entry or f'{self.module}:main'
 
     @property
     def module(self) -> str:
-        """The module whose ``main()`` the entry point runs."""
+        """The module of its node class (and of the ``main()`` that runs it alone)."""
         return self.node_class.split(':')[0]
 
 
 #: node kind -> how it is packaged, started and composed
 NODES = {
     'recorder': NodeKind('uh_runtime', 'recorder_node', 'uh_runtime.recorder:RecorderNode', infrastructure=True),
-    'sim': NodeKind('uh_sim_node', 'sim_node', 'uh_sim_node.sim_node:SimNode', per_uh=True),
+    'sim': NodeKind('uh_sim_node', 'sim_node', 'uh_sim_node.sim_node:SimNode', per_uh=True,
+                    entry='uh_sim_node.entry_points:sim_node'),
     'controller': NodeKind('uh_controller_node', 'controller_node',
-                           'uh_controller_node.controller_node:ControllerNode', per_uh=True),
+                           'uh_controller_node.controller_node:ControllerNode', per_uh=True,
+                           entry='uh_controller_node.entry_points:controller_node'),
     'visualization': NodeKind('uh_sim_node', 'visualization_node',
                               'uh_sim_node.visualization_node:VisualizationNode', infrastructure=True),
     'virtual_leader': NodeKind('uh_sim_node', 'virtual_leader_node',
