@@ -47,10 +47,6 @@ LAZY_IMPORTS = {
     'uh_runtime/uh_runtime/runner.py:check_parameter_overrides': 'the package imports the runner: no cycle at import',
     'uh_runtime/uh_runtime/runner.py:_clear_errors': 'the package imports the runner: no cycle at import',
     'uh_runtime/uh_runtime/runner.py:run_node': 'process statistics only when asked for',
-    # the kernels' form (compiled ahead of time or numba) is chosen before the first kernel module loads
-    'uh_sim_node/uh_sim_node/entry_points.py:sim_node': 'UH_KERNELS is set before the node imports its kernels',
-    'uh_controller_node/uh_controller_node/entry_points.py:controller_node':
-        'UH_KERNELS is set before the node imports its kernels',
     'uh_team/uh_team/team_simulation.py:run_team_simulation': 'the numba team loop only for its engine: the object '
                                                                'loop also runs on compiled kernels, without numba',
     'uh_team/uh_team/team_simulation.py:_run_kernel': 'as run_team_simulation',

@@ -52,7 +52,7 @@ from pathlib import Path
 
 __all__ = ['MODE_VARIABLE', 'DIR_VARIABLE', 'MODES', 'KERNEL_MODULES', 'KernelModeError', 'mode', 'kernel_digest',
            'library_name', 'search_dirs', 'find_built', 'compiled_library', 'njit', 'install', 'active_modules',
-           'require_numba', 'prefer_compiled', 'kernel_form', 'build']
+           'require_numba', 'prefer_compiled', 'run_node_main', 'kernel_form', 'build']
 
 #: Environment variable that selects the kernels' form (:data:`MODES`).
 MODE_VARIABLE = 'UH_KERNELS'
@@ -180,6 +180,22 @@ def prefer_compiled() -> None:
     """Set ``UH_KERNELS=auto`` unless it is set: a node process's entry point calls this before its imports."""
     if not os.environ.get(MODE_VARIABLE, '').strip():
         os.environ[MODE_VARIABLE] = 'auto'
+
+
+def run_node_main(module: str, prog: str, args=None):
+    """Run ``module.main(args)`` of a node that steps kernels, on compiled kernels where they were built.
+
+    The console entry point of such a node calls this: ``UH_KERNELS`` is set to ``auto`` unless set
+    (:func:`prefer_compiled`) before the node's module imports its kernels. A bad ``UH_KERNELS``, or
+    ``compiled`` without a built module, is one line on stderr as ``prog: error: ...`` and status 2.
+    """
+    prefer_compiled()
+    try:
+        main = importlib.import_module(module).main
+    except KernelModeError as exc:
+        print(f'{prog}: error: {exc}', file=sys.stderr)
+        return 2
+    return main(args)
 
 
 def njit(*args, **kwargs):
