@@ -55,7 +55,7 @@ def main(argv=None) -> int:
     p = ArgumentParser(prog='bench.sh', description='Benchmarks of the UH stack: real-time factors, '
                                 'scaling, real-time latency, per-step costs, memory. Writes a JSON results '
                                 'file and prints a markdown table.')
-    p.add_argument('--quick', action='store_true', help='short runs (8 min 48 s in all in its last run, on 2 cores)')
+    p.add_argument('--quick', action='store_true', help='short runs (7 min 25 s in all in its last run, on 2 cores)')
     p.add_argument('--sections', nargs='+', choices=SECTIONS, default=list(SECTIONS),
                    help='sections to run (default: all)')
     p.add_argument('--out', default=str(Path(__file__).resolve().parents[1] / 'results' / 'latest.json'),
