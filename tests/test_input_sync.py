@@ -158,7 +158,7 @@ def test_realtime_ignores_values_older_than_the_one_held(paper):
 
 def test_realtime_nothing_beyond_the_last_step(paper):
     sync, clock, _ = make(paper, 3, last_step=1)
-    assert [s.step for s in offer_step(sync, 3, 1)] == [1]
+    assert [s.step for s in offer_step(sync, 3, 0) + offer_step(sync, 3, 1)] == [0, 1]
     assert offer_step(sync, 3, 2) == []
     clock.advance(1.0)
     assert sync.poll() == [] and sync.waiting is None
@@ -246,11 +246,27 @@ def test_a_restarted_controller_skips_the_history_and_joins_at_the_current_step(
     released = []
     for k in range(401, 501):                              # ... and of the own state
         released += sync.offer(OWN, k, state(3, k))
-    assert [s.step for s in released] == [499, 500]        # nothing older than the newest step - 1
+    assert released == []                                  # the first step waits for the backlog to be in
+    clock.advance(SYNC_WAIT)
+    released = sync.poll()
+    assert [s.step for s in released] == [500]             # the newest step, with its neighbours' data
     assert all(step_of(s.neighbours[2]) == 500 for s in released)
     assert logger.texts('info') == ['joining a running team at step 401 or later']
+    assert [s.step for s in offer_step(sync, 3, 501)] == [501]   # joined: the next steps as they come
     clock.advance(1.0)
     assert sync.poll() == []
+
+
+def test_a_restarted_controller_given_the_history_interleaved_computes_no_old_step(paper):
+    # the histories of the inputs can come interleaved (each writer's when it is matched): a step
+    # whose inputs all came must still not be released before the backlog is in
+    sync, clock, _ = make(paper, 3)
+    released = []
+    for k in range(401, 501):
+        released += sync.offer(OWN, k, state(3, k)) + sync.offer(2, k, state(2, k))
+    assert released == []
+    clock.advance(SYNC_WAIT)
+    assert [s.step for s in sync.poll()] == [500]
 
 
 def test_own_state_silence_is_reported_once(paper):

@@ -167,6 +167,7 @@ class InputSynchroniser:
         self.waiting = None                  # realtime: (step, wall deadline) of the step being assembled
         self.newest_step = -1                # realtime: newest step of any valid input
         self.joined = False                  # realtime: a step has been released
+        self.rejoining = False               # realtime: the first own state was of a running team (k > 0)
         self.first_own_wall = self.last_own_wall = None
         self.own_silent_reported = False
         self.stale: tuple = ()
@@ -193,6 +194,13 @@ class InputSynchroniser:
         self.latest[key] = (k, value)
         self.newest_step = max(self.newest_step, k)
         if key == OWN and not self._own_arrived(k):
+            return []
+        if self.rejoining and not self.joined:
+            # a controller joining a running team (restarted) first receives the transient-local
+            # history of every input, topic by topic as its writers are matched; releasing a step
+            # as soon as one old step's inputs were complete would compute commands for steps long
+            # gone. Its first step is released by the timer (poll), sync_wait after the newest own
+            # state: once the backlog is in.
             return []
         return self._assemble(from_timer=False)
 
@@ -237,6 +245,7 @@ class InputSynchroniser:
         if self.first_own_wall is None:
             self.first_own_wall = now
             if k > 0:
+                self.rejoining = True
                 self.logger.info(f'joining a running team at step {k} or later')
         if self.own_silent_reported:
             self.own_silent_reported = False
