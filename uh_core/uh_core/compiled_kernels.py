@@ -218,10 +218,10 @@ def install(namespace: dict) -> bool:
     Returns True when the module now runs compiled kernels, False when it runs numba's.
     """
     name = namespace.get('__name__')
-    if name not in KERNEL_MODULES or compiled_library() is None:
+    library = compiled_library() if name in KERNEL_MODULES else None
+    if library is None:
         return False
     prefix = KERNEL_MODULES[name][0]
-    library = compiled_library()
     for attribute in dir(library):
         if attribute.startswith(prefix):
             namespace[attribute[len(prefix):]] = getattr(library, attribute)
