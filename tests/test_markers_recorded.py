@@ -39,7 +39,7 @@ def test_markers_are_recorded_over_the_whole_run_with_their_qos(recorded):
     entry = next(e for e in meta['topics_with_message_count'] if e['topic_metadata']['name'] == '/markers')
     qos = entry['topic_metadata']['offered_qos_profiles']
     qos = (yaml.safe_load(qos) if isinstance(qos, str) else qos)[0]   # rosbag2 writes it either way
-    assert (qos['reliability'], qos['durability']) == ('reliable', 'volatile')   # docs/topics.md
+    assert (qos['reliability'], qos['durability']) == ('reliable', 'transient_local')   # docs/topics.md
     stamps = [a.markers[0].header.stamp.sec + a.markers[0].header.stamp.nanosec * 1e-9 for a in arrays]
     assert stamps == sorted(stamps) and stamps[0] == 0.0
     assert stamps[-1] == pytest.approx(team['time'][-1])       # up to the last step of the run

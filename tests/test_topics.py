@@ -36,3 +36,18 @@ def test_docs_table_matches_the_registry(spec):
     q = spec.qos
     row = f'| `{name}` | `{spec.type}` | {q.reliability}, {q.history} {q.depth}, {q.durability} |'
     assert row in doc
+
+
+def test_run_topics_are_what_the_recorder_must_have_subscribed_to_before_step_0():
+    """The lockstep clock's list: the team topics, the views unless switched off, /markers with the visualisation."""
+    ids = load_scenario('paper').ids
+    full = {name for name, _ in T.run_topics(ids)}
+    assert full == {name for name, _ in T.team_topics(ids)} | {'/markers'}
+    assert {'/tf', '/diagnostics', '/uh4/odom', '/uh1/state', '/clock'} <= full
+    bare = {name for name, _ in T.run_topics(ids, views=False, visualization=False)}
+    assert bare == full - {'/tf', '/diagnostics', '/markers'} - {f'/uh{i}/odom' for i in ids}
+    assert '/uh2/received' in {name for name, _ in T.run_topics(ids, impaired=True)}
+    # every topic the recorder must have in time keeps the samples of a late match (docs/architecture.md)
+    for _, spec in T.run_topics(ids, impaired=True):
+        if spec is not T.FAULT:
+            assert spec.qos.durability == 'transient_local', spec.name

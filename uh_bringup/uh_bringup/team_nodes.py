@@ -138,7 +138,8 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
     if visualization:
         specs.append(('visualization', 'visualization', ['--ros-args', *common]))
     specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common, *loop, *views]))
-    specs.append(('clock', 'clock', ['--ros-args', *common, *loop, '-p', f'rate:={float(rate)}',
+    specs.append(('clock', 'clock', ['--ros-args', *common, *loop, *views, '-p', f'rate:={float(rate)}',
                                      '-p', 'expect_recorder:=true',
+                                     '-p', f'expect_visualization:={str(bool(visualization)).lower()}',
                                      '-p', f'startup_timeout:={float(startup_timeout)}']))
     return specs

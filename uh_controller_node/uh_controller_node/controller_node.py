@@ -43,6 +43,7 @@ from uh_controller_node.realtime_received import received_states_for
 from uh_core import compiled_kernels
 from uh_runtime import messages as m
 from uh_wire import topics
+from uh_wire.published import PublishedCounts
 from uh_wire.run_config import declare_run_parameters, declare_view_parameters
 from uh_wire.standard_msgs import diagnostic_array_msg, view_publisher
 from uh_wire.wire import (WireError, command_to_msg, msg_to_reference, msg_to_state, received_states_to_msg,
@@ -77,19 +78,22 @@ class ControllerNode(rt.Node):
         self.sync = InputSynchroniser(self.uh_id, neighbours, linked, mode=run.clock_mode, dt=run.dt,
                                       last_step=run.last_step, reachable=self.controller.reachable_without,
                                       logger=self.get_logger(), **sync)
-        self.published = {'command': 0, 'status': 0}
+        self.command_topic, self.status_topic, self.received_topic = (
+            topics.uh_topic(self.uh_id, spec) for spec in (topics.COMMAND, topics.STATUS, topics.RECEIVED))
+        self.published = PublishedCounts(self.command_topic, self.status_topic)
         qos = topics.qos_profile(topics.STEP_QOS)
         self.command_pub = self.create_publisher(m.ActuatorCommand, topics.COMMAND.name, qos)
         self.status_pub = self.create_publisher(m.ControllerStatus, topics.STATUS.name, qos)
         if self.received is not None:
             self.received_pub = self.create_publisher(m.ReceivedStates, topics.RECEIVED.name, qos)
-            self.published['received'] = 0
+            self.published.add(self.received_topic, 0)
         self.views = declare_view_parameters(self, self.dt)
         self.diagnostics = ControllerDiagnostics(
             self.uh_id, self.views.diagnostics_every,
             self.views.diagnostics_phase(scenario.ids, self.uh_id, controller=True))
         if self.views.enabled:
             self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
+            self.published.add(topics.DIAGNOSTICS.name, 0)
         self.create_subscription(m.UHState, topics.STATE.name, self.on_own_state, qos)
         for j in neighbours:
             self.create_subscription(m.UHState, topics.uh_topic(j, topics.STATE),
@@ -165,16 +169,17 @@ class ControllerNode(rt.Node):
             t = k * self.dt
             self.command_pub.publish(command_to_msg(self.uh_id, k, t, u))
             self.status_pub.publish(status_to_msg(self.uh_id, k, t, status, inputs.stale_labels, self.ages.overall()))
-            self.published['command'] += 1
-            self.published['status'] += 1
+            self.published.add(self.command_topic)
+            self.published.add(self.status_topic)
             if self.received is not None:
                 self.received_pub.publish(received_states_to_msg(   # as delivered, not as predicted
                     self.uh_id, k, self.dt, own, self.received.delivered, self.received.sample_steps))
-                self.published['received'] += 1
+                self.published.add(self.received_topic)
             if self.views.enabled:
                 report = self.diagnostics.add(k, inputs, status, self.sync, self.ages)
                 if report is not None:
                     self.diag_pub.publish(diagnostic_array_msg(t, [report]))
+                    self.published.add(topics.DIAGNOSTICS.name)
 
     def destroy_node(self):
         """Log what the node published, rejected and how late its inputs were; destroy it."""
@@ -182,8 +187,7 @@ class ControllerNode(rt.Node):
             rejected = self.sync.rejected_summary()
             rt.log_on_exit(
                 self,
-                f"published: {topics.uh_topic(self.uh_id, topics.COMMAND)} {self.published['command']}, "
-                f"{topics.uh_topic(self.uh_id, topics.STATUS)} {self.published['status']}"
+                self.published.line()
                 + (f'; rejected inputs: {rejected}' if rejected else ''))
             lag = self.sync.lag_summary()
             if lag:

@@ -1,7 +1,10 @@
 """Clock node (``clock``): publishes ``/clock`` (rosgraph_msgs/Clock), one message per step.
 
 - ``lockstep``: waits until every node of the team is discovered (publishers and subscribers of
-  every team topic, see :func:`expected_endpoints`), publishes step 0, and advances to step k+1 only
+  every team topic, see :func:`expected_endpoints`) and, if a recorder is expected, until the
+  recorder has subscribed to every topic the run publishes (:func:`uh_wire.topics.run_topics`:
+  the views and ``/markers`` included, so no topic's first samples are published before the
+  recorder's reader exists), publishes step 0, and advances to step k+1 only
   when the commands of every UH for step k have arrived and, if a recorder is expected, the
   recorder has written everything up to step k - ``RECORDER_LAG_STEPS`` (so nothing is dropped).
   After the last step K it waits for the recorder to have written step K, then exits: the run is
@@ -22,11 +25,11 @@ import time
 import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_sim_node.clock_advance import REALTIME_FINAL_WAIT_S, REALTIME_START_WAIT_S, ClockAdvancer
-from uh_wire.run_config import declare_run_parameters
+from uh_wire.run_config import declare_run_parameters, declare_view_parameters
 from uh_wire.wire import clock_msg, stamp_seconds
 from uh_wire import topics
 
-__all__ = ['ClockNode', 'expected_endpoints', 'main', 'REALTIME_FINAL_WAIT_S', 'REALTIME_START_WAIT_S']
+__all__ = ['ClockNode', 'expected_endpoints', 'RECORDER_NODE', 'main', 'REALTIME_FINAL_WAIT_S', 'REALTIME_START_WAIT_S']
 
 
 def expected_endpoints(scenario, recorder: bool) -> dict[str, tuple[int, int]]:
@@ -42,6 +45,10 @@ def expected_endpoints(scenario, recorder: bool) -> dict[str, tuple[int, int]]:
         out[topics.uh_topic(i, topics.STATUS)] = (1, rec)
         out[topics.uh_topic(i, topics.FAULT_TRUTH)] = (1, rec)
     return out
+
+
+#: Name of the run's recorder node (uh_bringup.team_nodes), whose subscriptions the clock waits for.
+RECORDER_NODE = 'recorder'
 
 
 class ClockNode(rt.Node):
@@ -75,6 +82,13 @@ class ClockNode(rt.Node):
                                      lambda msg, i=i: self.on_command(i, msg), qos)
         self.create_subscription(m.Time, topics.RECORDER_PROGRESS.name, self.on_progress,
                                  topics.qos_profile(topics.RECORDER_PROGRESS.qos))
+        self.declare_parameter('expect_visualization', False, rt.ParameterDescriptor(
+            description='the run has a visualisation node: with expect_recorder, wait for the recorder on /markers',
+            read_only=True))
+        views = declare_view_parameters(self, run.dt).enabled
+        self.recorded = ([name for name, _ in topics.run_topics(
+            self.scenario.ids, self.scenario.impairments is not None, views,
+            bool(self.get_parameter('expect_visualization').value))] if expect_recorder else [])
         self.startup_timer = self.create_timer(0.05, self.check_startup)
 
     @property
@@ -89,6 +103,10 @@ class ClockNode(rt.Node):
             have_p, have_s = self.count_publishers(name), self.count_subscribers(name)
             if have_p < pubs or have_s < subs:
                 missing.append(f'{name} (publishers {have_p}/{pubs}, subscribers {have_s}/{subs})')
+        if not missing:   # the team is up: has the recorder subscribed to all it must record?
+            missing = [f'{name} (not subscribed by the {RECORDER_NODE})' for name in self.recorded
+                       if not any(info.node_name == RECORDER_NODE and info.node_namespace == '/'
+                                  for info in self.get_subscriptions_info_by_topic(name))]
         return missing
 
     def check_startup(self) -> None:

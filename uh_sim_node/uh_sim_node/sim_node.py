@@ -33,6 +33,7 @@ from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
 from uh_wire import topics
+from uh_wire.published import PublishedCounts
 from uh_wire.run_config import (DEFAULT_STALE_TIMEOUT, declare_float_parameter, declare_run_parameters,
                                 declare_view_parameters)
 from uh_wire.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg, view_publisher
@@ -61,7 +62,6 @@ class SimNode(rt.Node):
             'realtime: simulated seconds after which a held command is reported stale')
         self.watch = CommandWatch(self.uh_id, self.dt, max(1, int(round(stale_timeout / self.dt))),
                                   self.get_logger())
-        self.published = {'state': 0, 'fault_truth': 0}
         self.views = declare_view_parameters(self, self.dt)
         self.diagnostics_phase = self.views.diagnostics_phase(self.scenario.ids, self.uh_id, controller=False)
         qos = topics.qos_profile(topics.STEP_QOS)
@@ -71,10 +71,16 @@ class SimNode(rt.Node):
         self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
         self.create_subscription(m.ActuatorFault, topics.FAULT.name, self.on_fault,
                                  topics.qos_profile(topics.FAULT.qos))
+        self.state_topic = topics.uh_topic(self.uh_id, topics.STATE)
+        self.truth_topic = topics.uh_topic(self.uh_id, topics.FAULT_TRUTH)
+        self.odom_topic = topics.uh_topic(self.uh_id, topics.ODOM)
+        self.published = PublishedCounts(self.state_topic, self.truth_topic)
         if self.views.enabled:
             self.tf_pub = view_publisher(self, topics.TF)
             self.odom_pub = view_publisher(self, topics.ODOM)
             self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
+            self.published = PublishedCounts(self.state_topic, self.truth_topic, topics.TF.name, self.odom_topic,
+                                             topics.DIAGNOSTICS.name)
         self.get_logger().info(
             f'uh{self.uh_id}: {self.mode} mode, dt {self.dt} s, {self.last_step} steps, '
             f'{len(self.plant.faults)} scheduled fault(s), {compiled_kernels.kernel_form()}')
@@ -153,13 +159,13 @@ class SimNode(rt.Node):
         u_actual = self.plant.actual_inputs(self.command, t)
         self.truth_pub.publish(fault_truth_to_msg(self.uh_id, k, t, f_p, f_w, u_actual,
                                                   self.plant.fault_active(t), self.plant.stuck(t)))
-        self.published['fault_truth'] += 1
+        self.published.add(self.truth_topic)
 
     def _publish_state(self) -> None:
         t = self.step * self.dt
         self.state_pub.publish(state_to_msg(self.uh_id, self.step, t, self.plant.x))
         self.published_step = self.step
-        self.published['state'] += 1
+        self.published.add(self.state_topic)
         if self.views.enabled:
             self._publish_views(t)
 
@@ -173,16 +179,18 @@ class SimNode(rt.Node):
             pose = frames.pose_of_state(x)
             self.tf_pub.publish(tf_msg([transform_msg(t, frames.WORLD_FRAME, frames.base_link(self.uh_id), *pose)]))
             self.odom_pub.publish(odometry_msg(self.uh_id, t, x, pose))
+            self.published.add(topics.TF.name)
+            self.published.add(self.odom_topic)
         if self.step % self.views.diagnostics_every == self.diagnostics_phase:
             window = self.watch.window(self.step, self.plant.fault_active(t), self.plant.stuck(t))
             self.diag_pub.publish(diagnostic_array_msg(t, [diagnostics.simulator_diagnostic(self.uh_id, window)]))
+            self.published.add(topics.DIAGNOSTICS.name)
 
     def destroy_node(self):
         if hasattr(self, 'published'):  # not when the constructor failed half-way
             rt.log_on_exit(
                 self,
-                f"published: {topics.uh_topic(self.uh_id, topics.STATE)} {self.published['state']}, "
-                f"{topics.uh_topic(self.uh_id, topics.FAULT_TRUTH)} {self.published['fault_truth']}"
+                self.published.line()
                 + (f'; late commands: {self.watch.late_commands}' if self.mode == 'realtime' else '')
                 + (f'; rejected commands: {self.watch.rejected}' if self.watch.rejected else ''))
         return super().destroy_node()

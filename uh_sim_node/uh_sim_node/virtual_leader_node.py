@@ -11,6 +11,7 @@ from uh_wire.run_config import declare_run_parameters, declare_view_parameters
 from uh_wire.wire import clock_step, reference_to_msg
 from uh_core import frames
 from uh_wire import topics
+from uh_wire.published import PublishedCounts
 from uh_wire.standard_msgs import tf_msg, transform_msg, view_publisher
 
 __all__ = ['VirtualLeaderNode', 'main']
@@ -26,8 +27,10 @@ class VirtualLeaderNode(rt.Node):
         qos = topics.qos_profile(topics.STEP_QOS)
         self.pub = self.create_publisher(m.Reference, topics.REFERENCE.name, qos)
         self.views = declare_view_parameters(self, self.dt)
+        self.published = PublishedCounts(topics.REFERENCE.name)
         if self.views.enabled:
             self.tf_pub = view_publisher(self, topics.TF)
+            self.published.add(topics.TF.name, 0)
         self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
 
     def on_clock(self, msg) -> None:
@@ -38,15 +41,17 @@ class VirtualLeaderNode(rt.Node):
             t = self.published_step * self.dt
             ref = self.reference.at(t)
             self.pub.publish(reference_to_msg(self.published_step, t, ref))
+            self.published.add(topics.REFERENCE.name)
             if self.views.enabled and self.published_step % self.views.pose_every == 0:
                 # the reference's frame: its position and yaw (docs/visualization.md#frames)
                 self.tf_pub.publish(tf_msg([transform_msg(
                     t, frames.WORLD_FRAME, frames.VIRTUAL_LEADER_FRAME, ref.position.tolist(),
                     frames.quaternion_from_euler_zyx(0.0, 0.0, float(ref.yaw)))]))
+                self.published.add(topics.TF.name)
 
     def destroy_node(self):
-        if hasattr(self, 'published_step'):  # not when the constructor failed half-way
-            rt.log_on_exit(self, f'published: {topics.REFERENCE.name} {self.published_step + 1}')
+        if hasattr(self, 'published'):  # not when the constructor failed half-way
+            rt.log_on_exit(self, self.published.line())
         return super().destroy_node()
 
 

@@ -26,6 +26,7 @@ from uh_runtime import messages as m
 from uh_wire.run_config import declare_run_parameters
 from uh_wire.wire import WireError, msg_to_state, stamp
 from uh_wire import topics
+from uh_wire.published import PublishedCounts
 
 __all__ = ['VisualizationNode', 'main']
 
@@ -74,6 +75,7 @@ class VisualizationNode(rt.Node):
         self.trails = {i: [] for i in self.ids}
         qos = topics.qos_profile(topics.STEP_QOS)
         self.pub = self.create_publisher(m.MarkerArray, topics.MARKERS.name, topics.qos_profile(topics.MARKERS.qos))
+        self.published = PublishedCounts(topics.MARKERS.name)
         for i in self.ids:
             self.create_subscription(m.UHState, topics.uh_topic(i, topics.STATE),
                                      lambda msg, i=i: self.on_state(i, msg), qos)
@@ -103,6 +105,7 @@ class VisualizationNode(rt.Node):
         for old in [s for s in self.states if s < k]:
             del self.states[old]
         self.pub.publish(self.markers(k, states, p0))
+        self.published.add(topics.MARKERS.name)
 
     def markers(self, k: int, states: dict, p0: np.ndarray):
         """Return the MarkerArray of step ``k`` from the UH states {id: (12,)} and the reference position."""
@@ -153,6 +156,12 @@ class VisualizationNode(rt.Node):
         vl.pose.position = _point(p0)
         out.markers = markers
         return out
+
+    def destroy_node(self):
+        """Log what the node published; destroy it."""
+        if hasattr(self, 'published'):  # not when the constructor failed half-way
+            rt.log_on_exit(self, self.published.line())
+        return super().destroy_node()
 
 
 def main(args=None):

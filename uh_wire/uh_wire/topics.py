@@ -12,8 +12,12 @@ QoS (ROS 2 profiles):
   far the recorder may lag behind before the lockstep clock waits for it (``RECORDER_LAG_STEPS``).
 - fault injection: reliable, keep-last 10, volatile (an injection is an event, not state).
 - the standard views for generic tools (``/tf``, ``odom``, ``/diagnostics``; docs/visualization.md):
-  reliable, volatile, keep-last ``STEP_DEPTH`` (tf2's own broadcaster QoS), so RViz2, tf2 and
-  Foxglove match them and the recorder, lagging at most ``RECORDER_LAG_STEPS``, loses none.
+  reliable, transient-local, keep-last ``STEP_DEPTH``; ``/markers`` the same with depth 10 (one
+  message every 10 steps). A transient-local writer matches the volatile readers of RViz2, tf2 and
+  Foxglove (they get no history), and a recorder whose reader matched a writer a few steps after
+  its first sample still receives that sample: the first steps of a view are recorded whatever the
+  order of discovery (the lockstep clock starts only once the recorder has subscribed to every
+  topic of :func:`run_topics`, and it lags at most ``RECORDER_LAG_STEPS``).
 """
 from __future__ import annotations
 
@@ -25,7 +29,8 @@ from uh_runtime.qos import QoSWords, profile_from_words
 __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
     'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK', 'MARKERS',
-    'RECORDER_PROGRESS', 'VIEW_QOS', 'TF', 'ODOM', 'DIAGNOSTICS', 'RECEIVED', 'PER_UH', 'IMPAIRED_PER_UH',
+    'RECORDER_PROGRESS', 'VIEW_QOS', 'MARKER_QOS', 'VIEWS', 'run_topics',
+    'TF', 'ODOM', 'DIAGNOSTICS', 'RECEIVED', 'PER_UH', 'IMPAIRED_PER_UH',
     'TEAM', 'uh_namespace',
     'uh_topic', 'team_topics', 'qos_profile',
 ]
@@ -59,7 +64,9 @@ class TopicSpec:
 
 STEP_QOS = QosSpec('reliable', 'transient_local', 'keep_last', STEP_DEPTH)
 EVENT_QOS = QosSpec('reliable', 'volatile', 'keep_last', 10)
-VIEW_QOS = QosSpec('reliable', 'volatile', 'keep_last', STEP_DEPTH)
+VIEW_QOS = QosSpec('reliable', 'transient_local', 'keep_last', STEP_DEPTH)
+#: /markers: one MarkerArray every 10 steps, so 10 of them cover the recorder's allowed lag
+MARKER_QOS = QosSpec('reliable', 'transient_local', 'keep_last', 10)
 
 STATE = TopicSpec('state', 'uh_msgs/msg/UHState', STEP_QOS, True, 'sim (own UH)',
                   'controller of the same UH and of every UH that hears it; recorder',
@@ -76,7 +83,7 @@ REFERENCE = TopicSpec('/reference', 'uh_msgs/msg/Reference', STEP_QOS, True, 'vi
                       'controllers of leaders with a_i0 > 0; recorder', 'virtual-leader reference at step k')
 CLOCK = TopicSpec('/clock', 'rosgraph_msgs/msg/Clock', STEP_QOS, True, 'clock',
                   'sims, virtual leader; recorder', 'simulation time, one message per step')
-MARKERS = TopicSpec('/markers', 'visualization_msgs/msg/MarkerArray', EVENT_QOS, False, 'visualization',
+MARKERS = TopicSpec('/markers', 'visualization_msgs/msg/MarkerArray', MARKER_QOS, False, 'visualization',
                     'RViz2 / Foxglove; recorder',
                     'helicopter poses, trails, formation polygon, convex hull, containment targets (frame world)')
 RECORDER_PROGRESS = TopicSpec(RECORDER_PROGRESS_TOPIC, 'builtin_interfaces/msg/Time', EVENT_QOS, False,
@@ -102,6 +109,8 @@ PER_UH = (STATE, COMMAND, STATUS, FAULT_TRUTH, FAULT, ODOM)
 #: Per-UH topics of a run whose scenario has impairments, besides PER_UH.
 IMPAIRED_PER_UH = (RECEIVED,)
 TEAM = (REFERENCE, CLOCK, TF, DIAGNOSTICS)
+#: The standard views: published unless a run switches them off (``standard_views``).
+VIEWS = (TF, ODOM, DIAGNOSTICS)
 
 
 def uh_namespace(uh_id: int) -> str:
@@ -126,6 +135,18 @@ def team_topics(uh_ids, impaired: bool = False) -> list[tuple[str, TopicSpec]]:
     for uh_id in sorted(uh_ids):
         topics += [(uh_topic(uh_id, spec), spec) for spec in per_uh]
     return topics
+
+
+def run_topics(uh_ids, impaired: bool = False, views: bool = True,
+               visualization: bool = True) -> list[tuple[str, TopicSpec]]:
+    """Return every topic a run's nodes publish, or subscribe to for the recorder, as ``[(full name, spec), ...]``.
+
+    :func:`team_topics`, without the standard views when ``views`` is False, with ``/markers``
+    when the run has its visualisation node. These are the topics the recorder must have
+    subscribed to before the lockstep clock publishes step 0 (uh_sim_node.clock_node).
+    """
+    topics = [(name, spec) for name, spec in team_topics(uh_ids, impaired) if views or spec not in VIEWS]
+    return topics + ([(MARKERS.name, MARKERS)] if visualization else [])
 
 
 def qos_profile(spec: QosSpec):

@@ -1,0 +1,26 @@
+"""What a node published, per topic: the ``published:`` line every team node logs when it stops.
+
+The lines of a run's node logs add up to what the bag must hold (tests/test_recorder_integrity.py
+checks every topic of a lockstep run's bag against them, docs/testing.md).
+"""
+from __future__ import annotations
+
+__all__ = ['PublishedCounts']
+
+
+class PublishedCounts:
+    """Messages published per fully qualified topic name, in the order the topics were first counted."""
+
+    def __init__(self, *topic_names: str):
+        self.counts: dict[str, int] = {name: 0 for name in topic_names}
+
+    def add(self, topic_name: str, count: int = 1) -> None:
+        """Count ``count`` more messages published on ``topic_name``."""
+        self.counts[topic_name] = self.counts.get(topic_name, 0) + count
+
+    def __getitem__(self, topic_name: str) -> int:
+        return self.counts.get(topic_name, 0)
+
+    def line(self) -> str:
+        """Return the log line ``published: /uh1/state 201, /uh1/odom 51, ...`` (every topic counted, zeros too)."""
+        return 'published: ' + ', '.join(f'{name} {count}' for name, count in self.counts.items())
