@@ -111,7 +111,20 @@ def test_compiled_without_a_built_module_is_an_error_and_auto_falls_back_to_numb
                        'print(c.kernel_form(), "numba" in sys.modules)',
                        UH_KERNELS='auto', UH_COMPILED_KERNELS_DIR=str(empty))
     assert fallback.returncode == 0, fallback.stderr
-    assert fallback.stdout.split() == ['numba', 'kernels', 'True']
+    # the node's start line says why it runs numba, and how to build the compiled kernels
+    assert fallback.stdout.strip() == ('numba kernels (no compiled kernels were built for these sources: '
+                                       'python -m uh_team.compile_kernels builds them) True')
+
+
+def test_auto_with_a_module_built_for_other_sources_says_it_is_stale_and_how_to_rebuild(tmp_path):
+    from importlib.machinery import EXTENSION_SUFFIXES
+    old = tmp_path / f'uh_kernels_00000000000000000000{EXTENSION_SUFFIXES[0]}'
+    old.write_bytes(b'built for an earlier version of the kernels')
+    result = _python('import uh_sim_node.helicopter; from uh_core import compiled_kernels as c; print(c.kernel_form())',
+                     UH_KERNELS='auto', UH_COMPILED_KERNELS_DIR=str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == (f'numba kernels (the compiled kernels {old.name} are stale (built for other '
+                                     'kernel sources): python -m uh_team.compile_kernels rebuilds them)')
 
 
 def test_the_numba_team_loop_refuses_a_process_that_runs_compiled_kernels(built):

@@ -52,7 +52,7 @@ from pathlib import Path
 
 __all__ = ['MODE_VARIABLE', 'DIR_VARIABLE', 'MODES', 'KERNEL_MODULES', 'KernelModeError', 'mode', 'kernel_digest',
            'library_name', 'search_dirs', 'find_built', 'compiled_library', 'njit', 'install', 'active_modules',
-           'require_numba', 'prefer_compiled', 'run_node_main', 'kernel_form', 'build']
+           'require_numba', 'prefer_compiled', 'run_node_main', 'kernel_form', 'build', 'BUILD_COMMAND']
 
 #: Environment variable that selects the kernels' form (:data:`MODES`).
 MODE_VARIABLE = 'UH_KERNELS'
@@ -146,6 +146,17 @@ def find_built() -> Path | None:
 
 _decision: list = []      # [the loaded compiled module or None], fixed by the first kernel module
 _active: set = set()
+_fallback: list = []      # [why a process of mode auto runs numba], when it does
+
+#: The command that builds the compiled kernels for the sources as they are.
+BUILD_COMMAND = 'python -m uh_team.compile_kernels'
+
+
+def _built_for_other_sources() -> list[Path]:
+    """Compiled modules in :func:`search_dirs` that were built for other kernel sources (stale ones)."""
+    suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
+    return [path for directory in search_dirs() if directory.is_dir()
+            for path in sorted(directory.glob('uh_kernels_*' + suffix)) if path.name != _file_name(library_name())]
 
 
 def compiled_library():
@@ -167,7 +178,12 @@ def compiled_library():
                 f'{MODE_VARIABLE}=compiled, but no compiled kernels were built for these sources (looked for '
                 f'{_file_name(library_name())} in {", ".join(map(str, search_dirs()))}): run '
                 f'python -m uh_team.compile_kernels, or set {MODE_VARIABLE}=auto to fall back to numba')
-        if path is not None:
+        if path is None:
+            stale = _built_for_other_sources()
+            _fallback.append(f'the compiled kernels {stale[0].name} are stale (built for other kernel sources): '
+                             f'{BUILD_COMMAND} rebuilds them' if stale else
+                             f'no compiled kernels were built for these sources: {BUILD_COMMAND} builds them')
+        else:
             loader = importlib.machinery.ExtensionFileLoader(library_name(), str(path))
             spec = importlib.util.spec_from_file_location(library_name(), path, loader=loader)
             library = importlib.util.module_from_spec(spec)
@@ -235,8 +251,14 @@ def active_modules() -> frozenset:
 
 
 def kernel_form() -> str:
-    """Return ``'compiled kernels'`` when this process runs compiled kernels, else ``'numba kernels'`` (for logs)."""
-    return 'compiled kernels' if _active else 'numba kernels'
+    """Return ``'compiled kernels'`` when this process runs compiled kernels, else ``'numba kernels'`` (for logs).
+
+    A process that wanted compiled kernels (``UH_KERNELS=auto``) and runs numba's says why, and the
+    command that builds them: ``'numba kernels (the compiled kernels uh_kernels_....so are stale ...)'``.
+    """
+    if _active:
+        return 'compiled kernels'
+    return f'numba kernels ({_fallback[0]})' if _fallback else 'numba kernels'
 
 
 def require_numba(user: str) -> None:
