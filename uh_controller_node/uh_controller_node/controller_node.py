@@ -86,14 +86,12 @@ class ControllerNode(rt.Node):
         self.status_pub = self.create_publisher(m.ControllerStatus, topics.STATUS.name, qos)
         if self.received is not None:
             self.received_pub = self.create_publisher(m.ReceivedStates, topics.RECEIVED.name, qos)
-            self.published.add(self.received_topic, 0)
         self.views = declare_view_parameters(self, self.dt)
         self.diagnostics = ControllerDiagnostics(
             self.uh_id, self.views.diagnostics_every,
             self.views.diagnostics_phase(scenario.ids, self.uh_id, controller=True))
         if self.views.enabled:
             self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
-            self.published.add(topics.DIAGNOSTICS.name, 0)
         self.create_subscription(m.UHState, topics.STATE.name, self.on_own_state, qos)
         for j in neighbours:
             self.create_subscription(m.UHState, topics.uh_topic(j, topics.STATE),
@@ -169,8 +167,7 @@ class ControllerNode(rt.Node):
             t = k * self.dt
             self.command_pub.publish(command_to_msg(self.uh_id, k, t, u))
             self.status_pub.publish(status_to_msg(self.uh_id, k, t, status, inputs.stale_labels, self.ages.overall()))
-            self.published.add(self.command_topic)
-            self.published.add(self.status_topic)
+            self.published.add(self.command_topic, self.status_topic)
             if self.received is not None:
                 self.received_pub.publish(received_states_to_msg(   # as delivered, not as predicted
                     self.uh_id, k, self.dt, own, self.received.delivered, self.received.sample_steps))
@@ -185,10 +182,7 @@ class ControllerNode(rt.Node):
         """Log what the node published, rejected and how late its inputs were; destroy it."""
         if hasattr(self, 'published'):  # not when the constructor failed half-way
             rejected = self.sync.rejected_summary()
-            rt.log_on_exit(
-                self,
-                self.published.line()
-                + (f'; rejected inputs: {rejected}' if rejected else ''))
+            rt.log_on_exit(self, self.published.line() + (f'; rejected inputs: {rejected}' if rejected else ''))
             lag = self.sync.lag_summary()
             if lag:
                 rt.log_on_exit(self, lag)

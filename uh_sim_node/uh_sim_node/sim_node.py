@@ -71,16 +71,14 @@ class SimNode(rt.Node):
         self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
         self.create_subscription(m.ActuatorFault, topics.FAULT.name, self.on_fault,
                                  topics.qos_profile(topics.FAULT.qos))
-        self.state_topic = topics.uh_topic(self.uh_id, topics.STATE)
-        self.truth_topic = topics.uh_topic(self.uh_id, topics.FAULT_TRUTH)
-        self.odom_topic = topics.uh_topic(self.uh_id, topics.ODOM)
-        self.published = PublishedCounts(self.state_topic, self.truth_topic)
+        self.state_topic, self.truth_topic, self.odom_topic = (
+            topics.uh_topic(self.uh_id, spec) for spec in (topics.STATE, topics.FAULT_TRUTH, topics.ODOM))
+        views = (topics.TF.name, self.odom_topic, topics.DIAGNOSTICS.name) if self.views.enabled else ()
+        self.published = PublishedCounts(self.state_topic, self.truth_topic, *views)
         if self.views.enabled:
             self.tf_pub = view_publisher(self, topics.TF)
             self.odom_pub = view_publisher(self, topics.ODOM)
             self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
-            self.published = PublishedCounts(self.state_topic, self.truth_topic, topics.TF.name, self.odom_topic,
-                                             topics.DIAGNOSTICS.name)
         self.get_logger().info(
             f'uh{self.uh_id}: {self.mode} mode, dt {self.dt} s, {self.last_step} steps, '
             f'{len(self.plant.faults)} scheduled fault(s), {compiled_kernels.kernel_form()}')
@@ -179,8 +177,7 @@ class SimNode(rt.Node):
             pose = frames.pose_of_state(x)
             self.tf_pub.publish(tf_msg([transform_msg(t, frames.WORLD_FRAME, frames.base_link(self.uh_id), *pose)]))
             self.odom_pub.publish(odometry_msg(self.uh_id, t, x, pose))
-            self.published.add(topics.TF.name)
-            self.published.add(self.odom_topic)
+            self.published.add(topics.TF.name, self.odom_topic)
         if self.step % self.views.diagnostics_every == self.diagnostics_phase:
             window = self.watch.window(self.step, self.plant.fault_active(t), self.plant.stuck(t))
             self.diag_pub.publish(diagnostic_array_msg(t, [diagnostics.simulator_diagnostic(self.uh_id, window)]))
@@ -189,8 +186,7 @@ class SimNode(rt.Node):
     def destroy_node(self):
         if hasattr(self, 'published'):  # not when the constructor failed half-way
             rt.log_on_exit(
-                self,
-                self.published.line()
+                self, self.published.line()
                 + (f'; late commands: {self.watch.late_commands}' if self.mode == 'realtime' else '')
                 + (f'; rejected commands: {self.watch.rejected}' if self.watch.rejected else ''))
         return super().destroy_node()

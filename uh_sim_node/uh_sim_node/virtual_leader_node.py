@@ -30,7 +30,6 @@ class VirtualLeaderNode(rt.Node):
         self.published = PublishedCounts(topics.REFERENCE.name)
         if self.views.enabled:
             self.tf_pub = view_publisher(self, topics.TF)
-            self.published.add(topics.TF.name, 0)
         self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
 
     def on_clock(self, msg) -> None:
