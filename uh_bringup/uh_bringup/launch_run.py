@@ -39,7 +39,7 @@ from uh_controller_node.gains import CASES
 from uh_runtime.command_line import ArgumentParser, unwritable_reason
 from uh_runtime.scheduling import DEFAULT_PRIORITY, MAX_PRIORITY
 from uh_topology.scenario import load_scenario
-from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
+from uh_wire.run_defaults import BACKENDS, CLOCK_MODES, DEFAULT_STALE_TIMEOUT, DEFAULT_STARTUP_TIMEOUT
 
 __all__ = ['ARGUMENTS', 'LaunchOptions', 'check_arguments', 'compile_command', 'after_run_command', 'Step',
            'LaunchRun', 'RunFailed', 'write_launch_record', 'update_launch_record', 'main']
@@ -59,7 +59,8 @@ ARGUMENTS = (
     ('standard_views', 'true', 'publish /tf, /uhN/odom and /diagnostics (docs/visualization.md)'),
     ('backend', 'rclpy', 'rclpy: the team on rclpy (recorder, visualisation on the DDS backend); dds: every node '
                          'on the Cyclone DDS backend (for realtime on small machines, docs/performance.md)'),
-    ('startup_timeout', '60.0', 's to wait for all nodes (counted once the kernels are compiled)'),
+    ('startup_timeout', str(DEFAULT_STARTUP_TIMEOUT),
+     's to wait for all nodes (counted once the kernels are compiled)'),
     ('stale_timeout', str(DEFAULT_STALE_TIMEOUT), 'realtime: simulated s after which a neighbour is stale'),
     ('realtime_priority', str(DEFAULT_PRIORITY),
      'realtime: SCHED_FIFO priority of the clock, simulators, controllers and virtual leader (needs CAP_SYS_NICE '
@@ -67,8 +68,6 @@ ARGUMENTS = (
      '(docs/performance.md)'),
 )
 
-BACKENDS = ('rclpy', 'dds')
-CLOCK_MODES = ('lockstep', 'realtime')
 _TRUE, _FALSE = ('true', '1'), ('false', '0')
 
 

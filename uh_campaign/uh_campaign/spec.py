@@ -185,23 +185,23 @@ import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-import numpy as np
 import yaml
 
-from uh_controller_node.gains import CASES, ControllerGains, GainsError
-from uh_core.airframe import load_helicopter_params
-from uh_core.layout import CHANNEL_NAMES
+from uh_controller_node.gains import CASES
 from uh_topology import errors as E
-from uh_topology.generate import GenerateError, team_mapping
-from uh_topology.scenario import DEFAULT_SETTLE_TIME, bundled_scenarios, parse_scenario, scenario_from_mapping
-from uh_topology.schema import (CONFIG_DIR, ConfigContext, format_key_path, parse_yaml, read_config_file,
-                                type_name, unit_suffix)
+from uh_topology import scenario_keys
+from uh_topology.scenario import bundled_scenarios, parse_scenario
+from uh_topology.scenario_keys import key_named
+from uh_topology.schema import CONFIG_DIR, ConfigContext, parse_yaml, read_config_file, type_name
 
 from uh_team.campaign_store import METRIC_COLUMNS
 
+from .draws import GENERATOR_WEIGHTS, Draws, FaultDraws, GeneratorSpec, read_draws, read_generator
+from .resolve import check_draw_zero, draw_generators, key_path, resolve_scenario, scenario_file_name, scenario_yaml
+
 __all__ = ['CampaignSpec', 'Draws', 'FaultDraws', 'GeneratorSpec', 'Sweep', 'load_spec', 'parse_spec',
            'bundled_specs', 'resolve_scenario', 'scenario_yaml', 'scenario_file_name', 'draw_generators',
-           'DEFAULT_SUCCESS', 'BUNDLED_PREFIX']
+           'DEFAULT_SUCCESS', 'BUNDLED_PREFIX', 'GENERATOR_WEIGHTS']
 
 #: Bundled specs are ``uh_topology/config/campaign_*.yaml``.
 BUNDLED_PREFIX = 'campaign_'
@@ -212,74 +212,11 @@ DEFAULT_SUCCESS = {'formation_rms_m': 0.05, 'containment_rms_m': 0.02}
 _TOP_REQUIRED = ('name', 'runs')
 _TOP_OPTIONAL = ('description', 'scenario', 'generator', 'seed', 'duration', 'settle_time', 'cases',
                  'success', 'impairments', 'sweep', 'draws')
-_DRAW_KEYS = ('position_spread', 'attitude_spread', 'yaw_spread', 'model_mismatch', 'disturbance_amplitude',
-              'faults')
-_FAULT_KEYS = ('faulted_uhs', 'candidates', 'channels', 'channels_per_uh', 'rho', 'bias_constant',
-               'bias_amplitude', 'bias_frequency', 'onset_time')
-_GENERATOR_REQUIRED = ('leaders', 'followers')
-_GENERATOR_OPTIONAL = ('reference_links', 'leader_edge_probability', 'follower_edge_probability', 'weights',
-                       'attempts')
-#: The link weights a generator can give (``generator.weights``).
-GENERATOR_WEIGHTS = ('unit', 'normalised')
-
-# The independent random streams of a draw, in spawn order (adding a stream at the end keeps the
-# others' numbers): each kind of draw has its own, so e.g. a wider position spread leaves the
-# drawn faults unchanged.
-_STREAMS = ('graph', 'position', 'attitude', 'model_mismatch', 'disturbance', 'faults', 'impairments')
-
 _KEY_PATH = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*|\[\d+\])*\Z')
-_TOKEN = re.compile(r'([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]')
 
 
 # ------------------------------------------------------------------------------------------------
 # Plain validated data
-
-
-@dataclass(frozen=True)
-class FaultDraws:
-    """The fault draws of ``draws.faults`` (module docstring).
-
-    Ranges are ``(low, high)``; ``channels`` are channel indices, ``candidates`` UH ids (None:
-    every UH).
-    """
-
-    faulted_uhs: tuple = (1, 1)
-    candidates: tuple | None = None
-    channels: tuple = (0, 1, 2, 3)
-    channels_per_uh: tuple = (1, 1)
-    rho: tuple = (0.7, 0.95)
-    bias_constant: tuple = (0.0, 0.0)       # rad
-    bias_amplitude: tuple = (0.0, 0.0)      # rad
-    bias_frequency: tuple = (0.0, 0.0)      # rad/s
-    onset_time: tuple = (10.0, 10.0)        # s
-
-
-@dataclass(frozen=True)
-class Draws:
-    """The random draws of a campaign (module docstring).
-
-    Spreads in m and rad, ranges ``(low, high)`` or None (not drawn).
-    """
-
-    position_spread: float = 0.0        # m
-    attitude_spread: float = 0.0        # rad, roll and pitch
-    yaw_spread: float = 0.0             # rad
-    model_mismatch: tuple | None = None
-    disturbance_amplitude: tuple | None = None   # N
-    faults: FaultDraws | None = None
-
-
-@dataclass(frozen=True)
-class GeneratorSpec:
-    """Random graphs with N leaders and M followers (module docstring)."""
-
-    leaders: int
-    followers: int
-    reference_links: tuple = (1, 1)
-    leader_edge_probability: float = 0.5
-    follower_edge_probability: float = 0.5
-    attempts: int = 100
-    weights: str = 'unit'
 
 
 @dataclass(frozen=True)
@@ -434,7 +371,7 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
         raise ctx.error(E.MissingFieldError if 'scenario' not in top else E.InvalidValueError, (),
                         'give exactly one of `scenario` (a base scenario: bundled name or file) and '
                         '`generator` (random graphs of N leaders and M followers)')
-    generator = _generator(ctx, top['generator']) if 'generator' in top else None
+    generator = read_generator(ctx, top['generator']) if 'generator' in top else None
 
     duration = None
     if 'duration' in top:
@@ -447,7 +384,8 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
     if generator is None:
         scenario_file, base_mapping = _base_scenario(ctx, top['scenario'], base)
         base_duration = float(base_mapping['duration'])
-        base_settle = float(base_mapping.get('settle_time', DEFAULT_SETTLE_TIME))
+        base_settle = float(base_mapping.get('settle_time',
+                                             key_named(scenario_keys.SCENARIO_KEYS, 'settle_time').default))
     else:
         base_duration, base_settle = 60.0, 20.0
     duration = base_duration if duration is None else duration
@@ -461,24 +399,10 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
     cases = _cases(ctx, top.get('cases', list(CASES)))
     success = _success(ctx, top.get('success', dict(DEFAULT_SUCCESS)))
 
-    impairments = None
-    if top.get('impairments') is not None:
-        impairments = ctx.mapping(top['impairments'], ('impairments',), (),
-                                  ('delay_steps', 'jitter_steps', 'loss', 'links', 'noise', 'dropouts',
-                                   'delay_compensation', 'seed'),
-                                  what='an impairments mapping (docs/scenario.md)')
-        if 'seed' in impairments:
-            raise ctx.error(E.InvalidValueError, ('impairments', 'seed'),
-                            'the impairments seed is drawn for every draw from the campaign seed (so loss '
-                            'and noise differ between draws); remove it, or change the campaign `seed`')
-        if generator is not None and impairments.get('links'):
-            raise ctx.error(E.InvalidValueError, ('impairments', 'links'),
-                            'per-link impairments need a fixed graph, and the generator draws a new one per '
-                            'draw; use delay_steps and loss (every link) with a generator')
-        impairments = copy.deepcopy(impairments)
+    impairments = _impairments(ctx, top['impairments'], generator) if top.get('impairments') is not None else None
 
     n_uhs = (generator.leaders + generator.followers if generator is not None else len(base_mapping['uhs']))
-    draws = _draws(ctx, top.get('draws') or {}, n_uhs)
+    draws = read_draws(ctx, top.get('draws') or {}, n_uhs)
     tilt = max((abs(float(a)) for uh in (base_mapping or {}).get('uhs', [])
                 for a in ((uh.get('initial_state') or {}).get('euler') or [0.0, 0.0])[:2]), default=0.0)
     if draws.attitude_spread > 0.0 and tilt + draws.attitude_spread >= math.pi / 2:
@@ -492,26 +416,30 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
         generator=generator, runs=runs, seed=seed, duration=float(duration), settle_time=float(settle_time),
         cases=cases, success=success, impairments=impairments, sweep=sweep, draws=draws, lines=lines,
         base_mapping=base_mapping)
-    _check_draw_zero(spec)
+    check_draw_zero(spec)
     return spec
 
 
-def _range(ctx, value, path, *, lo=None, hi=None, lo_open=False, hi_open=False, unit='', integer=False):
-    """Read a ``[low, high]`` list with ``low <= high`` within the given bounds."""
-    if not isinstance(value, list) or len(value) != 2:
-        raise ctx.error(E.WrongTypeError, path, f'expected a range [low, high]{unit_suffix(unit)}, got '
-                        f'{type_name(value)} {value!r}')
-    if integer:
-        low, high = (ctx.integer(v, path + (i,), lo=lo) for i, v in enumerate(value))
-        if hi is not None and high > hi:
-            raise ctx.error(E.InvalidValueError, path + (1,), f'value {high} out of range; allowed: <= {hi}')
-    else:
-        low, high = (ctx.number(v, path + (i,), lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, unit=unit)
-                     for i, v in enumerate(value))
-    if low > high:
-        raise ctx.error(E.InvalidValueError, path, f'inverted range [{value[0]}, {value[1]}]; allowed: '
-                        f'[low, high] with low <= high')
-    return low, high
+def _impairments(ctx, raw, generator) -> dict:
+    """Check the ``impairments`` mapping a campaign copies into its scenarios; return a copy.
+
+    Its keys are the scenario's (:data:`uh_topology.scenario_keys.IMPAIRMENT_KEYS`) but those the
+    campaign draws itself (the seed); the values are checked with the resolved scenario of draw 0.
+    """
+    table = scenario_keys.IMPAIRMENT_KEYS
+    drawn = [key.name for key in table if key.drawn_by_campaign]
+    ctx.mapping(raw, ('impairments',), (), [key.name for key in table if not key.drawn_by_campaign] + drawn,
+                what='an impairments mapping (docs/scenario.md)')
+    for name in drawn:
+        if name in raw:
+            raise ctx.error(E.InvalidValueError, ('impairments', name),
+                            f'the impairments {name} is drawn for every draw from the campaign seed (so loss '
+                            'and noise differ between draws); remove it, or change the campaign `seed`')
+    if generator is not None and raw.get('links'):
+        raise ctx.error(E.InvalidValueError, ('impairments', 'links'),
+                        'per-link impairments need a fixed graph, and the generator draws a new one per '
+                        'draw; use delay_steps and loss (every link) with a generator')
+    return copy.deepcopy(raw)
 
 
 def _base_scenario(ctx, value, base: Path):
@@ -529,36 +457,6 @@ def _base_scenario(ctx, value, base: Path):
     if gains:
         data['gains'] = gains                          # inline: the resolved scenario stands alone
     return str(path.resolve()), data
-
-
-def _generator(ctx, raw) -> GeneratorSpec:
-    path = ('generator',)
-    ctx.mapping(raw, path, _GENERATOR_REQUIRED, _GENERATOR_OPTIONAL, what='a generator mapping')
-    n = ctx.integer(raw['leaders'], path + ('leaders',), lo=1, what='an integer number of leaders >= 1')
-    m = ctx.integer(raw['followers'], path + ('followers',), lo=1, what='an integer number of followers >= 1')
-    links = _range(ctx, raw.get('reference_links', [1, 1]), path + ('reference_links',), lo=1, hi=n,
-                   integer=True)
-    p_leader = ctx.number(raw.get('leader_edge_probability', 0.5), path + ('leader_edge_probability',),
-                          lo=0.0, hi=1.0)
-    p_follower = ctx.number(raw.get('follower_edge_probability', 0.5), path + ('follower_edge_probability',),
-                            lo=0.0, hi=1.0)
-    attempts = ctx.integer(raw.get('attempts', 100), path + ('attempts',), lo=1,
-                           what='an integer number of attempts >= 1')
-    weights = ctx.string(raw.get('weights', 'unit'), path + ('weights',), choices=GENERATOR_WEIGHTS)
-    # Assumption 1 (docs/graph.md): every leader needs a path from the virtual leader, every
-    # follower one from a leader; refuse the options under which no draw can give them
-    if p_follower == 0.0:
-        raise ctx.error(E.UnreachableFollowerError, path + ('follower_edge_probability',),
-                        'with follower_edge_probability 0 no follower hears anyone, so none has a path from a '
-                        'leader (Assumption 1); allowed: a probability in (0, 1]',
-                        ids=tuple(range(n + 1, n + m + 1)))
-    if p_leader == 0.0 and links[1] < n:
-        raise ctx.error(E.UnreachableLeaderError, path + ('leader_edge_probability',),
-                        f'with leader_edge_probability 0 only the {links[1]} leader(s) linked to the virtual '
-                        f'leader are reached, never all {n} (Assumption 1); allowed: a probability > 0, or '
-                        f'reference_links [{n}, {n}]')
-    return GeneratorSpec(leaders=n, followers=m, reference_links=links, leader_edge_probability=p_leader,
-                         follower_edge_probability=p_follower, attempts=attempts, weights=weights)
 
 
 def _cases(ctx, raw) -> tuple:
@@ -579,77 +477,6 @@ def _success(ctx, raw) -> dict:
     return {metric: ctx.number(value, ('success', metric)) for metric, value in raw.items()}
 
 
-def _draws(ctx, raw, n_uhs: int) -> Draws:
-    path = ('draws',)
-    ctx.mapping(raw, path, (), _DRAW_KEYS, what='a draws mapping')
-    faults = _fault_draws(ctx, raw['faults'], n_uhs) if raw.get('faults') is not None else None
-    return Draws(
-        position_spread=ctx.number(raw.get('position_spread', 0.0), path + ('position_spread',), lo=0.0, unit='m'),
-        attitude_spread=ctx.number(raw.get('attitude_spread', 0.0), path + ('attitude_spread',), lo=0.0,
-                                   hi=math.pi / 2, hi_open=True, unit='rad'),
-        yaw_spread=ctx.number(raw.get('yaw_spread', 0.0), path + ('yaw_spread',), lo=0.0, unit='rad'),
-        model_mismatch=(_range(ctx, raw['model_mismatch'], path + ('model_mismatch',), lo=0.0, lo_open=True)
-                        if raw.get('model_mismatch') is not None else None),
-        disturbance_amplitude=(_range(ctx, raw['disturbance_amplitude'], path + ('disturbance_amplitude',),
-                                      lo=0.0, unit='N')
-                               if raw.get('disturbance_amplitude') is not None else None),
-        faults=faults)
-
-
-def _fault_draws(ctx, raw, n_uhs: int) -> FaultDraws:
-    path = ('draws', 'faults')
-    ctx.mapping(raw, path, (), _FAULT_KEYS, what='a fault draws mapping')
-    candidates = None
-    if 'candidates' in raw:
-        cands = raw['candidates']
-        if not isinstance(cands, list) or not cands:
-            raise ctx.error(E.WrongTypeError, path + ('candidates',),
-                            f'expected a non-empty list of UH ids, got {type_name(cands)} {cands!r}')
-        known = set(range(1, n_uhs + 1))
-        for i, uh in enumerate(cands):
-            ctx.uh_id(uh, path + ('candidates', i), known)
-            if uh in cands[:i]:
-                raise ctx.error(E.InvalidValueError, path + ('candidates', i), f'UH {uh} is listed twice')
-        candidates = tuple(cands)
-    n_candidates = len(candidates) if candidates is not None else n_uhs
-    channels = (0, 1, 2, 3)
-    if 'channels' in raw:
-        chans = raw['channels']
-        if not isinstance(chans, list) or not chans:
-            raise ctx.error(E.WrongTypeError, path + ('channels',),
-                            f'expected a non-empty list of channels, got {type_name(chans)} {chans!r}')
-        channels = tuple(_channel(ctx, c, path + ('channels', i)) for i, c in enumerate(chans))
-        for i, c in enumerate(channels):
-            if c in channels[:i]:
-                raise ctx.error(E.InvalidValueError, path + ('channels', i),
-                                f'channel {CHANNEL_NAMES[c]} is listed twice')
-    return FaultDraws(
-        faulted_uhs=_range(ctx, raw.get('faulted_uhs', [1, 1]), path + ('faulted_uhs',), lo=0, hi=n_candidates,
-                           integer=True),
-        candidates=candidates, channels=channels,
-        channels_per_uh=_range(ctx, raw.get('channels_per_uh', [1, 1]), path + ('channels_per_uh',), lo=1,
-                               hi=len(channels), integer=True),
-        rho=_range(ctx, raw.get('rho', [0.7, 0.95]), path + ('rho',), lo=0.0, hi=1.0, lo_open=True),
-        bias_constant=_range(ctx, raw.get('bias_constant', [0.0, 0.0]), path + ('bias_constant',), unit='rad'),
-        bias_amplitude=_range(ctx, raw.get('bias_amplitude', [0.0, 0.0]), path + ('bias_amplitude',), lo=0.0,
-                              unit='rad'),
-        bias_frequency=_range(ctx, raw.get('bias_frequency', [0.0, 0.0]), path + ('bias_frequency',), lo=0.0,
-                              unit='rad/s'),
-        onset_time=_range(ctx, raw.get('onset_time', [10.0, 10.0]), path + ('onset_time',), lo=0.0, unit='s'))
-
-
-def _channel(ctx, value, path) -> int:
-    """Read a channel of the fault draws: a name, or an integer index >= 0 (then 0..3)."""
-    if not isinstance(value, str):
-        value = ctx.integer(value, path, lo=0, what='a channel index 0..3 or name')
-    return ctx.channel(value, path)
-
-
-def _key_path(text: str) -> tuple:
-    """``'a.b[0].c'`` -> ``('a', 'b', 0, 'c')``."""
-    return tuple(m.group(1) if m.group(1) is not None else int(m.group(2)) for m in _TOKEN.finditer(text))
-
-
 def _sweep(ctx, raw, draws: Draws) -> Sweep:
     path = ('sweep',)
     ctx.mapping(raw, path, ('parameter', 'values'), (), what='a sweep mapping {parameter, values}')
@@ -658,7 +485,7 @@ def _sweep(ctx, raw, draws: Draws) -> Sweep:
         raise ctx.error(E.InvalidValueError, path + ('parameter',),
                         f'{parameter!r} is not a key path; allowed: keys joined by dots, [i] for list items, e.g. '
                         f'impairments.delay_steps, model_mismatch, disturbance.amplitude[2]')
-    tokens = _key_path(parameter)
+    tokens = key_path(parameter)
     drawn = _drawn_by(tokens, draws)
     if drawn:
         raise ctx.error(E.InvalidValueError, path + ('parameter',),
@@ -676,7 +503,8 @@ def _sweep(ctx, raw, draws: Draws) -> Sweep:
 
 def _drawn_by(tokens: tuple, draws: Draws) -> str | None:
     """Name the draws key that sets the scenario entry at ``tokens`` (None if no draw does)."""
-    if tokens[:2] == ('impairments', 'seed'):
+    drawn = {key.name for key in scenario_keys.IMPAIRMENT_KEYS if key.drawn_by_campaign}
+    if tokens[:1] == ('impairments',) and len(tokens) > 1 and tokens[1] in drawn:
         return 'the campaign (a seed per draw)'
     if tokens[:1] == ('model_mismatch',) and draws.model_mismatch is not None:
         return 'draws.model_mismatch'
@@ -690,231 +518,3 @@ def _drawn_by(tokens: tuple, draws: Draws) -> str | None:
         if tokens[3] == 'euler' and (draws.attitude_spread > 0.0 or draws.yaw_spread > 0.0):
             return 'draws.attitude_spread / draws.yaw_spread'
     return None
-
-
-# ------------------------------------------------------------------------------------------------
-# Resolving a draw
-
-
-def draw_generators(seed: int, draw: int) -> dict:
-    """Give the independent random streams of draw ``draw``, by name.
-
-    They are the children of ``numpy.random.default_rng([seed, draw])``, in a fixed order.
-    """
-    children = np.random.default_rng([seed, draw]).spawn(len(_STREAMS))
-    return dict(zip(_STREAMS, children))
-
-
-def scenario_file_name(spec: CampaignSpec, draw: int, sweep_index: int) -> str:
-    """Name the file of a resolved scenario, relative to the campaign directory.
-
-    ``scenarios/draw_000042.yaml`` (``..._s03.yaml`` with a sweep).
-    """
-    suffix = f'_s{sweep_index:02d}' if spec.sweep is not None else ''
-    return f'scenarios/draw_{draw:06d}{suffix}.yaml'
-
-
-def resolve_scenario(spec: CampaignSpec, draw: int, sweep_index: int = 0) -> dict:
-    """Give the scenario mapping of (``draw``, ``sweep_index``).
-
-    See the module docstring, *The resolved scenarios*. Plain data, ready for :func:`scenario_yaml`. Raises a
-    :class:`~uh_topology.errors.ScenarioError` when a generated draw finds no valid graph; the
-    mapping itself is validated when it is loaded.
-    """
-    rng = draw_generators(spec.seed, draw)
-    if spec.generator is not None:
-        data = _generated_team(spec, draw, rng['graph'])
-    else:
-        data = copy.deepcopy(spec.base_mapping)
-    sweep = spec.sweep is not None
-    data['name'] = f'{spec.name}_draw{draw:06d}' + (f'_s{sweep_index:02d}' if sweep else '')
-    what = f'draw {draw} of campaign {spec.name}' + (
-        f', {spec.sweep.parameter} = {spec.sweep.values[sweep_index]}' if sweep else '')
-    data['description'] = f'{what} (uh-campaign, seed {spec.seed})'
-    data['duration'] = spec.duration
-    data['settle_time'] = spec.settle_time
-    _apply_draws(data, spec.draws, rng)
-    if spec.impairments is not None:
-        data['impairments'] = copy.deepcopy(spec.impairments)
-    if sweep:
-        _set_path(data, spec.sweep.path, spec.sweep.values[sweep_index])
-    if isinstance(data.get('impairments'), dict):
-        data['impairments']['seed'] = int(rng['impairments'].integers(0, 2 ** 31 - 1))
-    return data
-
-
-def _apply_draws(data: dict, draws: Draws, rng: dict) -> None:
-    uhs = data['uhs']
-    n = len(uhs)
-    dp = rng['position'].uniform(-draws.position_spread, draws.position_spread, size=(n, 3))
-    tilt = rng['attitude'].uniform(-draws.attitude_spread, draws.attitude_spread, size=(n, 2))
-    yaw = rng['attitude'].uniform(-draws.yaw_spread, draws.yaw_spread, size=n)
-    for c, uh in enumerate(uhs):
-        state = uh['initial_state'] = dict(uh.get('initial_state') or {})
-        position = [float(v) for v in state['position']]
-        euler = [float(v) for v in state.get('euler', [0.0, 0.0, 0.0])]
-        state['position'] = [position[a] + float(dp[c, a]) for a in range(3)]
-        state['velocity'] = [float(v) for v in state.get('velocity', [0.0, 0.0, 0.0])]
-        state['euler'] = [euler[0] + float(tilt[c, 0]), euler[1] + float(tilt[c, 1]), euler[2] + float(yaw[c])]
-        state['omega'] = [float(v) for v in state.get('omega', [0.0, 0.0, 0.0])]
-    if draws.model_mismatch is not None:
-        data['model_mismatch'] = float(rng['model_mismatch'].uniform(*draws.model_mismatch))
-    if draws.disturbance_amplitude is not None:
-        dist = data['disturbance'] = dict(data.get('disturbance') or {})
-        dist['amplitude'] = [float(v) for v in rng['disturbance'].uniform(*draws.disturbance_amplitude, size=3)]
-    if draws.faults is not None:
-        data['faults'] = _draw_faults(draws.faults, [int(uh['id']) for uh in uhs], rng['faults'])
-
-
-def _draw_faults(fd: FaultDraws, ids: list, rng) -> list:
-    candidates = list(fd.candidates) if fd.candidates is not None else sorted(ids)
-    count = int(rng.integers(fd.faulted_uhs[0], fd.faulted_uhs[1] + 1))
-    faulted = sorted(int(i) for i in rng.choice(candidates, size=count, replace=False))
-    out = []
-    for uh in faulted:
-        per_uh = int(rng.integers(fd.channels_per_uh[0], fd.channels_per_uh[1] + 1))
-        channels = sorted(int(c) for c in rng.choice(fd.channels, size=per_uh, replace=False))
-        onset = float(rng.uniform(*fd.onset_time))
-        for ch in channels:
-            out.append({'uh': uh, 'channel': CHANNEL_NAMES[ch], 'rho': float(rng.uniform(*fd.rho)),
-                        'bias_constant': float(rng.uniform(*fd.bias_constant)),
-                        'bias_amplitude': float(rng.uniform(*fd.bias_amplitude)),
-                        'bias_frequency': float(rng.uniform(*fd.bias_frequency)), 'onset_time': onset})
-    return out
-
-
-def _generated_team(spec: CampaignSpec, draw: int, rng) -> dict:
-    """Generate a team with a random graph that passes the topology checks.
-
-    The team is that of :func:`uh_topology.generate.team_mapping`; the graph is redrawn at most
-    ``generator.attempts`` times.
-    """
-    g = spec.generator
-    try:
-        data = team_mapping(g.leaders, g.followers, duration=spec.duration, faults=False)
-    except GenerateError as exc:
-        raise E.InvalidValueError(str(exc), path='duration', source=spec.source, line=spec.line('duration')) from None
-    data['gains'], _ = parse_yaml(Path(data['gains']).read_text(), str(data['gains']))
-    data['settle_time'] = spec.settle_time
-    leaders = list(range(1, g.leaders + 1))
-    followers = list(range(g.leaders + 1, g.leaders + g.followers + 1))
-    last = None
-    for _ in range(g.attempts):
-        count = int(rng.integers(g.reference_links[0], g.reference_links[1] + 1))
-        linked = sorted(int(i) for i in rng.choice(leaders, size=count, replace=False))
-        hears_leader = rng.random((g.leaders, g.leaders)) < g.leader_edge_probability
-        hears_any = rng.random((g.followers, g.leaders + g.followers)) < g.follower_edge_probability
-        edges = [{'uh': i, 'hears': j, 'weight': 1.0} for i in leaders for j in leaders
-                 if i != j and hears_leader[i - 1, j - 1]]
-        edges += [{'uh': k, 'hears': j, 'weight': 1.0} for k in followers for j in leaders + followers
-                  if j != k and hears_any[k - 1 - g.leaders, j - 1]]
-        data['edges'] = edges
-        data['reference_links'] = [{'uh': i, 'weight': 1.0} for i in linked]
-        if g.weights == 'normalised':
-            _normalise_weights(data['edges'], data['reference_links'])
-        try:
-            scenario_from_mapping(data)
-            return data
-        except E.TopologyError as exc:
-            last = exc
-    raise E.InvalidValueError(
-        f'draw {draw}: no graph satisfying Assumption 1 in {g.attempts} attempt(s) (last: {last.message}); '
-        f'allowed: more attempts or larger edge probabilities', path='generator.attempts', source=spec.source,
-        line=spec.line('generator', 'attempts'))
-
-
-def _normalise_weights(edges: list, links: list) -> None:
-    """Divide each UH's incoming weights (``edges`` it hears, its reference ``links``) by their count."""
-    heard = {}
-    for link in edges + links:
-        heard[link['uh']] = heard.get(link['uh'], 0) + 1
-    for link in edges + links:
-        link['weight'] = 1.0 / heard[link['uh']]
-
-
-def _set_path(data, tokens: tuple, value) -> None:
-    """Write ``value`` at the key path ``tokens`` of ``data``, creating missing mappings."""
-    node = data
-    for k, token in enumerate(tokens):
-        last = k == len(tokens) - 1
-        where = format_key_path(tokens[:k + 1])
-        if isinstance(token, int):
-            if not isinstance(node, list) or token >= len(node):
-                raise KeyError(f'{where}: no such list item in the resolved scenario')
-        elif not isinstance(node, dict):
-            raise KeyError(f'{where}: the scenario has no mapping there')
-        elif not last and node.get(token) is None:
-            node[token] = {}
-        if last:
-            node[token] = value
-        else:
-            node = node[token]
-
-
-def scenario_yaml(mapping: dict, header: str = '') -> str:
-    """Write a resolved scenario as YAML text, after ``header`` (comment lines).
-
-    Floats are written exactly: loading the text gives the same numbers.
-    """
-    dumper = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
-    body = yaml.dump(mapping, Dumper=dumper, sort_keys=False, default_flow_style=None, width=110)
-    return header + body
-
-
-# ------------------------------------------------------------------------------------------------
-# Validation of the resolved scenarios of draw 0
-
-
-def _check_draw_zero(spec: CampaignSpec) -> None:
-    """Build the resolved scenario of draw 0 for every sweep value, the gains of every case and the airframe.
-
-    An error is reported at the spec key it comes from.
-    """
-    for s in range(len(spec.sweep_values)):
-        try:
-            data = resolve_scenario(spec, 0, s)
-        except KeyError as exc:
-            raise E.InvalidValueError(f'{exc.args[0]}; allowed: a key path the scenario has (or mappings to create)',
-                                      path='sweep.parameter', source=spec.source,
-                                      line=spec.line('sweep', 'parameter')) from None
-        try:
-            scenario = scenario_from_mapping(data, source=spec.source)
-        except E.ScenarioError as exc:
-            raise _at_spec_key(spec, exc, s) from None
-    try:
-        load_helicopter_params(scenario.helicopter)
-        for case in spec.cases:
-            ControllerGains.from_mapping(scenario.gains, case)
-    except (GainsError, ValueError) as exc:
-        key = 'scenario' if spec.scenario is not None else 'generator'
-        raise E.GainsFileError(f'the base scenario\'s gains or airframe cannot be used: {exc}', path=key,
-                           source=spec.source, line=spec.line(key)) from None
-
-
-def _at_spec_key(spec: CampaignSpec, exc: E.ScenarioError, sweep_index: int) -> E.ScenarioError:
-    """``exc`` (raised by the resolved scenario of draw 0) re-raised at the spec key behind it."""
-    tokens = _key_path(exc.path or '')
-    sweep = spec.sweep
-    key = None
-    if sweep is not None and tokens[:len(sweep.path)] == sweep.path:
-        # a key the scenario format does not know is the parameter's fault, not the value's
-        key = ('sweep', 'parameter') if isinstance(exc, E.UnknownKeyError) else ('sweep', 'values', sweep_index)
-    elif tokens[:1] == ('impairments',) and spec.impairments is not None:
-        key = tokens
-    elif tokens[:1] in (('duration',), ('settle_time',)) and tokens[:1] in spec.lines:
-        key = tokens[:1]
-    elif tokens[:1] == ('faults',) and spec.draws.faults is not None:
-        key = ('draws', 'faults')
-    elif tokens[:1] == ('model_mismatch',) and spec.draws.model_mismatch is not None:
-        key = ('draws', 'model_mismatch')
-    elif tokens[:1] == ('disturbance',) and spec.draws.disturbance_amplitude is not None:
-        key = ('draws', 'disturbance_amplitude')
-    elif tokens[:1] == ('uhs',) and (spec.draws.position_spread or spec.draws.attitude_spread
-                                     or spec.draws.yaw_spread):
-        key = ('draws',)
-    if key is None:
-        key = ('scenario',) if spec.scenario is not None else ('generator',)
-    what = 'draw 0' + (f' with {sweep.parameter} = {sweep.values[sweep_index]!r}' if sweep is not None else '')
-    message = f'{exc.message} (the resolved scenario of {what}, at its key {exc.path or "(top)"})'
-    kwargs = {'ids': exc.ids} if hasattr(exc, 'ids') else {}
-    return type(exc)(message, path=format_key_path(key), source=spec.source, line=spec.line(*key), **kwargs)

@@ -26,6 +26,7 @@ import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_sim_node.clock_advance import REALTIME_FINAL_WAIT_S, REALTIME_START_WAIT_S, ClockAdvancer
 from uh_wire.run_config import declare_run_parameters, declare_view_parameters
+from uh_wire.run_defaults import DEFAULT_STARTUP_TIMEOUT
 from uh_wire.wire import clock_msg, stamp_seconds
 from uh_wire import topics
 
@@ -63,7 +64,7 @@ class ClockNode(rt.Node):
         self.declare_parameter('expect_recorder', False, rt.ParameterDescriptor(
             description='lockstep: wait for the recorder (discovery, progress) so no message is lost',
             read_only=True))
-        self.declare_parameter('startup_timeout', 60.0, rt.ParameterDescriptor(
+        self.declare_parameter('startup_timeout', DEFAULT_STARTUP_TIMEOUT, rt.ParameterDescriptor(
             description='s to wait for every node of the team to be discovered', read_only=True,
             floating_point_range=[rt.FloatingPointRange(from_value=1.0, to_value=3600.0, step=0.0)]))
         self.scenario, self.mode, self.dt = run.scenario, run.clock_mode, run.dt

@@ -2,14 +2,9 @@
 
 A scenario is one YAML file (see ``uh_topology/config/paper.yaml`` for a commented example)::
 
-    name: paper                 # str
-    description: ...            # optional str
-    dt: 0.01                    # control period, s (> 0)
-    substeps: 5                 # RK4 substeps per control period (int >= 1), default 5
+    name: paper
+    dt: 0.01                    # control period, s
     duration: 60.0              # s, a multiple of dt
-    settle_time: 20.0           # s, metrics are taken after it; default 20
-    model_mismatch: 0.9         # controller's nominal D_v, c_Q = factor x true; default 0.9
-    helicopter: helicopter      # helicopter parameter file: bundled name or path (relative to this file)
     gains: paper_gains.yaml     # gains: file (relative to this file) or an inline mapping
     uhs:                        # ids 1..N+M, leaders first
       - {id: 1, role: leader, offset: [3, 0, 0], initial_state: {position: [2, -1, 8]}}
@@ -25,17 +20,12 @@ A scenario is one YAML file (see ``uh_topology/config/paper.yaml`` for a comment
     faults:                     # optional; channel: 0..3 or collective|tail_rotor|lateral|longitudinal
       - {uh: 2, channel: collective, rho: 0.8, bias_constant: 0, bias_amplitude: 0.01,
          bias_frequency: 0.5, onset_time: 10}
-    impairments:                # optional; what the controllers receive (docs/campaigns.md#impairments)
-      seed: 0                   # int >= 0: the loss and jitter draws and the noise
-      delay_steps: 0            # int >= 0: a link delivers the state sent delay_steps steps earlier
-      jitter_steps: 0           # int >= 0: each state is delayed by a further draw in 0..jitter_steps steps
-      loss: 0.0                 # [0, 1): probability that a link loses a state
-      links: [{uh: 4, hears: 1, delay_steps: 5, jitter_steps: 2, loss: 0.2}]    # per-link overrides (an edge)
-      delay_compensation: predict   # none | predict: states predicted to the current step (docs/delay.md)
-      noise: {position: 0.01, velocity: 0.0, attitude: 0.0, rate: 0.0}   # std devs m, m/s, rad, rad/s
-      dropouts: [{uh: 3, time: 30.0}]   # from this time on no other UH receives uh 3's state
+    impairments: {delay_steps: 2, loss: 0.1}   # optional; what the controllers receive
 
-Validation raises the specific :mod:`uh_topology.errors` types with the file, line and key path.
+The top-level keys and those of ``impairments`` (which are required, their defaults, units and
+ranges) are declared once, in :mod:`uh_topology.scenario_keys`; the impairments are read by
+:mod:`uh_topology.impairments`. Validation raises the specific :mod:`uh_topology.errors` types with
+the file, line and key path.
 """
 from __future__ import annotations
 
@@ -52,14 +42,19 @@ from uh_core.layout import CHANNEL_ALIASES
 from uh_core.records import FaultSpec
 
 from . import errors as E
-from .schema import CONFIG_DIR, ConfigContext, parse_yaml, read_config_file, read_only_array, type_name
-from .graph import (check_lemma1, containment_pattern, laplacian, laplacian_blocks,
-                    leader_tracking_matrix, unreachable_follower_message, unreachable_followers,
-                    unreachable_leader_message, unreachable_leaders)
+from . import scenario_keys
+from .impairments import COMPENSATIONS, DEFAULT_COMPENSATION, NO_DROPOUT, ImpairmentSpec, read_impairments
+from .scenario_keys import SCENARIO_KEYS, key_named, key_names, read_key
+from .schema import (CONFIG_DIR, ConfigContext, parse_yaml, read_config_file, read_only_array, read_text_file,
+                     type_name)
+from .graph import laplacian, leader_tracking_matrix
+from .scenario_team import Team, check_assumptions, read_edges, read_reference_links, read_team
 
 __all__ = [
     'Scenario', 'FaultSpec', 'ReferenceSpec', 'DisturbanceSpec', 'ImpairmentSpec', 'load_scenario', 'parse_scenario',
     'scenario_from_mapping', 'bundled_scenarios', 'read_config_file', 'CHANNEL_ALIASES', 'duration_steps',
+    'NO_DROPOUT', 'COMPENSATIONS', 'DEFAULT_COMPENSATION', 'DEFAULT_SUBSTEPS', 'DEFAULT_SETTLE_TIME',
+    'DEFAULT_MODEL_MISMATCH', 'DEFAULT_HELICOPTER',
 ]
 
 
@@ -101,59 +96,6 @@ class DisturbanceSpec:
     @property
     def is_zero(self) -> bool:
         return not np.any(self.amplitude != 0.0)
-
-
-@dataclass(frozen=True, eq=False)
-class ImpairmentSpec:
-    """Deterministic communication and sensing impairments: what each controller receives.
-
-    See docs/campaigns.md#impairments. They act in the receiving controller, on control steps, so
-    they are defined for the in-process run and the lockstep distributed run (identically), and in
-    real time on the states' sent steps (docs/runtime.md#impairments-in-real-time).
-
-    Attributes
-    ----------
-    seed : int
-        Seeds the loss and jitter draws and the noise (with receiver, sender and step: no random stream).
-    delays : mapping {(i, j): int}
-        Steps by which the link "UH i hears UH j" delays every state, for every edge (>= 0).
-    jitters : mapping {(i, j): int}
-        Largest extra delay of the link, steps (>= 0): each state is delayed by a further draw in
-        ``0..jitter``, so states may arrive out of order (the newest sent one is used).
-    losses : mapping {(i, j): float}
-        Probability in [0, 1) that the link loses a state (the receiver keeps the newest one it got).
-    noise : ndarray (12,)
-        Standard deviation of the zero-mean Gaussian noise added to every state a controller receives
-        (its own and its neighbours'), per state component: m, m/s, rad, rad/s.
-    dropouts : mapping {uh id: float}
-        Time from which no other UH receives the UH's state, s.
-    compensation : str
-        ``'none'`` or ``'predict'``: whether a controller predicts each neighbour's state from the
-        step it was sent at to the current step (docs/delay.md).
-    """
-
-    seed: int
-    delays: Mapping
-    losses: Mapping
-    noise: np.ndarray
-    dropouts: Mapping
-    jitters: Mapping
-    compensation: str
-
-    @property
-    def is_active(self) -> bool:
-        """Whether anything is impaired (all zero: the run is that without impairments)."""
-        return (any(self.delays.values()) or any(self.jitters.values()) or any(self.losses.values())
-                or bool(np.any(self.noise)) or bool(self.dropouts))
-
-    def drop_step(self, uh: int, dt: float) -> int:
-        """First step whose state of ``uh`` no other UH receives (a huge number without a dropout)."""
-        t = self.dropouts.get(int(uh))
-        return NO_DROPOUT if t is None else int(math.ceil(t / dt - 1e-9))
-
-
-#: :meth:`ImpairmentSpec.drop_step` of a UH that never drops out.
-NO_DROPOUT = 2 ** 62
 
 
 @dataclass(frozen=True, eq=False)
@@ -308,7 +250,7 @@ def _load_gains(src, scenario_source) -> dict:
         return dict(src)
     path = Path(src)
     try:
-        text = path.read_text()
+        text = read_text_file(path)
     except OSError as exc:
         raise E.GainsFileError(f'cannot read the gains file {str(path)!r} ({exc.strerror}); `gains:` must '
                            f'name an existing YAML file relative to the scenario file or be a mapping',
@@ -325,31 +267,17 @@ def _load_gains(src, scenario_source) -> dict:
 # ------------------------------------------------------------------------------------------------
 # Building a Scenario
 
-_TOP_REQUIRED = ('name', 'dt', 'duration', 'uhs', 'edges', 'reference_links', 'reference')
-_TOP_OPTIONAL = ('description', 'substeps', 'settle_time', 'model_mismatch', 'helicopter', 'gains',
-                 'disturbance', 'faults', 'impairments')
-_UH_REQUIRED = ('id', 'role', 'initial_state')
-_UH_OPTIONAL = ('offset',)
-_STATE_REQUIRED = ('position',)
-_STATE_OPTIONAL = ('velocity', 'euler', 'omega')
 _REF_REQUIRED = ('radius', 'angular_rate', 'center', 'climb_rate', 'yaw_rate')
 _REF_OPTIONAL = ('initial_yaw',)
 _DIST_OPTIONAL = ('amplitude', 'frequency', 'phase', 'phase_per_id')
 _FAULT_REQUIRED = ('uh', 'channel', 'rho')
 _FAULT_OPTIONAL = ('bias_constant', 'bias_amplitude', 'bias_frequency', 'onset_time')
-_IMPAIRMENT_OPTIONAL = ('seed', 'delay_steps', 'jitter_steps', 'loss', 'links', 'noise', 'dropouts',
-                        'delay_compensation')
-_LINK_OPTIONAL = ('delay_steps', 'jitter_steps', 'loss')
-#: The values of ``impairments.delay_compensation``: states used as received, or predicted to the current step.
-COMPENSATIONS = ('none', 'predict')
-#: ``impairments.delay_compensation`` when the key is absent (docs/delay.md says why).
-DEFAULT_COMPENSATION = 'predict'
-_NOISE_KEYS = (('position', 'm'), ('velocity', 'm/s'), ('attitude', 'rad'), ('rate', 'rad/s'))
 
-DEFAULT_SUBSTEPS = 5
-DEFAULT_SETTLE_TIME = 20.0
-DEFAULT_MODEL_MISMATCH = 0.9
-DEFAULT_HELICOPTER = 'helicopter'
+# The defaults of the top-level keys, as declared in uh_topology.scenario_keys.SCENARIO_KEYS.
+DEFAULT_SUBSTEPS = key_named(SCENARIO_KEYS, 'substeps').default
+DEFAULT_SETTLE_TIME = key_named(SCENARIO_KEYS, 'settle_time').default
+DEFAULT_MODEL_MISMATCH = key_named(SCENARIO_KEYS, 'model_mismatch').default
+DEFAULT_HELICOPTER = key_named(SCENARIO_KEYS, 'helicopter').default
 
 
 @dataclass(frozen=True)
@@ -363,18 +291,6 @@ class _Timing:
     duration: float
     settle_time: float
     model_mismatch: float
-
-
-@dataclass(frozen=True)
-class _Team:
-    """The UHs of a scenario: roles, offsets, initial states and where each is listed."""
-
-    roles: dict      # id -> 'leader' | 'follower'
-    offsets: dict    # leader id -> (3,) m
-    states: dict     # id -> (12,)
-    where: dict      # id -> index in `uhs`
-    leaders: tuple
-    followers: tuple
 
 
 def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
@@ -397,19 +313,21 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
     """
     ctx = ConfigContext(source, lines or {})
     base = Path(base_dir) if base_dir is not None else Path.cwd()
-    top = ctx.mapping(data, (), _TOP_REQUIRED, _TOP_OPTIONAL, what='a scenario mapping')
+    keys = scenario_keys.SCENARIO_KEYS
+    top = ctx.mapping(data, (), key_names(keys, required=True), key_names(keys, required=False),
+                      what='a scenario mapping')
     timing = _timing(ctx, top)
     helicopter = _helicopter(ctx, top, base)
     gains_source = _gains_source(ctx, top, base)
-    team = _team(ctx, top['uhs'])
+    team = read_team(ctx, top['uhs'])
     adjacency = np.zeros((len(team.roles) + 1, len(team.roles) + 1))
-    _edges(ctx, top['edges'], team, adjacency)
-    _reference_links(ctx, top['reference_links'], team, adjacency)
-    l1, l2, weights = _assumptions(ctx, adjacency, team)
+    read_edges(ctx, top['edges'], team, adjacency)
+    read_reference_links(ctx, top['reference_links'], team, adjacency)
+    l1, l2, weights = check_assumptions(ctx, adjacency, team)
     reference = _reference(ctx, top['reference'])
     disturbance = _disturbance(ctx, top.get('disturbance') or {})
     faults = _faults(ctx, top.get('faults') or [], team)
-    impairments = (_impairments(ctx, top['impairments'], adjacency, set(team.roles), timing.duration)
+    impairments = (read_impairments(ctx, top['impairments'], adjacency, set(team.roles), timing.duration)
                    if top.get('impairments') is not None else None)
     if impairments is not None and not impairments.is_active:
         impairments = None   # all zero: the run without impairments (any clock, no /uhN/received)
@@ -454,26 +372,23 @@ def duration_steps(duration, dt: float) -> int:
 
 def _timing(ctx: ConfigContext, top: dict) -> _Timing:
     """Read the name, description, control period, substeps, duration, settle time and mismatch."""
-    name = ctx.string(top['name'], ('name',))
-    description = ctx.string(top.get('description', ''), ('description',))
-    dt = ctx.number(top['dt'], ('dt',), lo=0.0, lo_open=True, unit='s')
-    substeps = ctx.integer(top.get('substeps', DEFAULT_SUBSTEPS), ('substeps',), lo=1)
-    duration = ctx.number(top['duration'], ('duration',), lo=dt, unit='s')
+    def read(name, **bounds):
+        return read_key(ctx, key_named(scenario_keys.SCENARIO_KEYS, name), top, **bounds)
+    name, description, dt, substeps = read('name'), read('description'), read('dt'), read('substeps')
+    duration = read('duration', lo=dt)
     try:
         duration_steps(duration, dt)
     except ValueError as exc:
         raise ctx.error(E.InvalidValueError, ('duration',), f'duration {exc}') from None
-    settle = ctx.number(top.get('settle_time', DEFAULT_SETTLE_TIME), ('settle_time',), lo=0.0,
-                        hi=duration, hi_open=True, unit='s')
-    mismatch = ctx.number(top.get('model_mismatch', DEFAULT_MODEL_MISMATCH), ('model_mismatch',),
-                          lo=0.0, lo_open=True)
+    settle = read('settle_time', hi=duration)
+    mismatch = read('model_mismatch')
     return _Timing(name=name, description=description, dt=dt, substeps=substeps, duration=duration,
                    settle_time=settle, model_mismatch=mismatch)
 
 
 def _helicopter(ctx: ConfigContext, top: dict, base: Path) -> str:
     """Give the helicopter entry: a bundled name as written, a file name resolved against ``base``."""
-    helicopter = ctx.string(top.get('helicopter', DEFAULT_HELICOPTER), ('helicopter',))
+    helicopter = read_key(ctx, key_named(scenario_keys.SCENARIO_KEYS, 'helicopter'), top)
     if not helicopter:
         raise ctx.error(E.InvalidValueError, ('helicopter',), 'empty helicopter name; allowed: a bundled '
                         'name (e.g. helicopter) or a path to a YAML file')
@@ -494,144 +409,6 @@ def _gains_source(ctx: ConfigContext, top: dict, base: Path):
         return Path(gains_raw) if Path(gains_raw).is_absolute() else (base / gains_raw).resolve()
     raise ctx.error(E.WrongTypeError, ('gains',),
                     f'expected a file name (relative to the scenario) or a mapping, got {type_name(gains_raw)}')
-
-
-def _team(ctx: ConfigContext, uhs) -> _Team:
-    """Read the ``uhs`` list and check the numbering: ids 1..N+M, leaders first, leaders with offsets."""
-    if not isinstance(uhs, list) or not uhs:
-        raise ctx.error(E.WrongTypeError, ('uhs',), f'expected a non-empty list of UHs, got {type_name(uhs)}')
-    roles, offsets, states, where = {}, {}, {}, {}
-    for idx, entry in enumerate(uhs):
-        path = ('uhs', idx)
-        ctx.mapping(entry, path, _UH_REQUIRED, _UH_OPTIONAL, what='a UH mapping')
-        uid = ctx.integer(entry['id'], path + ('id',), what='an integer UH id')
-        if uid in roles:
-            raise ctx.error(E.DuplicateIdError, path + ('id',),
-                            f'UH id {uid} is already used by uhs[{where[uid]}]; ids must be unique')
-        if uid < 1:
-            raise ctx.error(E.IdNumberingError, path + ('id',),
-                            f'UH id {uid} is not allowed; 0 is the virtual leader, UH ids are 1..N+M')
-        where[uid] = idx
-        roles[uid] = ctx.string(entry['role'], path + ('role',), choices=('leader', 'follower'))
-        states[uid] = _initial_state(ctx, entry['initial_state'], path + ('initial_state',))
-        if 'offset' in entry:
-            if roles[uid] == 'follower':
-                raise ctx.error(E.FollowerOffsetError, path + ('offset',),
-                                f'follower {uid} has a formation offset; only leaders have offsets '
-                                f'(followers are placed by the containment weights)')
-            offsets[uid] = ctx.vector(entry['offset'], path + ('offset',), unit='m')
-
-    n = len(roles)
-    leaders = tuple(sorted(i for i, r in roles.items() if r == 'leader'))
-    followers = tuple(sorted(i for i, r in roles.items() if r == 'follower'))
-    if not leaders:
-        raise ctx.error(E.IdNumberingError, ('uhs',), 'no leader; at least one UH must have role: leader')
-    if set(roles) != set(range(1, n + 1)) or leaders != tuple(range(1, len(leaders) + 1)):
-        raise ctx.error(E.IdNumberingError, ('uhs',),
-                        f'ids must be 1..{n} with the leaders first; got leaders {list(leaders)} and '
-                        f'followers {list(followers)}')
-    for j in leaders:
-        if j not in offsets:
-            raise ctx.error(E.MissingOffsetError, ('uhs', where[j]),
-                            f'leader {j} has no formation offset; add offset: [x, y, z] (m)')
-    return _Team(roles=roles, offsets=offsets, states=states, where=where, leaders=leaders, followers=followers)
-
-
-def _initial_state(ctx: ConfigContext, raw, sp: tuple) -> np.ndarray:
-    """Read an ``initial_state`` mapping as the (12,) state: position m, velocity m/s, Euler rad, rate rad/s."""
-    st = ctx.mapping(raw, sp, _STATE_REQUIRED, _STATE_OPTIONAL, what='an initial_state mapping')
-    pos = ctx.vector(st['position'], sp + ('position',), unit='m')
-    vel = ctx.vector(st.get('velocity', [0.0] * 3), sp + ('velocity',), unit='m/s')
-    eul = ctx.vector(st.get('euler', [0.0] * 3), sp + ('euler',), unit='rad')
-    omg = ctx.vector(st.get('omega', [0.0] * 3), sp + ('omega',), unit='rad/s')
-    for axis, lim in ((0, math.pi / 2), (1, math.pi / 2)):
-        if abs(eul[axis]) >= lim:
-            raise ctx.error(E.InvalidValueError, sp + ('euler', axis),
-                            f'{("roll", "pitch")[axis]} {eul[axis]} rad; allowed: |angle| < pi/2')
-    return read_only_array(np.concatenate([pos, vel, eul, omg]))
-
-
-def _edges(ctx: ConfigContext, edges, team: _Team, adjacency: np.ndarray) -> None:
-    """Read the ``edges`` list into ``adjacency[i, j] = a_ij`` (UH i hears UH j)."""
-    roles, known = team.roles, set(team.roles)
-    if edges is None:
-        edges = []
-    if not isinstance(edges, list):
-        raise ctx.error(E.WrongTypeError, ('edges',), f'expected a list of edges, got {type_name(edges)}')
-    edge_at = {}
-    for idx, edge in enumerate(edges):
-        path = ('edges', idx)
-        ctx.mapping(edge, path, ('uh', 'hears'), ('weight',), what='an edge mapping {uh, hears, weight}')
-        i = ctx.uh_id(edge['uh'], path + ('uh',), known)
-        j = ctx.uh_id(edge['hears'], path + ('hears',), known)
-        if i == j:
-            raise ctx.error(E.SelfLoopError, path, f'UH {i} hears itself (self-loop); an edge must join '
-                            f'two different UHs')
-        w = ctx.number(edge.get('weight', 1.0), path + ('weight',))
-        if w < 0.0:
-            raise ctx.error(E.NegativeWeightError, path + ('weight',),
-                            f'negative weight {w} on edge {i}<-{j}; allowed: a weight >= 0')
-        if (i, j) in edge_at:
-            raise ctx.error(E.DuplicateEdgeError, path,
-                            f'edge {i}<-{j} is already listed as edges[{edge_at[(i, j)]}]; list each '
-                            f'directed edge once')
-        if roles[i] == 'leader' and roles[j] == 'follower' and w > 0.0:
-            raise ctx.error(E.LeaderHearsFollowerError, path,
-                            f'leader {i} hears follower {j}; leaders may only hear leaders and the '
-                            f'virtual leader')
-        edge_at[(i, j)] = idx
-        adjacency[i, j] = w
-
-
-def _reference_links(ctx: ConfigContext, links, team: _Team, adjacency: np.ndarray) -> None:
-    """Read the ``reference_links`` list into ``adjacency[i, 0] = a_i0`` (UH i hears the virtual leader)."""
-    roles, known = team.roles, set(team.roles)
-    if links is None:
-        links = []
-    if not isinstance(links, list):
-        raise ctx.error(E.WrongTypeError, ('reference_links',),
-                        f'expected a list of links {{uh, weight}}, got {type_name(links)}')
-    link_at = {}
-    for idx, link in enumerate(links):
-        path = ('reference_links', idx)
-        ctx.mapping(link, path, ('uh',), ('weight',), what='a link mapping {uh, weight}')
-        i = ctx.uh_id(link['uh'], path + ('uh',), known)
-        w = ctx.number(link.get('weight', 1.0), path + ('weight',))
-        if w < 0.0:
-            raise ctx.error(E.NegativeWeightError, path + ('weight',),
-                            f'negative weight {w} on the virtual-leader link {i}<-0; allowed: a weight >= 0')
-        if i in link_at:
-            raise ctx.error(E.DuplicateEdgeError, path,
-                            f'virtual-leader link {i}<-0 is already listed as reference_links'
-                            f'[{link_at[i]}]; list each link once')
-        if roles[i] == 'follower' and w > 0.0:
-            raise ctx.error(E.FollowerLinkedToReferenceError, path + ('uh',),
-                            f'follower {i} hears the virtual leader; only leaders may (followers '
-                            f'are contained by the leaders)')
-        link_at[i] = idx
-        adjacency[i, 0] = w
-
-
-def _assumptions(ctx: ConfigContext, adjacency: np.ndarray, team: _Team) -> tuple:
-    """Check Assumption 1 and Lemma 1 (docs/graph.md); give ``(L1, L2, -L1^-1 L2)``.
-
-    An unreachable UH is reported at its entry under ``uhs`` (the first one without a path).
-    """
-    leaders, followers, where = team.leaders, team.followers, team.where
-    lost = unreachable_leaders(adjacency, leaders)
-    if lost:
-        raise ctx.error(E.UnreachableLeaderError, ('uhs', where[lost[0]]), unreachable_leader_message(lost),
-                        ids=lost)
-    lost = unreachable_followers(adjacency, leaders, followers)
-    if lost:
-        raise ctx.error(E.UnreachableFollowerError, ('uhs', where[lost[0]]),
-                        unreachable_follower_message(lost), ids=lost)
-    l1, l2 = laplacian_blocks(adjacency, leaders, followers)
-    try:  # Lemma 1 (implied by Assumption 1; checked numerically as a guard)
-        weights = check_lemma1(l1, l2, containment_pattern(adjacency, leaders, followers))
-    except E.LaplacianConditionError as exc:
-        raise ctx.error(E.LaplacianConditionError, ('edges',), exc.message) from None
-    return l1, l2, weights
 
 
 def _reference(ctx: ConfigContext, raw) -> ReferenceSpec:
@@ -665,7 +442,7 @@ def _disturbance(ctx: ConfigContext, dist) -> DisturbanceSpec:
     return disturbance
 
 
-def _faults(ctx: ConfigContext, faults_raw, team: _Team) -> dict:
+def _faults(ctx: ConfigContext, faults_raw, team: Team) -> dict:
     """Read the ``faults`` list as ``{uh id: [FaultSpec, ...]}`` with every id a key, one fault per channel."""
     if not isinstance(faults_raw, list):
         raise ctx.error(E.WrongTypeError, ('faults',), f'expected a list of faults, got {type_name(faults_raw)}')
@@ -693,64 +470,12 @@ def _faults(ctx: ConfigContext, faults_raw, team: _Team) -> dict:
     return faults
 
 
-def _impairments(ctx, raw, adjacency, known, duration) -> ImpairmentSpec:
-    """Validate the ``impairments`` mapping (docs/campaigns.md#impairments) against the graph."""
-    path = ('impairments',)
-    ctx.mapping(raw, path, (), _IMPAIRMENT_OPTIONAL, what='an impairments mapping')
-    seed = ctx.integer(raw.get('seed', 0), path + ('seed',), lo=0, what='an integer seed >= 0')
-    compensation = ctx.string(raw.get('delay_compensation', DEFAULT_COMPENSATION), path + ('delay_compensation',),
-                              choices=COMPENSATIONS)
-    edges = [(int(i), int(j) + 1) for i, j in zip(*np.nonzero(adjacency[:, 1:] > 0.0))]   # (uh, hears)
-    per_link = {key: dict.fromkeys(edges, _link_value(ctx, raw, path, key, 0)) for key in _LINK_OPTIONAL}
-    links = raw.get('links') or []
-    if not isinstance(links, list):
-        raise ctx.error(E.WrongTypeError, path + ('links',), f'expected a list of links, got {type_name(links)}')
-    for idx, link in enumerate(links):
-        lp = path + ('links', idx)
-        ctx.mapping(link, lp, ('uh', 'hears'), _LINK_OPTIONAL,
-                    what='a link mapping {uh, hears, delay_steps, jitter_steps, loss}')
-        i = ctx.uh_id(link['uh'], lp + ('uh',), known)
-        j = ctx.uh_id(link['hears'], lp + ('hears',), known)
-        if (i, j) not in per_link['loss']:
-            raise ctx.error(E.InvalidValueError, lp, f'UH {i} does not hear UH {j}: no such edge in `edges`; '
-                            f'impairments act on existing links only')
-        for key in _LINK_OPTIONAL:
-            if key in link:
-                per_link[key][(i, j)] = _link_value(ctx, link, lp, key, None)
-    noise_raw = raw.get('noise') or {}
-    ctx.mapping(noise_raw, path + ('noise',), (), tuple(k for k, _ in _NOISE_KEYS), what='a noise mapping')
-    noise = np.concatenate([np.full(3, ctx.number(noise_raw.get(key, 0.0), path + ('noise', key), lo=0.0, unit=unit))
-                            for key, unit in _NOISE_KEYS])
-    dropouts = {}
-    drops = raw.get('dropouts') or []
-    if not isinstance(drops, list):
-        raise ctx.error(E.WrongTypeError, path + ('dropouts',), f'expected a list of dropouts, got {type_name(drops)}')
-    for idx, drop in enumerate(drops):
-        dp = path + ('dropouts', idx)
-        ctx.mapping(drop, dp, ('uh', 'time'), (), what='a dropout mapping {uh, time}')
-        i = ctx.uh_id(drop['uh'], dp + ('uh',), known)
-        if i in dropouts:
-            raise ctx.error(E.InvalidValueError, dp + ('uh',), f'UH {i} already drops out; one dropout per UH')
-        dropouts[i] = ctx.number(drop['time'], dp + ('time',), lo=0.0, hi=duration, unit='s')
-    return ImpairmentSpec(seed=seed, delays=MappingProxyType(per_link['delay_steps']),
-                          losses=MappingProxyType(per_link['loss']), noise=read_only_array(noise),
-                          dropouts=MappingProxyType(dropouts), jitters=MappingProxyType(per_link['jitter_steps']),
-                          compensation=compensation)
-
-
-def _link_value(ctx, raw, path, key, default):
-    """Read a link setting ``key`` (one of :data:`_LINK_OPTIONAL`) of mapping ``raw`` at ``path``."""
-    value = raw.get(key, default)
-    if key == 'loss':
-        return ctx.number(0.0 if value is None else value, path + (key,), lo=0.0, hi=1.0, hi_open=True)
-    return ctx.integer(0 if value is None else value, path + (key,), lo=0, what='a whole number of steps >= 0')
-
-
 def parse_scenario(text: str, *, source: str | None = None, base_dir=None) -> Scenario:
     """Parse and validate scenario YAML text (``base_dir`` resolves relative file names)."""
     data, lines = parse_yaml(text, source)
     if data is None:
-        raise E.MissingFieldError('the scenario is empty; required keys: ' + ', '.join(_TOP_REQUIRED),
+        raise E.MissingFieldError('the scenario is empty; required keys: '
+                                  + ', '.join(key_names(scenario_keys.SCENARIO_KEYS, required=True)),
                                   source=source)
     return scenario_from_mapping(data, source=source, base_dir=base_dir, lines=lines)
 

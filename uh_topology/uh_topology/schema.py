@@ -10,6 +10,7 @@ What the readers of those files share, so that each reports its errors the same 
 * :func:`type_name`, :func:`unit_suffix`, :func:`range_text`, :func:`format_key_path` -- the
   pieces of those messages;
 * :func:`read_config_file` -- a YAML file by path, or a bundled one (``uh_topology/config``) by name;
+* :func:`read_text_file` -- a file's UTF-8 text, refused in one error when it is not UTF-8;
 * :class:`ConfigError` -- the base of every configuration error (:mod:`uh_topology.errors`).
 """
 from __future__ import annotations
@@ -27,7 +28,7 @@ from .errors import ConfigError
 
 __all__ = [
     'CONFIG_DIR', 'ConfigError', 'ConfigContext', 'parse_yaml', 'line_map', 'format_key_path', 'type_name',
-    'unit_suffix', 'range_text', 'read_only_array', 'read_config_file',
+    'unit_suffix', 'range_text', 'read_only_array', 'read_config_file', 'read_text_file',
 ]
 
 #: The directory of the bundled configuration files (scenarios, gains, campaign specs).
@@ -291,6 +292,24 @@ def read_config_file(path_or_name, what: str, bundled_names, base_dir=None) -> t
                 f'no {what} file {text!r}{where}; give a path to a YAML file or a bundled name '
                 f'({", ".join(bundled_names()) or "none"})')
     try:
-        return path, path.read_text()
+        return path, read_text_file(path)
     except OSError as exc:
         raise E.ScenarioNotFoundError(f'cannot read {str(path)!r}: {exc.strerror}') from None
+
+
+def read_text_file(path) -> str:
+    """Read the text of a configuration file, which must be UTF-8 (ASCII is).
+
+    Line ends are read as in Python's text mode (CR LF and CR as LF). Raises ``OSError`` when the file
+    cannot be read, and :class:`~uh_topology.errors.ScenarioSyntaxError` when it is not UTF-8 text,
+    naming the file, the line and the first byte that is not:
+    ``team.yaml:12: not UTF-8 text: byte 0x80 at offset 345; allowed: a YAML text file in UTF-8``.
+    """
+    data = Path(path).read_bytes()
+    try:
+        text = data.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        line = data.count(b'\n', 0, exc.start) + 1
+        raise E.ScenarioSyntaxError(f'not UTF-8 text: byte 0x{data[exc.start]:02x} at offset {exc.start}; '
+                                    'allowed: a YAML text file in UTF-8', source=str(path), line=line) from None
+    return text.replace('\r\n', '\n').replace('\r', '\n')

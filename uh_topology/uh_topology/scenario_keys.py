@@ -1,0 +1,214 @@
+"""The keys of a scenario file, declared once: name, required or default, unit, allowed values, meaning.
+
+Each :class:`ScenarioKey` says what a key of a scenario mapping is. The tables are read where the
+keys are used, at the time they are used:
+
+* the scenario loader (:mod:`uh_topology.scenario`, :mod:`uh_topology.impairments`) takes from
+  them which keys a mapping may hold and which it must, the default of an absent key and, for a
+  scalar key, the type and range it checks (:func:`read_key`);
+* the campaign spec (:mod:`uh_campaign.spec`) takes the impairment keys a campaign may copy into
+  its scenarios, and those it draws itself (``seed``);
+* docs/scenario.md's tables of the top-level and the impairment keys are
+  :func:`markdown_table` of :data:`SCENARIO_KEYS` and :data:`IMPAIRMENT_KEYS` (a test compares
+  them).
+
+A new key is one more entry here (and, for what it does, its reader and its effect).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ['ScenarioKey', 'SCENARIO_KEYS', 'IMPAIRMENT_KEYS', 'NOISE_KEYS', 'key_named', 'key_names',
+           'read_key', 'default_cell', 'markdown_table']
+
+#: The kinds of scalar key :func:`read_key` reads.
+KINDS = ('integer', 'number', 'string')
+
+
+@dataclass(frozen=True)
+class ScenarioKey:
+    """One key of a scenario mapping.
+
+    Attributes
+    ----------
+    name : str
+        The key.
+    meaning : str
+        What it means and what is allowed, as docs/scenario.md's table says it (Markdown).
+    required : bool
+        The mapping must hold it.
+    default : object
+        The value of an absent key (None: no value, the part it describes is absent).
+    default_text : str or None
+        The default as the table writes it, when not the default itself (e.g. ``all 0``).
+    unit : str
+        The unit (the table's; a number's errors name it too).
+    kind : str or None
+        ``integer``, ``number`` or ``string`` for a scalar that :func:`read_key` reads; None for
+        a mapping or list, which has its own reader.
+    lo, hi, lo_open, hi_open
+        The allowed range of an integer (``lo``) or a number.
+    choices : tuple
+        The allowed values of a string (empty: any string).
+    what : str
+        How an integer's type error names what was expected (default ``an integer``).
+    null_is_default : bool
+        ``null`` is read as the default (otherwise it is a wrong type).
+    per_link : bool
+        Impairments: also a per-link override under ``links``.
+    drawn_by_campaign : bool
+        Impairments: a campaign draws it for every draw; its spec must not give it.
+    """
+
+    name: str
+    meaning: str
+    required: bool = False
+    default: Any = None
+    default_text: str | None = None
+    unit: str = ''
+    kind: str | None = None
+    lo: Any = None
+    hi: Any = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple = ()
+    what: str = ''
+    null_is_default: bool = False
+    per_link: bool = False
+    drawn_by_campaign: bool = False
+
+    def __post_init__(self):
+        """Refuse a kind :func:`read_key` does not know."""
+        if self.kind is not None and self.kind not in KINDS:
+            raise ValueError(f'{self.name}: kind {self.kind!r}; allowed: {", ".join(KINDS)} or None')
+
+
+#: The top-level keys of a scenario, in the order of docs/scenario.md (docs/scenario.md#top-level-keys).
+SCENARIO_KEYS = (
+    ScenarioKey('name', 'string', required=True, kind='string'),
+    ScenarioKey('description', 'string', default='', kind='string'),
+    ScenarioKey('dt', 'control period, > 0', required=True, unit='s', kind='number', lo=0.0, lo_open=True),
+    ScenarioKey('substeps', 'RK4 substeps per control period, integer >= 1 ([model.md](model.md#integration))',
+                default=5, kind='integer', lo=1),
+    ScenarioKey('duration', "run length, >= `dt` and a whole number of `dt` (K = duration / dt steps); the run "
+                "scripts' `--duration` overrides it", required=True, unit='s', kind='number'),
+    ScenarioKey('settle_time', 'start of the after-settle metrics, in [0, duration) '
+                '([metrics.md](metrics.md#after-settle-window))', default=20.0, unit='s', kind='number', lo=0.0,
+                hi_open=True),
+    ScenarioKey('model_mismatch', "factor on the controller's nominal `D_v` and `c_Q`, > 0; 1 = exact "
+                '([model.md](model.md#what-the-controller-knows))', default=0.9, kind='number', lo=0.0,
+                lo_open=True),
+    ScenarioKey('helicopter', 'airframe parameter file: a bare name selects a bundled file of '
+                '`uh_core/uh_core/config` (`helicopter` = `helicopter.yaml`), anything with a suffix or a '
+                'directory is a path ([model.md](model.md#parameters))', default='helicopter', kind='string'),
+    ScenarioKey('gains', 'controller gains: a YAML file (path) or an inline mapping ([below](#gains-file)); a '
+                'scenario without gains loads, but no controller can be built from it'),
+    ScenarioKey('uhs', 'non-empty list of UHs ([below](#uhs))', required=True),
+    ScenarioKey('edges', 'list of edges, may be empty or `null` ([below](#edges-and-reference_links))',
+                required=True),
+    ScenarioKey('reference_links', 'list of virtual-leader links ([below](#edges-and-reference_links))',
+                required=True),
+    ScenarioKey('reference', 'virtual-leader trajectory ([below](#reference))', required=True),
+    ScenarioKey('disturbance', 'force disturbance on every UH ([below](#disturbance))'),
+    ScenarioKey('faults', 'actuator faults ([below](#faults))'),
+    ScenarioKey('impairments', 'what the controllers receive: per-link delay and jitter in steps, loss, measurement '
+                'noise, dropouts, and whether a controller predicts delayed states; in process, lockstep and '
+                'realtime ([below](#impairments); in real time: [runtime.md](runtime.md#impairments-in-real-time))'),
+)
+
+#: The keys of ``impairments.noise``: the standard deviation of the noise on each part of a received state.
+NOISE_KEYS = tuple(
+    ScenarioKey(name, f'standard deviation of the noise on the {name} of every received state, >= 0', default=0.0,
+                unit=unit, kind='number', lo=0.0)
+    for name, unit in (('position', 'm'), ('velocity', 'm/s'), ('attitude', 'rad'), ('rate', 'rad/s')))
+
+_STEPS = dict(default=0, unit='control steps', kind='integer', lo=0, what='a whole number of steps >= 0',
+              null_is_default=True, per_link=True)
+_LINK_KEYS = (
+    ScenarioKey('delay_steps', 'integer >= 0: every link delivers a state this many steps after it was sent',
+                **_STEPS),
+    ScenarioKey('jitter_steps', 'integer >= 0: each state of each link is delayed by a further seeded draw in '
+                '`0..jitter_steps`, so states may arrive out of order; the controller uses the newest *sent* step '
+                'that has arrived, never an older one', **_STEPS),
+    ScenarioKey('loss', 'probability in [0, 1) that a link loses a state', default=0.0, kind='number', lo=0.0,
+                hi=1.0, hi_open=True, null_is_default=True, per_link=True),
+)
+
+#: The keys of ``impairments`` (docs/scenario.md#impairments, docs/campaigns.md#impairments).
+IMPAIRMENT_KEYS = (
+    ScenarioKey('seed', 'integer >= 0: seeds the loss and jitter draws and the noise', default=0, kind='integer',
+                lo=0, what='an integer seed >= 0', drawn_by_campaign=True),
+    *_LINK_KEYS,
+    ScenarioKey('links', 'per-link overrides `{uh, hears, ' + ', '.join(k.name for k in _LINK_KEYS) + '}`; '
+                '`uh` must hear `hears` (an edge of `edges`)'),
+    ScenarioKey('noise', 'standard deviations ' + ', '.join(f'`{k.name}`' for k in NOISE_KEYS) + ' >= 0 of the '
+                'noise on every received state', default_text='all 0', unit=', '.join(k.unit for k in NOISE_KEYS)),
+    ScenarioKey('dropouts', "`{uh, time}`: from `time` on no other UH receives the UH's state; one per UH, `time` "
+                'in [0, duration]', unit='s'),
+    ScenarioKey('delay_compensation', "`none`: a controller uses each neighbour's state as received; `predict`: it "
+                'predicts it from the step it was sent at to the current step ([delay.md](delay.md))',
+                default='predict', kind='string', choices=('none', 'predict')),
+)
+
+
+def key_named(keys, name: str) -> ScenarioKey:
+    """Return the key ``name`` of the table ``keys`` (KeyError if it has none)."""
+    for key in keys:
+        if key.name == name:
+            return key
+    raise KeyError(name)
+
+
+def key_names(keys, required: bool | None = None) -> tuple:
+    """Return the names of ``keys`` in their order: all, or only the required (True) or optional (False) ones."""
+    return tuple(k.name for k in keys if required is None or k.required == required)
+
+
+def read_key(ctx, key: ScenarioKey, raw: dict, path: tuple = (), **bounds):
+    """Read the scalar ``key`` of the mapping ``raw`` at key path ``path`` as declared.
+
+    ``ctx`` is the file's :class:`~uh_topology.schema.ConfigContext`; an absent key gives its default.
+    ``bounds`` (``lo``, ``hi``, ``lo_open``, ``hi_open``) replace the declared range where it
+    depends on other keys (a duration of at least ``dt``).
+    """
+    value = raw.get(key.name, key.default)
+    if value is None and key.null_is_default:
+        value = key.default
+    where = path + (key.name,)
+    lo = bounds.get('lo', key.lo)
+    if key.kind == 'integer':
+        return ctx.integer(value, where, lo=lo, what=key.what or 'an integer')
+    if key.kind == 'number':
+        return ctx.number(value, where, lo=lo, hi=bounds.get('hi', key.hi),
+                          lo_open=bounds.get('lo_open', key.lo_open), hi_open=bounds.get('hi_open', key.hi_open),
+                          unit=key.unit)
+    if key.kind == 'string':
+        return ctx.string(value, where, choices=key.choices or None)
+    raise ValueError(f'{key.name} is not a scalar key; it has its own reader')
+
+
+def default_cell(key: ScenarioKey) -> str:
+    """Write the default of ``key`` as docs/scenario.md's tables do (empty for a required key)."""
+    if key.required:
+        return ''
+    if key.default_text is not None:
+        return key.default_text
+    if key.default is None:
+        return 'none'
+    if isinstance(key.default, str):
+        return f'`{key.default}`' if key.default else "`''`"
+    if isinstance(key.default, float):
+        return f'{key.default:g}'
+    return str(key.default)
+
+
+def markdown_table(keys, required_column: bool = False) -> str:
+    """Write the table of ``keys`` as docs/scenario.md has it: key, (required,) default, unit, meaning and allowed."""
+    head = ['key', *(['required'] if required_column else []), 'default', 'unit', 'meaning, allowed values']
+    rows = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+    for key in keys:
+        cells = [f'`{key.name}`', *([('yes' if key.required else 'no')] if required_column else []),
+                 default_cell(key), key.unit, key.meaning]
+        rows.append('|' + '|'.join(f' {cell} ' if cell else ' ' for cell in cells) + '|')
+    return '\n'.join(rows) + '\n'
