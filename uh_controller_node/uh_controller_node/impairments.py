@@ -25,6 +25,7 @@ position of a state sent ``k - s`` steps ago to step k from the velocity it carr
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from uh_core import compiled_kernels as _compiled_kernels
@@ -32,8 +33,8 @@ from uh_core.compiled_kernels import njit
 
 from uh_core.layout import STATE_SIZE, X_P, X_V
 
-__all__ = ['LOSS_STREAM', 'JITTER_STREAM', 'PREDICTION_MARGIN', 'hash_uniform', 'arrival_extra', 'newest_delivered',
-           'delivered_step', 'prediction_age', 'add_noise', 'predict_state', 'ReceivedStates',
+__all__ = ['Link', 'LOSS_STREAM', 'JITTER_STREAM', 'PREDICTION_MARGIN', 'hash_uniform', 'arrival_extra',
+           'newest_delivered', 'delivered_step', 'prediction_age', 'add_noise', 'predict_state', 'ReceivedStates',
            'reference_hash', 'compile_impairment_kernels']
 
 #: Stream of the loss draws; the noise of state component c uses streams 1 + 2c and 2 + 2c.
@@ -191,6 +192,23 @@ def predict_state(state, age, dt, out):
         out[X_P + c] = state[X_P + c] + state[X_V + c] * tau
 
 
+class Link(NamedTuple):
+    """The impairment of the link that brings ``sender``'s states to ``receiver``.
+
+    Its fields are in the order :func:`newest_delivered` and :func:`delivered_step` take them after
+    their first arguments, so ``newest_delivered(k, newest, *link)`` works. A new per-link
+    impairment is one more field here and one more argument of those kernels.
+    """
+
+    delay: int          # steps
+    jitter: int         # steps, the largest extra delay (0..jitter)
+    loss: float         # probability that a state is lost
+    drop_step: int      # the first step the sender no longer reaches the receiver (dropout)
+    seed: int           # the scenario's impairment seed
+    receiver: int       # UH id
+    sender: int         # UH id
+
+
 class ReceivedStates:
     """The states one controller receives, step by step (a distributed node or the object loop).
 
@@ -243,11 +261,11 @@ class ReceivedStates:
             out[j] = self.use(j, k, delivered_step(k, *link), link)
         return own_out, out
 
-    def link(self, j: int) -> tuple:
-        """``(delay, jitter, loss, drop_step, seed, receiver, sender)`` of the link from neighbour ``j``."""
-        return self.delay[j], self.jitter[j], self.loss[j], self.drop[j], self.seed, self.uh_id, j
+    def link(self, j: int) -> Link:
+        """Return the :class:`Link` from neighbour ``j`` to this UH."""
+        return Link(self.delay[j], self.jitter[j], self.loss[j], self.drop[j], self.seed, self.uh_id, j)
 
-    def use(self, j: int, k: int, s: int, link: tuple):
+    def use(self, j: int, k: int, s: int, link: Link):
         """Return the state neighbour ``j`` sent at step ``s`` as used at step ``k`` (a new array).
 
         Noise added (:attr:`delivered` keeps it so), predicted to step ``k`` when the scenario asks for it;
@@ -260,7 +278,7 @@ class ReceivedStates:
         used = state
         if self.predict and s < k:
             used = np.empty(STATE_SIZE)
-            predict_state(state, prediction_age(k, s, *link[:2], self.dt), self.dt, used)
+            predict_state(state, prediction_age(k, s, link.delay, link.jitter, self.dt), self.dt, used)
         self.sample_steps[j] = s
         for old in [step for step in history if step < s]:
             del history[old]

@@ -24,13 +24,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from uh_controller_node.impairments import ReceivedStates, add_noise, compile_impairment_kernels, newest_delivered
+from uh_controller_node.impairments import (Link, ReceivedStates, add_noise, compile_impairment_kernels,
+                                           newest_delivered)
 from uh_core.layout import STATE_SIZE
 
 __all__ = ['newest_arrived', 'RealtimeReceivedStates', 'received_states_for']
 
 
-def newest_arrived(k: int, arrived, link: tuple) -> int | None:
+def newest_arrived(k: int, arrived, link: Link) -> int | None:
     """Return the newest step of ``arrived`` that the impairment rule delivers by step ``k``, or None.
 
     Parameters
@@ -39,9 +40,8 @@ def newest_arrived(k: int, arrived, link: tuple) -> int | None:
         The receiver's current step.
     arrived : collection of int
         Steps (>= 0) whose state of the sender has come over the network (not empty).
-    link : tuple
-        ``(delay, jitter, loss, drop_step, seed, receiver, sender)`` as
-        :func:`~uh_controller_node.impairments.newest_delivered` takes them.
+    link : Link
+        The link's impairment (:class:`~uh_controller_node.impairments.Link`).
 
     :func:`~uh_controller_node.impairments.newest_delivered` gives the newest step at most a bound
     that the rule delivers by step k; a step the network has not brought yet is skipped by asking
