@@ -135,10 +135,10 @@ def test_mixed_realtime_team_holds_formation_and_shares_parameters_rosout_and_di
     """The paper scenario in real time, helicopters 2 and 4 on Cyclone DDS and the rest on rclpy/Fast DDS.
 
     While it runs: rclpy's graph shows each node on the vendor it was put on; a second terminal that
-    sources the printed env.sh sees every node with ``uh node list`` (Cyclone DDS) and with rclpy (Fast
-    DDS); a gain set on an rclpy controller and one set on a Cyclone DDS controller both reach an rclpy
-    subscriber of /parameter_events and /rosout and the Cyclone DDS recorder's bag. At the end the
-    formation holds (the thresholds of the in-process run's metrics).
+    sources the printed env.sh sees every node of the run with ``uh node list`` (Cyclone DDS, which waits
+    for the run's node table in env.sh) and with rclpy (Fast DDS); a gain set on an rclpy controller and one
+    set on a Cyclone DDS controller both reach an rclpy subscriber of /parameter_events and /rosout and the
+    Cyclone DDS recorder's bag. At the end the formation holds (the thresholds of the in-process run's metrics).
     """
     out = tmp_path / 'run'
     # 60 s: the checks below take 20-35 s after the run starts on a loaded machine (three `uh node list`,
@@ -194,9 +194,14 @@ def _exercise_the_running_team(out: Path) -> None:
                        '/uh4/sim': CYCLONE_DDS, '/uh5/sim': on_rclpy}
     expected = {'/clock', '/recorder', '/virtual_leader', '/visualization', '/rclpy_tier_probe',
                 *(f'/uh{i}/{kind}' for i in range(1, 6) for kind in ('sim', 'controller'))}
-    for _ in range(3):   # every time: Fast DDS participants answer up to half a second after Cyclone DDS ones
+    # every time: env.sh names the run's nodes (UH_RUN_NODES), and uh node list waits for each of them, Fast DDS
+    # participants' included (whose node tables come a heartbeat late unless asked again: docs/ros2.md), or names
+    # the ones it did not see and exits 1; a node outside the run (this test's own) is listed if discovered by then
+    team = expected - {'/rclpy_tier_probe'}
+    for _ in range(3):
         listed = _second_terminal(out, f'{UH} node list')
-        assert set(listed.stdout.split()) == expected, listed
+        assert listed.returncode == 0 and listed.stderr == '' and team <= set(listed.stdout.split()), listed
+        assert set(listed.stdout.split()) <= expected, listed
     # rclpy on Fast DDS learns of a participant from its announcements (a Cyclone DDS participant of the
     # run repeats them every second, a Fast DDS one every 3 s: docs/ros2.md#discovery-from-fast-dds), then
     # of its nodes from ros_discovery_info: poll until every node is seen; 15 s bounds a failure only

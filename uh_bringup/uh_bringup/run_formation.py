@@ -52,19 +52,19 @@ import time
 
 from uh_runtime.command_line import ArgumentParser
 from uh_bringup.netns import NetnsError
-from uh_bringup.run_checks import CLOCKS, CONFIG_ERRORS, HOSTS, LAYOUTS, UsageError, check_run, validate_team
+from uh_bringup.run_checks import CONFIG_ERRORS, HOSTS, LAYOUTS, UsageError, check_run, validate_team
 from uh_bringup.run_outcome import (EXIT_DEGRADED, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, RunRecord,
                                     exit_status, recover_bag_if_needed, run_info, write_metrics)
 from uh_bringup.run_processes import process_commands
-from uh_bringup.run_setup import (open_network, realtime_priority, run_environment, start_team,
-                                  write_environment_script)
+from uh_bringup.run_setup import (open_network, realtime_priority, run_environment, run_node_names, start_team,
+                                  team_specs, write_environment_script)
 from uh_bringup.run_watch import MAX_RESPAWNS, RunProgress, RunWatcher
 from uh_bringup.supervisor import Supervisor
 from uh_bringup.team_nodes import node_specs
 from uh_controller_node.gains import CASES
 from uh_runtime import live_view, scheduling
 from uh_runtime.network import MAX_DOMAIN_ID
-from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
+from uh_wire.run_defaults import CLOCK_MODES, DEFAULT_STALE_TIMEOUT, DEFAULT_STARTUP_TIMEOUT
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
            'EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED']
@@ -78,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
                     'metrics computed from the bag.')
     p.add_argument('--scenario', default='paper', help='scenario YAML, or "paper" (default) for the bundled one')
     p.add_argument('--case', default='proposed', choices=CASES, help='controller variant (default: proposed)')
-    p.add_argument('--clock', default='lockstep', choices=CLOCKS,
+    p.add_argument('--clock', default='lockstep', choices=CLOCK_MODES,
                    help='lockstep: deterministic, as fast as possible (default); realtime: wall-clock ticks')
     p.add_argument('--rate', type=float, default=1.0, help='realtime: simulated seconds per wall second (default 1)')
     p.add_argument('--duration', type=float, default=None, help='simulated seconds (default: the scenario\'s)')
@@ -104,7 +104,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--no-standard-views', action='store_true',
                    help='do not publish /tf, /uhN/odom and /diagnostics (docs/visualization.md): for '
                         'benchmarks and batch runs')
-    p.add_argument('--startup-timeout', type=float, default=60.0, help='s to wait for all nodes to come up')
+    p.add_argument('--startup-timeout', type=float, default=DEFAULT_STARTUP_TIMEOUT,
+                   help='s to wait for all nodes to come up')
     p.add_argument('--respawn', action='store_true',
                    help=f'realtime: restart a controller process that dies (up to {MAX_RESPAWNS} times each); '
                         'it rejoins the running team')
@@ -161,7 +162,7 @@ def run(args) -> int:
     print(f'[run] {scenario.name}: {len(scenario.leaders)} leaders, {len(scenario.followers)} followers, '
           f'case {args.case}, {args.clock} clock, {duration:g} s simulated, DDS domain {domain}', file=sys.stderr)
     priority = realtime_priority(args)
-    write_environment_script(out, env)
+    write_environment_script(out, env, run_node_names(team_specs(args, scenario, scenario_arg, out, priority)))
     sup = Supervisor(out / 'logs', env, respawn_priority=priority)
     record = RunRecord(out, run_info(args, duration, domain, priority), sup)
     started = time.monotonic()

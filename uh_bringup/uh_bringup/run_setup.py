@@ -2,7 +2,8 @@
 
 Every run has a DDS domain of its own (``--domain-id``, else ``ROS_DOMAIN_ID``, else a free one
 held for the run), so runs started at once never see each other; ``env.sh`` in the output
-directory gives another terminal the same settings.
+directory gives another terminal the same settings, and the run's node table, for which ``uh node
+list`` and ``uh topic list`` wait (docs/topics.md#inspecting-a-running-team).
 """
 from __future__ import annotations
 
@@ -16,9 +17,10 @@ from uh_bringup.run_processes import processes
 from uh_bringup.team_nodes import backend_environment, node_specs
 from uh_runtime import live_view, scheduling
 from uh_runtime.network import environment_script, loopback_environment, reserve_domain_id
+from uh_runtime.node_table import export_line
 
 __all__ = ['run_environment', 'realtime_priority', 'write_environment_script', 'open_network', 'start_team',
-           'dds_processes']
+           'dds_processes', 'team_specs', 'run_node_names']
 
 
 def run_environment(domain_id) -> tuple[int, dict]:
@@ -49,10 +51,27 @@ def realtime_priority(args) -> int:
     return priority
 
 
-def write_environment_script(out: Path, env: dict) -> None:
-    """Write ``out/env.sh`` and say how another terminal uses it."""
+def run_node_names(specs) -> list[str]:
+    """Return the fully qualified names of the nodes of ``specs`` (:func:`team_specs`), sorted.
+
+    Each node is named after its kind (``sim``, ``clock``, ...: every node class gives its kind as its
+    name) in the namespace of its ``__ns:=`` remapping, the root without one.
+    """
+    names = set()
+    for _name, kind, ros_args in specs:
+        namespace = next((a.split(':=', 1)[1] for a in ros_args if a.startswith('__ns:=')), '/')
+        names.add(f"{namespace.rstrip('/')}/{kind}")
+    return sorted(names)
+
+
+def write_environment_script(out: Path, env: dict, nodes=()) -> None:
+    """Write ``out/env.sh`` and say how another terminal uses it.
+
+    ``nodes``, the run's fully qualified node names (:func:`run_node_names`), go in as ``UH_RUN_NODES``:
+    ``uh node list`` and the other listings of ``uh`` wait for them and name those they do not see.
+    """
     print(f'[run] output: {out}', file=sys.stderr)
-    (out / 'env.sh').write_text(environment_script(env))
+    (out / 'env.sh').write_text(environment_script(env) + (export_line(nodes) if nodes else ''))
     print(f'[run] from another terminal: source {out / "env.sh"}   (then ros2 topic list, or uh topic list)',
           file=sys.stderr)
 
@@ -83,14 +102,19 @@ def dds_processes(env: dict, names: list) -> set:
     return wanted
 
 
+def team_specs(args, scenario, scenario_arg: str, out: Path, priority: int) -> list:
+    """Return the :func:`~uh_bringup.team_nodes.node_specs` of the run of ``args`` (recorder first, clock last)."""
+    return node_specs(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
+                      out / 'bag', args.startup_timeout, args.stale_timeout,
+                      visualization=not args.no_visualization,
+                      standard_views=not args.no_standard_views,
+                      live_view=(args.foxglove_host, args.foxglove) if args.foxglove is not None else None,
+                      realtime_priority=priority)
+
+
 def start_team(args, scenario, scenario_arg: str, out: Path, env: dict, priority: int, sup, network) -> None:
     """Start every process of the team under supervisor ``sup`` (the clock's last)."""
-    specs = node_specs(scenario, scenario_arg, args.case, args.clock, args.rate, args.duration,
-                       out / 'bag', args.startup_timeout, args.stale_timeout,
-                       visualization=not args.no_visualization,
-                       standard_views=not args.no_standard_views,
-                       live_view=(args.foxglove_host, args.foxglove) if args.foxglove is not None else None,
-                       realtime_priority=priority)
+    specs = team_specs(args, scenario, scenario_arg, out, priority)
     if args.foxglove is not None:
         print(f'[run] live view: {live_view.connect_hint(args.foxglove_host, args.foxglove)}', file=sys.stderr)
     started = processes(specs, args.processes, out / 'logs', getattr(args, 'workers', None))

@@ -16,6 +16,9 @@ Every command takes ``--domain-id`` (default ``ROS_DOMAIN_ID`` or 0). Discovery 
 configuration in ``CYCLONEDDS_URI``, else the runs' default
 (:func:`uh_runtime.network.default_cyclonedds_uri`: loopback only, or as
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` and ``ROS_STATIC_PEERS`` say).
+
+With a run's node table (``UH_RUN_NODES`` from its ``env.sh``, :mod:`uh_runtime.node_table`), ``topic
+list``, ``topic info``, ``node list`` and ``param list`` wait for those nodes, or name the ones not seen.
 """
 import argparse
 import math
@@ -28,6 +31,7 @@ from .arguments import (InvalidNameError, parse_parameter_value, validate_full_t
                         validate_node_name)
 from .names import ROS_TOPIC_PREFIX
 from .network import MAX_DOMAIN_ID, apply_network_default
+from .node_table import RUN_NODES_VARIABLE, report_missing, run_nodes
 
 # The graph, the message classes, the QoS conversions and the DDS backend are imported inside the
 # commands that use them: they load Cyclone DDS and every message type, and ``uh --help`` and a
@@ -36,10 +40,9 @@ from .network import MAX_DOMAIN_ID, apply_network_default
 __all__ = ['main', 'build_parser']
 
 
-#: How long the graph must stay unchanged before a listing is complete, s. A Cyclone DDS participant
-#: answers this one's announcement at once, a Fast DDS one (rclpy on Fast DDS, ROS 2's default RMW)
-#: in its next periodic announcement, every 3 s: measured 0.03 s to over 2 s on loopback. A shorter
-#: wait lists the Cyclone DDS nodes of a mixed graph and sometimes none of the Fast DDS ones.
+#: How long the graph must stay unchanged before a listing without a run's node table is complete, s:
+#: one heartbeat period (3 s) of a Fast DDS participant's ``ros_discovery_info`` writer, in case the
+#: renewed reader (:data:`uh_runtime.graph.INFO_GRACE`) misses its first (docs/ros2.md).
 QUIET = 3.2
 
 #: Default ``--spin-time``: the longest wait, which the quiet time must fit in.
@@ -89,7 +92,8 @@ def _common(parser, spin_time=True):
     if spin_time:
         parser.add_argument('--spin-time', type=_seconds, default=SPIN_TIME,
                             help=f'longest time to wait for discovery, s (default: {SPIN_TIME}; the answer comes '
-                                 f'once nothing new was discovered for {QUIET} s)')
+                                 f'as soon as every node of {RUN_NODES_VARIABLE} (a run\'s env.sh) is seen, '
+                                 f'without it once nothing new was discovered for {QUIET} s)')
 
 
 def build_parser():
@@ -174,28 +178,39 @@ def _check_topic(name):
         raise UsageError(str(exc)) from None
 
 
+def _discover(args) -> list:
+    """Collect discovery as ``--spin-time`` says (waiting for the run's nodes); return those not seen."""
+    try:
+        args.table = run_nodes(args.domain_id)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    return args.graph.settle(args.spin_time, quiet=min(QUIET, args.spin_time), expected=args.table)
+
+
+def _complete(args, missing: list) -> int:
+    return report_missing(missing, len(args.table), args.spin_time)
+
+
 # ----------------------------------------------------------------------------------------------
 def cmd_topic_list(args):
     graph = args.graph
-    graph.settle(args.spin_time, quiet=min(QUIET, args.spin_time))
+    missing = _discover(args)
     for name, types in graph.topic_names_and_types():
         if args.show_types:
             print(f"{name} [{', '.join(types)}]")
         else:
             print(name)
-    return 0
+    return _complete(args, missing)
 
 
 def cmd_node_list(args):
-    graph = args.graph
-    graph.settle(args.spin_time, quiet=min(QUIET, args.spin_time))
-    nodes = graph.node_names_and_namespaces()
+    missing = _discover(args)
+    nodes = args.graph.full_node_names()
     if args.count_nodes:
         print(len(nodes))
-        return 0
-    for name, namespace in nodes:
-        print(f"{namespace.rstrip('/')}/{name}")
-    return 0
+    elif nodes:
+        print('\n'.join(nodes))
+    return _complete(args, missing)
 
 
 def _qos_text(profile, dds_qos):
@@ -232,9 +247,10 @@ def cmd_topic_info(args):
     from .graph import format_gid
     topic = _check_topic(args.topic_name)
     graph = args.graph
-    graph.settle(args.spin_time, quiet=min(QUIET, args.spin_time))
+    missing = _discover(args)
     types = dict(graph.topic_names_and_types()).get(topic)
     if not types:
+        _complete(args, missing)
         raise CliError(f"Unknown topic '{topic}'")
     pubs = graph.endpoints(topic, writers=True)
     subs = graph.endpoints(topic, writers=False)
@@ -250,7 +266,7 @@ def cmd_topic_info(args):
                           f'Endpoint type: {ep.endpoint_type}', f'GID: {format_gid(ep.gid)}']
                 lines += _qos_text(ep.qos_profile, ep.dds_qos)
     print('\n'.join(lines))
-    return 0
+    return _complete(args, missing)
 
 
 def _wait_for_type(graph, topic, timeout):
@@ -449,12 +465,12 @@ def _value_text(msg) -> str:
 
 
 def cmd_param_list(args):
-    graph = args.graph
-    graph.settle(args.spin_time, quiet=min(QUIET, args.spin_time))
-    nodes = [f"{ns.rstrip('/')}/{n}" for n, ns in graph.node_names_and_namespaces()]
+    missing = _discover(args)
+    nodes = args.graph.full_node_names()
     if args.node_name:
         wanted = _node_name(args.node_name)
         if wanted not in nodes:
+            _complete(args, missing)
             raise CliError(f'node {wanted!r} not found; nodes: {", ".join(sorted(nodes)) or "(none)"}')
         nodes = [wanted]
     clients = _ParamClients(args)
@@ -471,7 +487,7 @@ def cmd_param_list(args):
                 print(f'  {name}')
     finally:
         clients.close()
-    return 0
+    return _complete(args, missing)
 
 
 def cmd_param_get(args):
@@ -542,7 +558,8 @@ def main(argv=None) -> int:
     """Console script ``uh``; returns the exit status.
 
     0 done; 1 what was asked for is not there (no such topic, no publisher, no node answering in
-    time); 2 bad input (an option's value, an invalid name, an unknown type or field); 130 interrupted.
+    time, a node of the run's table not seen by a listing); 2 bad input (an option's value, an invalid
+    name, an unknown type or field); 130 interrupted.
     """
     args = build_parser().parse_args(argv)
     # uh reads the graph through Cyclone DDS (uh_runtime.graph): its message classes and QoS must be that

@@ -6,6 +6,15 @@ Sources: the DDS builtin topics (``DCPSParticipant``, ``DCPSPublication``,
 starting with ``rt/``; an endpoint whose GID no ``ros_discovery_info`` lists belongs to node
 ``_CREATED_BY_BARE_DDS_APP_``, as in ROS 2. Used by the ``uh`` CLI, the DDS backend's graph
 queries (``count_subscribers`` ...) and the tests.
+
+A Fast DDS participant (rclpy on ROS 2's default RMW) sends its ``ros_discovery_info`` to a new reader
+only after a heartbeat the reader answers: one when it matches the reader, which a reader that does not
+know the writer yet ignores, then every 3 s (Fast DDS's heartbeat period). A new participant learns the
+writer about a second after it starts, so its first reader got the sample 3.0 s after the start, every
+time (docs/ros2.md#node-tables-from-fast-dds). :meth:`Graph.settle` therefore renews the reader when a
+writer's sample has not come :data:`INFO_GRACE` s after the writer was discovered (and again every
+:data:`INFO_RETRY` s while it has not); the renewed reader, matched by a writer it knows, has the sample
+within tens of milliseconds.
 """
 import time
 import uuid
@@ -18,9 +27,17 @@ from .qos import (
 )
 from .signals import sigint_deferred, wake_on_signals
 
-__all__ = ['Graph', 'EndpointInfo', 'BARE_DDS_NODE', 'format_gid', 'user_data_value']
+__all__ = ['Graph', 'EndpointInfo', 'BARE_DDS_NODE', 'INFO_GRACE', 'INFO_RETRY', 'format_gid', 'user_data_value',
+           'full_node_name']
 
 BARE_DDS_NODE = '_CREATED_BY_BARE_DDS_APP_'
+#: DDS topic of the node tables (rmw_dds_common's ``ParticipantEntitiesInfo``).
+_INFO_TOPIC = 'ros_discovery_info'
+#: How long after a ``ros_discovery_info`` writer is discovered its sample may take before
+#: :meth:`Graph.settle` renews the reader, s. A Cyclone DDS writer's sample comes with the writer.
+INFO_GRACE = 0.2
+#: How long after a renewal a sample still missing renews the reader again, s (a lost datagram).
+INFO_RETRY = 1.0
 #: What the DDS topics of the ROS graph start with: ``rt/``, ``rq/``, ``rr/``.
 _ROS_PREFIXES_SLASH = tuple(prefix + '/' for prefix in ROS_PREFIXES)
 _TOPIC_PREFIX_SLASH = ROS_TOPIC_PREFIX + '/'
@@ -29,6 +46,11 @@ _TOPIC_PREFIX_SLASH = ROS_TOPIC_PREFIX + '/'
 def format_gid(gid: bytes) -> str:
     """GID as ``ros2 topic info -v`` prints it: dot-separated hex bytes."""
     return '.'.join(f'{b:02x}' for b in gid)
+
+
+def full_node_name(name: str, namespace: str) -> str:
+    """Return the fully qualified name of a node, as ``ros2 node list`` prints it (``/uh1/sim``)."""
+    return f"{namespace.rstrip('/')}/{name}"
 
 
 def user_data_value(qos, key: str) -> str | None:
@@ -106,15 +128,17 @@ class Graph:
         profile = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE,
                              durability=DurabilityPolicy.TRANSIENT_LOCAL)
         user_data = f'typehash={_messages.type_hash(info_cls)};'.encode()
-        self._info_reader = DataReader(
-            participant, info_topic or Topic(participant, 'ros_discovery_info', info_cls),
-            qos=to_dds_qos(profile, user_data))
-        mask = SampleState.NotRead | ViewState.Any | InstanceState.Any
+        self._info_topic = info_topic or Topic(participant, _INFO_TOPIC, info_cls)
+        self._info_qos = to_dds_qos(profile, user_data)
+        self._new_info_reader = lambda: DataReader(participant, self._info_topic, qos=self._info_qos)
+        self._info_reader = self._new_info_reader()
+        self._read_mask = SampleState.NotRead | ViewState.Any | InstanceState.Any
+        self._read_condition = lambda reader: ReadCondition(reader, self._read_mask)
         self._waitset = WaitSet(participant)
         self._conditions = []
         for reader in (self._participants_reader, self._pub_reader, self._sub_reader,
                        self._info_reader):
-            cond = ReadCondition(reader, mask)
+            cond = self._read_condition(reader)
             self._conditions.append(cond)
             self._waitset.attach(cond)
         self._guard = GuardCondition(participant)
@@ -125,6 +149,9 @@ class Graph:
         self.infos = {}          # participant gid (bytes) -> ParticipantEntitiesInfo
         self.version = 0
         self._topics_cache = None
+        self._info_writers = {}  # ros_discovery_info writer key (uuid) -> when discovered (time.monotonic())
+        self._info_reader_since = time.monotonic()
+        self.info_reader_renewals = 0
         wake_on_signals(self)
 
     def close(self):
@@ -175,8 +202,11 @@ class Graph:
                 changed = True
                 if self._alive(sample):
                     table[sample.key] = sample
+                    if table is self.writers and sample.topic_name == _INFO_TOPIC:
+                        self._info_writers.setdefault(sample.key, time.monotonic())
                 else:
                     table.pop(sample.key, None)
+                    self._info_writers.pop(sample.key, None)
         if cond_info.is_triggered():
             for msg in self._info_reader.take(N=1000):
                 if getattr(msg.sample_info, 'valid_data', True) and hasattr(msg, 'gid'):
@@ -229,21 +259,76 @@ class Graph:
                     return False
         return True
 
-    def settle(self, spin_time: float, quiet: float = 0.2):
+    def nodes_seen(self) -> set:
+        """Return the fully qualified names of the nodes whose every reader and writer is known.
+
+        A node counts once its participant's ``ros_discovery_info`` names it and discovery has
+        delivered each endpoint listed for it (its topics are then in :meth:`topic_names_and_types`).
+        """
+        live = self._live_participant_gids()
+        writers = {key.bytes for key in self.writers}
+        readers = {key.bytes for key in self.readers}
+        return {full_node_name(node.node_name, node.node_namespace)
+                for pgid, info in self.infos.items() if pgid in live
+                for node in info.node_entities_info_seq
+                if all(bytes(g.data) in writers for g in node.writer_gid_seq)
+                and all(bytes(g.data) in readers for g in node.reader_gid_seq)}
+
+    def _info_overdue(self) -> float | None:
+        """Return when the reader of ``ros_discovery_info`` is to be renewed (None: not needed).
+
+        That is for each writer whose participant's sample has not come: :data:`INFO_GRACE` s after it
+        was discovered if that was after the reader's creation, else :data:`INFO_RETRY` s after the
+        reader's creation (it had its chance with this reader); the earliest of these.
+        """
+        since = self._info_reader_since
+        times = [seen + INFO_GRACE if seen >= since else since + INFO_RETRY
+                 for key, seen in self._info_writers.items()
+                 if self.writers[key].participant_key != self.own_key
+                 and self.writers[key].participant_key.bytes not in self.infos]
+        return min(times) if times else None
+
+    def _renew_info_reader(self):
+        """Replace the reader of ``ros_discovery_info``; the samples taken so far stay in :attr:`infos`."""
+        old, old_cond = self._info_reader, self._conditions[3]
+        self._info_reader_since = time.monotonic()
+        self._info_reader = self._new_info_reader()
+        self._conditions[3] = self._read_condition(self._info_reader)
+        self._waitset.attach(self._conditions[3])
+        self._waitset.detach(old_cond)
+        old_cond.__del__()
+        old.__del__()
+        self.info_reader_renewals += 1
+
+    def settle(self, spin_time: float, quiet: float = 0.2, expected=()) -> list:
         """Collect discovery for at most ``spin_time`` s (what ``ros2 ... --spin-time`` waits for).
 
-        Return early once the graph is :meth:`complete` and nothing changed for ``quiet`` s.
+        Return early once the graph is :meth:`complete` and nothing changed for ``quiet`` s, or, when
+        ``expected`` names nodes (fully qualified), as soon as every one of them is in
+        :meth:`nodes_seen`. Returns the sorted names of ``expected`` not seen (empty when all were).
+        The reader of ``ros_discovery_info`` is renewed when a writer's sample is overdue (module
+        docstring).
         """
+        expected = set(expected)
         end = time.monotonic() + spin_time
         last_change = time.monotonic()
         while True:
             if self.update():
                 last_change = time.monotonic()
             now = time.monotonic()
-            done = self.complete()
+            renew = self._info_overdue()
+            if renew is not None and now >= renew:
+                self._renew_info_reader()
+                renew = self._info_overdue()
+            missing = expected - self.nodes_seen()
+            if expected and not missing:
+                return []
+            done = not expected and self.complete()
             if now >= end or (done and now - last_change >= quiet):
-                return
+                return sorted(missing)
             deadline = min(end, last_change + quiet) if done else end
+            if renew is not None:
+                deadline = min(deadline, renew)
             self._waitset.wait(max(0, int((deadline - now) * 1e9)))
             self._guard.take()
 
@@ -276,6 +361,10 @@ class Graph:
                 for node in info.node_entities_info_seq:
                     nodes.add((node.node_name, node.node_namespace))
         return sorted(nodes, key=lambda n: (n[1], n[0]))
+
+    def full_node_names(self) -> list:
+        """Return the fully qualified names of :meth:`node_names_and_namespaces`, in its order."""
+        return [full_node_name(name, namespace) for name, namespace in self.node_names_and_namespaces()]
 
     def _ros_endpoints(self, writers: bool):
         table = self.writers if writers else self.readers
