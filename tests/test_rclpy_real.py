@@ -88,6 +88,10 @@ def test_lockstep_team_on_rclpy_equals_the_in_process_run_to_the_bit(tmp_path, p
     finally:
         kill_session(proc)
     assert proc.returncode == 0, output
+    # the simulators and controllers ran the kernels compiled ahead of time in this virtualenv too
+    # (Python 3.12, as on ROS 2 Jazzy's Ubuntu 24.04): each node's start line says which form it ran
+    for log in sorted((out / 'logs').glob('uh*_*.log')):
+        assert 'compiled kernels' in log.read_text(), log.name
     bag = read_team_bag(out / 'bag', paper)
     reference = run_team_simulation(paper, 'proposed', duration=3.0)
     assert bag['states'].shape == reference.states.shape
