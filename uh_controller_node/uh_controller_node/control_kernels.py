@@ -79,7 +79,9 @@ compiles :func:`uh_control_step` (with everything it calls) for the one signatur
 :class:`UHController` uses, for install scripts that warm the cache. numba invalidates a cached
 kernel only when *its own* source file changes: a kernel in another file that calls these (a team
 kernel) keeps its cached copy of the old control law after this file is edited, so clear that
-file's cache (or touch it) whenever this file changes.
+file's cache (or touch it) whenever this file changes. The same holds for ``gains.py``, whose
+declarations lay out the gains' part of ``params`` (the ``CP_*`` and ``L_*`` constants); this
+file's own cache is emptied when ``gains.py`` or ``uh_core/layout.py`` change.
 """
 from __future__ import annotations
 
@@ -98,6 +100,9 @@ from uh_core.layout import (INPUT_SIZE, R_P, R_V, R_YAW, REFERENCE_SIZE, S_COST_
                             S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_THRUST, S_U_P, S_W_NORM_P,
                             S_W_NORM_W, S_Z1, S_Z2, S_Z3, S_Z4, S_ZN_P, S_ZN_W, STATE_SIZE, STATUS_SIZE,
                             STATUS_VECTORS, U_COL, U_LAT, U_LON, U_TR, X_OMEGA, X_P, X_THETA, X_V, YAW)
+
+from . import gains as _gains
+from .gains import GAIN_SLOTS, LOOP_GAIN_SLOTS
 
 __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'YAW', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
@@ -134,20 +139,12 @@ _MOMENT_CHANNELS = (U_LAT, U_LON, U_TR)         # command channels of u_m = (del
 MODEL_ENTRIES = (('mass', 1), ('gravity', 1), ('inertia', 3), ('c_M1', 1), ('c_M2', 1), ('K_beta', 1), ('h_M', 1),
                  ('B_lat', 1), ('A_lon', 1), ('tau_f', 1), ('K_tr', 1), ('D_r', 1), ('c_Q', 1), ('D_v', 1),
                  ('input_lower', INPUT_SIZE), ('input_upper', INPUT_SIZE))
-#: Entries from the gains of the case (docs/control_law.md), a ``ControllerGains``, after the model's:
-#: inverse-optimal factor beta (-), largest thrust tilt from vertical rad, smallest vertical specific
-#: thrust m/s^2, learning phase after the first step s (docs/control_law.md#learning-phase).
-GAIN_ENTRIES = ('beta', 'tilt_limit', 'min_vertical_accel', 'learning_phase')
-#: One loop's block of gains, a ``LoopGains`` (dotted: a field of its ``rbf``), at offsets 0, 1, ...
-#: Outer units / inner units: k1 / k3 1/s; r_p / r_w s; tau_1 (filter of alpha_v) / tau_2 (filter of
-#: Theta_d) s; tau_w (filter of alpha_w) s, outer unused (None: 0); SPEM gain kappa 1/s; Gamma 1/s;
-#: prediction-error weights gamma (weight law) and gamma_F (fault observer) (-); weight leakage
-#: sigma (-); fault observer gain lambda 1/s; fault-estimate leakage sigma_F (-); projection bounds
-#: of each component of Fhat and of each column norm of W, m/s^2 / rad/s^2; first and last RBF
-#: centre and the Gaussian width b, m/s / rad/s; Gamma 1/s and sigma (-) after the learning phase.
-LOOP_GAIN_ENTRIES = ('k', 'r', 'tau_command', 'tau_rate', 'kappa', 'learning_rate', 'gamma', 'gamma_F', 'sigma',
-                     'lambda_', 'sigma_F', 'fault_bound', 'weight_bound', 'rbf.low', 'rbf.high', 'rbf.width',
-                     'late_learning_rate', 'late_sigma')
+#: Entries from the gains of the case (docs/control_law.md), a ``ControllerGains``, after the model's,
+#: then one block per loop (a ``LoopGains``; dotted: a field of its ``rbf``) at offsets 0, 1, ...:
+#: the gains with a slot, in the order of their declaration (``uh_controller_node.gains.GAINS``,
+#: which gives their units). The outer loop has no ``tau_rate`` (None: 0).
+GAIN_ENTRIES = GAIN_SLOTS
+LOOP_GAIN_ENTRIES = LOOP_GAIN_SLOTS
 
 
 def _first_indices(entries, start=0):
@@ -186,8 +183,8 @@ CP_BETA = GAIN_INDEX['beta']
 CP_TILT_LIMIT = GAIN_INDEX['tilt_limit']
 CP_MIN_VERTICAL_ACCEL = GAIN_INDEX['min_vertical_accel']
 CP_LEARNING_PHASE = GAIN_INDEX['learning_phase']
-CP_OUTER = CP_LEARNING_PHASE + 1            # first entry of the outer loop's gains block
-# offsets inside one loop's block
+CP_OUTER = GAIN_INDEX[GAIN_ENTRIES[0]] + len(GAIN_ENTRIES)   # first entry of the outer loop's gains block
+# offsets inside one loop's block (each named after its slot: a test checks they match)
 L_K = LOOP_GAIN_OFFSET['k']
 L_R = LOOP_GAIN_OFFSET['r']
 L_TAU_COMMAND = LOOP_GAIN_OFFSET['tau_command']
@@ -1164,8 +1161,8 @@ def compile_control_kernels() -> float:
     return time.perf_counter() - start
 
 
-# numba caches each kernel by this file only: empty the cache when the layout it reads changes
-_kernel_cache.refresh_cache(_kernel_cache.module_dispatchers(globals()), [_layout.__file__])
+# numba caches each kernel by this file only: empty the cache when the layout or the gains' slots it reads change
+_kernel_cache.refresh_cache(_kernel_cache.module_dispatchers(globals()), [_layout.__file__, _gains.__file__])
 
 # run the ahead-of-time compiled kernels instead where this process asks for them (docs/performance.md#memory)
 _compiled_kernels.install(globals())

@@ -33,14 +33,16 @@ gives the arrays for calling the kernel from other njit code.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass, field
+import operator
 from typing import NamedTuple
 
 import numpy as np
 
 from uh_core.airframe import load_helicopter_params
-from uh_core.layout import STATUS_FLAG, STATUS_INDEX, STATUS_LAYOUT, STATUS_VECTOR3, STATUS_WIDTH
+from uh_core.layout import (SATURATION_FLAGS, STATUS_FIELDS, STATUS_FLAG, STATUS_FLOAT, STATUS_INDEX, STATUS_VECTOR3,
+                            STATUS_WIDTH)
 from uh_topology.graph import reachable_from
 
 from .control_kernels import (
@@ -59,32 +61,6 @@ _STATE_SHAPE = (STATE_SIZE,)
 
 
 
-def _status_reader():
-    """Build the function that makes a status record of the kernel's status vector.
-
-    Its code is generated from :data:`uh_core.layout.STATUS_LAYOUT` once, at import: one positional
-    argument per field, a 3-vector as a view ``status[i:i + 3]``, a float as ``s[i]`` and a flag as
-    ``s[i] != 0.0`` (``s = status.tolist()``), exactly the call one would write by hand. This runs
-    every control step, where a loop over the fields costs about a third more.
-    """
-    args = []
-    for name, kind in STATUS_LAYOUT:
-        i = STATUS_INDEX[name]
-        if kind == STATUS_VECTOR3:
-            args.append(f'status[{i}:{i + STATUS_WIDTH[kind]}]')
-        else:
-            args.append(f's[{i}] != 0.0' if kind == STATUS_FLAG else f's[{i}]')
-    source = ('def read_status(cls, uh_id, step, stamp, status):\n'
-              '    s = status.tolist()\n'
-              f'    return cls(uh_id, step, stamp, {", ".join(args)})\n')
-    namespace = {}
-    exec(compile(source, '<status layout>', 'exec'), namespace)  # generated from the layout table alone
-    return namespace['read_status']
-
-
-_read_status = _status_reader()
-
-
 def load_controller_kernels() -> float:
     """Load (or compile) every numba kernel a controller calls, the law's and the fault isolator's; seconds spent.
 
@@ -98,12 +74,69 @@ class ControllerError(ValueError):
     """Bad controller construction or step input (unknown UH, missing neighbour data, bad shapes)."""
 
 
-@dataclass
-class ControllerStatusData:
-    """Internal signals of one UH controller for one step (fields of ``uh_msgs/ControllerStatus``).
+def _items(indices):
+    """Give ``operator.itemgetter(*indices)`` that always returns a tuple (also of one index, or none)."""
+    if len(indices) == 1:
+        return lambda seq, i=indices[0]: (seq[i],)
+    return operator.itemgetter(*indices) if indices else (lambda seq: ())
+
+
+def _status_readers():
+    """Build the getters :meth:`ControllerStatusData.from_vector` reads the status vector with.
+
+    From :data:`uh_core.layout.STATUS_FIELDS`, whose 3-vectors come first (``STATUS_VECTORS``): the
+    views of the 3-vectors; the flags, read from ``status.tolist()``; the other fields in order,
+    from that list with the flags' truth values appended.
+    """
+    kinds = [f.kind for f in STATUS_FIELDS]
+    if kinds != sorted(kinds, key=lambda kind: kind != STATUS_VECTOR3):
+        raise ImportError('uh_core.layout.STATUS_FIELDS: the 3-vectors must come first')
+    flags = [f.name for f in STATUS_FIELDS if f.kind == STATUS_FLAG]
+    return (_items([slice(STATUS_INDEX[f.name], STATUS_INDEX[f.name] + STATUS_WIDTH[f.kind])
+                    for f in STATUS_FIELDS if f.kind == STATUS_VECTOR3]),
+            _items([STATUS_INDEX[name] for name in flags]), (0.0,) * len(flags),
+            _items([STATUS_SIZE + flags.index(f.name) if f.kind == STATUS_FLAG else STATUS_INDEX[f.name]
+                    for f in STATUS_FIELDS if f.kind != STATUS_VECTOR3]))
+
+
+_STATUS_VECTOR_VIEWS, _STATUS_FLAG_VALUES, _FLAG_ZEROS, _STATUS_SCALARS = _status_readers()
+_FIELD_TYPES = {STATUS_VECTOR3: np.ndarray, STATUS_FLOAT: float, STATUS_FLAG: bool}
+
+
+def _field_docs() -> str:
+    """Write the numpydoc entries of the fields of :data:`uh_core.layout.STATUS_FIELDS`."""
+    return '\n    '.join(f'{f.name} : {_FIELD_TYPES[f.kind].__name__}\n        {f.description}.' for f in STATUS_FIELDS)
+
+
+class _StatusMethods:
+    """What :class:`ControllerStatusData` does besides holding the fields."""
+
+    __slots__ = ()
+
+    @property
+    def saturated(self) -> bool:
+        """True when any input limit was active."""
+        return any(map(self.__getattribute__, SATURATION_FLAGS))
+
+    @classmethod
+    def from_vector(cls, uh_id: int, step: int, stamp: float, status: np.ndarray) -> 'ControllerStatusData':
+        """Make the record of the kernel's ``status`` vector (STATUS_SIZE,).
+
+        Its layout is :data:`uh_core.layout.STATUS_FIELDS`, whose field names and order are those of
+        this record. The vector fields are views of ``status``, which the record then owns; a flag
+        is ``entry != 0.0``.
+        """
+        values = status.tolist()
+        values += map(operator.ne, _STATUS_FLAG_VALUES(values), _FLAG_ZEROS)
+        return cls(uh_id, step, stamp, *_STATUS_VECTOR_VIEWS(status), *_STATUS_SCALARS(values))
+
+
+_STATUS_DOC = f"""Internal signals of one UH controller for one step (fields of ``uh_msgs/ControllerStatus``).
 
     Outer-loop vectors are in the inertial frame; inner-loop vectors in the body frame (Euler-rate
-    frame for ``z3``). All arrays are (3,) float64 and owned by this record.
+    frame for ``z3``). All arrays are (3,) float64 and owned by this record. The fields from
+    ``{STATUS_FIELDS[0].name}`` to ``{STATUS_FIELDS[-1].name}`` are those of
+    :data:`uh_core.layout.STATUS_FIELDS`.
 
     Attributes
     ----------
@@ -111,34 +144,7 @@ class ControllerStatusData:
         Helicopter id and step index k.
     stamp : float
         t_k = k dt, s.
-    z1 : ndarray
-        Consensus position error e, m.
-    z2 : ndarray
-        Velocity error v - alpha_f, m/s.
-    z3 : ndarray
-        Attitude error Theta - Theta_df (yaw wrapped), rad.
-    z4 : ndarray
-        Body-rate error omega - alpha_wf, rad/s.
-    fault_estimate_position : ndarray
-        Fhat_p used this step, m/s^2.
-    fault_estimate_attitude : ndarray
-        Fhat_w used this step, rad/s^2.
-    prediction_error_position : ndarray
-        z_n = v - vhat, m/s.
-    prediction_error_attitude : ndarray
-        z_n = omega - omegahat, rad/s.
-    u_p : ndarray
-        Designed acceleration (before the tilt and collective limits), m/s^2.
-    euler_desired : ndarray
-        Attitude command (phi_d, theta_d, psi_d) before the command filter, rad.
-    thrust_command : float
-        T_c before the collective limit, N.
-    weight_norm_position, weight_norm_attitude : float
-        Frobenius norms of W_p and W_w.
-    saturated_tilt, saturated_collective, saturated_cyclic : bool
-        Tilt (or minimum vertical thrust), collective, and cyclic/tail-rotor limits active.
-    cost_rate : float
-        ``|z1|^2 + |u_p|^2``, the integrand of the CPI (docs/metrics.md).
+    {_field_docs()}
     stale_neighbours : tuple of str
         Filled by the node when a neighbour's data is older than its timeout; empty here.
     isolation : IsolationStatus or None
@@ -146,44 +152,13 @@ class ControllerStatusData:
         (:class:`~uh_controller_node.fault_isolation.FaultIsolator`,
         docs/faults.md#isolation-and-identification); None in a record not made by a controller.
     """
-
-    uh_id: int
-    step: int
-    stamp: float
-    z1: np.ndarray
-    z2: np.ndarray
-    z3: np.ndarray
-    z4: np.ndarray
-    fault_estimate_position: np.ndarray
-    fault_estimate_attitude: np.ndarray
-    prediction_error_position: np.ndarray
-    prediction_error_attitude: np.ndarray
-    u_p: np.ndarray
-    euler_desired: np.ndarray
-    thrust_command: float
-    weight_norm_position: float
-    weight_norm_attitude: float
-    saturated_tilt: bool
-    saturated_collective: bool
-    saturated_cyclic: bool
-    cost_rate: float
-    stale_neighbours: tuple = field(default_factory=tuple)
-    isolation: IsolationStatus | None = None
-
-    @property
-    def saturated(self) -> bool:
-        """True when any input limit was active."""
-        return self.saturated_tilt or self.saturated_collective or self.saturated_cyclic
-
-
-    @classmethod
-    def from_vector(cls, uh_id: int, step: int, stamp: float, status: np.ndarray) -> 'ControllerStatusData':
-        """Make the record of the kernel's ``status`` vector (STATUS_SIZE,).
-
-        Its layout is :data:`uh_core.layout.STATUS_LAYOUT`, whose field names and order are those of
-        this record. The vector fields are views of ``status``, which the record then owns.
-        """
-        return _read_status(cls, uh_id, step, stamp, status)
+ControllerStatusData = dataclasses.make_dataclass(
+    'ControllerStatusData',
+    [('uh_id', int), ('step', int), ('stamp', float), *((f.name, _FIELD_TYPES[f.kind]) for f in STATUS_FIELDS),
+     ('stale_neighbours', tuple, dataclasses.field(default_factory=tuple)),
+     ('isolation', IsolationStatus | None, dataclasses.field(default=None))],
+    bases=(_StatusMethods,), namespace={'__module__': __name__, '__doc__': _STATUS_DOC})
+_status_record = ControllerStatusData.from_vector      # bound once: called every step
 
 
 class LoopState(NamedTuple):
@@ -577,9 +552,10 @@ class UHController:
                 what, values = f'state of neighbour UH {ids[done - 1]}', nb_states[done - 1]
             raise ControllerError(f'{what} contains NaN or infinity: {values.tolist()}')
         k = int(k)
-        record = ControllerStatusData.from_vector(self.uh_id, k, k * dt, status)
+        t = k * dt
+        record = _status_record(self.uh_id, k, t, status)
         if self.isolator is None:
             self.isolator = FaultIsolator(self.model, self._mismatch, dt, self._isolation_settings)
-        self.isolator.update(k * dt, self._own, u, record.fault_estimate_position, record.fault_estimate_attitude)
+        self.isolator.update(t, self._own, u, record.fault_estimate_position, record.fault_estimate_attitude)
         record.isolation = self.isolator.status()
         return u, record

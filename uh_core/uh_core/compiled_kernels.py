@@ -50,9 +50,10 @@ import tempfile
 import warnings
 from pathlib import Path
 
-__all__ = ['MODE_VARIABLE', 'DIR_VARIABLE', 'MODES', 'KERNEL_MODULES', 'KernelModeError', 'mode', 'kernel_digest',
-           'library_name', 'search_dirs', 'find_built', 'compiled_library', 'njit', 'install', 'active_modules',
-           'require_numba', 'prefer_compiled', 'run_node_main', 'kernel_form', 'build', 'BUILD_COMMAND']
+__all__ = ['MODE_VARIABLE', 'DIR_VARIABLE', 'MODES', 'KERNEL_MODULES', 'KERNEL_INPUT_MODULES', 'KernelModeError',
+           'mode', 'kernel_digest', 'library_name', 'search_dirs', 'find_built', 'compiled_library', 'njit', 'install',
+           'active_modules', 'require_numba', 'prefer_compiled', 'run_node_main', 'kernel_form', 'build',
+           'BUILD_COMMAND']
 
 #: Environment variable that selects the kernels' form (:data:`MODES`).
 MODE_VARIABLE = 'UH_KERNELS'
@@ -87,10 +88,15 @@ def mode() -> str:
     return value
 
 
+#: Modules whose contents the kernels compile in without being kernel modules: the gains' slots of
+#: the law's parameter vector are declared in ``gains.py``.
+KERNEL_INPUT_MODULES = ('uh_controller_node.gains',)
+
+
 def _source_files() -> list[Path]:
-    """Return the files the compiled code is made from: the kernel modules, :mod:`uh_core.layout` and this file."""
+    """Return the files the compiled code is made from: the kernel modules and inputs, ``layout.py``, this file."""
     files = []
-    for name in KERNEL_MODULES:
+    for name in (*KERNEL_MODULES, *KERNEL_INPUT_MODULES):
         spec = importlib.util.find_spec(name)
         if spec is None or not spec.origin:
             raise KernelModeError(f'kernel module {name} is not installed')

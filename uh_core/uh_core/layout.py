@@ -10,18 +10,21 @@ One home for the index facts every side relies on (docs/model.md, "State and inp
   ``uh_msgs/msg/ActuatorFault.msg``; a test checks they agree);
 * the reference vector (7,) = ``[p_0 (3) m, v_0 (3) m/s, psi_0 rad]`` of the virtual leader;
 * the controller's status vector (STATUS_SIZE,) float64: the fields of ``uh_msgs/msg/ControllerStatus.msg``
-  from ``z1`` to ``cost_rate``, in the order and with the names of the message (:data:`STATUS_LAYOUT`;
-  a test checks they agree). The control kernel writes it, the controller's status record and the
-  wire conversion read it by these names.
+  from ``z1`` to ``cost_rate``, in the order and with the names of the message (:data:`STATUS_FIELDS`;
+  a test checks they agree). The control kernel writes it; the controller's status record (its
+  fields made from this table) and the wire conversion read it by these names.
 
 The numba kernels read these module-level integers as compile-time constants.
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 __all__ = [
     'STATE_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'YAW', 'INPUT_SIZE', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',
     'INPUT_NAMES', 'NUM_CHANNELS', 'CHANNEL_NAMES', 'CHANNEL_ALIASES', 'R_P', 'R_V', 'R_YAW', 'REFERENCE_SIZE',
-    'STATUS_VECTOR3', 'STATUS_FLOAT', 'STATUS_FLAG', 'STATUS_LAYOUT', 'STATUS_WIDTH', 'STATUS_INDEX', 'STATUS_SIZE',
+    'STATUS_VECTOR3', 'STATUS_FLOAT', 'STATUS_FLAG', 'StatusField', 'STATUS_FIELDS', 'STATUS_LAYOUT', 'STATUS_WIDTH',
+    'STATUS_INDEX', 'STATUS_SIZE',
     'S_Z1', 'S_Z2', 'S_Z3', 'S_Z4', 'S_F_HAT_P', 'S_F_HAT_W', 'S_ZN_P', 'S_ZN_W', 'S_U_P', 'S_EULER_D',
     'S_THRUST', 'S_W_NORM_P', 'S_W_NORM_W', 'S_SAT_TILT', 'S_SAT_COLLECTIVE', 'S_SAT_CYCLIC', 'S_COST_RATE',
     'SATURATION_FLAGS',
@@ -59,28 +62,40 @@ __all__ += ['X_P_SLICE', 'X_V_SLICE', 'X_THETA_SLICE', 'X_OMEGA_SLICE', 'R_P_SLI
 STATUS_VECTOR3 = 'geometry_msgs/Vector3'   # 3 entries
 STATUS_FLOAT = 'float64'                   # 1 entry
 STATUS_FLAG = 'bool'                       # 1 entry, 1.0 when set, else 0.0
-#: ``(field of ControllerStatus.msg, kind)`` in the order of the message and of the vector: the one
-#: place a status field is declared (besides its ``.msg`` line). Units and frames are those of the
-#: message's comments.
-STATUS_LAYOUT = (
-    ('z1', STATUS_VECTOR3),                         # consensus error e, m
-    ('z2', STATUS_VECTOR3),                         # velocity error v - alpha_f, m/s
-    ('z3', STATUS_VECTOR3),                         # attitude error Theta - Theta_df (yaw wrapped), rad
-    ('z4', STATUS_VECTOR3),                         # body-rate error omega - alpha_wf, rad/s
-    ('fault_estimate_position', STATUS_VECTOR3),    # Fhat_p used this step, m/s^2
-    ('fault_estimate_attitude', STATUS_VECTOR3),    # Fhat_w used this step, rad/s^2
-    ('prediction_error_position', STATUS_VECTOR3),  # v - vhat, m/s
-    ('prediction_error_attitude', STATUS_VECTOR3),  # omega - omegahat, rad/s
-    ('u_p', STATUS_VECTOR3),                        # designed acceleration (before the limits), m/s^2
-    ('euler_desired', STATUS_VECTOR3),              # attitude command before its filter, rad
-    ('thrust_command', STATUS_FLOAT),               # T_c before the collective limit, N
-    ('weight_norm_position', STATUS_FLOAT),         # Frobenius norm of W_p after the update
-    ('weight_norm_attitude', STATUS_FLOAT),         # Frobenius norm of W_w after the update
-    ('saturated_tilt', STATUS_FLAG),                # tilt limit or minimum vertical acceleration active
-    ('saturated_collective', STATUS_FLAG),          # collective limit active
-    ('saturated_cyclic', STATUS_FLAG),              # a cyclic or the tail-rotor limit active
-    ('cost_rate', STATUS_FLOAT),                    # |z1|^2 + |u_p|^2, integrand of the CPI (docs/metrics.md)
+
+
+class StatusField(NamedTuple):
+    """One field of the status: its name in ``ControllerStatus.msg``, its kind, what it holds (unit, frame)."""
+
+    name: str
+    kind: str
+    description: str
+
+
+#: The fields of the status in the order of ``ControllerStatus.msg`` and of the vector: the one place
+#: a status field is declared (besides its ``.msg`` line). The controller's status record, its
+#: reader and the wire conversion follow this table.
+STATUS_FIELDS = (
+    StatusField('z1', STATUS_VECTOR3, 'consensus error e, m'),
+    StatusField('z2', STATUS_VECTOR3, 'velocity error v - alpha_f, m/s'),
+    StatusField('z3', STATUS_VECTOR3, 'attitude error Theta - Theta_df (yaw wrapped), rad'),
+    StatusField('z4', STATUS_VECTOR3, 'body-rate error omega - alpha_wf, rad/s'),
+    StatusField('fault_estimate_position', STATUS_VECTOR3, 'Fhat_p used this step, m/s^2'),
+    StatusField('fault_estimate_attitude', STATUS_VECTOR3, 'Fhat_w used this step, rad/s^2'),
+    StatusField('prediction_error_position', STATUS_VECTOR3, 'z_n = v - vhat, m/s'),
+    StatusField('prediction_error_attitude', STATUS_VECTOR3, 'z_n = omega - omegahat, rad/s'),
+    StatusField('u_p', STATUS_VECTOR3, 'designed acceleration (before the tilt and collective limits), m/s^2'),
+    StatusField('euler_desired', STATUS_VECTOR3, 'attitude command (phi_d, theta_d, psi_d) before its filter, rad'),
+    StatusField('thrust_command', STATUS_FLOAT, 'T_c before the collective limit, N'),
+    StatusField('weight_norm_position', STATUS_FLOAT, 'Frobenius norm of W_p after the update'),
+    StatusField('weight_norm_attitude', STATUS_FLOAT, 'Frobenius norm of W_w after the update'),
+    StatusField('saturated_tilt', STATUS_FLAG, 'tilt limit or minimum vertical acceleration active'),
+    StatusField('saturated_collective', STATUS_FLAG, 'collective limit active'),
+    StatusField('saturated_cyclic', STATUS_FLAG, 'a cyclic or the tail-rotor limit active'),
+    StatusField('cost_rate', STATUS_FLOAT, '|z1|^2 + |u_p|^2, the integrand of the CPI (docs/metrics.md)'),
 )
+#: ``(name, kind)`` of :data:`STATUS_FIELDS`.
+STATUS_LAYOUT = tuple((f.name, f.kind) for f in STATUS_FIELDS)
 #: Float64 entries a field of each kind takes.
 STATUS_WIDTH = {STATUS_VECTOR3: 3, STATUS_FLOAT: 1, STATUS_FLAG: 1}
 #: Field name -> first index of the field in the status vector.

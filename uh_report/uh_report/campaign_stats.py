@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from uh_team.metric_registry import campaign_units
+
 __all__ = ['wilson_interval', 'status_counts', 'success_rate', 'success_table', 'reason_pattern', 'failure_groups',
            'ok_finite', 'distribution_summary', 'ecdf', 'paired_differences', 'bootstrap_median_ci', 'wilcoxon_p',
            'paired_comparison', 'worst_runs', 'rerun_commands', 'sweep_table', 'DISTRIBUTION_METRICS',
@@ -24,16 +26,14 @@ __all__ = ['wilson_interval', 'status_counts', 'success_rate', 'success_table', 
 #: Metrics whose distribution per case is tabulated and drawn as an empirical CDF.
 DISTRIBUTION_METRICS = ('formation_rms_m', 'containment_rms_m', 'fault_error_w', 'fault_error_p', 'false_fault_w')
 
-#: Metrics of the paired comparisons (lower is better for each).
+#: Metrics of the paired comparisons (lower is better for each: their ``better`` in the registry).
 PAIRED_METRICS = ('formation_rms_m', 'containment_rms_m', 'fault_error_w')
 
 #: Metrics drawn against the swept value.
 SWEEP_METRICS = ('formation_rms_m', 'containment_rms_m')
 
-#: Units of the metrics shown in tables and on axes.
-METRIC_UNITS = {'formation_rms_m': 'm', 'containment_rms_m': 'm', 'hull_distance_max_m': 'm',
-                'fault_error_p': 'm/s²', 'fault_error_w': 'rad/s²', 'false_fault_p': 'm/s²',
-                'false_fault_w': 'rad/s²', 'saturation_fraction': '-'}
+#: Units of the metric columns, as tables and axes show them (:func:`uh_team.metric_registry.campaign_units`).
+METRIC_UNITS = campaign_units()
 
 #: Number of worst runs listed per case.
 WORST_COUNT = 5

@@ -48,6 +48,7 @@ from uh_runtime.command_line import ArgumentParser, directory_argument
 from uh_core.layout import CHANNEL_NAMES, X_P_SLICE
 from uh_runtime.bag_reader import BagError, open_bag
 from uh_team.fault_metrics import fault_list
+from uh_team.metric_registry import display_unit, report_metrics
 from uh_team.metrics import (FALSE_ESTIMATE_START, FAULT_WINDOW_DELAY, LUMPED_FAULTS, NOT_MEANINGFUL_MARK,
                              NRMSE_FLOOR_P, NRMSE_FLOOR_W, MetricsError, faulted_uhs, metrics_from_arrays,
                              nrmse_below_floor)
@@ -68,28 +69,6 @@ PROG = 'uh-report'
 
 #: Display names of the controller cases (docs/control_law.md#comparison-cases).
 CASE_LABELS = {'proposed': 'proposed', 'case1': 'Case I (β = 1)', 'case2': 'Case II (no SPEM)'}
-
-# (metrics.json key, what, unit, lower is better); fault NRMSE rows are added per UH and vector
-_ROWS = [
-    ('case', 'controller case', '', False),
-    ('sim_time_s', 'simulated time', 's', False),
-    ('cpi', 'CPI = ∫ Σ (‖z1‖² + ‖u_p‖²) dt', '-', True),
-    ('mse_formation', 'MSE formation (whole run)', 'm²', True),
-    ('mse_containment', 'MSE containment (whole run)', 'm²', True),
-    ('formation_rms_m', 'formation RMS after settle', 'm', True),
-    ('containment_rms_m', 'containment RMS after settle', 'm', True),
-    ('hull_distance_max_m', 'max distance outside the hull after settle', 'm', True),
-    ('saturation_fraction', 'saturated fraction of steps', '-', True),
-    ('settle_time_s', 'settle time', 's', False),
-    ('wall_time_s', 'wall time of the run', 's', False),
-]
-
-# rows of the fault isolation's summary (docs/metrics.md#fault-isolation)
-_ISOLATION_ROWS = [
-    ('fault_isolation.summary.false_isolations', 'false isolations (isolated channels not faulty)', '-', True),
-    ('fault_isolation.summary.missed', 'faulted channels never isolated', '-', True),
-    ('fault_isolation.summary.max_delay', 'largest isolation delay after the onset', 's', True),
-]
 
 #: Heading of the per-run fault isolation table (:func:`isolation_table`).
 ISOLATION_HEAD = ('UH', 'channel', 'onset (s)', 'isolated after (s)', 'ρ identified', 'ρ true',
@@ -296,45 +275,45 @@ def _lookup(metrics: dict, key: str):
     return value
 
 
-def _table_unit(unit: str) -> str:
-    return unit.replace('^2', '²')
-
-
-def _fault_rows(runs) -> list[tuple[str, str, str, bool]]:
-    """Rows of the fault metrics (docs/metrics.md).
-
-    The false fault estimate's maximum over the UHs per vector, then for every UH and vector any run scores its absolute
-    RMS error and its NRMSE.
-    """
-    rows = [(f'false_fault_estimate.max.{v.key}',
-             f'false fault estimate RMS ‖{v.symbol.replace("F", "F̂")}‖, max over UHs '
-             f'(threshold {v.false_estimate_threshold:g})', _table_unit(v.unit), True)
-            for v in LUMPED_FAULTS]
+def _fault_estimation_rows(runs) -> list[tuple[str, str, str, str]]:
+    """Rows of ``fault_estimation`` (docs/metrics.md): per UH and vector any run scores, its RMS error and NRMSE."""
     scored = {}
     for run in runs:
         for uh, entry in (run.metrics.get('fault_estimation') or {}).items():
             scored.setdefault(uh, set()).update(v.key for v in LUMPED_FAULTS if v.key in entry)
     order = lambda uh: int(re.sub(r'\D', '', uh) or 0)  # noqa: E731
+    rows = []
     for uh in sorted(scored, key=order):
         for v in LUMPED_FAULTS:
             if v.key not in scored[uh]:
                 continue
             what = f'{uh.upper()} {v.symbol} ({v.loop} loop)'
             rows.append((f'fault_estimation.{uh}.{v.key}.rms_error', f'fault estimation RMS error {what}',
-                         _table_unit(v.unit), True))
-            rows.append((f'fault_estimation.{uh}.{v.key}.nrmse', f'fault NRMSE {what}', '-', True))
+                         display_unit(v.unit), 'lower'))
+            rows.append((f'fault_estimation.{uh}.{v.key}.nrmse', f'fault NRMSE {what}', '-', 'lower'))
     return rows
 
 
-def table_rows(runs) -> list[tuple[str, str, str, bool]]:
-    """``[(metrics.json key, what, unit, lower is better), ...]`` of the table for ``runs``.
+#: Rows of the ``metrics.json`` objects the table lays out itself (a metric with a report row and no label).
+_OBJECT_ROWS = {'fault_estimation': _fault_estimation_rows}
 
-    The fixed rows of docs/metrics.md, the false fault estimate (maximum over the UHs) of ``F_p``
-    and ``F_w``, and for every UH and vector any run scores the absolute RMS error
-    ``fault_estimation.uh<i>.<p|w>.rms_error`` and the NRMSE ``fault_estimation.uh<i>.<p|w>.nrmse``,
-    then the fault isolation's summary (false isolations, missed channels, largest delay).
+
+def table_rows(runs) -> list[tuple[str, str, str, str | None]]:
+    """``[(metrics.json key, what, unit, better), ...]`` of the table for ``runs``; ``better``: lower, higher or None.
+
+    The metrics of :func:`uh_team.metric_registry.report_metrics` in the order of their report rows (docs/metrics.md):
+    among them the false fault estimate (maximum over the UHs) of ``F_p`` and ``F_w``, then for every UH and vector any
+    run scores the absolute RMS error ``fault_estimation.uh<i>.<p|w>.rms_error`` and the NRMSE
+    ``fault_estimation.uh<i>.<p|w>.nrmse``, then the fault isolation's summary (false isolations, missed channels,
+    largest delay).
     """
-    return list(_ROWS[:9]) + _fault_rows(runs) + list(_ISOLATION_ROWS) + list(_ROWS[9:])
+    rows = []
+    for metric in report_metrics():
+        if metric.label is None:
+            rows += _OBJECT_ROWS[metric.key](runs)
+        else:
+            rows.append((metric.key, metric.label, display_unit(metric.unit), metric.better))
+    return rows
 
 
 def isolation_table(run) -> list[list[str]] | None:
@@ -426,7 +405,7 @@ def _table_value(metrics: dict, key: str):
     return value
 
 
-def _cells(runs, key: str, lower_is_better: bool, bold: bool) -> list[str]:
+def _cells(runs, key: str, better: str | None, bold: bool) -> list[str]:
     values = []
     for run in runs:
         try:
@@ -436,8 +415,8 @@ def _cells(runs, key: str, lower_is_better: bool, bold: bool) -> list[str]:
     texts = ['-' if v is KeyError else format_value(v) for v in values]
     numeric = [float(v) for v in values if isinstance(v, (int, float)) and not isinstance(v, bool)
                and math.isfinite(v)]
-    if bold and lower_is_better and len(runs) > 1 and len(numeric) > 1:
-        best = min(float(format_value(v)) for v in numeric)
+    if bold and better is not None and len(runs) > 1 and len(numeric) > 1:
+        best = (min if better == 'lower' else max)(float(format_value(v)) for v in numeric)
         texts = [f'**{t}**' if v is not KeyError and isinstance(v, (int, float)) and not isinstance(v, bool)
                  and math.isfinite(v) and float(t) == best else t for t, v in zip(texts, values)]
     return texts

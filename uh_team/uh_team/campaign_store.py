@@ -21,6 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .metric_registry import stored_metrics
+
 __all__ = ['RUN_COLUMNS', 'METRIC_COLUMNS', 'STATUSES', 'DB_NAME', 'StoreError', 'open_store',
            'write_meta', 'read_meta', 'done_keys', 'write_run', 'read_runs', 'metric_row']
 
@@ -31,23 +33,10 @@ DB_NAME = 'campaign.sqlite'
 #: names step and UH), ``failed`` (anything else raised; the reason is the exception).
 STATUSES = ('ok', 'diverged', 'failed')
 
-#: Metric columns (REAL, NULL when undefined or the run did not end): name -> meaning. The values
-#: come from :func:`uh_team.metrics.metrics_from_arrays` through :func:`metric_row`.
-METRIC_COLUMNS = {
-    'formation_rms_m': 'RMS formation error of the leaders after settle, m',
-    'containment_rms_m': 'RMS containment error of the followers after settle, m',
-    'hull_distance_max_m': 'largest follower distance to the leaders\' convex hull after settle, m',
-    'mse_formation': 'mean squared formation error from t = 0, m^2',
-    'mse_containment': 'mean squared containment error from t = 0, m^2',
-    'cpi': 'cost performance index, integral of |z1|^2 + |u_p|^2',
-    'saturation_fraction': 'fraction of (step, UH) samples with an input limit active',
-    'false_fault_p': 'largest RMS |Fhat_p| where no fault acts, m/s^2',
-    'false_fault_w': 'largest RMS |Fhat_w| where no fault acts, rad/s^2',
-    'fault_error_p': 'largest RMS |Fhat_p - F_p| over the faulted UHs, m/s^2',
-    'fault_error_w': 'largest RMS |Fhat_w - F_w| over the faulted UHs, rad/s^2',
-    'false_isolations': 'channels isolated by a controller that carry no fault',
-    'missed_isolations': 'faulted channels no controller isolated',
-}
+#: Metric columns (REAL, NULL when undefined or the run did not end): name -> meaning, those of
+#: :func:`uh_team.metric_registry.stored_metrics`. The values come from
+#: :func:`uh_team.metrics.metrics_from_arrays` through :func:`metric_row`.
+METRIC_COLUMNS = {metric.name: metric.description for metric in stored_metrics()}
 
 #: Every column of ``runs`` in order: (name, SQL type).
 RUN_COLUMNS = (
@@ -152,18 +141,4 @@ def read_runs(path_or_con) -> dict:
 
 def metric_row(metrics: dict) -> dict:
     """Return the :data:`METRIC_COLUMNS` of one run from its ``metrics_from_arrays`` result."""
-    false_max = (metrics.get('false_fault_estimate') or {}).get('max') or {}
-    errors = {'p': [], 'w': []}
-    for entry in (metrics.get('fault_estimation') or {}).values():
-        for key in errors:
-            if key in entry and entry[key].get('rms_error') is not None:
-                errors[key].append(entry[key]['rms_error'])
-    summary = ((metrics.get('fault_isolation') or {}).get('summary') or {})
-    return {
-        **{name: metrics.get(name) for name in ('formation_rms_m', 'containment_rms_m', 'hull_distance_max_m',
-                                                'mse_formation', 'mse_containment', 'cpi', 'saturation_fraction')},
-        'false_fault_p': false_max.get('p'), 'false_fault_w': false_max.get('w'),
-        'fault_error_p': max(errors['p']) if errors['p'] else None,
-        'fault_error_w': max(errors['w']) if errors['w'] else None,
-        'false_isolations': summary.get('false_isolations'), 'missed_isolations': summary.get('missed'),
-    }
+    return {metric.name: metric.value(metrics) for metric in stored_metrics()}

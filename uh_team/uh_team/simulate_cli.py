@@ -25,6 +25,7 @@ from uh_controller_node.gains import CASES, scenario_gains
 from uh_topology.errors import ScenarioError
 from uh_topology.scenario import duration_steps, load_scenario
 
+from .metric_registry import summary_keys
 from .metrics import LUMPED_FAULTS, NOT_MEANINGFUL_MARK, metrics_from_arrays, nrmse_below_floor
 from .team_simulation import SimulationError, run_team_simulation
 
@@ -172,8 +173,7 @@ def _main(argv) -> int:
     if not run.all_finite():
         return _fail('the run produced NaN or infinite values', status=1)
     print(f'{scenario.name} / {args.case}: {metrics["sim_time_s"]:g} s simulated in {run.wall_time:.2f} s')
-    for key in ('formation_rms_m', 'containment_rms_m', 'hull_distance_max_m', 'mse_formation',
-                'mse_containment', 'cpi', 'saturation_fraction'):
+    for key in summary_keys():
         print(f'  {key:22s} {_number(metrics[key])}')
     for line in _fault_lines(metrics):
         print(line)

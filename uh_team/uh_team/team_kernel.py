@@ -41,6 +41,7 @@ from uh_sim_node import plant_kernels as _plant
 from uh_sim_node.plant_kernels import lumped_faults, plant_step
 
 from uh_controller_node import control_kernels as _ctl
+from uh_controller_node import gains as _gains
 from uh_controller_node import impairments as _impairments
 from uh_controller_node.impairments import add_noise, delivered_step, predict_state, prediction_age
 from uh_controller_node.control_kernels import (
@@ -343,14 +344,15 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
 
 
 #: Files whose contents are compiled into :func:`run_team_steps` besides this one.
-_DEPENDENCIES = (Path(_ctl.__file__), Path(_plant.__file__), Path(_faults.__file__), Path(_layout.__file__),
-                 Path(_impairments.__file__))
+_DEPENDENCIES = (Path(_ctl.__file__), Path(_gains.__file__), Path(_plant.__file__), Path(_faults.__file__),
+                 Path(_layout.__file__), Path(_impairments.__file__))
 
 
 def refresh_cache() -> bool:
     """Empty :func:`run_team_steps`' numba cache index if the files it depends on changed since it was cached.
 
-    Those files are :data:`_DEPENDENCIES`: ``control_kernels.py``, ``plant_kernels.py``, ``faults.py``,
+    Those files are :data:`_DEPENDENCIES`: ``control_kernels.py``, ``gains.py`` (the gains' slots of the
+    law's parameter vector), ``plant_kernels.py``, ``faults.py``,
     ``uh_core/layout.py``, ``impairments.py``; the digest is kept next to the cache in
     ``team_kernel.dependencies.sha256``. Returns True when the cache was emptied
     (:func:`uh_core.kernel_cache.refresh_cache`).

@@ -1,0 +1,402 @@
+"""Every metric of a run, declared once: what it is, how it is computed, and how each reader shows it.
+
+:data:`METRICS` holds one :class:`Metric` per metric, in order. The readers take what they need from
+it and nothing else (docs/metrics.md#the-registry-of-metrics):
+
+- ``metrics.json``: the top-level keys (those with a ``json_type``), in this order, each the value
+  of its ``compute`` on the checked arrays of the run (:class:`RunValues`); see
+  :func:`uh_team.metrics.compute_metrics`;
+- ``uh-report``'s metrics table: the metrics with a ``report_row``, sorted by it
+  (:func:`report_metrics`);
+- a campaign's results file: a REAL column per ``stored`` metric, in this order
+  (:func:`stored_metrics`, read from ``metrics.json`` by :meth:`Metric.value`), with its unit in the
+  campaign statistics (:func:`campaign_units`);
+- ``uh-simulate``'s summary: the ``summary`` metrics (:func:`summary_keys`);
+- the tables of docs/metrics.md (:func:`json_table`, :func:`metric_table`).
+
+A new metric is one more :class:`Metric` in :data:`METRICS`, its computation next to it: a new key
+goes at the end of ``metrics.json`` and a new column at the end of the results file (a results file
+of the old layout is then refused, as after any change of its columns).
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Callable
+
+import numpy as np
+
+from .error_metrics import containment_errors, formation_errors
+from .fault_metrics import (LUMPED_FAULTS, LumpedFault, false_fault_estimate, fault_estimation, fault_list,
+                            none_if_nan)
+from .hull_geometry import hull_distance
+from .isolation_metrics import fault_isolation_metrics
+
+__all__ = ['Metric', 'RunValues', 'METRICS', 'BETTER', 'json_metrics', 'json_keys', 'report_metrics',
+           'stored_metrics', 'summary_keys', 'campaign_units', 'display_unit', 'json_table', 'metric_table']
+
+#: The words of :attr:`Metric.better`: which way a value is better (``None``: neither).
+BETTER = ('lower', 'higher')
+
+_COLUMN_NAME = re.compile(r'[a-z_][a-z0-9_]*')
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One metric: the facts every reader of it needs.
+
+    Attributes
+    ----------
+    name : str
+        Its name: the ``metrics.json`` key of a top-level value, else the column of the results
+        file (or, if not stored, a name of its own).
+    unit : str
+        ``m``, ``m^2``, ``m/s^2``, ``s``, ``-`` (a pure number) or ``''`` (not a quantity), as
+        docs/metrics.md writes it; :func:`display_unit` gives the tables' form (``m²``).
+    description : str
+        One line: what the value is (the results file's column, the docs).
+    better : str or None
+        ``'lower'`` or ``'higher'`` when the value ranks runs (the report marks the best), else ``None``.
+    label : str or None
+        Text of its row in the report's metrics table.
+    report_row : int or None
+        Place of its row in the report's metrics table (rows in increasing order); ``None``: no row.
+        With no ``label``, a ``metrics.json`` object the report lays out in rows of its own
+        (``fault_estimation``: a row per UH and vector).
+    json_type : str or None
+        Set for a top-level key of ``metrics.json``: the JSON type docs/metrics.md gives it
+        (``number or null``, ``object``, ...).
+    doc : str
+        Content of its row in the ``metrics.json`` table of docs/metrics.md (Markdown).
+    compute : callable or None
+        ``compute(values: RunValues) -> value`` of a top-level key (JSON-ready: float, str, dict or None).
+    path : str or None
+        For a number inside a ``metrics.json`` object: its dotted key (``fault_isolation.summary.missed``).
+    read : callable or None
+        For a number derived from several values of ``metrics.json``: ``read(metrics) -> float or None``.
+    stored : bool
+        A REAL column (``name``) of a campaign's results file.
+    summary : bool
+        Printed by ``uh-simulate`` (top-level keys only).
+    """
+
+    name: str
+    unit: str = ''
+    description: str = ''
+    better: str | None = None
+    label: str | None = None
+    report_row: int | None = None
+    json_type: str | None = None
+    doc: str = ''
+    compute: Callable | None = None
+    path: str | None = None
+    read: Callable | None = None
+    stored: bool = False
+    summary: bool = False
+
+    def __post_init__(self):
+        """Refuse a declaration its readers could not use."""
+        problems = []
+        if self.better not in (None, *BETTER):
+            problems.append(f'better {self.better!r}; allowed: {", ".join(BETTER)} or None')
+        if (self.json_type is None) != (self.compute is None):
+            problems.append('a top-level key of metrics.json has both json_type and compute, anything else neither')
+        if self.json_type is None and (self.path is None) == (self.read is None):
+            problems.append('a value inside metrics.json has either a path or a read function')
+        if self.json_type is not None and (self.path or self.read):
+            problems.append('a top-level key has no path and no read function')
+        if self.label is not None and self.report_row is None:
+            problems.append('a label needs a report_row')
+        if self.report_row is not None and self.key is None:
+            problems.append('a report row needs a metrics.json key (json_type or path)')
+        if self.summary and self.json_type is None:
+            problems.append('uh-simulate summarises top-level keys only')
+        if self.stored and not _COLUMN_NAME.fullmatch(self.name):
+            problems.append('a stored metric is named like an SQL column ([a-z_][a-z0-9_]*)')
+        if problems:
+            raise ValueError(f'metric {self.name!r}: ' + '; '.join(problems))
+
+    @property
+    def key(self) -> str | None:
+        """Its dotted key in ``metrics.json`` (``None`` for a number derived from several values)."""
+        return self.name if self.json_type is not None else self.path
+
+    def value(self, metrics: dict):
+        """Return its value in a ``metrics.json`` content, ``None`` where the content has none."""
+        if self.read is not None:
+            return self.read(metrics)
+        value = metrics
+        for part in self.key.split('.'):
+            value = value.get(part) if isinstance(value, dict) else None
+        return value
+
+
+@dataclass
+class RunValues:
+    """The checked arrays of one run (shapes as :func:`uh_team.metrics.compute_metrics` takes them).
+
+    What several metrics share (errors, windows, the fault estimation) is computed once, on first use.
+    ``scenario`` and ``arrays`` are those of :func:`uh_team.metrics.metrics_from_arrays` (``None``
+    for :func:`~uh_team.metrics.compute_metrics`, whose ``fault_isolation`` and ``faults`` are then ``None``).
+    """
+
+    case: str
+    time: np.ndarray
+    positions: np.ndarray
+    reference_positions: np.ndarray
+    leaders: tuple
+    followers: tuple
+    offsets: np.ndarray
+    containment_weights: np.ndarray | None
+    z1: np.ndarray
+    u_p: np.ndarray
+    saturated: np.ndarray
+    fault_data: dict
+    faulted: dict
+    settle_time: float
+    wall_time: float | None
+    scenario: object = None
+    arrays: object = None
+
+    @property
+    def ids(self) -> tuple:
+        """UH ids in the order of the arrays: leaders, then followers."""
+        return self.leaders + self.followers
+
+    @property
+    def steps(self) -> int:
+        """Number of control steps K (one sample more)."""
+        return self.time.shape[0] - 1
+
+    @property
+    def dt(self) -> float:
+        """Control period, s."""
+        return float(self.time[1] - self.time[0])
+
+    @property
+    def tolerance(self) -> float:
+        """Tolerance of the window limits, s."""
+        return 1e-9 * max(self.dt, 1.0)
+
+    @cached_property
+    def after(self) -> np.ndarray:
+        """Mask of the samples after settle."""
+        return self.time >= self.settle_time - self.tolerance
+
+    @property
+    def leader_positions(self) -> np.ndarray:
+        """Positions of the leaders (K+1, N, 3)."""
+        return self.positions[:, :len(self.leaders)]
+
+    @property
+    def follower_positions(self) -> np.ndarray:
+        """Positions of the followers (K+1, M, 3)."""
+        return self.positions[:, len(self.leaders):]
+
+    @cached_property
+    def formation(self) -> np.ndarray:
+        """Formation errors of the leaders (K+1, N), m."""
+        return formation_errors(self.leader_positions, self.reference_positions, self.offsets)
+
+    @cached_property
+    def containment(self) -> np.ndarray | None:
+        """Containment errors of the followers (K+1, M), m; ``None`` without followers."""
+        if not self.followers:
+            return None
+        return containment_errors(self.follower_positions, self.leader_positions, self.containment_weights)
+
+    @cached_property
+    def estimation(self) -> dict:
+        """The ``fault_estimation`` section (docs/metrics.md#fault-estimation-error-and-nrmse)."""
+        return fault_estimation(self.time[:self.steps], self.ids, self.faulted, self.fault_data, self.tolerance)
+
+
+# ----------------------------------------------------------------------------------------------
+# Computations (docs/metrics.md); a step a real-time run did not record (NaN) contributes nothing
+# ----------------------------------------------------------------------------------------------
+def _after_settle_rms(errors, values: RunValues):
+    if errors is None or not values.after.any():
+        return None
+    return none_if_nan(np.sqrt(np.nanmean(errors[values.after] ** 2)))
+
+
+def _hull_distance_max(v: RunValues):
+    if not v.followers or not v.after.any():
+        return None
+    hull = hull_distance(v.follower_positions[v.after], v.leader_positions[v.after][:, None, :, :])
+    return none_if_nan(np.nanmax(hull))
+
+
+def _cpi(v: RunValues):
+    # a missing step makes the CPI slightly lower; lockstep and in-process runs have every step
+    return none_if_nan(v.dt * (np.nansum(v.z1 * v.z1) + np.nansum(v.u_p * v.u_p)))
+
+
+def _false_fault_estimate(v: RunValues) -> dict:
+    return false_fault_estimate(v.time[:v.steps], v.ids, v.faulted, v.fault_data, v.tolerance)
+
+
+def _fault_nrmse(v: RunValues) -> dict:
+    return {uh: {f.symbol: entry[f.key]['nrmse'] for f in LUMPED_FAULTS if f.key in entry}
+            for uh, entry in v.estimation.items()}
+
+
+def _fault_isolation(v: RunValues):
+    return None if v.scenario is None else fault_isolation_metrics(v.arrays, v.scenario, v.case)
+
+
+def _faults(v: RunValues):
+    return None if v.scenario is None else fault_list(v.scenario, v.arrays)
+
+
+def _false_fault_max(fault: LumpedFault, report_row: int) -> Metric:
+    """Declare the largest false fault estimate of one lumped-fault vector over the UHs."""
+    hat = fault.symbol.replace('F', 'F̂')
+    return Metric(f'false_fault_{fault.key}', fault.unit,
+                  f'largest RMS |Fhat_{fault.key}| where no fault acts, {fault.unit}', 'lower',
+                  label=f'false fault estimate RMS ‖{hat}‖, max over UHs '
+                        f'(threshold {fault.false_estimate_threshold:g})',
+                  report_row=report_row, path=f'false_fault_estimate.max.{fault.key}', stored=True)
+
+
+def _fault_error_max(fault: LumpedFault) -> Metric:
+    """Declare the largest fault estimation error of one lumped-fault vector over the faulted UHs."""
+    def read(metrics: dict):
+        errors = [entry[fault.key]['rms_error'] for entry in (metrics.get('fault_estimation') or {}).values()
+                  if fault.key in entry and entry[fault.key].get('rms_error') is not None]
+        return max(errors) if errors else None
+    return Metric(f'fault_error_{fault.key}', fault.unit,
+                  f'largest RMS |Fhat_{fault.key} - F_{fault.key}| over the faulted UHs, {fault.unit}', 'lower',
+                  read=read, stored=True)
+
+
+_P, _W = LUMPED_FAULTS
+
+#: Every metric, in the order of ``metrics.json``'s keys and of the results file's columns.
+METRICS = (
+    Metric('case', '', 'controller case', label='controller case', report_row=10, json_type='string',
+           doc='controller case: `proposed`, `case1`, `case2`', compute=lambda v: str(v.case)),
+    Metric('sim_time_s', 's', 'simulated time span', label='simulated time', report_row=20, json_type='number',
+           doc='simulated time span `t_K - t_0`, s', compute=lambda v: float(v.time[-1] - v.time[0])),
+    Metric('wall_time_s', 's', 'wall-clock duration of the run', label='wall time of the run', report_row=170,
+           json_type='number or null', doc="wall-clock duration of the run, s (the run script's or the simulation's)",
+           compute=lambda v: None if v.wall_time is None else float(v.wall_time)),
+    Metric('settle_time_s', 's', 'start of the after-settle window', label='settle time', report_row=160,
+           json_type='number', doc='start of the after-settle window, s', compute=lambda v: float(v.settle_time)),
+    Metric('formation_rms_m', 'm', 'RMS formation error of the leaders after settle, m', 'lower',
+           label='formation RMS after settle', report_row=60, json_type='number or null',
+           doc='[after settle](#after-settle-window), m', compute=lambda v: _after_settle_rms(v.formation, v),
+           stored=True, summary=True),
+    Metric('containment_rms_m', 'm', 'RMS containment error of the followers after settle, m', 'lower',
+           label='containment RMS after settle', report_row=70, json_type='number or null', doc='after settle, m',
+           compute=lambda v: _after_settle_rms(v.containment, v), stored=True, summary=True),
+    Metric('hull_distance_max_m', 'm', "largest follower distance to the leaders' convex hull after settle, m",
+           'lower', label='max distance outside the hull after settle', report_row=80, json_type='number or null',
+           doc='after settle, m', compute=_hull_distance_max, stored=True, summary=True),
+    Metric('mse_formation', 'm^2', 'mean squared formation error from t = 0, m^2', 'lower',
+           label='MSE formation (whole run)', report_row=40, json_type='number or null',
+           doc='[whole run](#mean-squared-errors), m^2', compute=lambda v: none_if_nan(np.nanmean(v.formation ** 2)),
+           stored=True, summary=True),
+    Metric('mse_containment', 'm^2', 'mean squared containment error from t = 0, m^2', 'lower',
+           label='MSE containment (whole run)', report_row=50, json_type='number or null', doc='whole run, m^2',
+           compute=lambda v: None if v.containment is None else none_if_nan(np.nanmean(v.containment ** 2)),
+           stored=True, summary=True),
+    Metric('cpi', '-', 'cost performance index, integral of |z1|^2 + |u_p|^2', 'lower',
+           label='CPI = ∫ Σ (‖z1‖² + ‖u_p‖²) dt', report_row=30, json_type='number or null', doc='[CPI](#cpi)',
+           compute=_cpi, stored=True, summary=True),
+    Metric('fault_estimation', report_row=120, json_type='object',
+           doc='[per faulted UH and vector](#fault-estimation-error-and-nrmse), below',
+           compute=lambda v: v.estimation),
+    Metric('false_fault_estimate', json_type='object',
+           doc='[per UH with a window, and the maximum](#false-fault-estimate), below', compute=_false_fault_estimate),
+    Metric('fault_nrmse', json_type='object',
+           doc='the `nrmse` values of `fault_estimation` in the layout of earlier versions: '
+               '`{"uh<i>": {"F_p": ..., "F_w": ...}}` (`null` below the floor)', compute=_fault_nrmse),
+    Metric('saturation_fraction', '-', 'fraction of (step, UH) samples with an input limit active', 'lower',
+           label='saturated fraction of steps', report_row=90, json_type='number',
+           doc='[fraction of saturated steps](#saturation-fraction)',
+           compute=lambda v: float(np.mean(v.saturated)) if v.saturated.size else 0.0, stored=True, summary=True),
+    _false_fault_max(_P, report_row=100),
+    _false_fault_max(_W, report_row=110),
+    _fault_error_max(_P),
+    _fault_error_max(_W),
+    Metric('fault_isolation', json_type='object or null',
+           doc='[per UH with a faulted or isolated channel, and a summary](#fault-isolation), below',
+           compute=_fault_isolation),
+    Metric('false_isolations', '-', 'channels isolated by a controller that carry no fault', 'lower',
+           label='false isolations (isolated channels not faulty)', report_row=130,
+           path='fault_isolation.summary.false_isolations', stored=True),
+    Metric('missed_isolations', '-', 'faulted channels no controller isolated', 'lower',
+           label='faulted channels never isolated', report_row=140, path='fault_isolation.summary.missed',
+           stored=True),
+    Metric('max_isolation_delay', 's', 'largest delay from a fault onset to its isolation', 'lower',
+           label='largest isolation delay after the onset', report_row=150, path='fault_isolation.summary.max_delay'),
+    Metric('faults', json_type='object or null', compute=_faults,
+           doc="the run's faults: `scheduled` (the scenario's: `uh`, `channel`, `rho`, `bias_constant`, "
+               '`bias_amplitude`, `bias_frequency`, `onset_time`) and `injected` (those the simulators applied, '
+               'the same fields with `onset_time` when it acts, `sent_onset_time`, `received_s` and `nominal`: '
+               'an injection that clears its channel, not scored)'),
+)
+
+
+# ----------------------------------------------------------------------------------------------
+# What each reader takes
+# ----------------------------------------------------------------------------------------------
+def json_metrics() -> tuple:
+    """Return the top-level metrics of ``metrics.json``, in order."""
+    return tuple(m for m in METRICS if m.json_type is not None)
+
+
+def json_keys() -> tuple:
+    """Return the keys of ``metrics.json``, in order."""
+    return tuple(m.name for m in json_metrics())
+
+
+def report_metrics() -> tuple:
+    """Return the metrics the report's metrics table shows, in the order of its rows."""
+    return tuple(sorted((m for m in METRICS if m.report_row is not None), key=lambda m: m.report_row))
+
+
+def stored_metrics() -> tuple:
+    """Return the metrics stored as columns of a campaign's results file, in order."""
+    return tuple(m for m in METRICS if m.stored)
+
+
+def summary_keys() -> tuple:
+    """Return the ``metrics.json`` keys ``uh-simulate`` prints, in order."""
+    return tuple(m.name for m in METRICS if m.summary)
+
+
+def display_unit(unit: str) -> str:
+    """Return a unit as the tables write it (``m^2`` as ``m²``)."""
+    return unit.replace('^2', '²')
+
+
+def campaign_units() -> dict:
+    """``{column: unit}`` of the metric columns of a campaign's results file, as the tables write them."""
+    return {m.name: display_unit(m.unit) for m in stored_metrics()}
+
+
+def _markdown(head, rows) -> str:
+    cell = lambda text: text.replace('|', '\\|')  # noqa: E731
+    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+    lines += ['| ' + ' | '.join(cell(c) for c in row) + ' |' for row in rows]
+    return '\n'.join(lines)
+
+
+def json_table() -> str:
+    """Return the Markdown table of the keys of ``metrics.json`` (docs/metrics.md#metricsjson)."""
+    return _markdown(('key', 'type', 'content'), [(f'`{m.name}`', m.json_type, m.doc) for m in json_metrics()])
+
+
+def metric_table() -> str:
+    """Return the Markdown table of the metrics shown in tables (docs/metrics.md#the-registry-of-metrics)."""
+    rows = []
+    for m in METRICS:
+        readers = [*(['report'] if m.label else []), *(['campaign'] if m.stored else []),
+                   *(['uh-simulate'] if m.summary else [])]
+        if readers:
+            rows.append((f'`{m.name}`', f'`{m.key}`' if m.key else '-', m.unit, m.better or '-',
+                         ', '.join(readers), m.description))
+    return _markdown(('metric', 'metrics.json key', 'unit', 'better', 'shown by', 'description'), rows)
