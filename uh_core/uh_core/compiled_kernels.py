@@ -22,7 +22,8 @@ environment variable ``UH_KERNELS``:
 The compiled module's name carries a digest of the kernel sources, :mod:`uh_core.layout`, this file
 and the versions of numba, Python and the machine (:func:`kernel_digest`), so a module built for
 other sources is never loaded: after a kernel edit, ``auto`` runs numba until
-``python -m uh_team.compile_kernels`` builds the new one.
+``python -m uh_team.compile_kernels`` builds the new one, and a node's start line says so
+(:func:`kernel_form`: the stale module's name and that command).
 
 A kernel module uses this file's :func:`njit` in place of numba's, and calls :func:`install` at its
 end::
