@@ -125,6 +125,36 @@ def test_parameter_file_errors_name_file_and_line(tmp_path):
         load_helicopter_params(bad)
 
 
+def test_an_airframe_file_that_is_not_utf8_is_one_line_naming_the_byte(tmp_path):
+    path = tmp_path / 'airframe.yaml'
+    data = default_params_path().read_bytes() + b'# \x80\n'
+    path.write_bytes(data)
+    offset = data.index(b'\x80')
+    with pytest.raises(HelicopterParamsError) as info:
+        load_helicopter_params(path)
+    line = data[:offset].count(b'\n') + 1
+    assert str(info.value) == (f'{path}:{line}: not UTF-8 text: byte 0x80 at offset {offset}; '
+                               'allowed: a YAML text file in UTF-8')
+
+
+def test_uh_simulate_with_an_airframe_that_is_not_utf8_exits_2_with_one_line(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+    from scenario_texts import paper_yaml
+    airframe = tmp_path / 'airframe.yaml'
+    airframe.write_bytes(default_params_path().read_bytes() + b'# \x80\n')
+    scenario = tmp_path / 'team.yaml'
+    text = paper_yaml()
+    assert '\nhelicopter: helicopter' in text
+    scenario.write_text(text.replace('\nhelicopter: helicopter', f'\nhelicopter: {airframe}'))
+    result = subprocess.run([str(Path(sys.executable).with_name('uh-simulate')), '--scenario', str(scenario),
+                             '--out', str(tmp_path / 'out')], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.count('\n') == 1 and 'Traceback' not in result.stderr, result.stderr
+    assert 'not UTF-8 text: byte 0x80' in result.stderr
+
+
 # ------------------------------------------------------------------------------------------------
 # Kinematics (the oracle's matrices against their definitions, the kernel against the oracle)
 

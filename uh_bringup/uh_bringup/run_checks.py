@@ -22,10 +22,9 @@ from uh_sim_node.reference import ReferenceParameterError, VirtualLeaderReferenc
 from uh_topology.errors import ScenarioError
 from uh_topology.scenario import duration_steps, load_scenario
 
-__all__ = ['UsageError', 'CONFIG_ERRORS', 'CLOCKS', 'HOSTS', 'LAYOUTS', 'check_args', 'validate_team',
+__all__ = ['UsageError', 'CONFIG_ERRORS', 'HOSTS', 'LAYOUTS', 'check_args', 'validate_team',
            'prepare_out', 'check_run']
 
-CLOCKS = ('lockstep', 'realtime')
 HOSTS = ('local', 'netns')
 LAYOUTS = ('per-node', 'per-uh', 'workers', 'single')
 

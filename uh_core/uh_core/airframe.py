@@ -156,9 +156,15 @@ def load_helicopter_params(path=None) -> HelicopterParams:
     """
     p = _resolve_params_path(path)
     try:
-        text = p.read_text()
+        raw = p.read_bytes()
     except OSError as exc:
         raise HelicopterParamsError(f'cannot read helicopter parameters {str(p)!r}: {exc.strerror}') from None
+    try:
+        text = raw.decode('utf-8')
+    except UnicodeDecodeError as exc:
+        line = raw.count(b'\n', 0, exc.start) + 1
+        raise HelicopterParamsError(f'{p}:{line}: not UTF-8 text: byte 0x{raw[exc.start]:02x} at offset '
+                                    f'{exc.start}; allowed: a YAML text file in UTF-8') from None
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:
