@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs the lint step and the test suite: sets up .venv (pinned dependencies + the project's packages)
-# if needed, checks the code with ruff (ruff.toml: pycodestyle, pyflakes, pep257 docstrings), then
-# runs pytest, then the real-rclpy tier. Extra arguments go to pytest, e.g. scripts/test.sh -k topology -x
+# if needed, checks the code with ruff (ruff.toml: pycodestyle, pyflakes, bugbear, pep257 docstrings
+# on every public definition outside tests/), then runs pytest, then the real-rclpy tier. Extra
+# arguments go to pytest, e.g. scripts/test.sh -k topology -x
 #   scripts/test.sh --quick   the quick tier: every package, no DDS processes and no long runs
 #                             (under 2 minutes on 2 cores; the full suite is the default and CI's)
 #   scripts/test.sh --rclpy   only the real-rclpy tier (extra arguments go to its pytest)

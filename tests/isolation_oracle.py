@@ -449,7 +449,7 @@ class FaultIsolator:
         t = float(t)
         if t < self._s.learning_phase - 1e-9:
             return
-        u = [min(max(v, lo), hi) for v, lo, hi in zip(_floats(u), self._lower, self._upper)]
+        u = [min(max(v, lo), hi) for v, lo, hi in zip(_floats(u), self._lower, self._upper, strict=False)]
         x = _floats(x)
         d, dT, k_ta = _deviation(self._k, x[X_OMEGA:X_OMEGA + 2], u, x[X_THETA_SLICE], _floats(fhat_p), _floats(fhat_w))
         self._last_d = d
@@ -499,7 +499,7 @@ class FaultIsolator:
     @property
     def threshold(self) -> tuple:
         """The current isolation threshold per channel (constant + filtered allowance), rad."""
-        return tuple(th + e for th, e in zip(self._thr, self._e))
+        return tuple(th + e for th, e in zip(self._thr, self._e, strict=False))
 
     @property
     def isolated(self) -> tuple:
@@ -581,7 +581,7 @@ class FaultIsolator:
             if self._isolated[c]:
                 code[c], rho[c], bias[c] = self._verdict(c)[:3]
         return IsolationStatus(tuple(self._isolated), tuple(self._t_iso), tuple(self._y),
-                               tuple(th + e for th, e in zip(self._thr, self._e)), tuple(rho),
+                               tuple(th + e for th, e in zip(self._thr, self._e, strict=False)), tuple(rho),
                                tuple(bias), tuple(code))
 
 
@@ -607,7 +607,7 @@ def _setup(arrays, scenario, case, settings):
 def _steps(data, j):
     """Per-step arguments of :meth:`FaultIsolator.update` for UH column ``j``."""
     return zip(data['time'].tolist(), data['states'][:, j].tolist(), data['commands'][:, j].tolist(),
-               data['fault_est_p'][:, j].tolist(), data['fault_est_w'][:, j].tolist())
+               data['fault_est_p'][:, j].tolist(), data['fault_est_w'][:, j].tolist(), strict=False)
 
 
 def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSettings | None = None) -> dict:

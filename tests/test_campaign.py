@@ -274,7 +274,7 @@ def test_diverged_and_failed_runs_are_recorded_and_the_campaign_goes_on(tmp_path
     assert (outcome.done, outcome.failures) == (6, 4)
     runs = store.read_runs(out / store.DB_NAME)
     status = {(int(d), int(s)): (st, r) for d, s, st, r in
-              zip(runs['draw'], runs['sweep_index'], runs['status'], runs['reason'])}
+              zip(runs['draw'], runs['sweep_index'], runs['status'], runs['reason'], strict=False)}
     assert status[(0, 0)] == ('ok', None) and status[(2, 0)] == ('ok', None)
     for draw in (0, 2):
         assert status[(draw, 1)][0] == 'diverged' and 'non-finite' in status[(draw, 1)][1]
@@ -491,7 +491,7 @@ def test_a_run_that_kills_its_worker_is_recorded_as_failed_and_the_campaign_goes
     outcome = run_campaign(load_spec(spec), tmp_path / 'out', workers=2)
     runs = store.read_runs(tmp_path / 'out' / store.DB_NAME)
     assert outcome.done == 8 and len(runs['draw']) == 8
-    for draw, status, reason in zip(runs['draw'], runs['status'], runs['reason']):
+    for draw, status, reason in zip(runs['draw'], runs['status'], runs['reason'], strict=False):
         if draw == 1:
             assert status == 'failed' and 'a worker process died' in reason and 'while running it' in reason
         else:

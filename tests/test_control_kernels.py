@@ -154,7 +154,7 @@ def test_team_kernel_built_from_kernel_arrays_reproduces_the_controllers_bit_for
     hears = np.zeros((n, max_nb), dtype=np.int64)
     count = np.array([len(ctl.neighbours) for ctl in ctls], dtype=np.int64)
     nb_weights, nb_offsets = np.zeros((n, max_nb)), np.zeros((n, max_nb, 3))
-    for c, (ctl, a) in enumerate(zip(ctls, arrays)):
+    for c, (ctl, a) in enumerate(zip(ctls, arrays, strict=True)):
         hears[c, :count[c]] = [col[j] for j in ctl.neighbours]
         nb_weights[c, :count[c]] = a.neighbour_weights
         nb_offsets[c, :count[c]] = a.neighbour_offsets

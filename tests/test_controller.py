@@ -207,7 +207,7 @@ def attitude(u_p, psi):
     params[CP_MIN_VERTICAL_ACCEL] = 2.0
     out = thrust_and_attitude(params, np.asarray(u_p, float), psi)
     return SimpleNamespace(**dict(zip(('phi', 'theta', 'thrust', 'theta_col', 'thrust_achieved',
-                                       'saturated_tilt', 'saturated_collective'), out)))
+                                       'saturated_tilt', 'saturated_collective'), out, strict=False)))
 
 
 def test_hover_demand_gives_level_attitude_and_hover_collective():
@@ -334,7 +334,7 @@ def test_controller_is_deterministic_and_independent_of_neighbour_order():
     # past the learning phase (8 s), so the fault observers run too
     a = _drive(UHController(4, scn, helicopter_params=PARAMS), 4, scn, 1000)
     b = _drive(UHController(4, scn, helicopter_params=PARAMS), 4, scn, 1000, order=-1)
-    for (ua, sa), (ub, sb) in zip(a, b):
+    for (ua, sa), (ub, sb) in zip(a, b, strict=False):
         assert np.array_equal(ua, ub)      # bit-identical, not merely close
         assert np.array_equal(sa.fault_estimate_attitude, sb.fault_estimate_attitude)
     # the inputs are rich enough that the learning states moved

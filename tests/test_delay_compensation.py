@@ -120,7 +120,7 @@ def test_the_delivered_step_is_the_newest_arrived_state_and_never_goes_back(dela
     seed, receiver, sender = 5, 4, 1
     steps = [delivered_step(k, delay, jitter, loss, NO_DROPOUT, seed, receiver, sender) for k in range(300)]
     assert steps == [_spec_delivered(k, delay, jitter, loss, seed, receiver, sender) for k in range(300)]
-    assert all(b >= a for a, b in zip(steps, steps[1:]))
+    assert all(b >= a for a, b in zip(steps, steps[1:], strict=False))
     ages = np.array([k - s for k, s in enumerate(steps)])[50:]
     assert ages.min() >= delay and ages.max() > delay   # the jitter acts
 
@@ -242,7 +242,7 @@ def test_a_lockstep_distributed_run_with_jitter_and_prediction_equals_the_in_pro
             assert state.uh_id == 1 and state.step == s
             assert [state.position.x, state.position.y, state.position.z] == expected[:3].tolist()
             steps.append(s)
-    assert len(steps) == 301 and all(b >= a for a, b in zip(steps, steps[1:]))
+    assert len(steps) == 301 and all(b >= a for a, b in zip(steps, steps[1:], strict=False))
 
 
 def test_a_campaign_spec_may_set_jitter_and_compensation(tmp_path):

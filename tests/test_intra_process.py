@@ -67,7 +67,7 @@ def test_same_process_subscription_gets_the_published_object_once(ctx):
     spin_until(executor, lambda: len(got) == 5)
     spin_for(executor, 0.3)   # a copy through DDS as well would arrive in this time
     assert len(got) == 5
-    assert all(a is b for a, b in zip(got, sent))   # the objects themselves, in order
+    assert all(a is b for a, b in zip(got, sent, strict=False))   # the objects themselves, in order
 
 
 def test_raw_subscription_gets_the_bytes_dds_would_carry(ctx):
@@ -171,7 +171,7 @@ def test_other_processes_get_every_message_and_the_local_one_no_duplicate(ctx, p
     assert remote.wait(timeout=BOUND) == 0, remote.stderr.read()
     assert [line['step'] for line in lines if 'step' in line] == [0, 1, 2]
     spin_for(executor, 0.3)
-    assert len(got) == 3 and all(a is b for a, b in zip(got, sent))
+    assert len(got) == 3 and all(a is b for a, b in zip(got, sent, strict=False))
 
 
 def test_turned_off_every_message_goes_through_dds(domain_id, monkeypatch):

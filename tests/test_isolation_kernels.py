@@ -36,7 +36,7 @@ def same(a, b, where='') -> None:
             same(a[key], b[key], f'{where}.{key}')
     elif isinstance(a, (tuple, list)):
         assert type(a) is type(b) and len(a) == len(b), (where, a, b)
-        for i, (x, y) in enumerate(zip(a, b)):
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
             same(x, y, f'{where}[{i}]')
     else:
         assert type(a) is type(b) and a == b, (where, a, b)

@@ -210,8 +210,10 @@ def test_the_default_stale_timeout_has_one_home():
             pairs = []
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 args = node.args.posonlyargs + node.args.args
-                pairs += zip([a.arg for a in args[len(args) - len(node.args.defaults):]], node.args.defaults)
-                pairs += [(a.arg, d) for a, d in zip(node.args.kwonlyargs, node.args.kw_defaults) if d is not None]
+                pairs += zip([a.arg for a in args[len(args) - len(node.args.defaults):]], node.args.defaults,
+                             strict=True)
+                pairs += [(a.arg, d) for a, d in zip(node.args.kwonlyargs, node.args.kw_defaults, strict=True)
+                          if d is not None]
             elif isinstance(node, ast.Call):
                 pairs += [(k.arg, k.value) for k in node.keywords]
                 if node.args and isinstance(node.args[0], ast.Constant) and len(node.args) > 1:

@@ -165,7 +165,7 @@ def test_cached_type_information_equals_what_cyclonedds_builds(cache, monkeypatc
         for cls in second:
             cls.__idl__.populate()
             cls.__idl__.fill_type_data()
-    for old, new in zip(first, second):
+    for old, new in zip(first, second, strict=False):
         assert new is not old and new.__idl__._xt_data[0] is None      # from the file
         assert new.__idl__._xt_bytedata == old.__idl__._xt_bytedata == _fresh_type_data(new), new
         # the objects are built when asked for, equal to cyclonedds' own

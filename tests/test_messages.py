@@ -177,7 +177,7 @@ def test_messages_recorded_by_ros2_jazzy_read_and_rewrite_byte_for_byte():
     from mcap.reader import make_reader
     seen = set()
     with open(SAMPLE_BAG / 'sample_bag_0.mcap', 'rb') as stream:
-        for schema, channel, message in make_reader(stream).iter_messages():
+        for schema, _channel, message in make_reader(stream).iter_messages():
             cls = dds_message(schema.name)
             msg = cls.deserialize(message.data)
             assert codec(cls).deserialize(message.data) == msg

@@ -96,7 +96,7 @@ def test_a_state_the_network_brings_late_is_used_older_and_predicted_over_its_ac
         assert age == k - s   # the actual age: the link's and the network's, within the horizon here
         assert np.allclose(out[1][X_P:X_P + 3], _sent(1, s)[X_P:X_P + 3] + _sent(1, s)[X_V:X_V + 3] * age * 0.01)
         used.append(s)
-    assert all(b >= a for a, b in zip(used, used[1:]))
+    assert all(b >= a for a, b in zip(used, used[1:], strict=False))
     late = [k for k in range(200) if used[k] != delivered_step(k, 4, 2, 0.2, NO_DROPOUT, 5, 2, 1)]
     assert late   # the network's latency showed: some steps used an older state than lockstep would
 

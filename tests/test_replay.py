@@ -98,7 +98,7 @@ def assert_same_messages(expected, received):
         want = [data.hex() for t, _, _, data in expected if t == topic]
         got = [data for t, _, data in received if t == topic]
         assert got == want, f'{topic}: {len(got)} received, {len(want)} recorded, first difference at ' \
-            f'{next((i for i, (a, b) in enumerate(zip(got, want)) if a != b), min(len(got), len(want)))}'
+            f'{next((i for i, (a, b) in enumerate(zip(got, want, strict=False)) if a != b), min(len(got), len(want)))}'
 
 
 def lateness(expected, received, rate):

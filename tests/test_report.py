@@ -165,7 +165,7 @@ def test_table_has_one_column_per_run_with_the_numbers_of_metrics_json(report):
         key = row[2].strip('`')
         if not key:
             continue
-        for run, cell in zip(runs, row[3:]):
+        for run, cell in zip(runs, row[3:], strict=False):
             metrics = json.loads((run / 'metrics.json').read_text())
             value = lookup(metrics, key)
             text = cell.strip('*')
@@ -188,7 +188,7 @@ def test_table_has_one_column_per_run_with_the_numbers_of_metrics_json(report):
         table = list(csv.reader(f))
     assert table[0][1:] == [r.name for r in runs]
     for key, *cells in table[1:]:
-        for run, cell in zip(runs, cells):
+        for run, cell in zip(runs, cells, strict=False):
             value = lookup(json.loads((run / 'metrics.json').read_text()), key)
             if isinstance(value, float):
                 assert float(cell) == value, (key, run)

@@ -27,7 +27,7 @@ def _console_scripts(pkg: str) -> dict:
     tree = ast.parse((ROOT / pkg / 'setup.py').read_text())
     for node in ast.walk(tree):
         if isinstance(node, ast.Dict):
-            for key, value in zip(node.keys, node.values):
+            for key, value in zip(node.keys, node.values, strict=True):
                 if isinstance(key, ast.Constant) and key.value == 'console_scripts':
                     entries = [ast.literal_eval(e) for e in value.elts]
                     return dict((part.strip() for part in e.split('=')) for e in entries)
@@ -53,7 +53,7 @@ def test_per_node_processes_start_the_entry_points_of_the_table(tmp_path):
     scenario = load_scenario('paper')
     specs = node_specs(scenario, 'paper', 'proposed', 'lockstep', 1.0, None, tmp_path / 'bag', 60.0)
     commands = run_formation.process_commands(specs, 'per-node', tmp_path)
-    for (name, kind, args), (proc_name, cmd) in zip(specs, commands):
+    for (name, kind, args), (proc_name, cmd) in zip(specs, commands, strict=False):
         assert proc_name == name
         assert Path(cmd[0]).name == NODES[kind].executable and cmd[1:] == args
     kinds = [kind for _, kind, _ in specs]

@@ -148,20 +148,20 @@ def test_gains_file_errors_are_reported_on_access(tmp_path):
     data['gains'] = 'missing_gains.yaml'
     s = _build(data, tmp_path)   # the scenario itself is valid; the gains are read lazily
     with pytest.raises(E.GainsFileError, match=r"gains: cannot read the gains file .*missing_gains.yaml"):
-        s.gains
+        _ = s.gains
     (tmp_path / 'bad.yaml').write_text('k1: [1, 2\n')
     data['gains'] = 'bad.yaml'
     with pytest.raises(E.ScenarioSyntaxError, match=r'bad.yaml:\d+: YAML syntax error'):
-        _build(data, tmp_path).gains
+        _ = _build(data, tmp_path).gains
     (tmp_path / 'list.yaml').write_text('- 1\n- 2\n')
     data['gains'] = 'list.yaml'
     with pytest.raises(E.GainsFileError, match='must hold a mapping, got list'):
-        _build(data, tmp_path).gains
+        _ = _build(data, tmp_path).gains
     # the gains file is read with the schema's YAML parse: a repeated key is an error with its line
     (tmp_path / 'twice.yaml').write_text('beta: 2.0\nouter:\n  k: 1.0\nbeta: 3.0\n')
     data['gains'] = 'twice.yaml'
     with pytest.raises(E.DuplicateKeyError, match=r"twice.yaml:4: .*key 'beta' repeated \(first at line 1\)"):
-        _build(data, tmp_path).gains
+        _ = _build(data, tmp_path).gains
 
 
 # ------------------------------------------------------------------------------------------------

@@ -1,3 +1,4 @@
+"""Package setup of ``uh_bringup`` (colcon and pip): the launch files and ``uh-run-formation``, ``uh-inject-fault``."""
 from glob import glob
 
 from setuptools import find_packages, setup

@@ -1,3 +1,4 @@
+"""Package setup of ``uh_campaign`` (colcon and pip): the package and the ``uh-campaign`` console script."""
 from setuptools import find_packages, setup
 
 package_name = 'uh_campaign'

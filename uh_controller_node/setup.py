@@ -1,3 +1,4 @@
+"""Package setup of ``uh_controller_node`` (colcon and pip): the package and the ``controller_node`` executable."""
 from glob import glob
 
 from setuptools import find_packages, setup

@@ -1,3 +1,4 @@
+"""Package setup of ``uh_core`` (colcon and pip): the package and its config (``helicopter.yaml``, the airframe)."""
 from glob import glob
 
 from setuptools import find_packages, setup

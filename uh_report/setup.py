@@ -1,3 +1,4 @@
+"""Package setup of ``uh_report`` (colcon and pip): the package and the ``uh-report`` console script."""
 from setuptools import find_packages, setup
 
 package_name = 'uh_report'

@@ -1,3 +1,4 @@
+"""Package setup of ``uh_runtime`` (colcon and pip): the package, ``uh``, the recorder, live-view and replay nodes."""
 from glob import glob
 
 from setuptools import find_packages, setup

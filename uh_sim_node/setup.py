@@ -1,3 +1,4 @@
+"""Package setup of ``uh_sim_node`` (colcon and pip): the sim, virtual-leader, lockstep-clock and view nodes."""
 from glob import glob
 
 from setuptools import find_packages, setup

@@ -1,3 +1,4 @@
+"""Package setup of ``uh_topology`` (colcon and pip): the package and its config (scenarios, gains, campaigns)."""
 from glob import glob
 
 from setuptools import find_packages, setup

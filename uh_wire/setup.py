@@ -1,3 +1,4 @@
+"""Package setup of ``uh_wire`` (colcon and pip): the package; it has no console scripts."""
 from setuptools import find_packages, setup
 
 package_name = 'uh_wire'

@@ -52,6 +52,10 @@ def _check_paths(args) -> str | None:
 
 
 def main(argv=None) -> int:
+    """Run the benchmark sections, write the JSON results to ``--out`` and print the markdown table; return the status.
+
+    0 done; 2 bad ``--out`` or ``--keep`` (nothing ran); 130 interrupted.
+    """
     p = ArgumentParser(prog='bench.sh', description='Benchmarks of the UH stack: real-time factors, '
                                 'scaling, real-time latency, per-step costs, memory. Writes a JSON results '
                                 'file and prints a markdown table.')

@@ -109,6 +109,10 @@ def _measure(case: str, messages: int, env: dict) -> dict:
 
 
 def main(argv=None) -> int:
+    """Measure every executor case and print one JSON line each; return 0.
+
+    ``--role pub`` / ``sub`` run the publisher or subscriber process of one case (used by :func:`measure`).
+    """
     p = argparse.ArgumentParser(prog='python -m uh_bench.executors', description=__doc__.split('\n')[0])
     p.add_argument('--role', choices=('all', 'pub', 'sub'), default='all', help=argparse.SUPPRESS)
     p.add_argument('--seconds', type=float, default=60.0, help=argparse.SUPPRESS)

@@ -63,6 +63,11 @@ def summarise(states: dict, commands: dict, last_step: int | None = None) -> dic
 
 
 def main(argv=None) -> int:
+    """Read the states and commands of the UHs ``--ids`` until SIGINT/SIGTERM or ``--last-step``; write the latencies.
+
+    The summary per controller (:func:`summarise`) goes to ``--out`` as JSON; ``--ready`` is created
+    once the readers exist. Return 0.
+    """
     p = argparse.ArgumentParser(prog='uh_bench.probe', description=__doc__.split('\n\n')[0])
     p.add_argument('--domain-id', type=int, required=True)
     p.add_argument('--ids', required=True, help='UH ids: "1..20" or "1,2,5"')

@@ -71,6 +71,7 @@ def categorise(profile_path) -> tuple[dict, float]:
 
 
 def main(argv=None) -> int:
+    """Run a profiled lockstep team and print each process's shares of busy time; return 0 (1: the run failed)."""
     p = argparse.ArgumentParser(prog='uh_bench.profile', description=__doc__.split('\n\n')[0])
     p.add_argument('--scenario', default='paper')
     p.add_argument('--layout', default='single', choices=('per-node', 'per-uh', 'single'))

@@ -492,7 +492,7 @@ def run_suite(mode, workdir, sections=('transport', 'paper', 'components', 'scal
     _memory(results)
     results['machine']['loadavg_end'] = os.getloadavg()
     results['wall_s'] = time.monotonic() - started
-    results['goals'] = [dict(zip(('key', 'description', 'target', 'comparison', 'measured', 'met'), g))
+    results['goals'] = [dict(zip(('key', 'description', 'target', 'comparison', 'measured', 'met'), g, strict=True))
                         for g in evaluate_goals(results)]
     return results
 

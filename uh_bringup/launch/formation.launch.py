@@ -88,5 +88,10 @@ def _on_exit(action, decide, run, nodes):
 
 
 def generate_launch_description():
+    """Return the launch description: the launch arguments (:data:`uh_bringup.launch_run.ARGUMENTS`) and the team.
+
+    The team's actions are made once the arguments are known (an ``OpaqueFunction``): the kernels are
+    compiled first, then the nodes start.
+    """
     return LaunchDescription([DeclareLaunchArgument(name, default_value=default, description=description)
                               for name, default, description in ARGUMENTS] + [OpaqueFunction(function=_team)])

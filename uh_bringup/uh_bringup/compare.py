@@ -41,6 +41,7 @@ def _text(what: str):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``scripts/compare.sh``."""
     p = ArgumentParser(
         prog=PROG,
         description='Run the proposed law, Case I and Case II on a scenario and write one report comparing '

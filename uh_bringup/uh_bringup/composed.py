@@ -23,6 +23,11 @@ __all__ = ['main']
 
 
 def main(argv=None) -> int:
+    """Build the nodes of the JSON node list ``argv[0]`` and spin them in one executor; return the exit status.
+
+    The spinning ends at shutdown or once a node (the clock) is ``done``; the status is 1 when a node
+    reports ``failed``, 2 for a bad command line or an unreadable node list (``-h`` prints the usage, 0).
+    """
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1 or argv[0] in ('-h', '--help'):
         print(__doc__, file=sys.stderr)

@@ -33,6 +33,7 @@ __all__ = ['main']
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``uh-inject-fault`` / ``scripts/inject_fault.sh``."""
     p = ArgumentParser(prog='inject_fault.sh', description=__doc__.split('\n\n')[0])
     p.add_argument('--uh', type=int, required=True, help='helicopter index N (topic /uhN/fault)')
     p.add_argument('--channel', required=True, choices=sorted(CHANNEL_NAMES), help='actuator channel')
@@ -155,6 +156,11 @@ def _wait_for_simulator(node, topic: str, args, prog: str) -> int | None:
 
 
 def main(argv=None) -> int:
+    """Console script ``uh-inject-fault``: publish one fault once the UH's simulator listens; return the exit status.
+
+    See the module docstring for the statuses; the simulator's acknowledgement is awaited at most
+    :data:`ACK_TIMEOUT_S` s (a warning if it does not come).
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     _checked_fault(parser, args)

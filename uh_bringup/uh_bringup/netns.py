@@ -264,6 +264,7 @@ class TeamNetwork:
 
     # -- placing processes -------------------------------------------------------------------------
     def host(self, process_name: str) -> Host:
+        """Return the :class:`Host` a supervised process runs on (:func:`host_of_process`)."""
         return self.hosts[host_of_process(process_name)]
 
     def prefix(self, process_name: str) -> list:
@@ -289,6 +290,7 @@ class TeamNetwork:
         return out
 
     def describe(self) -> str:
+        """Return a one-line description of the network: its namespaces, subnet and loss."""
         lossy = ', '.join(h.name for h in self.hosts.values() if h.lossy)
         return (f'{len(self.hosts) + 1} network namespaces {self.tag}-* ({", ".join(self.hosts)} and the hub '
                 f'with bridge br0, {SUBNET}.0/24); '

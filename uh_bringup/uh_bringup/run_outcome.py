@@ -47,7 +47,8 @@ class RunRecord:
     """``run.json`` of a run in directory ``out``.
 
     Written when the nodes have started (status "running", their pids), after every node failure
-    and at the end; ``info`` is what :func:`run_info` gives, updated at the end.
+    and at the end; ``info`` is what :func:`run_info` gives, updated at the end; ``sup`` is the
+    run's :class:`~uh_bringup.supervisor.Supervisor`.
     """
 
     def __init__(self, out: Path, info: dict, sup):

@@ -56,7 +56,12 @@ def neighbours_of(scenario, uh_id: int) -> list:
 
 
 class RunWatcher:
-    """Watches a running team and decides what a node's death means (see the module docstring)."""
+    """Watches a running team and decides what a node's death means (see the module docstring).
+
+    ``args`` are the run's options (clock mode, rate, stale timeout, ``--respawn``), ``scenario`` its
+    team, ``sup`` its :class:`~uh_bringup.supervisor.Supervisor`, ``progress`` its :class:`RunProgress`;
+    ``on_change()`` is called after every node death (to rewrite ``run.json``).
+    """
 
     def __init__(self, args, scenario, sup, progress, on_change=lambda: None):
         self.args, self.scenario, self.sup, self.progress = args, scenario, sup, progress

@@ -64,6 +64,7 @@ class NodeProcess:
     pids: list = field(default_factory=list)
 
     def log_tail(self, lines: int = 15) -> str:
+        """Return the last ``lines`` lines of the process's log, indented by 4 spaces (``(no log)`` if unreadable)."""
         try:
             text = self.log_path.read_text(errors='replace').splitlines()
         except OSError:
@@ -71,11 +72,13 @@ class NodeProcess:
         return '\n'.join('    ' + line for line in text[-lines:])
 
     def poll(self) -> int | None:
+        """Return the exit status (None while it runs; negative: killed by that signal), noting it once known."""
         if self.proc is not None and self.returncode is None:
             self.returncode = self.proc.poll()
         return self.returncode
 
     def describe(self) -> str:
+        """Return how the process is: ``running``, ``exited with status N`` or ``killed by SIGNAME``."""
         return describe_exit(self.poll())
 
 
@@ -102,6 +105,20 @@ def _child_setup(priority: int):
 
 @dataclass
 class Supervisor:
+    """Starts, restarts and stops the node processes of one run (see the module docstring).
+
+    Parameters
+    ----------
+    log_dir : Path
+        Directory of the processes' logs (``<name>.log``), created on the first start.
+    env : dict
+        Environment of every process (a process in ``envs`` gets its own instead).
+    nodes : list of NodeProcess
+        The processes started so far, in start order.
+    grace_s : float
+        Seconds :meth:`stop_all` waits after SIGINT before it sends SIGKILL.
+    """
+
     log_dir: Path
     env: dict
     nodes: list = field(default_factory=list)
@@ -135,6 +152,10 @@ class Supervisor:
         node.reported = False
 
     def start(self, name: str, cmd: list, kind: str = '') -> NodeProcess:
+        """Start ``cmd`` as process ``name`` (its own process group, output to ``<log_dir>/<name>.log``).
+
+        ``kind`` is the node kind (default: ``name``). Return its :class:`NodeProcess`.
+        """
         self.log_dir.mkdir(parents=True, exist_ok=True)
         node = NodeProcess(name, [str(c) for c in cmd], self.log_dir / f'{name}.log', kind=kind or name)
         self._popen(node, 'w')
@@ -166,6 +187,7 @@ class Supervisor:
         return None
 
     def signal_all(self, sig) -> None:
+        """Send ``sig`` to the process group of every process still running."""
         for node in self.nodes:
             if node.poll() is None:
                 try:

@@ -98,6 +98,7 @@ def rviz_config(scenario) -> str:
 
 
 def main(argv=None) -> int:
+    """Write the Foxglove layout and RViz2 config of ``--scenario`` into ``--out``; return 0 (2: bad scenario)."""
     p = argparse.ArgumentParser(prog='python -m uh_bringup.views', description=__doc__.split('\n')[0])
     p.add_argument('--scenario', default='paper', help='scenario YAML, or "paper" (default)')
     p.add_argument('--out', default='views', help='directory to write the two files into (default views/)')

@@ -34,6 +34,7 @@ PROG = 'uh-campaign'
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``uh-campaign``."""
     p = ArgumentParser(
         prog=PROG,
         description='Run a Monte Carlo campaign: random draws of a team scenario (initial states, faults, '

@@ -93,6 +93,12 @@ def read_range(ctx, value, path, *, lo=None, hi=None, lo_open=False, hi_open=Fal
 
 
 def read_generator(ctx, raw) -> GeneratorSpec:
+    """Read the ``generator`` mapping of a spec with ``ctx`` (its :class:`~uh_topology.schema.ConfigContext`).
+
+    Raise the configuration errors of ``ctx`` for a bad key or value, and for probabilities under which
+    no draw can satisfy Assumption 1 (a follower edge probability of 0; a leader edge probability of 0
+    unless every leader is linked to the virtual leader).
+    """
     path = ('generator',)
     ctx.mapping(raw, path, _GENERATOR_REQUIRED, _GENERATOR_OPTIONAL, what='a generator mapping')
     n = ctx.integer(raw['leaders'], path + ('leaders',), lo=1, what='an integer number of leaders >= 1')
@@ -123,6 +129,11 @@ def read_generator(ctx, raw) -> GeneratorSpec:
 
 
 def read_draws(ctx, raw, n_uhs: int) -> Draws:
+    """Read the ``draws`` mapping of a spec with ``ctx`` for a team of ``n_uhs`` UHs.
+
+    Spreads in m and rad, the disturbance amplitude in N; an absent key draws nothing. Raise the
+    configuration errors of ``ctx`` for a bad key or value.
+    """
     path = ('draws',)
     ctx.mapping(raw, path, (), _DRAW_KEYS, what='a draws mapping')
     faults = _fault_draws(ctx, raw['faults'], n_uhs) if raw.get('faults') is not None else None

@@ -52,7 +52,7 @@ def draw_generators(seed: int, draw: int) -> dict:
     They are the children of ``numpy.random.default_rng([seed, draw])``, in a fixed order.
     """
     children = np.random.default_rng([seed, draw]).spawn(len(_STREAMS))
-    return dict(zip(_STREAMS, children))
+    return dict(zip(_STREAMS, children, strict=True))
 
 
 def scenario_file_name(spec, draw: int, sweep_index: int) -> str:

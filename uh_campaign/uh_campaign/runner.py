@@ -108,7 +108,7 @@ class WorkerDied(CampaignError):
 
 
 class CampaignInterrupted(Exception):
-    """The campaign was stopped (``stop`` set): every finished run is committed."""
+    """The campaign was stopped (``stop`` set): every finished run is committed; ``outcome`` counts them."""
 
     def __init__(self, outcome: 'CampaignOutcome'):
         self.outcome = outcome
@@ -605,6 +605,9 @@ class Progress:
 
     Runs done / total, failures, runs/s and ETA. On a terminal a bar on one line rewritten in place (at most 5 times a
     second); otherwise a line at every further 10 % of the runs. ``quiet`` writes nothing.
+
+    ``stream`` defaults to stderr, ``tty`` to whether the stream is a terminal; ``label`` starts each
+    line.
     """
 
     def __init__(self, stream=None, quiet: bool = False, tty: bool | None = None, label: str = 'uh-campaign'):
@@ -619,6 +622,7 @@ class Progress:
         self._open_line = False
 
     def start(self, total: int, done: int) -> None:
+        """Start counting: ``total`` runs, ``done`` of them stored before (announced when resuming)."""
         self.total, self.first = total, done
         self._t0 = time.monotonic()
         if done:
@@ -626,11 +630,13 @@ class Progress:
         self._next_tenth = (10 * done) // max(total, 1) + 1
 
     def note(self, text: str) -> None:
+        """Print ``text`` on a line of its own, after the progress line (nothing when ``quiet``)."""
         if not self.quiet:
             self._end_line()
             print(f'{self.label}: {text}', file=self.stream, flush=True)
 
     def update(self, done: int, failures: int) -> None:
+        """Show ``done`` runs and ``failures`` (on a terminal at most 5 times a second, else every 10 %)."""
         if self.quiet:
             return
         now = time.monotonic()
@@ -693,7 +699,7 @@ def summary_lines(directory, spec: CampaignSpec) -> list:
             wins = int((runs['success'][mask] == 1).sum())
             rate = f'{100.0 * wins / n:.1f} %' if n else 'n/a'
 
-            def median(column):
+            def median(column, ok=ok):   # called in this iteration: ``ok`` bound explicitly
                 values = runs[column][ok]
                 values = values[np.isfinite(values)]
                 return f'{np.median(values):.4g} m' if values.size else 'n/a'

@@ -232,6 +232,8 @@ class UHController:
     helicopter_params : HelicopterParams, optional
         Airframe parameters; default: loaded from ``scenario.helicopter``. The controller's nominal
         model scales their ``D_v`` and ``c_Q`` by ``scenario.model_mismatch``.
+    gains : ControllerGains, optional
+        Gains of ``case`` (e.g. changed at run time); default: the scenario's gains of ``case``.
 
     Attributes
     ----------

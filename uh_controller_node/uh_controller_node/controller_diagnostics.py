@@ -128,6 +128,6 @@ class ControllerDiagnostics:
         rejected = sum(sync.rejected.values())
         w.rejected_inputs, self._rejected_reported = rejected - self._rejected_reported, rejected
         if ages is not None:
-            w.neighbour_ages = tuple(zip((f'uh{j}' for j in ages.neighbours), *ages.summary()))
+            w.neighbour_ages = tuple(zip((f'uh{j}' for j in ages.neighbours), *ages.summary(), strict=True))
         self.window = diagnostics.ControllerWindow()
         return diagnostics.controller_diagnostic(self.uh_id, w)

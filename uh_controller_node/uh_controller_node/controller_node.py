@@ -5,16 +5,15 @@ neighbours in the scenario's graph, :mod:`uh_topology`), and to ``/reference`` o
 runs :class:`uh_controller_node.controller.UHController` and publishes ``command`` and ``status``.
 Its parameters besides the run's are in :mod:`uh_controller_node.node_parameters`.
 
-The node converts messages (:mod:`uh_wire.wire`) and publishes; which inputs each step is computed
-from is decided by :class:`uh_controller_node.input_sync.InputSynchroniser`, whose docstring gives
-the rules of both clock modes (docs/reliability.md section 2): in ``lockstep`` step k waits for
-every input of step k, so the run reproduces the in-process reference simulation exactly; in
-``realtime`` each own state k starts step k, computed when the same step's inputs are in or after
-``sync_wait`` wall seconds with the latest values. A one-shot timer is armed when the own state
-arrives and the step cannot be computed yet, so an idle controller wakes only for messages and a
-slow check every ``SLOW_POLL_S``. The short wait matters: the sims publish step k at the same tick,
-and mixing step-k and step-(k-1) neighbour data makes the consensus error jitter by v dt, which the
-command filters' derivatives amplify into chattering commands.
+The node converts messages (:mod:`uh_wire.wire`) and publishes; which inputs each step is computed from is
+decided by :class:`uh_controller_node.input_sync.InputSynchroniser`, whose docstring gives the rules of
+both clock modes (docs/reliability.md section 2): in ``lockstep`` step k waits for every input of step k,
+so the run reproduces the in-process reference simulation exactly; in ``realtime`` each own state k starts
+step k, computed when the same step's inputs are in or after ``sync_wait`` wall seconds with the latest
+values. A one-shot timer is armed when the own state arrives and the step cannot be computed yet, so an
+idle controller wakes only for messages and a slow check every ``SLOW_POLL_S``. The short wait matters:
+the sims publish step k at the same tick, and mixing step-k and step-(k-1) neighbour data makes the
+consensus error jitter by v dt, which the command filters' derivatives amplify into chattering commands.
 
 Impairments (docs/campaigns.md#impairments; in real time docs/runtime.md#impairments-in-real-time):
 the controller uses what :mod:`~uh_controller_node.realtime_received` makes of its inputs (delay,
@@ -118,12 +117,15 @@ class ControllerNode(rt.Node):
 
     # -- inputs: offered to the synchroniser -------------------------------------------------------
     def on_own_state(self, msg) -> None:
+        """Offer the own ``UHState`` to the synchroniser, compute the released steps (bad ones rejected)."""
         self._offer(OWN, msg, 'own state', msg_to_state, self.uh_id)
 
     def on_neighbour_state(self, j: int, msg) -> None:
+        """Offer neighbour ``j``'s ``UHState`` to the synchroniser, compute the released steps (bad ones rejected)."""
         self._offer(j, msg, f'state of uh{j}', msg_to_state, j)
 
     def on_reference(self, msg) -> None:
+        """Offer the leader's ``Reference`` to the synchroniser, compute the released steps (bad ones rejected)."""
         self._offer(REFERENCE, msg, 'reference', msg_to_reference)
 
     def _offer(self, key, msg, what: str, convert, *expected_id) -> None:

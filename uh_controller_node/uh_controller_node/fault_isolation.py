@@ -443,7 +443,7 @@ class FaultIsolator:
     @property
     def threshold(self) -> tuple:
         """The current isolation threshold per channel (constant + filtered allowance), rad."""
-        return tuple(th + e for th, e in zip(self._s.thresholds, self._state[K.IS_E:K.IS_E + _N].tolist()))
+        return tuple(th + e for th, e in zip(self._s.thresholds, self._state[K.IS_E:K.IS_E + _N].tolist(), strict=True))
 
     @property
     def isolated(self) -> tuple:
@@ -455,7 +455,7 @@ class FaultIsolator:
         """Per channel: time of isolation, s (NaN if not isolated)."""
         # NaN as the one math.nan object, so that equal statuses compare equal (== on tuples tries identity first)
         times = self._state[K.IS_DETECTION:K.IS_DETECTION + _N].tolist()
-        return tuple(t if isolated else math.nan for t, isolated in zip(times, self.isolated))
+        return tuple(t if isolated else math.nan for t, isolated in zip(times, self.isolated, strict=True))
 
     def channel(self, c: int) -> ChannelReport:
         """Return the report of channel ``c`` (0..3) now (see the class docstring for the verdict)."""
@@ -552,7 +552,7 @@ def _setup(arrays, scenario, case, settings):
 def _steps(data, j):
     """Per-step arguments of :meth:`FaultIsolator.update` for UH column ``j``."""
     return zip(data['time'].tolist(), data['states'][:, j].tolist(), data['commands'][:, j].tolist(),
-               data['fault_est_p'][:, j].tolist(), data['fault_est_w'][:, j].tolist())
+               data['fault_est_p'][:, j].tolist(), data['fault_est_w'][:, j].tolist(), strict=False)
 
 
 def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSettings | None = None) -> dict:

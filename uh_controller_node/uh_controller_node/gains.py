@@ -341,7 +341,7 @@ ControllerGains = _record('ControllerGains', f"""All gains of one UH controller 
     {_attribute_docs(TOP_GAINS, False)}
     """, [('case', str), *_record_fields(_TOP_REQUIRED), *((loop, LoopGains) for loop in LOOPS),
           *((name, kind, dataclasses.field(default=g.default))
-            for g, (name, kind) in zip(_TOP_OPTIONAL, _record_fields(_TOP_OPTIONAL)))],
+            for g, (name, kind) in zip(_TOP_OPTIONAL, _record_fields(_TOP_OPTIONAL), strict=False))],
     base=_CaseMethods)
 
 

@@ -98,6 +98,7 @@ class LagStats:
     last: int = 0
 
     def add(self, behind: int) -> None:
+        """Count one computed step at which the input was ``behind`` steps behind the own state."""
         self.last = behind
         self.total += behind
         self.count += 1
@@ -105,6 +106,7 @@ class LagStats:
 
     @property
     def mean(self) -> float:
+        """Mean lag over the counted steps, steps (0 before any)."""
         return self.total / max(self.count, 1)
 
 

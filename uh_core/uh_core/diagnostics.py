@@ -75,7 +75,7 @@ class SimulatorWindow:
 
 
 def _channels(flags) -> str:
-    return ', '.join(name for name, on in zip(CHANNEL_NAMES, flags) if on)
+    return ', '.join(name for name, on in zip(CHANNEL_NAMES, flags, strict=False) if on)
 
 
 def _report(name: str, hardware_id: str, errors: list, warnings: list, values: dict) -> Diagnostic:

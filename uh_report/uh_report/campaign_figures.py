@@ -87,7 +87,7 @@ def plot_sweep(table: list[dict], cases, parameter: str, path: Path, labels: dic
         colour, dash = _case_style(case, cases)
         label = (labels or {}).get(case, case)
         x = np.array([r['sweep_value'] for r in rows])
-        for ax, metric in zip(axes, SWEEP_METRICS):
+        for ax, metric in zip(axes, SWEEP_METRICS, strict=False):
             median = np.array([r[f'{metric}_median'] for r in rows])
             ax.plot(x, median, color=colour, linestyle=dash, marker='o', label=label)
             ax.fill_between(x, [r[f'{metric}_q25'] for r in rows], [r[f'{metric}_q75'] for r in rows],
@@ -98,7 +98,7 @@ def plot_sweep(table: list[dict], cases, parameter: str, path: Path, labels: dic
         dodge = (position - (len(cases) - 1) / 2) * 0.012 * (span or 1.0)   # error bars side by side
         axes[2].errorbar(x + dodge, rate, yerr=[below, above], color=colour, linestyle=dash, marker='o', capsize=4,
                          label=label)
-    for ax, metric in zip(axes, SWEEP_METRICS):
+    for ax, metric in zip(axes, SWEEP_METRICS, strict=False):
         ax.set_ylabel(f'{_metric_axis_label(metric)}, median and IQR')
         ax.set_title(metric, fontsize=11)
     axes[2].set_ylabel('success rate (%), 95 % Wilson interval')

@@ -292,7 +292,7 @@ def _write_csvs(out: Path, campaign: Campaign, success: list, summaries: dict, p
     for metric in DISTRIBUTION_METRICS:
         head += [f'{metric}_{k}' for k in ('n', 'median', 'p90', 'max', 'max_draw', 'max_sweep_value')]
     rows = []
-    for case, rate in zip(campaign.cases, success):
+    for case, rate in zip(campaign.cases, success, strict=False):
         row = [case, *(counts[case][k] for k in ('runs', 'ok', 'diverged', 'failed')), rate['successes'],
                rate['rate'], rate['ci_low'], rate['ci_high']]
         for metric in DISTRIBUTION_METRICS:

@@ -143,7 +143,8 @@ def read_columns(store, typename: str, payloads: list, fields) -> dict:
     if found is not None:
         where, layout = found
         fast = np.fromiter(map(len, payloads), int, len(payloads)) == len(probe)
-        rows = np.frombuffer(b''.join(p for p, f in zip(payloads, fast) if f), np.uint8).reshape(-1, len(probe))
+        rows = np.frombuffer(b''.join(p for p, f in zip(payloads, fast, strict=True) if f),
+                             np.uint8).reshape(-1, len(probe))
         same = (rows[:, layout] == np.frombuffer(probe, np.uint8)[layout]).all(axis=1)
         fast[np.flatnonzero(fast)[~same]] = False
         rows = rows[same]

@@ -418,7 +418,7 @@ def _cells(runs, key: str, better: str | None, bold: bool) -> list[str]:
     if bold and better is not None and len(runs) > 1 and len(numeric) > 1:
         best = (min if better == 'lower' else max)(float(format_value(v)) for v in numeric)
         texts = [f'**{t}**' if v is not KeyError and isinstance(v, (int, float)) and not isinstance(v, bool)
-                 and math.isfinite(v) and float(t) == best else t for t, v in zip(texts, values)]
+                 and math.isfinite(v) and float(t) == best else t for t, v in zip(texts, values, strict=True)]
     return texts
 
 
@@ -509,12 +509,13 @@ def write_figures(runs, out: Path, kinds=None) -> dict:
     for run in runs:
         d = out / run.name
         d.mkdir(parents=True, exist_ok=True)
-        plots = [(key, lambda path, plot=plot: plot(run, path)) for key, plot in
+        # drawn below, in this iteration (``run`` bound explicitly all the same)
+        plots = [(key, lambda path, plot=plot, run=run: plot(run, path)) for key, plot in
                  (('states', F.plot_states), ('trajectory_3d', F.plot_trajectory_3d),
                   ('xy_snapshots', F.plot_xy_snapshots))]
-        plots += [(f'faults_uh{uh}', lambda path, uh=uh: F.plot_faults(run, uh, path))
+        plots += [(f'faults_uh{uh}', lambda path, uh=uh, run=run: F.plot_faults(run, uh, path))
                   for uh in faulted_uhs(run.scenario, run.arrays) if wanted('faults')]
-        plots.append(('false_fault_estimate', lambda path: F.plot_false_fault_estimate(run, path)))
+        plots.append(('false_fault_estimate', lambda path, run=run: F.plot_false_fault_estimate(run, path)))
         run.figures = {key: plot(d / f'{key}.png') for key, plot in plots
                        if key.startswith('faults_uh') or wanted(key)}
         written[run.name] = dict(run.figures)
@@ -616,6 +617,7 @@ def run_of_arrays(run_dir, scenario, case: str, arrays: dict, metrics: dict) -> 
 # Entry point
 # ----------------------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``uh-report``."""
     p = ArgumentParser(
         prog=PROG,
         description='Figures (the paper\'s Figures 4-12) and a side-by-side metrics table of one or '
@@ -681,7 +683,7 @@ def main(argv=None) -> int:
             print(f'[report] reading {run_dir}', file=sys.stderr, flush=True)
             runs.append(load_run(run_dir, args.scenario))
         if args.labels:
-            for run, label in zip(runs, args.labels):
+            for run, label in zip(runs, args.labels, strict=True):
                 run.label = label
         ids = {tuple(r.scenario.ids) for r in runs}
         if len(ids) > 1:

@@ -137,7 +137,7 @@ def plot_states(run, path: Path) -> Path:
         axes = fig.subplots(2, 2, sharex=True)
         panels = [(0, 'x (m)', 'position x'), (1, 'y (m)', 'position y'), (2, 'z (m)', 'altitude z'),
                   (8, 'ψ (deg)', 'yaw ψ')]
-        for ax, (k, ylabel, title) in zip(axes.flat, panels):
+        for ax, (k, ylabel, title) in zip(axes.flat, panels, strict=True):
             for c, i in enumerate(ids):
                 y = states[:, c, k]
                 if k == 8:  # continuous yaw (the state's yaw may be wrapped)
@@ -396,7 +396,7 @@ def plot_false_fault_estimate(run, path: Path) -> Path:
     with _style():
         fig = _figure('false_fault_estimate')
         axes = fig.subplots(2, 1, sharex=True)
-        for ax, vector in zip(axes, LUMPED_FAULTS):
+        for ax, vector in zip(axes, LUMPED_FAULTS, strict=True):
             unit = vector.unit.replace('^2', '²')
             name = f'$\\|\\hat{{F}}_{vector.key}\\|$'
             norms = np.linalg.norm(np.asarray(run.arrays[vector.estimate_array], dtype=float), axis=-1)
@@ -512,7 +512,7 @@ def plot_errors_per_uh(runs, path: Path) -> Path:
         for r, run in enumerate(runs):
             colour, dash = _RUN_STYLES[r % len(_RUN_STYLES)]
             err = uh_errors(run)
-            for c, i in enumerate(ids):
+            for c, _i in enumerate(ids):
                 ax = axes.flat[c]
                 ax.semilogy(run.arrays['time'], np.maximum(err[:, c], 1e-6), color=colour, linestyle=dash,
                             label=run.label)

@@ -117,6 +117,10 @@ class ParsedArguments:
     rosout_logs: bool = True   # --disable-rosout-logs turns the /rosout publisher off
 
     def extend(self, other: 'ParsedArguments'):
+        """Append ``other``'s remaps and parameters to these; its log levels and its enclave (if set) override these.
+
+        ``rosout_logs`` stays True only if both have it.
+        """
         self.remaps += other.remaps
         self.parameters += other.parameters
         self.log_levels.update(other.log_levels)
@@ -257,7 +261,7 @@ def parse_ros_args(args) -> ParsedArguments:
             i += 1
             continue
 
-        def value(flag):
+        def value(flag, i=i):   # called in this iteration, before ``i`` moves on
             if i + 1 >= len(args) or args[i + 1] in ('--ros-args', '--'):
                 raise RosArgsError(f'ROS argument {flag} needs a value')
             return args[i + 1]

@@ -159,6 +159,7 @@ class BagInfo:
 
     @property
     def duration_s(self) -> float:
+        """Time from the first to the last log time, s (0 for an empty bag)."""
         return max(0, self.end_ns - self.start_ns) * 1e-9
 
 

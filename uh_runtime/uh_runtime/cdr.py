@@ -47,7 +47,10 @@ def _align(size, out, ind, run, al, flush, runtime_line):
         al.advance(pad)
 
 class Codec:
-    """``serialize(msg) -> bytes`` (with the 4-byte header) and ``deserialize(data) -> msg``."""
+    """``serialize(msg) -> bytes`` (with the 4-byte header) and ``deserialize(data) -> msg``.
+
+    ``source`` is the Python source generated for the type (kept for debugging).
+    """
 
     __slots__ = ('serialize', 'deserialize', 'source')
 

@@ -97,6 +97,7 @@ def _common(parser, spin_time=True):
 
 
 def build_parser():
+    """Return the argument parser of ``uh``: the ``topic``, ``node`` and ``param`` commands and their verbs."""
     parser = ArgumentParser(
         prog='uh', description='Inspect ROS 2 topics and nodes of a DDS domain over Cyclone DDS '
         '(works without ROS; output like the ros2 CLI).')
@@ -386,7 +387,7 @@ def cmd_topic_hz(args):
         if now - last_print >= 1.0:
             last_print = now
             if len(stamps) >= 2 and received != last_count:
-                gaps = [b - a for a, b in zip(stamps, stamps[1:])]
+                gaps = [b - a for a, b in zip(stamps, stamps[1:], strict=False)]
                 mean = sum(gaps) / len(gaps)
                 std = math.sqrt(sum((g - mean) ** 2 for g in gaps) / len(gaps))
                 print(f'average rate: {1.0 / mean:.3f}\n\tmin: {min(gaps):.3f}s max: '

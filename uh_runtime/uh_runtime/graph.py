@@ -97,6 +97,9 @@ class Graph:
         participant is created on ``domain_id`` and its own entities are left out.
     domain_id : int, optional
         Domain of the created participant (default: ``ROS_DOMAIN_ID`` or 0).
+    info_topic : cyclonedds.topic.Topic, optional
+        The ``ros_discovery_info`` topic to read, when the participant already has it (a node's
+        context does); default: created here.
     """
 
     def __init__(self, participant=None, domain_id=None, info_topic=None):
@@ -345,7 +348,7 @@ class Graph:
         return gids
 
     def _node_of(self, gid: bytes, writer: bool):
-        for pgid, info in self.infos.items():
+        for _pgid, info in self.infos.items():
             for node in info.node_entities_info_seq:
                 seq = node.writer_gid_seq if writer else node.reader_gid_seq
                 if any(bytes(g.data) == gid for g in seq):

@@ -63,7 +63,8 @@ class Inbox:
     """Messages delivered in process to one subscription and not yet taken.
 
     Each item is ``(message or None, CDR bytes or None)``; the subscription turns it into what its
-    callback expects (:meth:`take`).
+    callback expects (:meth:`take`). The subscription's QoS profile ``qos`` bounds it as a DDS
+    reader's history: keep-last ``depth`` (at least 1) drops the oldest, keep-all nothing.
     """
 
     __slots__ = ('items', 'queued')
@@ -91,6 +92,7 @@ class IntraProcess:
     Publishers and subscriptions register here when created and leave when destroyed; the
     publisher's :meth:`deliver` puts a message into the inbox of every linked subscription and lists
     that subscription as pending, and the executor takes the pending ones (:meth:`take_pending`).
+    ``wake()`` wakes an executor blocked in its wait set (the context's guard condition).
     """
 
     def __init__(self, wake):
@@ -103,12 +105,14 @@ class IntraProcess:
 
     # -- registration ---------------------------------------------------------------------------
     def add_publisher(self, pub) -> None:
+        """Register ``pub`` and link it to the QoS-compatible subscriptions of its topic in this process."""
         with self._lock:
             self._publishers[pub.topic_name].append(pub)
             pub._local = [s for s in self._subscriptions[pub.topic_name]
                           if compatible(pub.qos_profile, s.qos_profile)]
 
     def remove_publisher(self, pub) -> None:
+        """Unregister ``pub`` and unlink it from every subscription."""
         with self._lock:
             pubs = self._publishers.get(pub.topic_name, [])
             if pub in pubs:
@@ -116,6 +120,11 @@ class IntraProcess:
             pub._local = []
 
     def add_subscription(self, sub) -> None:
+        """Register ``sub`` and link it to the QoS-compatible publishers of its topic in this process.
+
+        A transient-local subscription receives the history kept by transient-local publishers at once
+        (queued as pending, and the executor woken), as a late-joining DDS reader would.
+        """
         with self._lock:
             self._subscriptions[sub.topic_name].append(sub)
             history = False
@@ -131,6 +140,7 @@ class IntraProcess:
             self._wake()
 
     def remove_subscription(self, sub) -> None:
+        """Unregister ``sub``, unlink it from every publisher and drop its waiting messages."""
         with self._lock:
             subs = self._subscriptions.get(sub.topic_name, [])
             if sub in subs:

@@ -65,6 +65,7 @@ def check_port(host: str, port: int, names=('--foxglove port', '--foxglove-host'
 
 
 def require_foxglove():
+    """Return the ``foxglove`` module (foxglove-sdk); raise :class:`LiveViewError` saying how to install it."""
     try:
         import foxglove
     except ImportError:
@@ -100,7 +101,11 @@ def add_arguments(parser, what: str) -> None:
 
 
 class LiveViewNode(rt.Node):
-    """See the module docstring. Parameters: ``host``, ``port``, ``topics`` (empty: all)."""
+    """See the module docstring. Parameters: ``host``, ``port``, ``topics`` (empty: all).
+
+    Keyword arguments go to ``Node`` (e.g. ``parameter_overrides``). Raises :class:`LiveViewError`
+    without foxglove-sdk or when the port cannot be bound.
+    """
 
     def __init__(self, **kwargs):
         super().__init__('live_view', **kwargs)
@@ -148,6 +153,11 @@ class LiveViewNode(rt.Node):
             self.get_logger().info(f'serving {name} [{type_name}]')
 
     def on_message(self, name: str, channel, data: bytes, stamped: bool) -> None:
+        """Log the CDR bytes ``data`` of topic ``name`` on its Foxglove ``channel``.
+
+        The log time is that of :class:`~uh_runtime.recorder.LogClock` (ns), wall time for an unstamped
+        message before the first ``/clock``.
+        """
         log_ns = self.log_clock.of(name, data, stamped)
         if not stamped and not log_ns:   # unstamped, before the first /clock: wall time
             log_ns = time.time_ns()
@@ -155,6 +165,7 @@ class LiveViewNode(rt.Node):
         self.logged += 1
 
     def destroy_node(self):
+        """Stop the server (waiting at most :data:`STOP_WAIT_S` s for the viewers), log the count, destroy the node."""
         if hasattr(self, 'server'):
             # stopping closes every connection gracefully, which waits for a client that does not
             # read: give it STOP_WAIT_S, then leave (the process exit closes the sockets)
@@ -168,6 +179,7 @@ class LiveViewNode(rt.Node):
 
 
 def main(args=None):
+    """Console script ``live_view_node``: run :class:`LiveViewNode` (:func:`uh_runtime.run_node`)."""
     rt.run_node(LiveViewNode, args, user_errors=(LiveViewError,))
 
 

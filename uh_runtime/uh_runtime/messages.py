@@ -175,7 +175,7 @@ def _build_store():
     parts = {}
     for service, texts in SERVICE_DEFINITIONS.items():
         pkg, _, typ = service.split('/')
-        for part, text in zip(('Request', 'Response'), texts):
+        for part, text in zip(('Request', 'Response'), texts, strict=True):
             parsed = get_types_from_msg(text, f'{pkg}/msg/{typ}_{part}')
             parts[f'{pkg}/srv/{typ}_{part}'] = parsed[f'{pkg}/msg/{typ}_{part}']
     store.register(parts)

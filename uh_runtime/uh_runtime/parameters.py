@@ -23,7 +23,7 @@ class ParameterException(Exception):
 
 
 class ParameterNotDeclaredException(ParameterException):
-    """A parameter that was never declared is read or set."""
+    """A parameter that was never declared is read or set: ``name``, and the ``declared`` names listed."""
 
     def __init__(self, name, declared=()):
         declared = sorted(declared)
@@ -34,14 +34,14 @@ class ParameterNotDeclaredException(ParameterException):
 
 
 class ParameterAlreadyDeclaredException(ParameterException):
-    """A parameter is declared twice."""
+    """Parameter ``name`` is declared twice."""
 
     def __init__(self, name):
         super().__init__(f"parameter '{name}' has already been declared")
 
 
 class InvalidParameterTypeException(ParameterException):
-    """A value of the wrong type for a statically typed parameter."""
+    """Parameter ``name`` of type ``expected`` (a :class:`ParameterType`) is given ``value`` of another type."""
 
     def __init__(self, name, value, expected):
         got = ParameterType.from_parameter_value(value).name
@@ -52,7 +52,10 @@ class InvalidParameterTypeException(ParameterException):
 
 
 class InvalidParameterValueException(ParameterException):
-    """A value the descriptor (range, read-only) or an on-set callback rejects."""
+    """The ``value`` of parameter ``name`` that the descriptor (range, read-only) or an on-set callback rejects.
+
+    ``reason`` says why.
+    """
 
     def __init__(self, name, value, reason):
         super().__init__(f"parameter '{name}': value {value!r} rejected: {reason}")
@@ -61,21 +64,24 @@ class InvalidParameterValueException(ParameterException):
 
 
 class ParameterImmutableException(ParameterException):
-    """A read-only parameter is set after its declaration."""
+    """Read-only parameter ``name`` is set after its declaration."""
 
     def __init__(self, name):
         super().__init__(f"parameter '{name}' is read-only and cannot be set after declaration")
 
 
 class ParameterUninitializedException(ParameterException):
-    """A parameter declared with a type but no value is read before it was set."""
+    """Parameter ``name``, declared with a type but no value, is read before it was set."""
 
     def __init__(self, name):
         super().__init__(f"parameter '{name}' is declared without a value and has not been set")
 
 
 class UnknownParameterOverrideError(ParameterException):
-    """A parameter override (``-p``, ``--params-file``) names a parameter the node never declares."""
+    """A parameter override (``-p``, ``--params-file``) names a parameter the node never declares.
+
+    ``node_name``; the ``unknown`` overridden names and the ``declared`` ones, both kept sorted.
+    """
 
     def __init__(self, node_name, unknown, declared):
         unknown = sorted(unknown)
@@ -162,17 +168,21 @@ class Parameter:
 
     @property
     def name(self):
+        """The parameter's name, as rclpy's ``Parameter.name``."""
         return self._name
 
     @property
     def type_(self):
+        """The parameter's :class:`ParameterType` (``NOT_SET`` without a value), as rclpy's ``Parameter.type_``."""
         return self._type
 
     @property
     def value(self):
+        """The parameter's value (a list for array types; None when not set), as rclpy's ``Parameter.value``."""
         return self._value
 
     def get_parameter_value(self):
+        """Return the value itself (rclpy returns a ``ParameterValue`` message; this backend the Python value)."""
         return self._value
 
     def __repr__(self):

@@ -33,6 +33,8 @@ _BACKEND = select_backend()
 
 
 class HistoryPolicy(enum.IntEnum):
+    """``rclpy.qos.HistoryPolicy`` (the values are rmw's)."""
+
     SYSTEM_DEFAULT = 0
     KEEP_LAST = 1
     KEEP_ALL = 2
@@ -40,6 +42,8 @@ class HistoryPolicy(enum.IntEnum):
 
 
 class ReliabilityPolicy(enum.IntEnum):
+    """``rclpy.qos.ReliabilityPolicy`` (the values are rmw's)."""
+
     SYSTEM_DEFAULT = 0
     RELIABLE = 1
     BEST_EFFORT = 2
@@ -48,6 +52,8 @@ class ReliabilityPolicy(enum.IntEnum):
 
 
 class DurabilityPolicy(enum.IntEnum):
+    """``rclpy.qos.DurabilityPolicy`` (the values are rmw's)."""
+
     SYSTEM_DEFAULT = 0
     TRANSIENT_LOCAL = 1
     VOLATILE = 2
@@ -56,6 +62,8 @@ class DurabilityPolicy(enum.IntEnum):
 
 
 class LivelinessPolicy(enum.IntEnum):
+    """``rclpy.qos.LivelinessPolicy`` (the values are rmw's)."""
+
     SYSTEM_DEFAULT = 0
     AUTOMATIC = 1
     MANUAL_BY_TOPIC = 3
@@ -72,6 +80,7 @@ class Duration:
 
     @property
     def total_nanoseconds(self) -> int:
+        """The duration in integer nanoseconds (``seconds`` and ``nanoseconds`` added)."""
         return int(round(self.seconds * 1e9)) + int(self.nanoseconds)
 
 
@@ -79,7 +88,9 @@ class QoSProfile:
     """``rclpy.qos.QoSProfile(history=..., depth=..., reliability=..., durability=...)``.
 
     As in rclpy, ``QoSProfile(depth=10)`` means keep-last 10, reliable, volatile; giving only
-    ``history=KEEP_LAST`` without ``depth`` is an error.
+    ``history=KEEP_LAST`` without ``depth`` is an error. ``liveliness``, ``deadline``, ``lifespan``,
+    ``liveliness_lease_duration`` and ``avoid_ros_namespace_conventions`` are rclpy's too
+    (durations as :class:`Duration` or a backend's ``Duration``; None or 0: unspecified).
     """
 
     __slots__ = ('history', 'depth', 'reliability', 'durability', 'liveliness', 'deadline',
@@ -127,6 +138,8 @@ qos_profile_rosout_default = QoSProfile(depth=1000, durability=DurabilityPolicy.
 
 
 class QoSPresetProfiles(enum.Enum):
+    """``rclpy.qos.QoSPresetProfiles``: the system-default and sensor-data profiles by name."""
+
     SYSTEM_DEFAULT = qos_profile_system_default
     SENSOR_DATA = qos_profile_sensor_data
 

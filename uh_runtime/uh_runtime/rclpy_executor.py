@@ -34,8 +34,9 @@ def _no_condition() -> bool:
 
 
 def _is_plain(callback) -> bool:
+    # not a callable test: the __call__ of a callable object is looked at to see whether it is async
     return not (inspect.iscoroutinefunction(callback)
-                or inspect.iscoroutinefunction(getattr(callback, '__call__', None)))
+                or inspect.iscoroutinefunction(getattr(callback, '__call__', None)))  # noqa: B004
 
 
 class _Collection:
@@ -86,7 +87,10 @@ class _Collection:
 
 
 class StaticSingleThreadedExecutor(SingleThreadedExecutor):
-    """Single-threaded executor that keeps its wait set between waits (see the module doc)."""
+    """Single-threaded executor that keeps its wait set between waits (see the module doc).
+
+    Constructed as rclpy's executors: ``context`` (default: rclpy's default context).
+    """
 
     def __init__(self, *, context=None) -> None:
         super().__init__(context=context)
@@ -102,10 +106,12 @@ class StaticSingleThreadedExecutor(SingleThreadedExecutor):
         super().wake()
 
     def add_node(self, node) -> bool:
+        """Add ``node`` as rclpy's ``Executor.add_node`` does, and rebuild the collection before the next wait."""
         self._stale = True
         return super().add_node(node)
 
     def remove_node(self, node) -> None:
+        """Remove ``node`` as rclpy's ``Executor.remove_node`` does, and rebuild the collection before the next wait."""
         self._stale = True
         super().remove_node(node)
 

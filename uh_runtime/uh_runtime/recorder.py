@@ -181,6 +181,14 @@ def new_topics(node, followed, wanted=(), skip=()):
 
 
 class RecorderNode(rt.Node):
+    """The ``recorder`` node (see the module docstring): every wanted topic to the bag ``output``.
+
+    Parameters (ROS, read-only): ``output`` (bag directory to create), ``topics`` (empty: all),
+    ``expected_topics``, ``progress_topics``, ``sim_time``. Keyword arguments go to ``Node``
+    (e.g. ``parameter_overrides``). Raises ValueError for a bad parameter (one line, exit 2 from
+    :func:`main`).
+    """
+
     def __init__(self, **kwargs):
         super().__init__('recorder', **kwargs)
         self.declare_parameter('output', '', rt.ParameterDescriptor(
@@ -253,6 +261,7 @@ class RecorderNode(rt.Node):
         self.get_logger().info(f'recording {name} [{type_name}]')
 
     def on_message(self, topic: str, data: bytes, stamped: bool) -> None:
+        """Write the CDR bytes ``data`` of ``topic`` to the bag at its log time; publish the progress when due."""
         log_ns = self.log_clock.of(topic, data, stamped)
         self.bag.write(topic, data, log_ns)
         if self.progress.written(topic, log_ns):
@@ -267,6 +276,7 @@ class RecorderNode(rt.Node):
             self.progress_pub.publish(msg)
 
     def destroy_node(self):
+        """Close the bag (summary and ``metadata.yaml``), log its per-topic counts, destroy the node."""
         if getattr(self, 'bag', None) is None:   # refused before its bag was created: nothing to close
             return super().destroy_node()
         self.bag.close()
@@ -280,6 +290,7 @@ class RecorderNode(rt.Node):
 
 
 def main(args=None):
+    """Console script ``recorder_node``: run :class:`RecorderNode` (:func:`uh_runtime.run_node`)."""
     rt.run_node(RecorderNode, args)
 
 

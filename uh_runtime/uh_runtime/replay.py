@@ -154,6 +154,7 @@ class ReplayNode(rt.Node):
 
     # -- waiting ------------------------------------------------------------------------
     def all_publishers(self) -> dict:
+        """Return ``{topic: publisher}`` of every replayed topic, a synthesised ``/clock`` included."""
         pubs = dict(self.publishers_by_topic)
         if self.synth_clock is not None:
             pubs['/clock'] = self.synth_clock
@@ -202,8 +203,8 @@ class ReplayNode(rt.Node):
                 if start_wall is None:
                     start_wall, first_ns = time.monotonic(), log_ns
                 due = start_wall + (log_ns - first_ns) * 1e-9 / rate
-                tick = (lambda: progress.update(self.sent, (log_ns - self.bag_info.start_ns) * 1e-9, loops)) \
-                    if progress else (lambda: None)
+                tick = (lambda log_ns=log_ns, loops=loops: progress.update(
+                    self.sent, (log_ns - self.bag_info.start_ns) * 1e-9, loops)) if progress else (lambda: None)
                 if not self._sleep_until(due, tick):
                     return False
                 if self.synth_clock is not None and log_ns != last_clock:
@@ -233,6 +234,7 @@ class ReplayNode(rt.Node):
 # Entry point
 # ----------------------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``replay_node`` / ``scripts/replay.sh``."""
     p = ArgumentParser(
         prog=PROG,
         description='Republish a recorded rosbag2 MCAP bag over DDS with its original timing scaled by '

@@ -53,7 +53,11 @@ RECORDER_NODE = 'recorder'
 
 
 class ClockNode(rt.Node):
-    """The run's clock; see the module docstring for the behaviour."""
+    """The run's clock; see the module docstring for the behaviour.
+
+    Parameters (ROS): the run parameters, ``rate``, ``expect_recorder``, ``startup_timeout`` and
+    ``expect_visualization``. Keyword arguments go to ``Node`` (e.g. ``cli_args``).
+    """
 
     def __init__(self, **kwargs):
         super().__init__('clock', **kwargs)
@@ -99,6 +103,11 @@ class ClockNode(rt.Node):
 
     # -- start -------------------------------------------------------------------------------------
     def missing_endpoints(self) -> list[str]:
+        """Return what the team still lacks, one line per topic (empty: the team is complete).
+
+        A topic of :func:`expected_endpoints` with fewer publishers or subscribers than expected, then
+        (once there is none) a topic to record that the recorder has not subscribed to.
+        """
         missing = []
         for name, (pubs, subs) in self.expected.items():
             have_p, have_s = self.count_publishers(name), self.count_subscribers(name)
@@ -111,6 +120,7 @@ class ClockNode(rt.Node):
         return missing
 
     def check_startup(self) -> None:
+        """Start-up timer: publish step 0 once the team is complete (then realtime ticks), else fail at the timeout."""
         missing = self.missing_endpoints()
         if missing:
             if time.monotonic() > self.startup_deadline:
@@ -135,10 +145,12 @@ class ClockNode(rt.Node):
 
     # -- stepping ----------------------------------------------------------------------------------
     def publish(self, steps) -> None:
+        """Publish ``/clock`` for each step of ``steps`` (t = k dt simulated seconds), in order."""
         for k in steps:
             self.pub.publish(clock_msg(k * self.dt))
 
     def on_tick(self) -> None:
+        """Publish the next step (realtime timer); after the last, wait ``REALTIME_FINAL_WAIT_S`` s for the recorder."""
         k = self.clock.tick()
         if k is not None:
             self.publish((k,))
@@ -148,10 +160,12 @@ class ClockNode(rt.Node):
         self.final_timer = self.create_timer(REALTIME_FINAL_WAIT_S, self.give_up_waiting)
 
     def give_up_waiting(self) -> None:
+        """realtime: the recorder did not confirm the last step in time; end the run."""
         self.final_timer.cancel()
         self.clock.give_up(REALTIME_FINAL_WAIT_S)
 
     def on_command(self, uh_id: int, msg) -> None:
+        """Note UH ``uh_id``'s command of ``msg.step`` (another UH's id: ignored); publish the steps it releases."""
         if int(msg.uh_id) != uh_id:   # counted by the topic it came on, never as another UH's command
             self.get_logger().warning(f'ignored a command carrying uh_id {msg.uh_id} on the command topic '
                                       f'of uh{uh_id}', once=True)
@@ -161,15 +175,18 @@ class ClockNode(rt.Node):
             self.start_ticking()
 
     def on_progress(self, msg) -> None:
+        """Note the sim time the recorder has written (``/recorder/progress``); publish the steps it releases."""
         self.publish(self.clock.on_progress(int(round(stamp_seconds(msg) / self.dt))))
 
     def destroy_node(self):
+        """Log how many ``/clock`` messages were published; destroy the node."""
         if hasattr(self, 'clock'):  # not when the constructor failed half-way
             rt.log_on_exit(self, f'published: {topics.CLOCK.name} {self.clock.step + 1}')
         return super().destroy_node()
 
 
 def main(args=None):
+    """Console script ``lockstep_clock_node``: run :class:`ClockNode` until done; status 1 if the team never came up."""
     rt.run_node(ClockNode, args, until=lambda node: node.done,
                 exit_code=lambda node: 1 if node.failed else 0)
 

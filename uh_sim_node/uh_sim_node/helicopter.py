@@ -107,6 +107,7 @@ class SinusoidalDisturbance:
         self._zero = all(a == 0.0 for a in self.amplitude)
 
     def __call__(self, t: float) -> tuple:
+        """Return the force at time ``t`` s: 3 floats, N, inertial frame."""
         if self._zero:
             return (0.0, 0.0, 0.0)
         a, w, ph = self.amplitude, self.frequency, self.phase

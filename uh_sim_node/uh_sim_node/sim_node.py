@@ -15,13 +15,12 @@ Clock modes (docs/architecture.md#clock-modes):
 
 Until its first command arrives the plant holds the hover trim.
 
-Bad input never stops the plant: a command carrying NaN/inf or another UH's id is rejected (logged,
-at most once a second, with a count) and the last valid command is kept; in realtime a command
-older than the one held is ignored (reordered, or the history a restarted controller replays), and a
-command older than ``stale_timeout`` is reported once (the plant holds it, zero-order hold) until
-commands come again. A fault injection with rho outside [0, 1], a non-finite value, an unknown
-channel or another UH's id is rejected with the reason in the log and the plant keeps its faults;
-rho = 0 (stuck actuator) is accepted with a warning that the controller cannot compensate it.
+Bad input never stops the plant: a command carrying NaN/inf or another UH's id is rejected (logged, at most once a
+second, with a count) and the last valid command is kept; in realtime a command older than the one held is ignored
+(reordered, or the history a restarted controller replays), and a command older than ``stale_timeout`` is reported
+once (the plant holds it, zero-order hold) until commands come again. A fault injection with rho outside [0, 1], a
+non-finite value, an unknown channel or another UH's id is rejected with the reason in the log and the plant keeps
+its faults; rho = 0 (stuck actuator) is accepted with a warning that the controller cannot compensate it.
 """
 from __future__ import annotations
 
@@ -85,6 +84,7 @@ class SimNode(rt.Node):
 
     # -- inputs -----------------------------------------------------------------------------------
     def on_clock(self, msg) -> None:
+        """On ``/clock`` k: lockstep, publish state 0 once; realtime, integrate up to step k and publish."""
         k = clock_step(msg, self.dt)
         if self.mode == 'lockstep':
             if k == 0 and self.published_step < 0:
@@ -97,6 +97,7 @@ class SimNode(rt.Node):
             self._publish_state()
 
     def on_command(self, msg) -> None:
+        """Take a command (invalid: rejected, the last valid kept); lockstep: integrate to k+1 and publish."""
         try:
             u = msg_to_command(msg, expected_id=self.uh_id)
         except WireError as exc:
@@ -168,10 +169,7 @@ class SimNode(rt.Node):
             self._publish_views(t)
 
     def _publish_views(self, t: float) -> None:
-        """Publish the state for generic tools (docs/visualization.md).
-
-        /tf and odom every ``views.pose_every`` steps, /diagnostics every ``views.diagnostics_every`` steps.
-        """
+        """Publish /tf and odom every ``views.pose_every`` steps, /diagnostics every ``views.diagnostics_every``."""
         x = self.plant.x
         if self.step % self.views.pose_every == 0:
             pose = frames.pose_of_state(x)
@@ -184,6 +182,7 @@ class SimNode(rt.Node):
             self.published.add(topics.DIAGNOSTICS.name)
 
     def destroy_node(self):
+        """Log the published counts (and late or rejected commands); destroy the node."""
         if hasattr(self, 'published'):  # not when the constructor failed half-way
             rt.log_on_exit(
                 self, self.published.line()
@@ -193,6 +192,7 @@ class SimNode(rt.Node):
 
 
 def main(args=None):
+    """Run :class:`SimNode` (the ``sim_node`` console script is :func:`uh_sim_node.entry_points.sim_node`)."""
     rt.run_node(SimNode, args)
 
 

@@ -18,6 +18,11 @@ __all__ = ['VirtualLeaderNode', 'main']
 
 
 class VirtualLeaderNode(rt.Node):
+    """The virtual leader (see the module docstring); parameters: the run parameters.
+
+    Keyword arguments go to ``Node`` (e.g. ``cli_args``, ``parameter_overrides``).
+    """
+
     def __init__(self, **kwargs):
         super().__init__('virtual_leader', **kwargs)
         run = declare_run_parameters(self, per_uh=False)
@@ -33,6 +38,10 @@ class VirtualLeaderNode(rt.Node):
         self.create_subscription(m.Clock, topics.CLOCK.name, self.on_clock, qos)
 
     def on_clock(self, msg) -> None:
+        """Publish the reference of every step up to ``/clock``'s step k (at most the last step).
+
+        Also the ``virtual_leader`` frame on ``/tf`` every ``pose_every`` steps when the views are on.
+        """
         k = min(clock_step(msg, self.dt), self.last_step)
         # publish every step up to k (a realtime clock may skip ticks; lockstep never does)
         while self.published_step < k:
@@ -49,12 +58,14 @@ class VirtualLeaderNode(rt.Node):
                 self.published.add(topics.TF.name)
 
     def destroy_node(self):
+        """Log the published counts; destroy the node."""
         if hasattr(self, 'published'):  # not when the constructor failed half-way
             rt.log_on_exit(self, self.published.line())
         return super().destroy_node()
 
 
 def main(args=None):
+    """Console script ``virtual_leader_node``: run :class:`VirtualLeaderNode` (:func:`uh_runtime.run_node`)."""
     rt.run_node(VirtualLeaderNode, args)
 
 

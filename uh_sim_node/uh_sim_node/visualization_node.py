@@ -56,6 +56,12 @@ def _yaw_pitch_roll_quaternion(phi, theta, psi):
 
 
 class VisualizationNode(rt.Node):
+    """The ``visualization`` node (see the module docstring).
+
+    Parameters (ROS): the run parameters, ``period_steps`` and ``trail_length``. Keyword arguments go
+    to ``Node`` (e.g. ``cli_args``, ``parameter_overrides``).
+    """
+
     def __init__(self, **kwargs):
         super().__init__('visualization', **kwargs)
         run = declare_run_parameters(self, per_uh=False)
@@ -82,6 +88,7 @@ class VisualizationNode(rt.Node):
         self.create_subscription(m.Reference, topics.REFERENCE.name, self.on_reference, qos)
 
     def on_state(self, uh_id: int, msg) -> None:
+        """Keep UH ``uh_id``'s state of a marker step (every ``period_steps``); publish the step once complete."""
         k = int(msg.step)
         if k % self.period:
             return
@@ -93,6 +100,7 @@ class VisualizationNode(rt.Node):
         self._publish_ready(k)
 
     def on_reference(self, msg) -> None:
+        """Keep the reference position of a marker step; publish the step once complete."""
         k = int(msg.step)
         if k % self.period == 0:
             self.references[k] = np.array([msg.position.x, msg.position.y, msg.position.z])
@@ -146,7 +154,7 @@ class VisualizationNode(rt.Node):
         if len(leaders) >= 3:
             hull = marker('hull', 0, 11, LEADER_RGBA[:3] + (0.2,), (1, 1, 1))  # TRIANGLE_LIST
             first = states[leaders[0]]
-            hull.points = [_point(p) for a, b in zip(leaders[1:-1], leaders[2:])
+            hull.points = [_point(p) for a, b in zip(leaders[1:-1], leaders[2:], strict=True)
                            for p in (first, states[a], states[b])]
         lead_pos = np.array([states[i][X_P_SLICE] for i in leaders])
         for row, k_id in enumerate(followers):
@@ -165,6 +173,7 @@ class VisualizationNode(rt.Node):
 
 
 def main(args=None):
+    """Console script ``visualization_node``: run :class:`VisualizationNode` (:func:`uh_runtime.run_node`)."""
     rt.run_node(VisualizationNode, args)
 
 

@@ -32,6 +32,10 @@ def compile_all() -> dict:
 
 
 def main(argv=None) -> int:
+    """Compile every kernel, then build the ahead-of-time compiled module (unless ``--no-compiled-module``); return 0.
+
+    A module that cannot be built is a warning on stderr: the nodes then run numba's kernels.
+    """
     parser = argparse.ArgumentParser(
         prog='python -m uh_team.compile_kernels',
         description='Compile the numba kernels of the helicopter model, the control law, the fault isolator and '

@@ -35,6 +35,7 @@ PROG = 'uh-simulate'
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``uh-simulate``."""
     p = ArgumentParser(
         prog=PROG,
         description='Run a UH team scenario in one process with the per-UH composite-learning '

@@ -196,7 +196,7 @@ def team_arrays(ids, controllers, plants, impairments=None, dt: float | None = N
     count = np.zeros(n, dtype=np.int64)
     nb_weights = np.zeros((n, max_nb))
     nb_offsets = np.zeros((n, max_nb, 3))
-    for c, (controller, arrays) in enumerate(zip(controllers, ctl)):
+    for c, (controller, arrays) in enumerate(zip(controllers, ctl, strict=True)):
         m = len(controller.neighbours)
         count[c] = m
         hears[c, :m] = [row[int(j)] for j in controller.neighbours]

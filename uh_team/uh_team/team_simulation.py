@@ -245,7 +245,7 @@ def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress,
     controller receives through a :class:`~uh_controller_node.impairments.ReceivedStates`, as a node does.
     """
     col = {i: c for c, i in enumerate(ids)}
-    received = ([ReceivedStates(i, ctl.neighbours, impairments, dt) for i, ctl in zip(ids, controllers)]
+    received = ([ReceivedStates(i, ctl.neighbours, impairments, dt) for i, ctl in zip(ids, controllers, strict=False)]
                 if impairments is not None else None)
     hears = [tuple(col[j] for j in ctl.neighbours) for ctl in controllers]
     linked = [ctl.leader_link > 0.0 for ctl in controllers]

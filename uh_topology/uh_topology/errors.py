@@ -148,7 +148,10 @@ class FollowerOffsetError(TopologyError):
 
 
 class UnreachableLeaderError(TopologyError):
-    """Assumption 1 fails: no directed path from the virtual leader to these leaders."""
+    """Assumption 1 fails: no directed path from the virtual leader to the leaders ``ids``.
+
+    Other arguments as :class:`ConfigError`'s (message, path, source, line).
+    """
 
     def __init__(self, message: str, *, ids=(), **kwargs):
         self.ids = tuple(ids)
@@ -156,7 +159,10 @@ class UnreachableLeaderError(TopologyError):
 
 
 class UnreachableFollowerError(TopologyError):
-    """Assumption 1 fails: no directed path from any leader to these followers."""
+    """Assumption 1 fails: no directed path from any leader to the followers ``ids``.
+
+    Other arguments as :class:`ConfigError`'s (message, path, source, line).
+    """
 
     def __init__(self, message: str, *, ids=(), **kwargs):
         self.ids = tuple(ids)

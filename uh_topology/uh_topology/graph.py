@@ -127,11 +127,13 @@ def unreachable_followers(adjacency, leaders, followers) -> list:
 
 
 def unreachable_leader_message(ids) -> str:
+    """Return the error text for leaders ``ids`` without a directed path from the virtual leader (Assumption 1)."""
     return (f'no directed path from the virtual leader (id 0) to leader(s) {list(ids)}; every leader '
             f'must hear the virtual leader directly (reference_links) or through other leaders (edges)')
 
 
 def unreachable_follower_message(ids) -> str:
+    """Return the error text for followers ``ids`` without a directed path from any leader (Assumption 1)."""
     return (f'no directed path from any leader to follower(s) {list(ids)}; every follower must hear a '
             f'leader directly or through other followers (edges)')
 

@@ -91,7 +91,7 @@ def read_impairments(ctx: ConfigContext, raw, adjacency: np.ndarray, known: set,
     ctx.mapping(raw, path, (), key_names(table), what='an impairments mapping')
     scalars = {key.name: read_key(ctx, key, raw, path) for key in table if key.kind is not None and not key.per_link}
     link_keys = [key for key in table if key.per_link]
-    edges = [(int(i), int(j) + 1) for i, j in zip(*np.nonzero(adjacency[:, 1:] > 0.0))]   # (uh, hears)
+    edges = [(int(i), int(j) + 1) for i, j in zip(*np.nonzero(adjacency[:, 1:] > 0.0), strict=True)]   # (uh, hears)
     per_link = {key.name: dict.fromkeys(edges, read_key(ctx, key, raw, path)) for key in link_keys}
     _read_links(ctx, raw.get('links') or [], link_keys, per_link, set(edges), known)
     noise_raw = raw.get('noise') or {}

@@ -95,6 +95,7 @@ class DisturbanceSpec:
 
     @property
     def is_zero(self) -> bool:
+        """Whether every amplitude is 0 (no disturbance at all)."""
         return not np.any(self.amplitude != 0.0)
 
 
@@ -171,6 +172,7 @@ class Scenario:
 
     @property
     def num_uhs(self) -> int:
+        """Number of UHs ``N + M`` (leaders and followers)."""
         return len(self.leaders) + len(self.followers)
 
     @property
@@ -184,6 +186,7 @@ class Scenario:
         return int(i)
 
     def is_leader(self, i: int) -> bool:
+        """Return whether UH ``i`` is a leader; :class:`~uh_topology.errors.UnknownIdError` for an id not in 1..N+M."""
         return self._check_id(i) in self.leaders
 
     def role(self, i: int) -> str:

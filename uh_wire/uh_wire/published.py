@@ -9,7 +9,10 @@ __all__ = ['PublishedCounts']
 
 
 class PublishedCounts:
-    """Messages published per fully qualified topic name, in the order the topics were first counted."""
+    """Messages published per fully qualified topic name, in the order the topics were first counted.
+
+    ``topic_names`` are counted from 0 at once, so the line names them even if nothing is published.
+    """
 
     def __init__(self, *topic_names: str):
         self.counts: dict[str, int] = {name: 0 for name in topic_names}

@@ -31,6 +31,13 @@ class RunConfigError(ValueError):
 
 @dataclass(frozen=True)
 class RunConfig:
+    """The run parameters of a node, as :func:`declare_run_parameters` reads them.
+
+    ``scenario`` (the loaded :class:`uh_topology.scenario.Scenario`), ``clock_mode`` (``lockstep`` or
+    ``realtime``), ``dt`` (control period, s), ``last_step`` (index K of the last step: states and
+    commands 0..K) and ``uh_id`` (None for a node that is not one UH's).
+    """
+
     scenario: object        # uh_topology.scenario.Scenario
     clock_mode: str
     dt: float               # control period, s

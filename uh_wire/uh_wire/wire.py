@@ -63,6 +63,7 @@ def _floats(values) -> list:
 
 
 def vector3(values) -> object:
+    """Return a ``geometry_msgs/Vector3`` of the first three values of a numpy array or sequence."""
     if isinstance(values, np.ndarray):
         values = values.tolist()
     return m.Vector3(x=float(values[0]), y=float(values[1]), z=float(values[2]))

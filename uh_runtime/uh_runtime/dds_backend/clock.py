@@ -30,15 +30,18 @@ class Duration:
 
     @property
     def nanoseconds(self) -> int:
+        """The duration in integer nanoseconds, as rclpy's ``Duration.nanoseconds``."""
         return self._ns
 
     def to_msg(self):
+        """Return a ``builtin_interfaces/msg/Duration`` (sec, nanosec), as rclpy's ``Duration.to_msg`` does."""
         msg = _messages.dds_message('builtin_interfaces/msg/Duration')()
         msg.sec, msg.nanosec = divmod(self._ns, 1_000_000_000)
         return msg
 
     @classmethod
     def from_msg(cls, msg):
+        """Return the Duration of a ``builtin_interfaces/msg/Duration``, as rclpy's ``Duration.from_msg`` does."""
         return cls(seconds=msg.sec, nanoseconds=msg.nanosec)
 
     def __eq__(self, other):
@@ -71,10 +74,12 @@ class Time:
 
     @property
     def nanoseconds(self) -> int:
+        """The time in integer nanoseconds since its clock's epoch, as rclpy's ``Time.nanoseconds``."""
         return self._ns
 
     @property
     def clock_type(self):
+        """The :class:`ClockType` of the time, as rclpy's ``Time.clock_type``."""
         return self._clock_type
 
     def seconds_nanoseconds(self):
@@ -82,12 +87,14 @@ class Time:
         return divmod(self._ns, 1_000_000_000)
 
     def to_msg(self):
+        """Return a ``builtin_interfaces/msg/Time`` (sec, nanosec), as rclpy's ``Time.to_msg`` does."""
         msg = _messages.dds_message('builtin_interfaces/msg/Time')()
         msg.sec, msg.nanosec = divmod(self._ns, 1_000_000_000)
         return msg
 
     @classmethod
     def from_msg(cls, msg, clock_type=ClockType.ROS_TIME):
+        """Return the Time of a ``builtin_interfaces/msg/Time`` (ROS time by default), as rclpy's ``Time.from_msg``."""
         return cls(seconds=msg.sec, nanoseconds=msg.nanosec, clock_type=clock_type)
 
     def _check(self, other):
@@ -139,13 +146,14 @@ class Time:
 
 
 class Clock:
-    """``rclpy.clock.Clock``: system, steady or ROS time."""
+    """``rclpy.clock.Clock(clock_type=ClockType.SYSTEM_TIME)``: system, steady or ROS time."""
 
     def __init__(self, *, clock_type=ClockType.SYSTEM_TIME):
         self._clock_type = clock_type
 
     @property
     def clock_type(self):
+        """The :class:`ClockType` of the clock, as rclpy's ``Clock.clock_type``."""
         return self._clock_type
 
     def _now_ns(self) -> int:
@@ -154,6 +162,7 @@ class Clock:
         return time.time_ns()
 
     def now(self) -> Time:
+        """Return the current :class:`Time` of the clock, as rclpy's ``Clock.now`` does."""
         return Time(nanoseconds=self._now_ns(), clock_type=self._clock_type)
 
 
@@ -168,6 +177,7 @@ class ROSClock(Clock):
 
     @property
     def ros_time_is_active(self) -> bool:
+        """Whether the clock gives sim time (the latest ``/clock``) instead of system time, as in rclpy."""
         return self._active
 
     def _set_ros_time_is_active(self, active: bool):

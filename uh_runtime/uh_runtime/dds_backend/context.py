@@ -31,7 +31,7 @@ DISCOVERY_TOPIC = 'ros_discovery_info'
 
 
 class NotInitializedException(Exception):
-    """A node is created before ``init()`` or after shutdown."""
+    """A node is created before ``init()`` or after shutdown; ``what`` names what was attempted."""
 
     def __init__(self, what='cannot create node'):
         super().__init__(f'{what}: init() has not been called or the context was shut down')
@@ -62,6 +62,12 @@ class Context:
 
     # -- lifecycle --------------------------------------------------------------------------
     def init(self, args=None, *, domain_id=None):
+        """Initialise the context, as rclpy's ``Context.init`` does.
+
+        ``args`` (``sys.argv`` when None) give the ``--ros-args`` (log levels are applied now); the domain
+        is ``domain_id``, else ``ROS_DOMAIN_ID``, else 0. SIGTERM then shuts the context down, as in rclpy.
+        Raise RuntimeError when already initialised and ValueError for a domain outside 0..MAX_DOMAIN_ID.
+        """
         with self._lock:
             if self._ok:
                 raise RuntimeError('Context.init() must only be called once')
@@ -81,9 +87,14 @@ class Context:
         shut_down_on_sigterm(self)
 
     def ok(self) -> bool:
+        """Return whether the context is initialised and not shut down, as rclpy's ``Context.ok`` does."""
         return self._ok
 
     def shutdown(self):
+        """Shut down: run the on-shutdown callbacks, destroy the nodes and delete the DDS participant.
+
+        As rclpy's ``Context.shutdown``: RuntimeError when the context is not running.
+        """
         with self._lock:
             if not self._ok:
                 raise RuntimeError('Context must be initialized before it can be shutdown')
@@ -116,18 +127,25 @@ class Context:
             dp.__del__()  # delete the participant now, so peers see it leave
 
     def on_shutdown(self, callback):
+        """Register ``callback()`` to run at shutdown, as rclpy's ``Context.on_shutdown`` does."""
         self._on_shutdown.append(callback)
 
     def get_domain_id(self) -> int:
+        """Return the DDS domain id, as rclpy's ``Context.get_domain_id`` does."""
         return self._domain_id
 
     @property
     def arguments(self) -> _args.ParsedArguments:
+        """The parsed ROS arguments of :meth:`init` (remaps, parameters, log levels, enclave)."""
         return self._args
 
     # -- DDS entities -----------------------------------------------------------------------
     @property
     def participant(self):
+        """The process's DDS participant, created on first use with its publisher, subscriber and guard condition.
+
+        Raise :class:`NotInitializedException` when the context is not running.
+        """
         with self._lock:
             if self._dp is None:
                 if not self._ok:
@@ -174,15 +192,18 @@ class Context:
 
     @property
     def gid(self) -> bytes:
-        self.participant
+        """The participant's 16-byte GUID (creates the participant if needed)."""
+        _ = self.participant   # the property creates the participant and its GUID
         return self._gid
 
     @property
     def guard(self):
-        self.participant
+        """The guard condition that wakes executors waiting on this context (creates the participant if needed)."""
+        _ = self.participant   # the property creates the participant and its guard condition
         return self._guard
 
     def wake(self):
+        """Trigger the guard condition so that waiting executors re-check their entities (no-op before DDS is up)."""
         guard = self._guard
         if guard is not None:
             try:
@@ -221,6 +242,7 @@ class Context:
         return info
 
     def publish_discovery_info(self):
+        """Write :meth:`discovery_info` on ``ros_discovery_info`` while the context runs."""
         with self._lock:
             if self._ok and self._discovery_writer is not None:
                 self._discovery_writer.write(self.discovery_info())
@@ -235,6 +257,7 @@ _default_context = Context()
 
 
 def get_default_context() -> Context:
+    """Return the process's default :class:`Context`, as ``rclpy.utilities.get_default_context`` does."""
     return _default_context
 
 
@@ -244,12 +267,15 @@ def init(*, args=None, context=None, domain_id=None, signal_handler_options=None
 
 
 def ok(*, context=None) -> bool:
+    """Return whether ``context`` (the default one if None) runs, as ``rclpy.ok`` does."""
     return (context or _default_context).ok()
 
 
 def shutdown(*, context=None):
+    """Shut down ``context`` (the default one if None), as ``rclpy.shutdown`` does."""
     (context or _default_context).shutdown()
 
 
 def try_shutdown(*, context=None):
+    """Shut down ``context`` (the default one if None) unless already done, as ``rclpy.try_shutdown`` does."""
     (context or _default_context).try_shutdown()

@@ -21,7 +21,11 @@ _PAD4 = [b'', b'\0', b'\0\0', b'\0\0\0']
 
 
 class Publisher:
-    """``rclpy.publisher.Publisher``: ``publish(msg)``, ``topic_name``, ``get_subscription_count()``."""
+    """``rclpy.publisher.Publisher``: ``publish(msg)``, ``topic_name``, ``get_subscription_count()``.
+
+    Made by :meth:`Node.create_publisher <uh_runtime.dds_backend.node.Node.create_publisher>` around
+    its DDS ``writer``.
+    """
 
     def __init__(self, node, msg_type, topic_name, qos_profile, writer):
         self._node = node
@@ -47,6 +51,7 @@ class Publisher:
 
     @property
     def topic(self):
+        """The resolved topic name, as rclpy's ``Publisher.topic``."""
         return self.topic_name
 
     def publish(self, msg):
@@ -92,11 +97,16 @@ class Publisher:
             return False
 
     def destroy(self):
+        """Destroy the publisher through its node, as rclpy's ``Publisher.destroy`` does."""
         self._node.destroy_publisher(self)
 
 
 class Subscription:
-    """``rclpy.subscription.Subscription``; the callback gets a message (or CDR bytes if ``raw``)."""
+    """``rclpy.subscription.Subscription``; the callback gets a message (or CDR bytes if ``raw``).
+
+    Made by :meth:`Node.create_subscription <uh_runtime.dds_backend.node.Node.create_subscription>`
+    around its DDS ``reader``.
+    """
 
     def __init__(self, node, msg_type, topic_name, callback, qos_profile, reader, raw=False):
         from cyclonedds.core import InstanceState, ReadCondition, SampleState, ViewState
@@ -121,9 +131,14 @@ class Subscription:
 
     @property
     def topic(self):
+        """The resolved topic name, as rclpy's ``Subscription.topic``."""
         return self.topic_name
 
     def get_publisher_count(self) -> int:
+        """Return the number of matched DDS writers plus the publishers of this process feeding it directly.
+
+        As rclpy's ``Subscription.get_publisher_count``.
+        """
         local = self._node._context._intra
         return len(self._reader.get_matched_publications()) + (
             local.local_publisher_count(self) if local is not None else 0)
@@ -148,11 +163,17 @@ class Subscription:
         return out
 
     def destroy(self):
+        """Destroy the subscription through its node, as rclpy's ``Subscription.destroy`` does."""
         self._node.destroy_subscription(self)
 
 
 class Timer:
-    """``rclpy.timer.Timer`` on a node clock (wall or sim time)."""
+    """``rclpy.timer.Timer`` on a node clock (wall or sim time).
+
+    Made by :meth:`Node.create_timer <uh_runtime.dds_backend.node.Node.create_timer>`: ``callback()``
+    every ``period_ns`` ns of ``clock``, from now (cancelled until :meth:`reset` unless ``autostart``);
+    ValueError for a period that is not positive.
+    """
 
     def __init__(self, node, callback, period_ns, clock, autostart=True):
         if period_ns <= 0:
@@ -167,21 +188,26 @@ class Timer:
 
     @property
     def clock(self):
+        """The clock the timer runs on, as rclpy's ``Timer.clock``."""
         return self._clock
 
     def _is_sim(self):
         return isinstance(self._clock, ROSClock) and self._clock.ros_time_is_active
 
     def is_canceled(self):
+        """Return whether the timer is cancelled, as rclpy's ``Timer.is_canceled`` does."""
         return self._canceled
 
     def is_ready(self):
+        """Return whether the timer runs and its next call is due on its clock, as rclpy's ``Timer.is_ready`` does."""
         return not self._canceled and self._clock._now_ns() >= self._next
 
     def cancel(self):
+        """Stop the timer until :meth:`reset`, as rclpy's ``Timer.cancel`` does."""
         self._canceled = True
 
     def reset(self):
+        """Restart the timer, a full period from now (waking a spinning executor), as rclpy's ``Timer.reset`` does."""
         self._canceled = False
         self._next = self._clock._now_ns() + self.timer_period_ns
         # a spinning executor recomputes its wait from the timers at every round: wake it (cheap)
@@ -189,11 +215,13 @@ class Timer:
         self._node._context.wake()
 
     def time_until_next_call(self):
+        """Return the ns until the next call (negative when overdue), None when cancelled; as rclpy's."""
         if self._canceled:
             return None
         return self._next - self._clock._now_ns()
 
     def time_since_last_call(self):
+        """Return the ns since the last call on the timer's clock, None before the first call."""
         return None if self._last_call is None else self._clock._now_ns() - self._last_call
 
     def _fire_if_due(self) -> bool:
@@ -215,4 +243,5 @@ class Timer:
             self._next = now_ns + self.timer_period_ns
 
     def destroy(self):
+        """Destroy the timer through its node, as rclpy's ``Timer.destroy`` does."""
         self._node.destroy_timer(self)

@@ -69,7 +69,8 @@ class Executor:
     condition; ``spin_once`` blocks until data arrives, the guard is triggered (new entity,
     shutdown, signal) or the next wall-clock timer is due, then takes every available sample of
     every ready subscription (the wait set names them) in one batch each and runs the callbacks,
-    in the order of the nodes and of their subscriptions, then the due timers.
+    in the order of the nodes and of their subscriptions, then the due timers. It spins on
+    ``context`` (default: the process's default context).
     """
 
     def __init__(self, *, context=None):
@@ -87,9 +88,11 @@ class Executor:
 
     @property
     def context(self):
+        """The context whose shutdown ends the spinning, as rclpy's ``Executor.context``."""
         return self._context
 
     def add_node(self, node) -> bool:
+        """Add ``node`` (False if it is already added), as rclpy's ``Executor.add_node`` does."""
         with self._lock:
             if node in self._nodes:
                 return False
@@ -100,6 +103,7 @@ class Executor:
         return True
 
     def remove_node(self, node):
+        """Stop running ``node``'s callbacks, as rclpy's ``Executor.remove_node`` does."""
         with self._lock:
             if node in self._nodes:
                 # the read conditions are detached lazily at the next wait, so a node that is
@@ -109,6 +113,7 @@ class Executor:
                 self._dirty = True
 
     def get_nodes(self):
+        """Return the nodes added, as rclpy's ``Executor.get_nodes`` does."""
         return list(self._nodes)
 
     def _entities_changed(self):
@@ -234,12 +239,20 @@ class Executor:
                 timer._fire_if_due()
 
     def spin(self):
+        """Run callbacks until the context or the executor is shut down, as rclpy's ``Executor.spin`` does.
+
+        Raise :class:`ExternalShutdownException` when the context was shut down.
+        """
         while self._context.ok() and not self._is_shutdown:
             self.spin_once()
         if not self._context.ok():
             raise ExternalShutdownException()
 
     def spin_until_future_complete(self, future, timeout_sec=None):
+        """Run callbacks until ``future`` is done, ``timeout_sec`` (wall seconds) passed or shutdown.
+
+        As rclpy's ``Executor.spin_until_future_complete``; ``None`` waits without limit.
+        """
         end = None if timeout_sec is None else time.monotonic() + timeout_sec
         while self._context.ok() and not future.done():
             remaining = None if end is None else end - time.monotonic()
@@ -248,9 +261,11 @@ class Executor:
             self.spin_once(timeout_sec=remaining)
 
     def wake(self):
+        """Wake the executors waiting on the context (its guard condition), as rclpy's ``Executor.wake`` does."""
         self._context.wake()
 
     def shutdown(self, timeout_sec=None) -> bool:
+        """Stop spinning and remove every node; return True, as rclpy's ``Executor.shutdown`` does (no timeout here)."""
         self._is_shutdown = True
         self._context.wake()
         with self._lock:
@@ -274,7 +289,10 @@ class StaticSingleThreadedExecutor(SingleThreadedExecutor):
 
 
 class MultiThreadedExecutor(Executor):
-    """Accepts ``num_threads`` for rclpy compatibility; callbacks run one at a time in the spinning thread."""
+    """Accepts ``num_threads`` for rclpy compatibility; callbacks run one at a time in the spinning thread.
+
+    ``context`` as :class:`Executor`'s.
+    """
 
     def __init__(self, num_threads=None, *, context=None):
         super().__init__(context=context)
@@ -285,6 +303,7 @@ _global_executor = []
 
 
 def get_global_executor() -> Executor:
+    """Return the process's global :class:`SingleThreadedExecutor` (created on first use), as rclpy does."""
     if not _global_executor:
         _global_executor.append(SingleThreadedExecutor())
     return _global_executor[0]
@@ -312,6 +331,7 @@ def spin_once(node, *, executor=None, timeout_sec=None):
 
 
 def spin_until_future_complete(node, future, executor=None, timeout_sec=None):
+    """``rclpy.spin_until_future_complete``: spin ``node`` until ``future`` is done or ``timeout_sec`` s passed."""
     executor = get_global_executor() if executor is None else executor
     try:
         executor.add_node(node)

@@ -20,7 +20,10 @@ _log_lock = threading.Lock()
 
 
 class RcutilsLogger:
-    """``rclpy.impl.rcutils_logger.RcutilsLogger`` subset: ``[LEVEL] [t] [name]: message`` on stderr."""
+    """``rclpy.impl.rcutils_logger.RcutilsLogger`` subset: ``[LEVEL] [t] [name]: message`` on stderr.
+
+    ``name`` is the dotted logger name ('' for the root logger).
+    """
 
     def __init__(self, name=''):
         self.name = name
@@ -31,16 +34,19 @@ class RcutilsLogger:
         self._rosout = None
 
     def get_child(self, name):
+        """Return the logger ``<name>.<child>``, publishing on the same ``/rosout``, as rclpy's ``get_child`` does."""
         child = RcutilsLogger(f'{self.name}.{name}' if self.name else name)
         child._rosout = self._rosout
         return child
 
     def set_level(self, level):
+        """Set this logger's level (a level name or its severity number 10-50), as rclpy's ``set_level`` does."""
         name = level if isinstance(level, str) else {10: 'DEBUG', 20: 'INFO', 30: 'WARN',
                                                       40: 'ERROR', 50: 'FATAL'}[int(level)]
         _log_levels[self.name] = _SEVERITY[name.upper()]
 
     def get_effective_level(self):
+        """Return the severity (10-50) that applies: the logger's own level, else its nearest dotted parent's."""
         name = self.name
         while True:
             if name in _log_levels:
@@ -50,9 +56,15 @@ class RcutilsLogger:
             name = name.rsplit('.', 1)[0]
 
     def is_enabled_for(self, severity):
+        """Return whether a record of level name ``severity`` would be printed, as rclpy's ``is_enabled_for``."""
         return _SEVERITY[severity] >= self.get_effective_level()
 
     def log(self, message, severity, *, once=False, throttle_duration_sec=None, skip_first=False, **_):
+        """Print ``message`` at level ``severity`` (and publish it on ``/rosout``), as rclpy's ``log`` does.
+
+        ``once``, ``throttle_duration_sec`` (wall seconds) and ``skip_first`` apply per call site; other
+        keyword arguments are accepted and ignored. Return whether the record was printed.
+        """
         severity = 'WARN' if severity == 'WARNING' else severity
         if not self.is_enabled_for(severity):
             return False
@@ -83,20 +95,25 @@ class RcutilsLogger:
         return True
 
     def debug(self, message, **kw):
+        """Log ``message`` at DEBUG (keyword arguments as :meth:`log`); return whether it was printed."""
         return self.log(message, 'DEBUG', **kw)
 
     def info(self, message, **kw):
+        """Log ``message`` at INFO (keyword arguments as :meth:`log`); return whether it was printed."""
         return self.log(message, 'INFO', **kw)
 
     def warning(self, message, **kw):
+        """Log ``message`` at WARN (keyword arguments as :meth:`log`); return whether it was printed."""
         return self.log(message, 'WARN', **kw)
 
     warn = warning
 
     def error(self, message, **kw):
+        """Log ``message`` at ERROR (keyword arguments as :meth:`log`); return whether it was printed."""
         return self.log(message, 'ERROR', **kw)
 
     def fatal(self, message, **kw):
+        """Log ``message`` at FATAL (keyword arguments as :meth:`log`); return whether it was printed."""
         return self.log(message, 'FATAL', **kw)
 
 

@@ -32,7 +32,11 @@ __all__ = ['Node']
 
 
 class Node:
-    """``rclpy.node.Node`` on Cyclone DDS (the subset listed in docs/runtime.md)."""
+    """``rclpy.node.Node`` on Cyclone DDS (the subset listed in docs/runtime.md).
+
+    The constructor takes rclpy's arguments with rclpy's meaning; ``enable_logger_service`` is
+    accepted and ignored. Raises :class:`NotInitializedException` when the context is not running.
+    """
 
     PARAM_REL_TOL = 1e-6
 
@@ -94,7 +98,7 @@ class Node:
         # clock and sim time (rclpy's TimeSource)
         self._clock = ROSClock()
         self._clock_sub = None
-        self._context.participant  # create the participant before any entity
+        _ = self._context.participant  # create the participant before any entity
         self._context._add_node(self)
         # /rosout and /parameter_events (rclpy creates both before declaring use_sim_time)
         rosout_logs = parsed.rosout_logs and (not use_global_arguments or self._context.arguments.rosout_logs)
@@ -118,25 +122,32 @@ class Node:
     # -- names ------------------------------------------------------------------------------
     @property
     def context(self):
+        """The :class:`~uh_runtime.dds_backend.context.Context` the node belongs to, as rclpy's ``Node.context``."""
         return self._context
 
     @property
     def executor(self):
+        """The executor the node was added to (the first if several), None if none; as rclpy's ``Node.executor``."""
         return next(iter(self._executors), None)
 
     def get_name(self) -> str:
+        """Return the node's name after remapping, as rclpy's ``Node.get_name`` does."""
         return self._name
 
     def get_namespace(self) -> str:
+        """Return the node's absolute namespace (``/`` when none), as rclpy's ``Node.get_namespace`` does."""
         return self._namespace
 
     def get_fully_qualified_name(self) -> str:
+        """Return ``<namespace>/<name>``, as rclpy's ``Node.get_fully_qualified_name`` does."""
         return f"{self._namespace.rstrip('/')}/{self._name}"
 
     def get_logger(self):
+        """Return the node's logger (named ``<namespace parts>.<name>``), as rclpy's ``Node.get_logger`` does."""
         return self._logger
 
     def get_clock(self):
+        """Return the node's ROS clock (sim time while ``use_sim_time`` is set), as rclpy's ``Node.get_clock`` does."""
         return self._clock
 
     def resolve_topic_name(self, topic, *, only_expand=False) -> str:
@@ -172,6 +183,7 @@ class Node:
 
     def create_publisher(self, msg_type, topic, qos_profile, *, callback_group=None,
                          event_callbacks=None, qos_overriding_options=None, publisher_class=None):
+        """Create a publisher of ``msg_type`` on ``topic``, as rclpy does (the keyword-only options are ignored)."""
         from cyclonedds.pub import DataWriter
         name, profile, intra, dds_topic, dds_qos = self._endpoint(msg_type, topic, qos_profile)
         pub = Publisher(self, msg_type, name, profile, DataWriter(self._context._pub, dds_topic, qos=dds_qos))
@@ -183,6 +195,7 @@ class Node:
 
     def create_subscription(self, msg_type, topic, callback, qos_profile, *, callback_group=None,
                             event_callbacks=None, qos_overriding_options=None, raw=False):
+        """Create a subscription, as rclpy does; with ``raw`` the callback gets CDR bytes (other options ignored)."""
         from cyclonedds.sub import DataReader
         name, profile, intra, dds_topic, dds_qos = self._endpoint(msg_type, topic, qos_profile)
         reader = DataReader(self._context._sub, dds_topic, qos=dds_qos)
@@ -207,6 +220,7 @@ class Node:
         return service
 
     def destroy_service(self, service) -> bool:
+        """Destroy ``service`` (False if it is not the node's), as rclpy's ``Node.destroy_service`` does."""
         if service not in self.services:
             return False
         self.services.remove(service)
@@ -235,6 +249,7 @@ class Node:
 
     def create_timer(self, timer_period_sec, callback, callback_group=None, clock=None,
                      autostart=True):
+        """Call ``callback`` every ``timer_period_sec`` s of ``clock`` (default: the node's), as rclpy's timer."""
         timer = Timer(self, callback, int(round(float(timer_period_sec) * 1e9)),
                       clock or self._clock, autostart)
         self.timers.append(timer)
@@ -242,6 +257,7 @@ class Node:
         return timer
 
     def destroy_publisher(self, publisher) -> bool:
+        """Destroy ``publisher`` (False if it is not the node's), as rclpy's ``Node.destroy_publisher`` does."""
         if publisher not in self.publishers:
             return False
         self.publishers.remove(publisher)
@@ -252,6 +268,7 @@ class Node:
         return True
 
     def destroy_subscription(self, subscription) -> bool:
+        """Destroy ``subscription`` (False if it is not the node's), as rclpy's ``Node.destroy_subscription`` does."""
         if subscription not in self.subscriptions:
             return False
         self.subscriptions.remove(subscription)
@@ -266,6 +283,7 @@ class Node:
         return True
 
     def destroy_timer(self, timer) -> bool:
+        """Cancel and remove ``timer`` (False if it is not the node's), as rclpy's ``Node.destroy_timer`` does."""
         if timer not in self.timers:
             return False
         self.timers.remove(timer)
@@ -328,16 +346,20 @@ class Node:
         return self._graph().endpoints(name, writers=True)
 
     def get_subscriptions_info_by_topic(self, topic_name, no_mangle=False):
+        """Return ``rclpy``'s list of endpoint infos of the topic's readers, as :meth:`get_publishers_info_by_topic`."""
         name = topic_name if no_mangle else self.resolve_topic_name(topic_name)
         return self._graph().endpoints(name, writers=False)
 
     def get_topic_names_and_types(self, no_demangle=False):
+        """Return sorted ``[(topic name, [type names])]`` of the domain's ROS topics, as rclpy does."""
         return self._graph().topic_names_and_types()
 
     def get_node_names(self):
+        """Return the names of the nodes in the domain (this process's included), as rclpy's ``get_node_names``."""
         return [name for name, _ in self._graph().node_names_and_namespaces()]
 
     def get_node_names_and_namespaces(self):
+        """Return sorted ``(name, namespace)`` of the nodes in the domain (this process's included), as rclpy does."""
         return self._graph().node_names_and_namespaces()
 
     # -- parameters ------------------------------------------------------------------------
@@ -354,6 +376,11 @@ class Node:
                                        ignore_override)[0]
 
     def declare_parameters(self, namespace, parameters, ignore_override=False):
+        """Declare ``parameters`` under ``namespace`` as rclpy does; return the declared :class:`Parameter` objects.
+
+        Each entry is a name or ``(name, value[, descriptor])``, declared as ``<namespace>.<name>`` as by
+        :meth:`declare_parameter`; one ``/parameter_events`` message announces them.
+        """
         declared = []
         for entry in parameters:
             entry = tuple(entry) if isinstance(entry, (tuple, list)) else (entry,)
@@ -416,6 +443,7 @@ class Node:
         return value
 
     def undeclare_parameter(self, name):
+        """Remove parameter ``name`` as rclpy does; raise if it is undeclared or read-only."""
         if name not in self._parameters:
             raise ParameterNotDeclaredException(name, self._parameters)
         if self._descriptors[name].read_only:
@@ -424,9 +452,15 @@ class Node:
         del self._descriptors[name]
 
     def has_parameter(self, name) -> bool:
+        """Return whether parameter ``name`` is declared, as rclpy's ``Node.has_parameter`` does."""
         return name in self._parameters
 
     def get_parameter(self, name) -> Parameter:
+        """Return parameter ``name``, as rclpy's ``Node.get_parameter`` does.
+
+        Raise :class:`ParameterUninitializedException` (statically typed, no value yet) or
+        :class:`ParameterNotDeclaredException` (an unset :class:`Parameter` if undeclared ones are allowed).
+        """
         if name in self._parameters:
             param = self._parameters[name]
             if param.type_ == ParameterType.NOT_SET and self._descriptors[name].type and \
@@ -438,29 +472,40 @@ class Node:
         raise ParameterNotDeclaredException(name, self._parameters)
 
     def get_parameters(self, names):
+        """Return the parameters ``names`` (:meth:`get_parameter` each), as rclpy's ``Node.get_parameters`` does."""
         return [self.get_parameter(n) for n in names]
 
     def get_parameter_or(self, name, alternative_value=None):
+        """Return parameter ``name``, or ``alternative_value`` (an unset :class:`Parameter` if None) if undeclared."""
         if name not in self._parameters:
             return Parameter(name, value=None) if alternative_value is None else alternative_value
         return self._parameters[name]
 
     def get_parameters_by_prefix(self, prefix):
+        """Return ``{name without '<prefix>.': Parameter}`` of the parameters under ``prefix`` ('': all), as rclpy."""
         prefix = prefix + '.' if prefix else ''
         return {n[len(prefix):]: p for n, p in self._parameters.items() if n.startswith(prefix)}
 
     def describe_parameter(self, name):
+        """Return the descriptor of ``name`` as rclpy does (:class:`ParameterNotDeclaredException` if undeclared)."""
         if name not in self._descriptors:
             raise ParameterNotDeclaredException(name, self._parameters)
         return self._descriptors[name]
 
     def describe_parameters(self, names):
+        """Return the descriptors of the parameters ``names``, as rclpy's ``Node.describe_parameters`` does."""
         return [self.describe_parameter(n) for n in names]
 
     def set_parameters(self, parameter_list):
+        """Set each parameter on its own (one :class:`SetParametersResult` each), as rclpy's ``Node.set_parameters``."""
         return [self.set_parameters_atomically([p]) for p in parameter_list]
 
     def set_parameters_atomically(self, parameter_list):
+        """Set ``parameter_list`` all or none, as rclpy's ``Node.set_parameters_atomically`` does.
+
+        Types, descriptors and on-set callbacks must accept every value (the result names the first refusal);
+        then the values are stored and announced and the post-set callbacks run.
+        """
         for param in parameter_list:
             if param.name not in self._parameters:
                 if not self._allow_undeclared:
@@ -491,15 +536,19 @@ class Node:
         return result
 
     def add_on_set_parameters_callback(self, callback):
+        """Register ``callback(params) -> SetParametersResult`` ahead of the others; a refusal stops the set (rclpy)."""
         self._on_set_callbacks.insert(0, callback)
 
     def remove_on_set_parameters_callback(self, callback):
+        """Unregister an on-set callback, as rclpy's ``Node.remove_on_set_parameters_callback`` does."""
         self._on_set_callbacks.remove(callback)
 
     def add_pre_set_parameters_callback(self, callback):
+        """Register a pre-set callback, as rclpy's API does; this backend stores it but never calls it."""
         self._pre_set_callbacks.insert(0, callback)
 
     def add_post_set_parameters_callback(self, callback):
+        """Register ``callback(parameters)``, called after parameters are declared or set, as rclpy does."""
         self._post_set_callbacks.insert(0, callback)
 
     def _run_set_callbacks(self, params):

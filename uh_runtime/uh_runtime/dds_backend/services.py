@@ -100,7 +100,9 @@ class Service:
     """A service server (``rclpy.service.Service`` subset).
 
     ``callback(request, response)`` returns the response; ``srv_type`` is ``'pkg/srv/Name'`` (one of
-    :data:`uh_runtime.messages.SERVICE_DEFINITIONS`).
+    :data:`uh_runtime.messages.SERVICE_DEFINITIONS`). Made by :meth:`Node.create_service
+    <uh_runtime.dds_backend.node.Node.create_service>` of ``node``: ``srv_name`` is resolved as a
+    topic name of the node, ``qos_profile`` is that of the request reader and the reply writer.
     """
 
     def __init__(self, node, srv_type: str, srv_name: str, callback, qos_profile):
@@ -187,6 +189,7 @@ class Service:
         self._writer.write(response)
 
     def destroy(self):
+        """Destroy the service through its node, as rclpy's ``Service.destroy`` does."""
         self._node.destroy_service(self)
 
 
@@ -268,7 +271,7 @@ class ParameterServices:
     ``list_parameters``, ``set_parameters``, ``set_parameters_atomically``, answered as
     ``rclpy.parameter_service`` answers them, and a ``ParameterEvent`` on ``/parameter_events``
     for every declaration and every accepted change (``new_parameters`` /
-    ``changed_parameters``).
+    ``changed_parameters``), for ``node``; the services start with :meth:`start_services`.
     """
 
     SERVICES = (('describe_parameters', 'DescribeParameters'), ('get_parameters', 'GetParameters'),
@@ -398,6 +401,8 @@ class ServiceClient:
         ``'pkg/srv/Name'`` (one of :data:`uh_runtime.messages.SERVICE_DEFINITIONS`).
     srv_name : str
         Fully qualified service name, e.g. ``/uh1/controller/list_parameters``.
+    qos_profile : QoSProfile, optional
+        Of the request writer and the reply reader; default ``qos_profile_parameters``.
     """
 
     def __init__(self, context, srv_type: str, srv_name: str, qos_profile=None):
@@ -422,6 +427,10 @@ class ServiceClient:
         return bool(self._writer.get_matched_subscriptions()) and bool(self._reader.get_matched_publications())
 
     def wait_for_service(self, timeout_sec: float) -> bool:
+        """Wait at most ``timeout_sec`` wall seconds until a server is matched (:meth:`service_is_ready`).
+
+        Return whether it is; a matched server gets 50 ms more so its reply writer matches this reader too.
+        """
         deadline = time.monotonic() + timeout_sec
         while not self.service_is_ready():
             if time.monotonic() >= deadline:
@@ -445,5 +454,6 @@ class ServiceClient:
         raise TimeoutError(f'no reply from {self.srv_name} within {timeout_sec:g} s')
 
     def destroy(self):
+        """Delete the client's request writer and reply reader."""
         self._reader.__del__()
         self._writer.__del__()
