@@ -125,8 +125,8 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _supervise(args, scenario, scenario_arg, out, env, priority, sup, record) -> tuple:
-    """Start the team, watch it until it ends and stop every process.
+def _supervise(args, scenario, specs, out, env, sup, record) -> tuple:
+    """Start the team's nodes ``specs``, watch it until it ends and stop every process.
 
     Returns ``(signals received, exit codes of the processes, packets dropped by the network or None)``.
     """
@@ -138,7 +138,7 @@ def _supervise(args, scenario, scenario_arg, out, env, priority, sup, record) ->
     network = dropped = None
     try:
         network = open_network(args, scenario)
-        start_team(args, scenario, scenario_arg, out, env, priority, sup, network)
+        start_team(args, specs, out, env, sup, network)
         progress = RunProgress(sup.nodes[-1].log_path)
         record.watcher = RunWatcher(args, scenario, sup, progress, on_change=record.write)
         record.write()
@@ -162,11 +162,12 @@ def run(args) -> int:
     print(f'[run] {scenario.name}: {len(scenario.leaders)} leaders, {len(scenario.followers)} followers, '
           f'case {args.case}, {args.clock} clock, {duration:g} s simulated, DDS domain {domain}', file=sys.stderr)
     priority = realtime_priority(args)
-    write_environment_script(out, env, run_node_names(team_specs(args, scenario, scenario_arg, out, priority)))
+    specs = team_specs(args, scenario, scenario_arg, out, priority)
+    write_environment_script(out, env, run_node_names(specs))
     sup = Supervisor(out / 'logs', env, respawn_priority=priority)
     record = RunRecord(out, run_info(args, duration, domain, priority), sup)
     started = time.monotonic()
-    interrupted, codes, dropped = _supervise(args, scenario, scenario_arg, out, env, priority, sup, record)
+    interrupted, codes, dropped = _supervise(args, scenario, specs, out, env, sup, record)
     wall = time.monotonic() - started
     recovery = recover_bag_if_needed(out / 'bag')
     watcher = record.watcher

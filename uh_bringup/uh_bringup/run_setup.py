@@ -112,9 +112,8 @@ def team_specs(args, scenario, scenario_arg: str, out: Path, priority: int) -> l
                       realtime_priority=priority)
 
 
-def start_team(args, scenario, scenario_arg: str, out: Path, env: dict, priority: int, sup, network) -> None:
-    """Start every process of the team under supervisor ``sup`` (the clock's last)."""
-    specs = team_specs(args, scenario, scenario_arg, out, priority)
+def start_team(args, specs, out: Path, env: dict, sup, network) -> None:
+    """Start the processes of the team's nodes ``specs`` (:func:`team_specs`) under ``sup``, the clock's last."""
     if args.foxglove is not None:
         print(f'[run] live view: {live_view.connect_hint(args.foxglove_host, args.foxglove)}', file=sys.stderr)
     started = processes(specs, args.processes, out / 'logs', getattr(args, 'workers', None))

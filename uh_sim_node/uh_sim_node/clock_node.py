@@ -25,7 +25,7 @@ import time
 import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_sim_node.clock_advance import REALTIME_FINAL_WAIT_S, REALTIME_START_WAIT_S, ClockAdvancer
-from uh_wire.run_config import declare_run_parameters, declare_view_parameters
+from uh_wire.run_config import declare_run_parameters, declare_standard_views
 from uh_wire.run_defaults import DEFAULT_STARTUP_TIMEOUT
 from uh_wire.wire import clock_msg, stamp_seconds
 from uh_wire import topics
@@ -90,7 +90,7 @@ class ClockNode(rt.Node):
         self.declare_parameter('expect_visualization', False, rt.ParameterDescriptor(
             description='the run has a visualisation node: with expect_recorder, wait for the recorder on /markers',
             read_only=True))
-        views = declare_view_parameters(self, run.dt).enabled
+        views = declare_standard_views(self)
         self.recorded = ([name for name, _ in topics.run_topics(
             self.scenario.ids, self.scenario.impairments is not None, views,
             bool(self.get_parameter('expect_visualization').value))] if expect_recorder else [])

@@ -17,13 +17,10 @@ class PublishedCounts:
     def __init__(self, *topic_names: str):
         self.counts: dict[str, int] = {name: 0 for name in topic_names}
 
-    def add(self, *topic_names: str, count: int = 1) -> None:
-        """Count ``count`` more messages published on each of ``topic_names``."""
+    def add(self, *topic_names: str) -> None:
+        """Count one more message published on each of ``topic_names``."""
         for name in topic_names:
-            self.counts[name] = self.counts.get(name, 0) + count
-
-    def __getitem__(self, topic_name: str) -> int:
-        return self.counts.get(topic_name, 0)
+            self.counts[name] = self.counts.get(name, 0) + 1
 
     def line(self) -> str:
         """Return the log line ``published: /uh1/state 201, /uh1/odom 51, ...`` (every topic counted, zeros too)."""

@@ -16,7 +16,7 @@ from uh_runtime import scheduling
 from uh_topology.scenario import load_scenario
 
 __all__ = ['RunConfig', 'RunConfigError', 'ViewConfig', 'declare_run_parameters', 'declare_view_parameters',
-           'declare_float_parameter', 'CLOCK_MODES', 'DEFAULT_STALE_TIMEOUT']
+           'declare_standard_views', 'declare_float_parameter', 'CLOCK_MODES', 'DEFAULT_STALE_TIMEOUT']
 
 CLOCK_MODES = ('lockstep', 'realtime')
 #: realtime: simulated seconds a neighbour's state, the reference or a simulator's command may lag
@@ -117,15 +117,21 @@ class ViewConfig:
         return (slot * self.diagnostics_every) // (2 * len(ids))
 
 
-def declare_view_parameters(node, dt: float) -> ViewConfig:
-    """Declare the standard views' parameters on ``node`` and return them as steps.
-
-    The parameters are ``standard_views`` (bool), ``pose_rate`` and ``diagnostics_rate`` (Hz of
-    simulated time); ``dt`` is the node's control period in s.
-    """
+def declare_standard_views(node) -> bool:
+    """Declare ``standard_views`` on ``node`` and return it: whether the run publishes /tf, odom and /diagnostics."""
     node.declare_parameter('standard_views', True, _describe(
         'publish /tf, odom and /diagnostics for RViz2, tf2, Foxglove and rqt (off for benchmarks)',
         read_only=True))
+    return bool(node.get_parameter('standard_views').value)
+
+
+def declare_view_parameters(node, dt: float) -> ViewConfig:
+    """Declare the standard views' parameters on ``node`` and return them as steps.
+
+    The parameters are ``standard_views`` (bool, :func:`declare_standard_views`), ``pose_rate`` and
+    ``diagnostics_rate`` (Hz of simulated time); ``dt`` is the node's control period in s.
+    """
+    enabled = declare_standard_views(node)
     # what a person watches is decimated (docs/visualization.md): 25 Hz is smooth in a 3-D view
     node.declare_parameter('pose_rate', 25.0, _describe(
         'Hz of simulated time of /tf and odom; 0 = every step', read_only=True,
@@ -136,6 +142,6 @@ def declare_view_parameters(node, dt: float) -> ViewConfig:
 
     def every(rate: float) -> int:
         return 1 if rate <= 0.0 else max(1, int(round(1.0 / (rate * dt))))
-    return ViewConfig(bool(node.get_parameter('standard_views').value),
+    return ViewConfig(enabled,
                       every(float(node.get_parameter('pose_rate').value)),
                       every(float(node.get_parameter('diagnostics_rate').value)))
