@@ -28,7 +28,9 @@ DOCS = ROOT / 'docs' / 'metrics.md'
 #: The layouts every reader had before the registry: a reader that moves is a change of its output.
 JSON_KEYS = ('case', 'sim_time_s', 'wall_time_s', 'settle_time_s', 'formation_rms_m', 'containment_rms_m',
              'hull_distance_max_m', 'mse_formation', 'mse_containment', 'cpi', 'fault_estimation',
-             'false_fault_estimate', 'fault_nrmse', 'saturation_fraction', 'fault_isolation', 'faults')
+             'false_fault_estimate', 'fault_nrmse', 'saturation_fraction', 'fault_isolation', 'faults',
+             # docs/safety.md: the separation metrics, added at the end
+             'min_separation_m', 'min_separation_pair', 'separation_violation_s', 'rotor_overlap_s', 'separation')
 STORE_COLUMNS = {
     'formation_rms_m': 'RMS formation error of the leaders after settle, m',
     'containment_rms_m': 'RMS containment error of the followers after settle, m',
@@ -43,6 +45,9 @@ STORE_COLUMNS = {
     'fault_error_w': 'largest RMS |Fhat_w - F_w| over the faulted UHs, rad/s^2',
     'false_isolations': 'channels isolated by a controller that carry no fault',
     'missed_isolations': 'faulted channels no controller isolated',
+    'min_separation_m': 'smallest hub-to-hub distance of any two UHs over the run, m',
+    'separation_violation_s': 'time some pair is closer than the minimum separation, s',
+    'rotor_overlap_s': 'time some pair is closer than two rotor radii (rotor disks overlap), s',
 }
 REPORT_ROWS = [
     ('case', 'controller case', '', None),
@@ -53,6 +58,9 @@ REPORT_ROWS = [
     ('formation_rms_m', 'formation RMS after settle', 'm', 'lower'),
     ('containment_rms_m', 'containment RMS after settle', 'm', 'lower'),
     ('hull_distance_max_m', 'max distance outside the hull after settle', 'm', 'lower'),
+    ('min_separation_m', 'closest approach of two UHs (hub to hub)', 'm', 'higher'),
+    ('separation_violation_s', 'time under the minimum separation', 's', 'lower'),
+    ('rotor_overlap_s', 'time with rotor disks overlapping', 's', 'lower'),
     ('saturation_fraction', 'saturated fraction of steps', '-', 'lower'),
     ('false_fault_estimate.max.p', 'false fault estimate RMS ‖F̂_p‖, max over UHs (threshold 0.05)', 'm/s²', 'lower'),
     ('false_fault_estimate.max.w', 'false fault estimate RMS ‖F̂_w‖, max over UHs (threshold 0.1)', 'rad/s²', 'lower'),
@@ -67,7 +75,7 @@ REPORT_ROWS = [
     ('wall_time_s', 'wall time of the run', 's', None),
 ]
 SUMMARY_KEYS = ('formation_rms_m', 'containment_rms_m', 'hull_distance_max_m', 'mse_formation', 'mse_containment',
-                'cpi', 'saturation_fraction')
+                'cpi', 'saturation_fraction', 'min_separation_m', 'separation_violation_s', 'rotor_overlap_s')
 CAMPAIGN_UNITS = {'formation_rms_m': 'm', 'containment_rms_m': 'm', 'hull_distance_max_m': 'm',
                   'fault_error_p': 'm/s²', 'fault_error_w': 'rad/s²', 'false_fault_p': 'm/s²',
                   'false_fault_w': 'rad/s²', 'saturation_fraction': '-'}

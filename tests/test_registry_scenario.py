@@ -28,7 +28,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / 'uh_topology' / 'uh_topology' / 'config'
 DOC = ROOT / 'docs' / 'scenario.md'
 #: docs/scenario.md's headings above the tables of the registry, and how each table is written.
-DOC_TABLES = {'## Top-level keys': ('SCENARIO_KEYS', True), '### `impairments`': ('IMPAIRMENT_KEYS', False)}
+DOC_TABLES = {'## Top-level keys': ('SCENARIO_KEYS', True), '### `impairments`': ('IMPAIRMENT_KEYS', False),
+              '### `safety`': ('SAFETY_KEYS', False)}
 
 
 def _doc_table(heading: str) -> str:

@@ -21,8 +21,8 @@ __all__ = ['HelicopterParamsError', 'HelicopterParams', 'load_helicopter_params'
 _CONFIG_DIR = Path(__file__).resolve().parent / 'config'
 
 _SCALAR_FIELDS = ('mass', 'gravity', 'c_M1', 'c_M2', 'K_beta', 'h_M', 'B_lat', 'A_lon', 'tau_f',
-                  'K_tr', 'D_r', 'c_Q', 'D_v')
-_POSITIVE_FIELDS = ('mass', 'gravity', 'c_M1', 'K_beta', 'B_lat', 'A_lon', 'K_tr')
+                  'K_tr', 'D_r', 'c_Q', 'D_v', 'rotor_radius')
+_POSITIVE_FIELDS = ('mass', 'gravity', 'c_M1', 'K_beta', 'B_lat', 'A_lon', 'K_tr', 'rotor_radius')
 _NONNEGATIVE_FIELDS = ('h_M', 'tau_f', 'D_r', 'c_Q', 'D_v')
 _VECTOR_FIELDS = {'inertia': 3, 'input_lower': INPUT_SIZE, 'input_upper': INPUT_SIZE}
 
@@ -72,6 +72,9 @@ class HelicopterParams:
         Main-rotor torque reaction per thrust, m (N m per N).
     D_v : float
         Translational drag, N s/m.
+    rotor_radius : float
+        Main-rotor radius, hub to blade tip, m: two hubs closer than twice it overlap their rotor
+        disks (docs/safety.md).
     input_lower, input_upper : ndarray (4,)
         Position limits of ``(theta_col, theta_tr, delta_lat, delta_lon)``, rad.
     """
@@ -90,6 +93,7 @@ class HelicopterParams:
     D_r: float
     c_Q: float
     D_v: float
+    rotor_radius: float
     input_lower: np.ndarray
     input_upper: np.ndarray
 

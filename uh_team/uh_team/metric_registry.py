@@ -32,6 +32,7 @@ from .fault_metrics import (LUMPED_FAULTS, LumpedFault, false_fault_estimate, fa
                             none_if_nan)
 from .hull_geometry import hull_distance
 from .isolation_metrics import fault_isolation_metrics
+from .separation_metrics import closest_approach, separation_limits, time_below
 
 __all__ = ['Metric', 'RunValues', 'METRICS', 'BETTER', 'json_metrics', 'json_keys', 'report_metrics',
            'stored_metrics', 'summary_keys', 'campaign_units', 'display_unit', 'json_table', 'metric_table']
@@ -233,6 +234,18 @@ def _cpi(v: RunValues):
     return none_if_nan(v.dt * (np.nansum(v.z1 * v.z1) + np.nansum(v.u_p * v.u_p)))
 
 
+def _separation(v: RunValues) -> dict:
+    limits = separation_limits(v.scenario)
+    closest = closest_approach(v.time, v.positions, v.ids)
+    warnings = [] if v.scenario is None else [issue.text() for issue in v.scenario.separation_warnings]
+    return {'limit_m': limits['min_separation_m'], 'rotor_overlap_m': limits['rotor_overlap_m'],
+            'closest_time_s': closest['time_s'], 'design_warnings': warnings}
+
+
+def _time_below(v: RunValues, limit: str):
+    return time_below(v.time, v.positions, separation_limits(v.scenario)[limit])
+
+
 def _false_fault_estimate(v: RunValues) -> dict:
     return false_fault_estimate(v.time[:v.steps], v.ids, v.faulted, v.fault_data, v.tolerance)
 
@@ -337,6 +350,24 @@ METRICS = (
                '`bias_amplitude`, `bias_frequency`, `onset_time`) and `injected` (those the simulators applied, '
                'the same fields with `onset_time` when it acts, `sent_onset_time`, `received_s` and `nominal`: '
                'an injection that clears its channel, not scored)'),
+    Metric('min_separation_m', 'm', 'smallest hub-to-hub distance of any two UHs over the run, m', 'higher',
+           label='closest approach of two UHs (hub to hub)', report_row=82, json_type='number or null',
+           doc='[smallest distance of any two UHs, whole run](#separation), m',
+           compute=lambda v: closest_approach(v.time, v.positions, v.ids)['distance_m'], stored=True, summary=True),
+    Metric('min_separation_pair', json_type='string or null', doc='the pair of that approach, `UH4-UH5`',
+           compute=lambda v: closest_approach(v.time, v.positions, v.ids)['pair']),
+    Metric('separation_violation_s', 's', 'time some pair is closer than the minimum separation, s', 'lower',
+           label='time under the minimum separation', report_row=84, json_type='number or null',
+           doc="time some pair is closer than the scenario's `safety.min_separation`, s",
+           compute=lambda v: _time_below(v, 'min_separation_m'), stored=True, summary=True),
+    Metric('rotor_overlap_s', 's', 'time some pair is closer than two rotor radii (rotor disks overlap), s', 'lower',
+           label='time with rotor disks overlapping', report_row=86, json_type='number or null',
+           doc='time some pair is closer than two rotor radii of the airframe (their rotor disks overlap), s',
+           compute=lambda v: _time_below(v, 'rotor_overlap_m'), stored=True, summary=True),
+    Metric('separation', json_type='object',
+           doc='`limit_m` (the minimum separation), `rotor_overlap_m` (two rotor radii), `closest_time_s` and '
+               "`design_warnings` (the scenario's formation targets or initial positions closer than the limit)",
+           compute=_separation),
 )
 
 

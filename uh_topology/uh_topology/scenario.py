@@ -38,6 +38,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from uh_core.airframe import HelicopterParamsError, load_helicopter_params
 from uh_core.layout import CHANNEL_ALIASES
 from uh_core.records import FaultSpec
 
@@ -48,6 +49,7 @@ from .scenario_keys import SCENARIO_KEYS, key_named, key_names, read_key
 from .schema import (CONFIG_DIR, ConfigContext, parse_yaml, read_config_file, read_only_array, read_text_file,
                      type_name)
 from .graph import laplacian, leader_tracking_matrix
+from .safety import SafetySpec, close_pairs, formation_points, read_safety
 from .scenario_team import Team, check_assumptions, read_edges, read_reference_links, read_team
 
 __all__ = [
@@ -140,6 +142,11 @@ class Scenario:
     impairments : ImpairmentSpec or None
         Communication and sensing impairments (docs/campaigns.md#impairments); None when the
         scenario has none or all of them are zero.
+    safety : SafetySpec
+        The collision-avoidance layer's settings (docs/safety.md).
+    separation_warnings : tuple of SeparationIssue
+        Formation targets or initial positions closer than ``min_separation`` (but not than two
+        rotor radii, which is an error): the run says so at start (docs/safety.md#design-time-check).
     """
 
     name: str
@@ -163,6 +170,8 @@ class Scenario:
     containment_weights: np.ndarray
     gains_source: Any = None  # inline mapping, or Path of the gains file
     impairments: ImpairmentSpec | None = None
+    safety: SafetySpec = SafetySpec()
+    separation_warnings: tuple = ()
 
     # -- roles and graph ----------------------------------------------------------------------
     @property
@@ -334,6 +343,8 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
                    if top.get('impairments') is not None else None)
     if impairments is not None and not impairments.is_active:
         impairments = None   # all zero: the run without impairments (any clock, no /uhN/received)
+    safety = read_safety(ctx, top.get('safety'))
+    warnings = _separable(ctx, helicopter, safety, team, weights)
 
     adjacency.setflags(write=False)
     return Scenario(
@@ -347,7 +358,42 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         reference=reference, disturbance=disturbance,
         laplacian_blocks=(read_only_array(l1), read_only_array(l2)),
         containment_weights=read_only_array(weights), gains_source=gains_source, impairments=impairments,
+        safety=safety, separation_warnings=warnings,
     )
+
+
+def _separable(ctx: ConfigContext, helicopter: str, safety: SafetySpec, team, weights) -> tuple:
+    """Check the formation targets and initial positions pairwise (docs/safety.md#design-time-check).
+
+    Closer than two rotor radii raises when the filter is enabled (it cannot keep such a pair apart
+    where the law sends it) and is a warning otherwise (the paper's law alone, as it was published);
+    closer than the minimum separation is a warning. An airframe file that does not load is left to
+    the check that loads it for the run.
+    """
+    try:
+        rotor_radius = load_helicopter_params(helicopter).rotor_radius
+    except HelicopterParamsError:
+        return ()
+    separation = safety.separation(rotor_radius)
+    if separation < 2.0 * rotor_radius:
+        raise ctx.error(E.InvalidValueError, ('safety', 'min_separation'), f'min_separation {separation:g} m is below '
+                        f'two rotor radii of the airframe; allowed: >= {2.0 * rotor_radius:g} m')
+    if safety.sensing_radius <= separation:
+        raise ctx.error(E.InvalidValueError, ('safety', 'sensing_radius'), f'sensing_radius {safety.sensing_radius:g} '
+                        f'm is not beyond the minimum separation {separation:g} m; allowed: > {separation:g} m')
+    leaders = tuple(sorted(k for k, role in team.roles.items() if role == 'leader'))
+    followers = tuple(sorted(k for k, role in team.roles.items() if role != 'leader'))
+    places = {'formation': formation_points(leaders, followers, team.offsets, weights),
+              'initial': {i: state[:3] for i, state in team.states.items()}}
+    warnings = []
+    for what, points in places.items():
+        overlapping = close_pairs(points, 2.0 * rotor_radius, what)
+        if overlapping and safety.enabled:
+            raise ctx.error(E.InvalidValueError, ('uhs', team.where[overlapping[0].second]),
+                            f'{overlapping[0].text()}: closer than two rotor radii ({2.0 * rotor_radius:g} m, the '
+                            f'rotor disks overlap); allowed: >= {2.0 * rotor_radius:g} m')
+        warnings += close_pairs(points, separation, what)
+    return tuple(warnings)
 
 
 def duration_steps(duration, dt: float) -> int:

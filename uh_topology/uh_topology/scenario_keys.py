@@ -19,11 +19,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ['ScenarioKey', 'SCENARIO_KEYS', 'IMPAIRMENT_KEYS', 'NOISE_KEYS', 'key_named', 'key_names',
+__all__ = ['ScenarioKey', 'SCENARIO_KEYS', 'IMPAIRMENT_KEYS', 'NOISE_KEYS', 'SAFETY_KEYS', 'SEPARATION_MARGIN',
+           'key_named', 'key_names',
            'read_key', 'default_cell', 'markdown_table']
 
 #: The kinds of scalar key :func:`read_key` reads.
-KINDS = ('integer', 'number', 'string')
+KINDS = ('integer', 'number', 'string', 'boolean')
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,7 @@ class ScenarioKey:
     unit : str
         The unit (the table's; a number's errors name it too).
     kind : str or None
-        ``integer``, ``number`` or ``string`` for a scalar that :func:`read_key` reads; None for
+        ``integer``, ``number``, ``string`` or ``boolean`` for a scalar that :func:`read_key` reads; None for
         a mapping or list, which has its own reader.
     lo, hi, lo_open, hi_open
         The allowed range of an integer (``lo``) or a number.
@@ -112,6 +113,8 @@ SCENARIO_KEYS = (
     ScenarioKey('reference', 'virtual-leader trajectory ([below](#reference))', required=True),
     ScenarioKey('disturbance', 'force disturbance on every UH ([below](#disturbance))'),
     ScenarioKey('faults', 'actuator faults ([below](#faults))'),
+    ScenarioKey('safety', 'the collision-avoidance layer outside the law: keeps every pair of UHs at least '
+                '`min_separation` apart ([below](#safety); [safety.md](safety.md))'),
     ScenarioKey('impairments', 'what the controllers receive: per-link delay and jitter in steps, loss, measurement '
                 'noise, dropouts, and whether a controller predicts delayed states; in process, lockstep and '
                 'realtime ([below](#impairments); in real time: [runtime.md](runtime.md#impairments-in-real-time))'),
@@ -152,6 +155,30 @@ IMPAIRMENT_KEYS = (
 )
 
 
+#: The margin the default ``min_separation`` adds to two rotor radii (docs/safety.md#the-separation), m.
+SEPARATION_MARGIN = 0.15
+
+#: The keys of ``safety`` (docs/scenario.md#safety, docs/safety.md).
+SAFETY_KEYS = (
+    ScenarioKey('enabled', 'the filter runs: `true` or `false` (`false` is the paper\'s law alone, bit for bit); '
+                "the run scripts' `--safety on` and `--safety off` override it", default=False, kind='boolean'),
+    ScenarioKey('min_separation', 'smallest hub-to-hub distance the filter keeps between two UHs (3-D), '
+                '>= 2 `rotor_radius` of the airframe', default=None,
+                default_text=f'2 `rotor_radius` + {SEPARATION_MARGIN:g}', unit='m', kind='number', lo=0.0,
+                lo_open=True, null_is_default=True),
+    ScenarioKey('sensing_radius', "a UH's proximity input reports the UHs within this distance, > `min_separation`",
+                default=12.0, unit='m', kind='number', lo=0.0, lo_open=True),
+    ScenarioKey('barrier_gain', 'gamma of the barrier condition `dh/dt >= -gamma h`, > 0', default=2.0, unit='1/s',
+                kind='number', lo=0.0, lo_open=True),
+    ScenarioKey('brake_accel', 'deceleration each UH of a pair is assumed to give, > 0 (at most what the tilt '
+                'limit allows)', default=2.0, unit='m/s^2', kind='number', lo=0.0, lo_open=True),
+    ScenarioKey('slack_weight', "weight of the squared slack against the squared change of `u_p`, > 0",
+                default=1.0e4, unit='-', kind='number', lo=0.0, lo_open=True),
+    ScenarioKey('sidestep_accel', 'the head-on rule: a UH pushed straight at another steps right by this, >= 0',
+                default=0.5, unit='m/s^2', kind='number', lo=0.0),
+)
+
+
 def key_named(keys, name: str) -> ScenarioKey:
     """Return the key ``name`` of the table ``keys`` (KeyError if it has none)."""
     for key in keys:
@@ -185,6 +212,8 @@ def read_key(ctx, key: ScenarioKey, raw: dict, path: tuple = (), **bounds):
                           unit=key.unit)
     if key.kind == 'string':
         return ctx.string(value, where, choices=key.choices or None)
+    if key.kind == 'boolean':
+        return ctx.boolean(value, where)
     raise ValueError(f'{key.name} is not a scalar key; it has its own reader')
 
 
@@ -196,6 +225,8 @@ def default_cell(key: ScenarioKey) -> str:
         return key.default_text
     if key.default is None:
         return 'none'
+    if isinstance(key.default, bool):
+        return f'`{str(key.default).lower()}`'
     if isinstance(key.default, str):
         return f'`{key.default}`' if key.default else "`''`"
     if isinstance(key.default, float):

@@ -223,6 +223,12 @@ class ConfigContext:
                              f'{value!r} is not allowed; allowed: {", ".join(choices)}')
         return value
 
+    def boolean(self, value, path):
+        """Read ``true`` or ``false``."""
+        if not isinstance(value, bool):
+            raise self.error(E.WrongTypeError, path, f'expected true or false, got {type_name(value)} {value!r}')
+        return value
+
     def vector(self, value, path, size=3, unit=''):
         """Read a list of ``size`` finite numbers in ``unit`` as a read-only float array."""
         if not isinstance(value, list) or len(value) != size:
