@@ -46,7 +46,7 @@ source "$VENV/bin/activate"
 kernels_stamp() {
   find "$REPO_ROOT/uh_core/uh_core" "$REPO_ROOT/uh_sim_node/uh_sim_node" "$REPO_ROOT/uh_controller_node/uh_controller_node" \
     "$REPO_ROOT/uh_team/uh_team" \
-    -maxdepth 1 -name '*.py' -printf '%p %T@ %s\n' | sort | sha256sum | cut -d' ' -f1
+    -maxdepth 1 -name '*.py' -printf '%p %T@ %s\n' | sort | cat - "$REPO_ROOT"/uh_*/setup.py | sha256sum | cut -d' ' -f1
 }
 if [ "$(cat "$VENV/.uh_kernels_stamp" 2>/dev/null)" != "$(kernels_stamp)" ]; then
   echo "[setup] compiling the numba kernels of the model and the control law (once; cached afterwards)" >&2

@@ -8,7 +8,7 @@
 # On a ROS 2 machine with the workspace sourced this is `ros2 run uh_runtime replay_node ...`.
 set -euo pipefail
 if [ -n "${ROS_DISTRO:-}" ] && command -v ros2 >/dev/null && [ "${UH_BACKEND:-}" != "dds" ]; then
-  exec python3 -m uh_runtime.replay "$@"
+  exec python3 -m uh_runtime.bags.replay "$@"
 fi
 source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
 exec replay_node "$@"

@@ -16,8 +16,8 @@ import yaml
 
 from uh_bringup import inject_fault, run_formation, run_outcome
 from uh_report.bag_metrics import BagContentError, read_team_bag
-from uh_runtime.bag import BagWriter
-from uh_runtime.qos import qos_profile_yaml
+from uh_runtime.bags.bag import BagWriter
+from uh_runtime.dds.qos import qos_profile_yaml
 from uh_topology.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -305,7 +305,7 @@ def test_inject_fault_without_a_team_says_so(domain_id):
 def small_bag(tmp_path_factory):
     """Write a complete team bag with the project's bag writer: 40 steps of reference and states."""
     from uh_runtime import messages as m
-    from uh_runtime.cdr import codec
+    from uh_runtime.dds.cdr import codec
     from uh_wire.wire import reference_to_msg, state_to_msg
     from uh_sim_node.reference import VirtualLeaderReference
     import numpy as np
@@ -360,7 +360,8 @@ def test_truncated_bag_says_how_to_recover(small_bag, tmp_path):
     data = mcap.read_bytes()
     mcap.write_bytes(data[: len(data) // 2])
     with pytest.raises(BagContentError, match=r'cannot open bag .*cut: .*its MCAP file good_0\.mcap is cut short '
-                                              r'or damaged after \d+ of \d+ bytes.*python -m uh_runtime\.bag recover'):
+                                              r'or damaged after \d+ of \d+ bytes.*'
+                                              r'python -m uh_runtime\.bags\.bag recover'):
         read_team_bag(bad, paper)
 
 
@@ -403,7 +404,7 @@ def test_invalid_messages_in_a_bag_are_left_out_and_counted(tmp_path):
     """
     import numpy as np
     from uh_runtime import messages as m
-    from uh_runtime.cdr import codec
+    from uh_runtime.dds.cdr import codec
     from uh_sim_node.reference import VirtualLeaderReference
     from uh_wire.wire import reference_to_msg, state_to_msg
 
@@ -661,7 +662,7 @@ def test_bench_resolves_a_relative_out_against_where_it_was_started(tmp_path):
     (['bogus'], r"invalid choice: 'bogus'.*; see uh --help"),
 ])
 def test_uh_cli_rejects_bad_input_with_exit_2(argv, message, domain_id, capsys):
-    from uh_runtime import cli
+    from uh_runtime.cli import uh as cli
     code, err = _status(cli.main, argv, capsys)
     assert code == 2 and _one_line(err), err
     assert __import__('re').search(message, err), err

@@ -11,9 +11,9 @@ from mcap.reader import make_reader
 from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from uh_runtime.bag import BagWriter, message_definition
-from uh_runtime.bag_reader import BagError
-from uh_runtime.qos import qos_profile_yaml
+from uh_runtime.bags.bag import BagWriter, message_definition
+from uh_runtime.bags.bag_reader import BagError
+from uh_runtime.dds.qos import qos_profile_yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / 'tests' / 'data' / 'ros2_jazzy_sample'

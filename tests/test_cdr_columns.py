@@ -1,7 +1,7 @@
 """Numeric columns of many CDR payloads at once (uh_report/cdr_columns.py) against rosbags' decoder."""
 import numpy as np
 import pytest
-from rosbags.typesys.base import Nodetype
+from random_messages import random_message
 
 from uh_report import cdr_columns
 from uh_report.cdr_columns import read_columns
@@ -9,41 +9,11 @@ from uh_runtime.messages import typestore
 
 STORE = typestore()
 UH_TYPES = sorted(t for t in STORE.fielddefs if t.startswith('uh_msgs/msg/'))
-NUMERIC = {'bool', 'byte', 'char', 'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64', 'uint64',
-           'float32', 'float64'}
-
-
-def _value(rng, base: str):
-    """Return a random value of a base type, NaN and infinities among the floats."""
-    if base == 'string':
-        return 'x' * int(rng.integers(0, 6))
-    if base == 'bool':
-        return bool(rng.integers(0, 2))
-    if base.startswith('float'):
-        return float(rng.choice([np.nan, np.inf, -0.0, rng.normal() * 10.0 ** rng.integers(-5, 6)]))
-    info = np.iinfo(cdr_columns._DTYPES[base])
-    return int(rng.integers(info.min, info.max, dtype=np.int64 if info.min < 0 else np.uint64, endpoint=True))
 
 
 def _random_message(rng, typename: str, strings: bool):
-    """Return a message of ``typename`` with random numbers (and random strings and sequence lengths if ``strings``)."""
-    kwargs = {}
-    for name, (nodetype, desc) in STORE.fielddefs[typename][1]:
-        if nodetype == Nodetype.NAME:
-            kwargs[name] = _random_message(rng, desc, strings)
-        elif nodetype == Nodetype.BASE:
-            kwargs[name] = _value(rng, desc[0]) if desc[0] != 'string' or strings else 'world'
-        else:
-            (element_type, element), length = desc
-            if nodetype == Nodetype.SEQUENCE:
-                length = int(rng.integers(0, 4)) if strings else 2
-            if element_type == Nodetype.NAME:        # a sequence or array of messages
-                kwargs[name] = [_random_message(rng, element, strings) for _ in range(length)]
-                continue
-            base = element[0]
-            values = [_value(rng, base) if base != 'string' or strings else 'uh2' for _ in range(length)]
-            kwargs[name] = values if base == 'string' else np.array(values, dtype=cdr_columns._DTYPES[base])
-    return STORE.types[typename](**kwargs)
+    """Return a random message of ``typename`` (:func:`random_messages.random_message`)."""
+    return random_message(rng, STORE, typename, strings)
 
 
 def _numeric_fields(typename: str) -> list:

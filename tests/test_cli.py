@@ -1,7 +1,7 @@
 """The ``uh`` inspection CLI: help, errors, and the commands against a running node.
 
 The main listing/echo checks against a node in another process are in test_runtime_dds.py; here
-the CLI runs in-process (``uh_runtime.cli.main``) next to a node of this process's own context.
+the CLI runs in-process (``uh_runtime.cli.uh.main``) next to a node of this process's own context.
 """
 import subprocess
 import sys
@@ -11,10 +11,10 @@ import pytest
 import yaml
 from spinning import spinning_in_thread
 
-from uh_runtime import cli
-from uh_runtime import dds_backend as rt
+from uh_runtime.cli import uh as cli
+from uh_runtime import dds as rt
 from uh_runtime import messages
-from uh_runtime.qos import DurabilityPolicy, QoSProfile
+from uh_runtime.dds.qos import DurabilityPolicy, QoSProfile
 
 BOUND = 10.0  # s; bounds a failure only
 

@@ -155,6 +155,8 @@ def test_the_default_mode_is_numba_and_every_source_file_exists(monkeypatch):
     assert compiled_kernels.mode() == 'numba'
     files = compiled_kernels._source_files()
     # gains.py lays out the gains' part of the law's parameter vector, which the kernels compile in
-    assert {f.name for f in files} == {'plant_kernels.py', 'control_kernels.py', 'isolation_kernels.py',
-                                       'impairments.py', 'gains.py', 'layout.py', 'compiled_kernels.py'}
+    assert {f.name for f in files} == {'plant_kernels.py', 'control_kernels.py', 'loop_kernels.py',
+                                       'learning_kernels.py', 'isolation_kernels.py', 'impairments.py',
+                                       'safety_kernels.py', 'control_layout.py', 'gains.py', 'layout.py',
+                                       'compiled_kernels.py'}
     assert all(f.is_file() for f in files)

@@ -39,7 +39,7 @@ PAPER_READS = {
 
 def _controller_reads(domain: int, timeout: float = 30.0) -> dict:
     """Topics each /uhN/controller reads, from DDS discovery + ros_discovery_info (the live graph)."""
-    from uh_runtime.graph import Graph
+    from uh_runtime.dds.graph import Graph
     from uh_runtime.network import loopback_config
     os.environ.setdefault('CYCLONEDDS_URI', loopback_config())  # the run's network configuration
     graph = Graph(domain_id=domain)

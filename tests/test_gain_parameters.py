@@ -41,7 +41,7 @@ def controller(domain_id, tmp_path):
 
     Its gains are overridden by a /**: parameters file; the fixture also gives a caller context.
     """
-    from uh_runtime import dds_backend as rt
+    from uh_runtime import dds as rt
     from uh_controller_node.controller_node import ControllerNode
     override = tmp_path / 'gains.yaml'
     override.write_text('/**:\n  ros__parameters:\n    outer:\n      k: 1.3\n')
@@ -62,7 +62,7 @@ def controller(domain_id, tmp_path):
 
 def _set(caller, name, value):
     from uh_runtime import messages
-    from uh_runtime.dds_backend.services import ServiceClient, value_message
+    from uh_runtime.dds.services import ServiceClient, value_message
     client = ServiceClient(caller, 'rcl_interfaces/srv/SetParameters', '/uh3/controller/set_parameters')
     assert client.wait_for_service(BOUND)
     param = messages.dds_message('rcl_interfaces/msg/Parameter')(name=name, value=value_message(value))
@@ -107,7 +107,7 @@ def test_a_new_controller_node_has_loaded_every_kernel_it_steps_with(domain_id):
     """
     import subprocess
     import sys
-    probe = ("from uh_runtime import dds_backend as rt\n"
+    probe = ("from uh_runtime import dds as rt\n"
              "from uh_controller_node.controller_node import ControllerNode\n"
              "from uh_controller_node import control_kernels as C, isolation_kernels as K\n"
              "ctx = rt.Context()\nctx.init(args=['probe'])\n"

@@ -31,19 +31,18 @@ _HEAVY_CLI = 'loads Cyclone DDS and every message type: uh --help and a mistyped
 #: ``path:function`` that import first-party modules inside the function, and why.
 LAZY_IMPORTS = {
     # uh_runtime: the backend is chosen at run time, and its command-line tools start fast
-    'uh_runtime/uh_runtime/cli.py:_graph': _HEAVY_CLI,
-    'uh_runtime/uh_runtime/cli.py:cmd_topic_info': _HEAVY_CLI,
-    'uh_runtime/uh_runtime/cli.py:_reader': _HEAVY_CLI,
-    'uh_runtime/uh_runtime/cli.py:cmd_topic_echo': _HEAVY_CLI,
-    'uh_runtime/uh_runtime/cli.py:cmd_topic_hz': _HEAVY_CLI,
-    'uh_runtime/uh_runtime/cli.py:_value_text': _HEAVY_CLI,
-    'uh_runtime/uh_runtime/cli.py:cmd_param_set': _HEAVY_CLI,
-    'uh_runtime/uh_runtime/cli.py:__init__': _HEAVY_CLI,
-    'uh_runtime/uh_runtime/cli.py:call': _HEAVY_CLI,
-    'uh_runtime/uh_runtime/cdr.py:codec': 'messages imports cdr: the codec cache reads the message classes late',
-    'uh_runtime/uh_runtime/dds_backend/endpoints.py:__init__': 'the CDR codec only where an endpoint is created',
-    'uh_runtime/uh_runtime/dds_backend/node.py:__init__': 'parameter services only when a node is created',
-    'uh_runtime/uh_runtime/dds_backend/node.py:create_service': 'services only when a service is created',
+    'uh_runtime/uh_runtime/cli/uh.py:_graph': _HEAVY_CLI,
+    'uh_runtime/uh_runtime/cli/uh.py:cmd_topic_info': _HEAVY_CLI,
+    'uh_runtime/uh_runtime/cli/uh.py:_reader': _HEAVY_CLI,
+    'uh_runtime/uh_runtime/cli/uh.py:cmd_topic_echo': _HEAVY_CLI,
+    'uh_runtime/uh_runtime/cli/uh.py:cmd_topic_hz': _HEAVY_CLI,
+    'uh_runtime/uh_runtime/cli/uh.py:_value_text': _HEAVY_CLI,
+    'uh_runtime/uh_runtime/cli/uh.py:cmd_param_set': _HEAVY_CLI,
+    'uh_runtime/uh_runtime/cli/uh.py:__init__': _HEAVY_CLI,
+    'uh_runtime/uh_runtime/cli/uh.py:call': _HEAVY_CLI,
+    'uh_runtime/uh_runtime/dds/endpoints.py:__init__': 'the CDR codec only where an endpoint is created',
+    'uh_runtime/uh_runtime/dds/node.py:__init__': 'parameter services only when a node is created',
+    'uh_runtime/uh_runtime/dds/node.py:create_service': 'services only when a service is created',
     'uh_runtime/uh_runtime/runner.py:check_parameter_overrides': 'the package imports the runner: no cycle at import',
     'uh_runtime/uh_runtime/runner.py:_clear_errors': 'the package imports the runner: no cycle at import',
     'uh_runtime/uh_runtime/runner.py:run_node': 'process statistics only when asked for',
@@ -144,9 +143,11 @@ def test_the_packages_are_found():
     assert 'uh_msgs' not in roots
     graph = import_graph()
     # relative imports (one and two levels up) and imports inside functions are edges
-    assert 'uh_runtime.dds_backend.node' in graph['uh_runtime.dds_backend']
-    assert 'uh_runtime.graph' in graph['uh_runtime.dds_backend.node']
-    assert 'uh_runtime.graph' in graph['uh_runtime.cli']
+    assert 'uh_runtime.dds.graph' in graph['uh_runtime.dds.node']
+    assert 'uh_runtime.messages' in graph['uh_runtime.dds.node']
+    assert 'uh_runtime.dds.graph' in graph['uh_runtime.cli.uh']
+    # a sub-package's __init__ names its modules only as strings (uh_runtime.lazy_exports): no edges
+    assert graph['uh_runtime.dds'] == {'uh_runtime.lazy_exports'}
 
 
 def test_the_cycle_finder_names_a_cycle():

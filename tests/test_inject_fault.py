@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from uh_runtime.graph import Graph
+from uh_runtime.dds.graph import Graph
 
 pytestmark = pytest.mark.dds
 

@@ -1,4 +1,4 @@
-"""Intra-process delivery of the Cyclone DDS backend (uh_runtime.intra_process).
+"""Intra-process delivery of the Cyclone DDS backend (uh_runtime.dds.intra_process).
 
 Nodes of one process exchange message objects directly; DDS still serves other processes, and
 no subscription gets a message twice. Each test has its own context (one DDS participant).
@@ -13,9 +13,9 @@ import pytest
 import spinning
 from spinning import spin_for
 
-from uh_runtime import dds_backend as rt
+from uh_runtime import dds as rt
 from uh_runtime import messages
-from uh_runtime.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from uh_runtime.dds.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 pytestmark = pytest.mark.dds
 HELPERS = Path(__file__).resolve().parent / 'helpers_runtime'

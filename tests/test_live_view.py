@@ -157,7 +157,7 @@ def test_replay_serves_a_bag_to_a_foxglove_client(tmp_path, domain_id):
     """``scripts/replay.sh BAG --foxglove PORT``: the replayed messages reach a client, decodable."""
     port = _free_port()
     bag = ROOT / 'tests' / 'data' / 'ros2_jazzy_sample'
-    replay = subprocess.Popen([sys.executable, '-P', '-m', 'uh_runtime.replay', str(bag), '--loop',
+    replay = subprocess.Popen([sys.executable, '-P', '-m', 'uh_runtime.bags.replay', str(bag), '--loop',
                                '--domain-id', str(domain_id), '--foxglove', str(port)],
                               env=loopback_environment(domain_id), stdout=subprocess.PIPE,
                               stderr=subprocess.STDOUT, text=True, start_new_session=True)

@@ -15,7 +15,7 @@ from cyclonedds.idl import types
 from rosbags.typesys.base import Nodetype
 
 from uh_runtime import messages
-from uh_runtime.cdr import codec
+from uh_runtime.dds.cdr import codec
 from uh_runtime.messages import MessageError, dds_message, typestore
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -213,3 +213,25 @@ def test_the_ros_package_check_sees_imports_and_type_names(tmp_path):
     module.write_text("import rclpy.node\nfrom tf2_msgs.msg import TFMessage\nimport numpy\n"
                       "ODOM = 'nav_msgs/msg/Odometry'\nX = 'not/a/type'\n")
     assert _ros_packages_used(module) == {'rclpy': 1, 'tf2_msgs': 2, 'nav_msgs': 4}
+
+
+def _console_scripts(pkg):
+    """Return ``[(executable, 'module:function')]`` of ``pkg``'s setup.py."""
+    for node in ast.walk(ast.parse((ROOT / pkg / 'setup.py').read_text())):
+        if isinstance(node, ast.Dict):
+            for key, value in zip(node.keys, node.values, strict=True):
+                if isinstance(key, ast.Constant) and key.value == 'console_scripts':
+                    return [tuple(part.strip() for part in ast.literal_eval(e).split('=')) for e in value.elts]
+    return []
+
+
+@pytest.mark.parametrize('pkg', PYTHON_PACKAGES)
+def test_every_console_script_names_a_function_of_its_package(pkg):
+    for executable, target in _console_scripts(pkg):
+        module, _, function = target.partition(':')
+        assert module.split('.')[0] == pkg, f'{executable} = {target}'
+        path = ROOT / pkg / Path(*module.split('.'))
+        source = path.with_suffix('.py') if path.with_suffix('.py').is_file() else path / '__init__.py'
+        assert source.is_file(), f'{executable} = {target}: no module {module}'
+        tree = ast.parse(source.read_text(), str(source))
+        assert function in {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}, f'{executable} = {target}'

@@ -1,7 +1,7 @@
 """Parameter services, /parameter_events and /rosout of the Cyclone DDS backend, with rclpy's (Jazzy) answers.
 
 These are what ``ros2 param`` and ``ros2 topic echo /rosout`` use. Also the ``uh param`` CLI against a node in another
-process. Wire conventions: uh_runtime.dds_backend.services.
+process. Wire conventions: uh_runtime.dds.services.
 """
 import subprocess
 import sys
@@ -10,11 +10,11 @@ from pathlib import Path
 import pytest
 from spinning import spinning_in_thread
 
-from uh_runtime import dds_backend as rt
+from uh_runtime import dds as rt
 from uh_runtime import messages
-from uh_runtime.dds_backend.services import ServiceClient, parameter_value, value_message
-from uh_runtime.parameters import FloatingPointRange, ParameterDescriptor
-from uh_runtime.qos import qos_profile_rosout_default
+from uh_runtime.dds.services import ServiceClient, parameter_value, value_message
+from uh_runtime.dds.parameters import FloatingPointRange, ParameterDescriptor
+from uh_runtime.dds.qos import qos_profile_rosout_default
 
 pytestmark = pytest.mark.dds
 BOUND = 10.0   # s; bounds a failure only (replies come within milliseconds on loopback)
@@ -163,8 +163,8 @@ def test_rosout_carries_each_log_record_with_rclpy_fields(domain_id):
 
 NODE = '''
 import sys, time
-from uh_runtime import dds_backend as rt
-from uh_runtime.parameters import ParameterDescriptor, FloatingPointRange
+from uh_runtime import dds as rt
+from uh_runtime.dds.parameters import ParameterDescriptor, FloatingPointRange
 rt.init(args=sys.argv)
 node = rt.Node('controller', namespace='/uh1')
 node.declare_parameter('stale_timeout', 0.25, ParameterDescriptor(
@@ -206,9 +206,9 @@ def test_a_client_that_cannot_be_answered_is_named_once_and_ours_is_not(served, 
     """
     import time
     from cyclonedds.pub import DataWriter
-    from uh_runtime.dds_backend.context import typehash_user_data
-    from uh_runtime.dds_backend.services import FOREIGN_CLIENT_CHECK_S, qos_profile_parameters
-    from uh_runtime.qos import to_dds_qos
+    from uh_runtime.dds.context import typehash_user_data
+    from uh_runtime.dds.services import FOREIGN_CLIENT_CHECK_S, qos_profile_parameters
+    from uh_runtime.dds.qos import to_dds_qos
     node, call, caller = served
     warnings = []
     logger = node.get_logger()

@@ -166,7 +166,7 @@ def test_the_learning_phase_ends_after_its_duration_of_steps():
     memory = np.zeros((ck.MEMORY_ROWS, 3))
     flags = []
     for _ in range(7):
-        flags.append(bool(ck._learning(params, memory)))
+        flags.append(bool(ck.in_learning_phase(params, memory)))
         memory[ck.M_FLAGS, ck.FLAG_TIME] += 0.01
     # 0.00 .. 0.04 inside; 0.05 (five additions of 0.01, which rounds just above 0.05) and later out
     assert flags == [True] * 5 + [False] * 2

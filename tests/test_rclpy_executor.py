@@ -1,4 +1,4 @@
-"""``uh_runtime.rclpy_executor.StaticSingleThreadedExecutor`` on a real rclpy (docs/runtime.md#executors-on-rclpy).
+"""``uh_runtime.rclpy_backend.executors.StaticSingleThreadedExecutor`` on rclpy (docs/runtime.md#executors-on-rclpy).
 
 It must run every kind of entity the way rclpy's ``SingleThreadedExecutor`` does: messages in
 order, timers, services and clients, guard conditions, coroutine callbacks, futures, entities
@@ -15,7 +15,7 @@ from rcl_interfaces.srv import ListParameters  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from std_msgs.msg import Int64  # noqa: E402
 
-from uh_runtime.rclpy_executor import StaticSingleThreadedExecutor  # noqa: E402
+from uh_runtime.rclpy_backend.executors import StaticSingleThreadedExecutor  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.rclpy_real, pytest.mark.dds]
 BOUND = 20.0  # s of wall time; bounds a failure only

@@ -1,8 +1,9 @@
 """Recording integrity with real processes and real signals.
 
 A recorder killed with SIGKILL leaves an MCAP file readable up to its last complete chunk (at most the chunk being
-filled is lost, see uh_runtime.bag.CHUNK_SIZE), which recover_bag completes; SIGINT and SIGTERM leave a complete bag; in
-lockstep the bag holds exactly what every node published; a run whose recorder is killed says so and recovers the bag.
+filled is lost, see uh_runtime.bags.bag.CHUNK_SIZE), which recover_bag completes; SIGINT and SIGTERM leave a complete
+bag; in lockstep the bag holds exactly what every node published; a run whose recorder is killed says so and recovers
+the bag.
 """
 import json
 import os
@@ -17,8 +18,8 @@ import pytest
 import yaml
 from rosbags.rosbag2 import Reader
 
-from uh_runtime.bag import CHUNK_SIZE, recover_bag
-from uh_runtime.bag_reader import bag_file, read_messages
+from uh_runtime.bags.bag import CHUNK_SIZE, recover_bag
+from uh_runtime.bags.bag_reader import bag_file, read_messages
 from uh_runtime.network import reserve_domain_id
 from team_runs import kill_session
 
@@ -70,7 +71,7 @@ def recording(tmp_path, domain_id, processes):
 def _prefix_steps(bag_dir: Path) -> list:
     """Return the steps of the /uh1/state messages readable in the bag's MCAP file, in file order."""
     from uh_runtime import messages as m
-    from uh_runtime.cdr import codec
+    from uh_runtime.dds.cdr import codec
     decode = codec(m.UHState).deserialize
     steps = []
     read_messages(bag_file(bag_dir), lambda ch, msg: steps.append(int(decode(msg.data).step)))
@@ -93,7 +94,7 @@ def test_sigkill_loses_at_most_the_chunk_being_filled(recording):
     # MCAP framing - opcode, length, channel, sequence, two times - plus the CDR payload each) and
     # the message that would have completed it
     from uh_runtime import messages as m
-    from uh_runtime.cdr import codec
+    from uh_runtime.dds.cdr import codec
     size = len(codec(m.UHState).serialize(_state_msg(0)))
     print(f'SIGKILL right after the last acknowledgement: {N - len(steps)} of {N} messages lost, '
           f'{result.lost_bytes} bytes unreadable')
@@ -265,7 +266,7 @@ def test_a_one_shot_injection_is_recorded_when_the_topic_is_expected(tmp_path, d
     The recorder must be subscribed before. With the fault topic in ``expected_topics`` it is, and the injection is in
     the bag.
     """
-    from uh_runtime import dds_backend as rt_dds
+    from uh_runtime import dds as rt_dds
     from uh_runtime import messages as m
     from uh_wire import topics
     bag = tmp_path / 'bag'

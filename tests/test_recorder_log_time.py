@@ -1,4 +1,4 @@
-"""Log times of the recorder (uh_runtime/recorder.py): a stamp far from the simulated time never sets the bag's range.
+"""Log times of the recorder (uh_runtime/bags/recorder.py): a stamp far from the sim time never sets the bag's range.
 
 A fault sent from rclpy, or /rosout of an rclpy node, carries wall-clock time (about 1.8e18 ns) in a run on simulated
 time; logged at its stamp it would make the bag of a 60 s run last decades.
@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from uh_runtime.recorder import PROGRESS_EVERY, PROGRESS_FLUSH_S, STAMP_WINDOW_NS, LogClock, RecordedProgress
+from uh_runtime.bags.recorder import PROGRESS_EVERY, PROGRESS_FLUSH_S, STAMP_WINDOW_NS, LogClock, RecordedProgress
 
 WALL_NS = 1_795_000_000_123_456_789          # a wall-clock stamp of 2026
 
@@ -46,7 +46,7 @@ def test_without_sim_time_every_stamp_is_the_log_time():
 
 @pytest.mark.dds
 def test_a_wall_clock_stamped_fault_leaves_the_bags_time_range_that_of_the_run(tmp_path, domain_id, processes):
-    from uh_runtime import dds_backend as rt_dds
+    from uh_runtime import dds as rt_dds
     from uh_runtime import messages as m
     from uh_wire import topics
     bag = tmp_path / 'bag'

@@ -211,16 +211,17 @@ def test_cli_survives_a_closed_stdout(tmp_path):
 def test_team_kernel_cache_is_emptied_when_the_kernels_it_calls_change():
     """Check that the team kernel's cache index is emptied when the kernels it calls change.
 
-    numba checks a cached kernel against its own file only; the team kernel's cache index is emptied when
-    control_kernels.py, gains.py, plant_kernels.py, faults.py, impairments.py or uh_core/layout.py no longer match
-    its digest.
+    numba checks a cached kernel against its own file only; the team kernel's cache index is emptied when the law's
+    kernel modules (control_kernels.py, loop_kernels.py, learning_kernels.py), control_layout.py, gains.py,
+    plant_kernels.py, faults.py, impairments.py or uh_core/layout.py no longer match its digest.
     """
     from pathlib import Path
 
     from uh_team import team_kernel
 
     assert sorted(p.name for p in team_kernel._DEPENDENCIES) == [
-        'control_kernels.py', 'faults.py', 'gains.py', 'impairments.py', 'layout.py', 'plant_kernels.py']
+        'control_kernels.py', 'control_layout.py', 'faults.py', 'gains.py', 'impairments.py', 'layout.py',
+        'learning_kernels.py', 'loop_kernels.py', 'plant_kernels.py']
     marker = Path(team_kernel.run_team_steps._cache.cache_path) / 'team_kernel.dependencies.sha256'
     team_kernel.refresh_cache()
     assert marker.is_file() and not team_kernel.refresh_cache()   # up to date: left alone

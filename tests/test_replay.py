@@ -1,4 +1,4 @@
-"""Replay of recorded bags over DDS (uh_runtime/replay.py, scripts/replay.sh).
+"""Replay of recorded bags over DDS (uh_runtime/bags/replay.py, scripts/replay.sh).
 
 A listener process subscribes (raw CDR) to the replayed topics and writes down, per message, the
 topic, the payload bytes and the monotonic time it arrived; the replay waits until every topic
@@ -156,9 +156,9 @@ def test_clock_is_synthesised_from_log_times_and_qos_is_the_recorded_one(process
     """
     from rosbags.typesys import Stores, get_typestore
 
-    from uh_runtime.bag import BagWriter
-    from uh_runtime.graph import Graph
-    from uh_runtime.qos import qos_profile_yaml
+    from uh_runtime.bags.bag import BagWriter
+    from uh_runtime.dds.graph import Graph
+    from uh_runtime.dds.qos import qos_profile_yaml
     store = get_typestore(Stores.ROS2_JAZZY)
     String = store.types['std_msgs/msg/String']
     bag = tmp_path / 'noclock'
@@ -216,7 +216,7 @@ def test_ctrl_c_stops_the_replay_cleanly(processes, domain_id, tmp_path):
 # bad bags: checked before anything is published
 # ----------------------------------------------------------------------------------------------
 def _replay_error(capsys, *args) -> str:
-    from uh_runtime.replay import main
+    from uh_runtime.bags.replay import main
     assert main(['replay', *map(str, args)]) == 2
     err = capsys.readouterr().err
     assert err.startswith('replay: error:') and 'Traceback' not in err
@@ -230,7 +230,7 @@ def test_a_truncated_bag_is_named(tmp_path, capsys):
     (bag / 'cut_0.mcap').write_bytes(data[:len(data) * 2 // 3])   # a recorder killed mid-write
     err = _replay_error(capsys, bag)
     assert str(bag / 'cut_0.mcap') in err and 'truncated' in err
-    assert f'python -m uh_runtime.bag recover {bag}' in err   # the error says how to fix it
+    assert f'python -m uh_runtime.bags.bag recover {bag}' in err   # the error says how to fix it
 
 
 def test_a_damaged_chunk_is_named(tmp_path, capsys):
@@ -238,8 +238,8 @@ def test_a_damaged_chunk_is_named(tmp_path, capsys):
     from rosbags.typesys import Stores, get_typestore
 
     from test_report import damaged_chunk
-    from uh_runtime.bag import BagWriter
-    from uh_runtime.qos import qos_profile_yaml
+    from uh_runtime.bags.bag import BagWriter
+    from uh_runtime.dds.qos import qos_profile_yaml
     store = get_typestore(Stores.ROS2_JAZZY)
     String = store.types['std_msgs/msg/String']
     with BagWriter(tmp_path / 'good') as writer:
@@ -251,7 +251,7 @@ def test_a_damaged_chunk_is_named(tmp_path, capsys):
     (bag / 'bad_0.mcap').write_bytes(damaged_chunk(tmp_path / 'good' / 'good_0.mcap'))
     err = _replay_error(capsys, bag)
     assert str(bag / 'bad_0.mcap') in err and 'corrupted (CRC mismatch)' in err
-    assert f'python -m uh_runtime.bag recover {bag}' in err
+    assert f'python -m uh_runtime.bags.bag recover {bag}' in err
 
 
 def test_a_broken_chunk_without_crc_is_named(tmp_path, capsys):
@@ -283,9 +283,9 @@ def test_not_mcap_missing_and_empty_are_named(tmp_path, capsys):
 
 
 def test_bad_qos_metadata_is_named(tmp_path):
-    from uh_runtime.bag import BagWriter
-    from uh_runtime.bag_reader import BagError, open_bag
-    from uh_runtime.qos import parse_offered_qos
+    from uh_runtime.bags.bag import BagWriter
+    from uh_runtime.bags.bag_reader import BagError, open_bag
+    from uh_runtime.dds.qos import parse_offered_qos
     with BagWriter(tmp_path / 'f') as writer:
         writer.add_topic('/x', 'std_msgs/msg/String', '- reliability: sometimes\n  durability: volatile\n')
     with pytest.raises(BagError, match=r"f_0.mcap: topic /x: offered_qos_profiles has reliability: 'sometimes'; "

@@ -324,7 +324,7 @@ def test_truncated_bag_is_named(team_run, tmp_path, capsys):
     mcap.write_bytes(data[:len(data) // 2])    # what a recorder killed mid-run leaves
     err = _report_error(capsys, tmp_path / 'run')
     assert str(mcap) in err and 'truncated' in err
-    assert f'python -m uh_runtime.bag recover {mcap.parent}' in err   # the error says how to fix it
+    assert f'python -m uh_runtime.bags.bag recover {mcap.parent}' in err   # the error says how to fix it
 
 
 def test_a_bag_that_is_not_mcap_is_named(tmp_path, capsys):

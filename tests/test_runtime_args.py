@@ -1,14 +1,14 @@
-"""ROS names, ``--ros-args`` and parameter files as rcl handles them (uh_runtime.arguments).
+"""ROS names, ``--ros-args`` and parameter files as rcl handles them (uh_runtime.dds.arguments).
 
-Also the parameter value checks of uh_runtime.parameters. Pure: no DDS.
+Also the parameter value checks of uh_runtime.dds.parameters. Pure: no DDS.
 """
 import pytest
 
-from uh_runtime.arguments import (
+from uh_runtime.dds.arguments import (
     InvalidNameError, RemapRule, RosArgsError, expand_topic_name, load_params_file,
     node_pattern_matches, parse_ros_args, remap_topic, remove_ros_args,
 )
-from uh_runtime.parameters import (
+from uh_runtime.dds.parameters import (
     FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, check_value,
 )
 

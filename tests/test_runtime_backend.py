@@ -62,7 +62,28 @@ def test_facade_exposes_the_contract_names_on_the_dds_backend(tmp_path):
         print(rt.BACKEND, messages.BACKEND, missing, rt.Node.__module__)
     """, tmp_path, UH_BACKEND='dds')
     assert result.returncode == 0, result.stderr
-    assert result.stdout.split() == ['dds', 'dds', '[]', 'uh_runtime.dds_backend.node']
+    assert result.stdout.split() == ['dds', 'dds', '[]', 'uh_runtime.dds.node']
+
+
+def test_sub_packages_export_their_names_and_load_only_the_modules_asked_for(tmp_path):
+    # uh_runtime.lazy_exports: a module of a sub-package loads alone, and python -m runs one without a warning
+    result = _run("""
+        import sys
+        from uh_runtime import bags, dds
+        from uh_runtime.cli import uh as cli
+        from uh_runtime.backend import FACADE_NAMES
+        from uh_runtime.bags.bag_reader import BagError
+        loaded = sorted(m for m in sys.modules if m.startswith(('uh_runtime.bags', 'uh_runtime.cli.uh')))
+        print(sorted(dds.__all__) == sorted(FACADE_NAMES), loaded, bags.BagError is BagError)
+        print(all(getattr(package, name) is not None for package in (bags, cli, dds) for name in package.__all__))
+    """, tmp_path, UH_BACKEND='dds')
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split('\n')[:2] == [
+        "True ['uh_runtime.bags', 'uh_runtime.bags.bag_reader', 'uh_runtime.cli.uh'] True", 'True']
+    for module in ('uh_runtime.bags.bag', 'uh_runtime.bags.replay', 'uh_runtime.cli.uh'):
+        run = subprocess.run([sys.executable, '-P', '-W', 'error', '-m', module, '--help'], capture_output=True,
+                             text=True, timeout=60, env=dict(os.environ, UH_BACKEND='dds'))
+        assert run.returncode == 0 and not run.stderr, (module, run.stderr)
 
 
 def test_facade_reexports_rclpy_objects_when_rclpy_is_importable(tmp_path):

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from cyclonedds.qos import Policy
 
-from uh_runtime.graph import Graph, user_data_value
+from uh_runtime.dds.graph import Graph, user_data_value
 from uh_runtime.messages import typestore
 
 pytestmark = pytest.mark.dds
@@ -143,7 +143,7 @@ def test_ros_discovery_info_names_the_node_and_lists_its_endpoint_gids(domain_id
 
 def _uh(*args, domain_id):
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id))
-    return subprocess.run([sys.executable, '-m', 'uh_runtime.cli', *args], capture_output=True,
+    return subprocess.run([sys.executable, '-m', 'uh_runtime.cli.uh', *args], capture_output=True,
                           text=True, timeout=TIMEOUT + 10, env=env, cwd=HELPERS.parent.parent / 'docs')
 
 

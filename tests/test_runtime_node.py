@@ -6,15 +6,15 @@ Each test has its own context (one DDS participant) on a private domain. Waits a
 import pytest
 import spinning
 
-from uh_runtime import dds_backend as rt
+from uh_runtime import dds as rt
 from uh_runtime import messages
-from uh_runtime.parameters import (
+from uh_runtime.dds.parameters import (
     FloatingPointRange, IntegerRange, InvalidParameterTypeException,
     InvalidParameterValueException, Parameter, ParameterAlreadyDeclaredException,
     ParameterDescriptor, ParameterNotDeclaredException, ParameterUninitializedException,
     SetParametersResult, UnknownParameterOverrideError,
 )
-from uh_runtime.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from uh_runtime.dds.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from uh_runtime.runner import check_parameter_overrides
 
 pytestmark = pytest.mark.dds
@@ -86,6 +86,39 @@ def test_parameters_declared_validated_and_overridden(ctx):
     with pytest.raises(InvalidParameterValueException, match="parameter 'lucky': value 13 rejected: unlucky"):
         node.declare_parameter('lucky', 13)
     assert seen == ['steps', 'lucky']
+
+
+def test_pre_set_callbacks_change_what_is_set_as_rclpy_does(ctx):
+    # rclpy (Jazzy) Node._set_parameters_atomically: the pre-set callbacks' lists, joined, are set atomically
+    # instead (on-set and post-set callbacks see them); an empty list is refused; declaring calls none
+    node = rt.Node('ctl', context=ctx)
+    node.declare_parameter('gain', 1.0)
+    node.declare_parameter('gain_squared', 1.0)
+    calls, validated, posted = [], [], []
+
+    def square_too(params):
+        calls.append([p.name for p in params])
+        return params + [Parameter('gain_squared', value=p.value ** 2) for p in params if p.name == 'gain']
+
+    def drop_typos(params):
+        return [p for p in params if p.name != 'gian']
+
+    node.add_pre_set_parameters_callback(square_too)
+    node.add_pre_set_parameters_callback(drop_typos)
+    node.add_on_set_parameters_callback(lambda params: validated.append([p.name for p in params])
+                                        or SetParametersResult(successful=True))
+    node.add_post_set_parameters_callback(lambda params: posted.append([(p.name, p.value) for p in params]))
+    node.declare_parameter('steps', 10)
+    assert calls == [] and validated == [['steps']]
+    assert node.set_parameters_atomically([Parameter('gain', value=3.0)]).successful
+    assert calls == [['gain']]
+    assert validated[-1] == ['gain', 'gain', 'gain_squared']   # drop_typos' list, then square_too's
+    assert (node.get_parameter('gain').value, node.get_parameter('gain_squared').value) == (3.0, 9.0)
+    assert posted[-1] == [('gain', 3.0), ('gain', 3.0), ('gain_squared', 9.0)]
+    other = rt.Node('other', context=ctx)
+    other.add_pre_set_parameters_callback(drop_typos)
+    result = other.set_parameters([Parameter('gian', value=2.0)])[0]   # before the undeclared check, as rclpy
+    assert not result.successful and 'parameter list cannot be empty' in result.reason
 
 
 def test_override_type_and_range_errors_name_the_parameter(ctx):

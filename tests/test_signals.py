@@ -1,4 +1,4 @@
-"""Ctrl-C while Cyclone DDS calls back into Python (uh_runtime.signals.sigint_deferred).
+"""Ctrl-C while Cyclone DDS calls back into Python (uh_runtime.dds.signals.sigint_deferred).
 
 A builtin-topic reader's ``take`` builds each discovery sample through a Python callback called from
 C, and cyclonedds turns any exception raised in that callback into a plain ``Exception``
@@ -10,8 +10,8 @@ import signal
 
 import pytest
 
-from uh_runtime.graph import Graph
-from uh_runtime.signals import sigint_deferred
+from uh_runtime.dds.graph import Graph
+from uh_runtime.dds.signals import sigint_deferred
 
 
 class _SwallowingReader:
@@ -87,7 +87,7 @@ def test_a_target_that_fails_to_wake_does_not_stop_later_wake_ups():
     """
     import threading
     import time
-    from uh_runtime.signals import wake_on_signals
+    from uh_runtime.dds.signals import wake_on_signals
 
     class Gone:
         def wake(self):

@@ -121,105 +121,147 @@ def _registered(actions, mods, kind):
             and isinstance(a.args[0], getattr(mods['launch.event_handlers'], kind))]
 
 
-def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(monkeypatch, tmp_path):
+#: Launch contexts: the launch running, and shutting down (its own shutdown stops the nodes).
+_RUNNING, _STOPPING = types.SimpleNamespace(is_shutdown=False), types.SimpleNamespace(is_shutdown=True)
+
+
+class _LaunchFile:
+    """formation.launch.py run on the fake launch modules, its arguments at their defaults (lockstep, into tmp_path)."""
+
+    def __init__(self, monkeypatch, tmp_path):
+        self.mods = _fake_launch_modules(monkeypatch)
+        launch_file = runpy.run_path(str(ROOT / 'uh_bringup' / 'launch' / 'formation.launch.py'))
+        description = launch_file['generate_launch_description']()
+        self.arguments = {a.args[0]: a.kwargs['default_value'] for a in description.args[0]
+                          if isinstance(a, self.mods['launch.actions'].DeclareLaunchArgument)}
+        self.arguments.update(clock_mode='lockstep', out=str(tmp_path))
+        self.opaque = description.args[0][-1]
+        arguments = self.arguments
+        self.mods['launch.substitutions'].LaunchConfiguration.perform = (
+            lambda configuration, context: arguments[configuration.args[0]])
+
+    def actions(self):
+        """Return the actions the launch file's opaque function gives with the current arguments."""
+        return self.opaque.kwargs['function'](None)
+
+    def registered(self, actions, kind):
+        """Return the event handlers of type ``kind`` that ``actions`` register."""
+        return _registered(actions, self.mods, kind)
+
+    def nodes(self, actions):
+        """Return the ROS nodes among ``actions``."""
+        return [a for a in actions if isinstance(a, self.mods['launch_ros.actions'].Node)]
+
+    def started(self, actions):
+        """Return the team's actions, once the kernel compilation (the launch's first process) ended with status 0."""
+        [compiling] = [a for a in actions if isinstance(a, self.mods['launch.actions'].ExecuteProcess)]
+        assert compiling.kwargs['cmd'] == [sys.executable, '-m', 'uh_team.compile_kernels']
+        [compiled] = self.registered(actions, 'OnProcessExit')
+        assert compiled.kwargs['target_action'] is compiling
+        assert not self.nodes(actions)   # not before it
+        return compiled.kwargs['on_exit'](types.SimpleNamespace(returncode=0), _RUNNING)
+
+
+@pytest.fixture
+def launch(monkeypatch, tmp_path):
+    return _LaunchFile(monkeypatch, tmp_path)
+
+
+def _outcome(handler, status, context=_RUNNING):
+    """Return what an exit handler does when its process ends with ``status`` (``'failed: ...'`` if it raises)."""
+    try:
+        return handler.kwargs['on_exit'](types.SimpleNamespace(returncode=status), context)
+    except RunFailed as exc:
+        return f'failed: {exc}'
+
+
+def _reasons(done):
+    return [a.kwargs['event'].kwargs['reason'] for a in done]
+
+
+def _ends(handler, reason):
+    """Return what a shutdown handler does when the launch ends for ``reason`` (``'failed: ...'`` if it raises)."""
+    try:
+        return handler.kwargs['on_shutdown'](types.SimpleNamespace(reason=reason, due_to_sigint='ctrl-c' in reason),
+                                             _STOPPING)
+    except RunFailed as exc:
+        return f'failed: {exc}'
+
+
+def test_launch_file_starts_the_run_scripts_nodes_and_ends_with_the_clock(launch, tmp_path):
     """The launch file compiles the kernels, then starts node_specs' nodes; the clock's end leads to the metrics.
 
     The decisions themselves are tested in tests/test_launch_run.py; here, that the launch file wires them.
     """
-    mods = _fake_launch_modules(monkeypatch)
-    launch_file = runpy.run_path(str(ROOT / 'uh_bringup' / 'launch' / 'formation.launch.py'))
-    description = launch_file['generate_launch_description']()
-    arguments = {a.args[0]: a.kwargs['default_value'] for a in description.args[0]
-                 if isinstance(a, mods['launch.actions'].DeclareLaunchArgument)}
-    arguments.update(clock_mode='lockstep', out=str(tmp_path))
-    opaque = description.args[0][-1]
-    mods['launch.substitutions'].LaunchConfiguration.perform = lambda self, context: arguments[self.args[0]]
-    running, stopping = types.SimpleNamespace(is_shutdown=False), types.SimpleNamespace(is_shutdown=True)
-
-    def started(actions):
-        """Return the team's actions, once the kernel compilation (the launch's first process) ended with status 0."""
-        [compiling] = [a for a in actions if isinstance(a, mods['launch.actions'].ExecuteProcess)]
-        assert compiling.kwargs['cmd'] == [sys.executable, '-m', 'uh_team.compile_kernels']
-        [compiled] = _registered(actions, mods, 'OnProcessExit')
-        assert compiled.kwargs['target_action'] is compiling
-        assert not any(isinstance(a, mods['launch_ros.actions'].Node) for a in actions)   # not before it
-        return compiled.kwargs['on_exit'](types.SimpleNamespace(returncode=0), running)
-
-    actions = opaque.kwargs['function'](None)
-    [idle] = _registered(actions, mods, 'OnShutdown')
-    team = started(actions)
+    team = launch.started(launch.actions())
     assert json.loads((tmp_path / 'run.json').read_text())['scenario'] == 'paper'   # what uh-report OUT reads
-    nodes = [a for a in team if isinstance(a, mods['launch_ros.actions'].Node)]
-    expected = node_specs(load_scenario('paper'), 'paper', arguments['case'], 'lockstep', 1.0, None,
+    nodes = launch.nodes(team)
+    expected = node_specs(load_scenario('paper'), 'paper', launch.arguments['case'], 'lockstep', 1.0, None,
                           f'{tmp_path}/bag', 60.0, DEFAULT_STALE_TIMEOUT)
     assert [(n.kwargs['package'], n.kwargs['executable'], n.kwargs['arguments']) for n in nodes] == \
         [(NODES[kind].package, NODES[kind].executable, args) for _, kind, args in expected]
-    handlers = _registered(team, mods, 'OnProcessExit')
+    handlers = launch.registered(team, 'OnProcessExit')
     # lockstep: the death of any node ends the launch
     assert [h.kwargs['target_action'] for h in handlers] == nodes
-
-    def outcome(handler, status, context=running):
-        try:
-            return handler.kwargs['on_exit'](types.SimpleNamespace(returncode=status), context)
-        except RunFailed as exc:
-            return f'failed: {exc}'
-
-    def reasons(done):
-        return [a.kwargs['event'].kwargs['reason'] for a in done]
-    assert reasons(outcome(handlers[0], 0))[0].endswith('(the run needs its recording)')
-    assert reasons(outcome(handlers[1], 0))[0].endswith('(lockstep needs every node)')
-    assert outcome(handlers[1], -9).startswith('failed: uh1_sim exited with status -9')
-    assert outcome(handlers[-1], 1).startswith('failed: clock exited with status 1')
+    assert _reasons(_outcome(handlers[0], 0))[0].endswith('(the run needs its recording)')
+    assert _reasons(_outcome(handlers[1], 0))[0].endswith('(lockstep needs every node)')
+    assert _outcome(handlers[1], -9).startswith('failed: uh1_sim exited with status -9')
+    assert _outcome(handlers[-1], 1).startswith('failed: clock exited with status 1')
     # nodes stopped by the launch's own shutdown end quietly, whatever their status
-    assert outcome(handlers[1], -2, stopping) == [] and outcome(handlers[-1], 1, stopping) == []
+    assert _outcome(handlers[1], -2, _STOPPING) == [] and _outcome(handlers[-1], 1, _STOPPING) == []
     # the clock completes the run: the recorder is stopped (it finalises the bag), then the metrics are computed
-    [stop] = outcome(handlers[-1], 0)
+    [stop] = _outcome(handlers[-1], 0)
     assert stop.kwargs['event'].kwargs['process_matcher'] == ('matches', nodes[0])
-    assert outcome(handlers[1], -9) == []      # after the completion no node is needed
-    after_run, on_after_run = outcome(handlers[0], -2)
+    assert _outcome(handlers[1], -9) == []      # after the completion no node is needed
+    after_run, on_after_run = _outcome(handlers[0], -2)
     assert after_run.kwargs['cmd'][:4] == [sys.executable, '-m', 'uh_bringup.launch_run', str(tmp_path)]
     assert on_after_run.args[0].kwargs['target_action'] is after_run
-    assert reasons(outcome(on_after_run.args[0], 0)) == ['run complete']
-    assert outcome(on_after_run.args[0], 1).startswith('failed: the run completed, but its metrics were not written')
+    assert _reasons(_outcome(on_after_run.args[0], 0)) == ['run complete']
+    assert _outcome(on_after_run.args[0], 1).startswith('failed: the run completed, but its metrics were not written')
 
-    # a launch that ends idle (no node could even start: launch sends no exit event) failed,
-    # unless the clock completed the run; Ctrl-C is not a failure of the run
-    def ends(reason, handler=idle):
-        try:
-            return handler.kwargs['on_shutdown'](types.SimpleNamespace(reason=reason, due_to_sigint='ctrl-c' in reason),
-                                                 stopping)
-        except RunFailed as exc:
-            return f'failed: {exc}'
-    [fresh_idle] = _registered(opaque.kwargs['function'](None), mods, 'OnShutdown')
-    assert ends('idle', fresh_idle).startswith('failed: every process has ended, and the clock never completed')
-    assert ends('ctrl-c (SIGINT)', fresh_idle) is None
-    assert ends('idle') is None   # this launch's clock completed above
 
-    arguments.update(clock_mode='realtime', visualization='false')
-    team = started(opaque.kwargs['function'](None))
-    handlers = _registered(team, mods, 'OnProcessExit')
+def test_a_launch_that_ends_idle_failed_unless_its_clock_completed_the_run(launch):
+    """No node could even start (launch sends no exit event): failed; Ctrl-C is not a failure of the run."""
+    actions = launch.actions()
+    [idle] = launch.registered(actions, 'OnShutdown')
+    team = launch.started(actions)
+    [_stop] = _outcome(launch.registered(team, 'OnProcessExit')[-1], 0)   # the clock completes the run
+    [fresh_idle] = launch.registered(launch.actions(), 'OnShutdown')
+    assert _ends(fresh_idle, 'idle').startswith('failed: every process has ended, and the clock never completed')
+    assert _ends(fresh_idle, 'ctrl-c (SIGINT)') is None
+    assert _ends(idle, 'idle') is None   # this launch's clock completed above
+
+
+def test_launch_file_in_real_time_gives_the_control_loop_its_priority(launch):
+    launch.arguments.update(clock_mode='realtime', visualization='false')
+    team = launch.started(launch.actions())
+    handlers = launch.registered(team, 'OnProcessExit')
     assert [h.kwargs['target_action'].kwargs['executable'] for h in handlers] == ['recorder_node',
                                                                                   'lockstep_clock_node']
     # realtime: the control loop's nodes get the SCHED_FIFO priority (default 20), the recorder not
     priority = {n.kwargs['executable']: [a for a in n.kwargs['arguments'] if a.startswith('realtime_priority:=')]
-                for n in team if isinstance(n, mods['launch_ros.actions'].Node)}
+                for n in launch.nodes(team)}
     assert priority.pop('recorder_node') == []
     assert set(map(tuple, priority.values())) == {('realtime_priority:=20',)}
     for bad in ('99', '-1', 'high'):
-        arguments['realtime_priority'] = bad
+        launch.arguments['realtime_priority'] = bad
         with pytest.raises(ValueError, match=f"realtime_priority:='{bad}'; allowed an integer 0"):
-            opaque.kwargs['function'](None)
-    arguments['realtime_priority'] = '20'
+            launch.actions()
+    launch.arguments['realtime_priority'] = '20'
     assert 'visualization_node' not in [a.kwargs.get('executable') for a in team]
+
+
+def test_launch_file_backend_argument_chooses_the_nodes_backend(launch):
+    launch.arguments.update(clock_mode='realtime', visualization='false')
     # backend:=dds puts every node on the DDS backend; by default only the infrastructure may be
-    nodes = [a for a in team if isinstance(a, mods['launch_ros.actions'].Node)]
+    nodes = launch.nodes(launch.started(launch.actions()))
     assert all(n.kwargs['additional_env'].get('UH_BACKEND') != 'dds' for n in nodes
                if n.kwargs['executable'] in ('sim_node', 'controller_node'))
-    arguments.update(backend='dds')
-    nodes = [a for a in started(opaque.kwargs['function'](None)) if isinstance(a, mods['launch_ros.actions'].Node)]
+    launch.arguments.update(backend='dds')
+    nodes = launch.nodes(launch.started(launch.actions()))
     assert nodes and all(n.kwargs['additional_env']['UH_BACKEND'] == 'dds' for n in nodes)
     # and every node the runs' discovery settings, which rclpy on Fast DDS and Cyclone DDS meet on
     assert all(n.kwargs['additional_env'].get('ROS_AUTOMATIC_DISCOVERY_RANGE') for n in nodes)
-    arguments.update(backend='zenoh')
+    launch.arguments.update(backend='zenoh')
     with pytest.raises(ValueError, match="backend:='zenoh'; allowed: rclpy, dds"):
-        opaque.kwargs['function'](None)
+        launch.actions()

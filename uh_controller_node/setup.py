@@ -25,5 +25,20 @@ setup(
         'console_scripts': [
             'controller_node = uh_controller_node.entry_points:controller_node',
         ],
+        # the kernel modules (uh_core.compiled_kernels): prefix in the compiled module = module:warm-up
+        # (the module alone: its kernels are compiled by the warm-up of the kernels that call them)
+        'uh_kernels': [
+            'control__ = uh_controller_node.control_kernels:compile_control_kernels',
+            'loops__ = uh_controller_node.loop_kernels',
+            'learning__ = uh_controller_node.learning_kernels',
+            'isolation__ = uh_controller_node.isolation_kernels:compile_isolation_kernels',
+            'impairments__ = uh_controller_node.impairments:compile_impairment_kernels',
+            'safety__ = uh_controller_node.safety_kernels:compile_safety_kernels',
+        ],
+        # what the kernels compile in without being kernel modules: the layout of the law's arrays, the gains' slots
+        'uh_kernel_inputs': [
+            'control_layout = uh_controller_node.control_layout',
+            'gains = uh_controller_node.gains',
+        ],
     },
 )

@@ -24,5 +24,9 @@ setup(
     entry_points={
         'console_scripts': [
         ],
+        # what the compiled kernels are made from besides the kernel modules (uh_core.compiled_kernels)
+        'uh_kernel_inputs': [
+            'layout = uh_core.layout',
+        ],
     },
 )

@@ -24,10 +24,10 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'uh = uh_runtime.cli:main',
-            'recorder_node = uh_runtime.recorder:main',
-            'live_view_node = uh_runtime.live_view:main',
-            'replay_node = uh_runtime.replay:main',
+            'uh = uh_runtime.cli.uh:main',
+            'recorder_node = uh_runtime.bags.recorder:main',
+            'live_view_node = uh_runtime.bags.live_view:main',
+            'replay_node = uh_runtime.bags.replay:main',
         ],
     },
 )

@@ -28,5 +28,9 @@ setup(
             'lockstep_clock_node = uh_sim_node.clock_node:main',
             'visualization_node = uh_sim_node.visualization_node:main',
         ],
+        # the kernel modules (uh_core.compiled_kernels): prefix in the compiled module = module:warm-up
+        'uh_kernels': [
+            'plant__ = uh_sim_node.plant_kernels:compile_plant_kernels',
+        ],
     },
 )

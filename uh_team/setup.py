@@ -21,5 +21,9 @@ setup(
         'console_scripts': [
             'uh-simulate = uh_team.simulate_cli:main',
         ],
+        # python -m of this module builds the compiled kernels (uh_core.compiled_kernels)
+        'uh_kernel_builder': [
+            'compile_kernels = uh_team.compile_kernels:main',
+        ],
     },
 )

@@ -10,7 +10,9 @@ Modules:
   every state and command of a real-time run: state-to-command latency, late and missed steps;
 - :mod:`uh_bench.inprocess` -- the in-process reference simulation's real-time factor and the
   per-step cost of the controller and of the helicopter model;
-- :mod:`uh_bench.suite` -- the sections of the benchmark, the results file and the markdown table.
+- :mod:`uh_bench.suite` -- the sections of the benchmark and the results mapping;
+- :mod:`uh_bench.results` -- the goals and their evaluation against the results;
+- :mod:`uh_bench.tables` -- the markdown tables of the results.
 
 Run ``PYTHONPATH=benchmarks python -P -m uh_bench [--quick]`` (what ``scripts/bench.sh`` does).
 """

@@ -43,7 +43,7 @@ def _one_run_seconds(duration: float, repeats: int) -> float:
     compile_all()
     scenario = load_scenario('paper')
     gc.collect()
-    gc.freeze()   # as the campaign's workers do (uh_campaign.runner._warm_up)
+    gc.freeze()   # as the campaign's workers do (uh_campaign.worker._warm_up)
     times = []
     for _ in range(repeats + 1):
         start = time.perf_counter()

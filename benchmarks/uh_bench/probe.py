@@ -91,7 +91,7 @@ def main(argv=None) -> int:
     from cyclonedds.topic import Topic
 
     from uh_runtime import messages
-    from uh_runtime.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
+    from uh_runtime.dds.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
 
     dp = DomainParticipant(args.domain_id, qos=Qos(Policy.Userdata(b'enclave=/;')))
     sub = Subscriber(dp)

@@ -28,8 +28,10 @@ CATEGORIES = (
     ('blocked in the wait set', lambda f, fn: fn in ('_wait_for_work', 'final_func')),
     ('Cyclone DDS write (C)', lambda f, fn: 'ddspy_write' in fn),
     ('Cyclone DDS take (C)', lambda f, fn: 'ddspy_take' in fn),
-    ('CDR codecs', lambda f, fn: 'cdr codec' in f or f.endswith('uh_runtime/cdr.py')),
-    ('node runtime (executor, pub/sub)', lambda f, fn: 'uh_runtime/dds_backend/' in f),
+    ('CDR codecs', lambda f, fn: 'cdr codec' in f or f.endswith('uh_runtime/dds/cdr.py')),
+    ('node runtime (executor, pub/sub)', lambda f, fn: any(
+        f'uh_runtime/dds/{m}.py' in f for m in ('clock', 'context', 'endpoints', 'executors', 'logger', 'node',
+                                                 'services'))),
     ('node runtime, other', lambda f, fn: 'uh_runtime/uh_runtime/' in f and not any(
         x in f for x in ('recorder.py', 'bag.py'))),
     ('recorder and bag writer', lambda f, fn: 'recorder.py' in f or 'bag.py' in f or '/mcap/' in f),
@@ -41,6 +43,7 @@ CATEGORIES = (
                          'reference.py'))),
     # the numba kernels are not Python functions: cProfile books their time to the wrapper calling them
     ('control law', lambda f, fn: any(x in f for x in ('uh_controller_node/controller.py', 'control_kernels.py',
+                                                       'loop_kernels.py', 'learning_kernels.py', 'safety_kernels.py',
                                                        'team_kernel.py', 'nominal_model.py'))),
     ('helicopter model and faults', lambda f, fn: any(x in f for x in ('helicopter.py', 'plant_kernels.py',
                                                                        'uh_sim_node/faults.py'))),

@@ -73,6 +73,80 @@ def _memory_summary(processes: list) -> dict:
     }
 
 
+def _run_formation_command(scenario, run_dir: Path, layout: str, clock: str, rate: float, domain: int,
+                           duration: float | None, extra_args) -> list:
+    """Return the command line of the run supervisor writing its output to ``run_dir``."""
+    cmd = [sys.executable, '-P', '-m', 'uh_bringup.run_formation', '--scenario', str(scenario),
+           '--out', str(run_dir), '--no-metrics', '--processes', layout, '--clock', clock,
+           '--rate', repr(float(rate)), '--domain-id', str(domain)]
+    if duration is not None:
+        cmd += ['--duration', repr(float(duration))]
+    return cmd + list(extra_args)
+
+
+def _supervisor_environment(env: dict | None, stats_dir: Path) -> dict:
+    """Return the supervisor's environment: this one with ``env`` and ``UH_PROC_STATS_DIR`` set, unprofiled."""
+    child_env = dict(os.environ)
+    child_env.pop('UH_PROFILE_DIR', None)      # profiling distorts timing: only when asked for here
+    child_env.update(env or {})
+    child_env['UH_PROC_STATS_DIR'] = str(stats_dir)
+    return child_env
+
+
+def _wait_for_supervisor(proc, timeout: float | None, on_started) -> tuple:
+    """Wait for the supervisor ``proc`` to end, interrupting it (SIGINT) after ``timeout`` wall seconds.
+
+    Return ``(wait status, resource usage of the process tree, whether it was interrupted)``.
+    """
+    timed_out = []
+
+    def interrupt():
+        timed_out.append(True)
+        try:
+            proc.send_signal(signal.SIGINT)
+        except ProcessLookupError:
+            pass
+    timer = threading.Timer(timeout, interrupt) if timeout else None
+    if timer:
+        timer.daemon = True
+        timer.start()
+    try:
+        if on_started is not None:
+            on_started(proc)
+        _, wait_status, usage = os.wait4(proc.pid, 0)
+    finally:
+        if timer:
+            timer.cancel()
+    return wait_status, usage, bool(timed_out)
+
+
+def _log_texts(log_dir: Path) -> list:
+    """Return the text of every node log of the run (those that can be read)."""
+    texts = []
+    for path in sorted(log_dir.glob('*.log')):
+        try:
+            texts.append(path.read_text(errors='replace'))
+        except OSError:
+            pass
+    return texts
+
+
+def _exit_codes(run_dir: Path) -> dict:
+    """Return ``{node process: exit status}`` from the supervisor's ``run.json`` (empty without one)."""
+    try:
+        return json.loads((run_dir / 'run.json').read_text()).get('exit_codes', {})
+    except (OSError, ValueError):
+        return {}
+
+
+def _node_processes(stats_dir: Path) -> list:
+    """Return per node process its nodes, CPU seconds (user, system, before spinning) and peak resident set."""
+    return [{'nodes': r['nodes'], 'cpu_s': r['cpu_s'], 'user_s': r['user_s'],
+             'system_s': r['system_s'], 'startup_cpu_s': r.get('cpu_startup_s') or 0.0,
+             'peak_rss_kb': r['peak_rss_kb']}
+            for r in _read_stats(stats_dir)]
+
+
 def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = 'lockstep',
              rate: float = 1.0, duration: float | None = None, domain_id: int | None = None,
              timeout: float | None = None, env: dict | None = None, on_started=None,
@@ -117,16 +191,8 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
     out.mkdir(parents=True, exist_ok=True)
     stats_dir = out / 'stats'
     domain = reserve_domain_id() if domain_id is None else int(domain_id)
-    cmd = [sys.executable, '-P', '-m', 'uh_bringup.run_formation', '--scenario', str(scenario),
-           '--out', str(out / 'run'), '--no-metrics', '--processes', layout, '--clock', clock,
-           '--rate', repr(float(rate)), '--domain-id', str(domain)]
-    if duration is not None:
-        cmd += ['--duration', repr(float(duration))]
-    cmd += list(extra_args)
-    child_env = dict(os.environ)
-    child_env.pop('UH_PROFILE_DIR', None)      # profiling distorts timing: only when asked for here
-    child_env.update(env or {})
-    child_env['UH_PROC_STATS_DIR'] = str(stats_dir)
+    cmd = _run_formation_command(scenario, out / 'run', layout, clock, rate, domain, duration, extra_args)
+    child_env = _supervisor_environment(env, stats_dir)
     log = open(out / 'supervisor.log', 'w')
     started = time.monotonic()
     try:
@@ -137,53 +203,26 @@ def run_team(scenario: str, out_dir, *, layout: str = 'per-node', clock: str = '
         if domain_id is None:
             release_domain_id(domain)
         raise RunError(f'cannot start the run supervisor: {exc}') from None
-    timed_out = []
-
-    def interrupt():
-        timed_out.append(True)
-        try:
-            proc.send_signal(signal.SIGINT)
-        except ProcessLookupError:
-            pass
-    timer = threading.Timer(timeout, interrupt) if timeout else None
-    if timer:
-        timer.daemon = True
-        timer.start()
     try:
-        if on_started is not None:
-            on_started(proc)
-        _, wait_status, usage = os.wait4(proc.pid, 0)
+        wait_status, usage, timed_out = _wait_for_supervisor(proc, timeout, on_started)
     finally:
-        if timer:
-            timer.cancel()
         log.close()
         if domain_id is None:
             release_domain_id(domain)
     proc.returncode = os.waitstatus_to_exitcode(wait_status)
     wall = time.monotonic() - started
 
-    texts = []
-    for path in sorted((out / 'run' / 'logs').glob('*.log')):
-        try:
-            texts.append(path.read_text(errors='replace'))
-        except OSError:
-            pass
+    texts = _log_texts(out / 'run' / 'logs')
     complete = None
     for text in texts:
         complete = parse_run_complete(text) or complete
     late = [int(n) for text in texts for n in _LATE.findall(text)]
-    try:
-        exit_codes = json.loads((out / 'run' / 'run.json').read_text()).get('exit_codes', {})
-    except (OSError, ValueError):
-        exit_codes = {}
-    processes = [{'nodes': r['nodes'], 'cpu_s': r['cpu_s'], 'user_s': r['user_s'],
-                  'system_s': r['system_s'], 'startup_cpu_s': r.get('cpu_startup_s') or 0.0,
-                  'peak_rss_kb': r['peak_rss_kb']}
-                 for r in _read_stats(stats_dir)]
+    exit_codes = _exit_codes(out / 'run')
+    processes = _node_processes(stats_dir)
     result = {
         'scenario': str(scenario), 'layout': layout, 'clock': clock, 'rate': rate,
         'duration_s': duration, 'domain_id': domain, 'status': proc.returncode,
-        'timed_out': bool(timed_out), 'wall_s': wall,
+        'timed_out': timed_out, 'wall_s': wall,
         'steps': complete[0] if complete else None,
         'loop_wall_s': complete[2] if complete else None,
         'rtf': complete[3] if complete else None,

@@ -1,4 +1,4 @@
-"""The benchmark suite: sections, the results file and the markdown table (``scripts/bench.sh``).
+"""The benchmark suite: its sections and the results mapping (``scripts/bench.sh``).
 
 Sections (every figure is measured in the same invocation as the baseline it is compared with):
 
@@ -40,6 +40,9 @@ Sections (every figure is measured in the same invocation as the baseline it is 
 The machine is described in the results (CPU model, cores, load average before and after), since
 shared machines make absolute figures noisy; ratios measured in the same invocation are the
 figures to compare.
+
+The goals and their evaluation are :mod:`uh_bench.results`; the markdown tables of the results are
+:mod:`uh_bench.tables` (:func:`markdown` is importable from here too).
 """
 from __future__ import annotations
 
@@ -58,6 +61,8 @@ from uh_runtime import scheduling
 from uh_runtime.network import release_domain_id, reserve_domain_id
 
 from . import campaign, executors, inprocess, runs, transport
+from .results import GOALS, all_runs, evaluate_goals
+from .tables import markdown
 
 __all__ = ['MODES', 'GOALS', 'run_suite', 'markdown', 'machine_info', 'evaluate_goals']
 
@@ -76,50 +81,6 @@ MODES = {
              'backend_lockstep_duration': 60.0, 'backend_realtime_duration': 60.0, 'campaign_runs': 1000,
              'contention_runs': ('fifo', 'normal')},
 }
-
-#: The goals of the performance work (docs/performance.md#goals): (key, description, target, comparison).
-GOALS = (
-    ('paper_lockstep_rtf', 'paper scenario, lockstep, one process per node: real-time factor', 6.0, '>='),
-    ('paper_lockstep_single_rtf', 'paper scenario, lockstep, `--processes single`: real-time factor', 20.0, '>='),
-    ('standard_views_slowdown', 'paper scenario, lockstep, one process per node: real-time factor without '
-     '/tf, odom and /diagnostics over with them', 1.10, '<='),
-    ('inprocess_rtf', 'paper scenario, in-process reference: real-time factor', 200.0, '>='),
-    ('clock_us_per_step', 'paper scenario, one process per node: run CPU per step of the clock (us)', 100.0, '<='),
-    ('virtual_leader_us_per_step', 'the same, of the virtual leader (us)', 100.0, '<='),
-    ('visualization_us_per_step', 'the same, of the visualisation (us)', 100.0, '<='),
-    ('recorder_us_per_step', 'the same, of the recorder (us)', 300.0, '<='),
-    ('uh_process_peak_rss_mb', 'paper scenario, one process per node: peak RSS of a simulator or controller '
-     'process (MB)', 90.0, '<='),
-    ('team40_lockstep_best_rtf', '40 UHs, lockstep, best process layout: real-time factor', 2.0, '>='),
-    ('realtime20_best_missed', '20 UHs, real time, best process layout: missed + late steps', 0, '<='),
-    ('realtime20_best_p99_ms', '20 UHs, real time, best process layout: worst controller p99 '
-     'state-to-command latency (ms)', 5.0, '<'),
-    ('realtime5_p99_ms', '5 UHs, real time, one process per node: worst controller p99 '
-     'state-to-command latency (ms)', 5.0, '<'),
-    ('realtime5_missed', '5 UHs, real time, one process per node: missed + late steps', 0, '<='),
-    ('campaign_efficiency', 'campaign of paper-scenario runs on local workers: runs per second over '
-     'cores / (one run in process)', 0.8, '>='),
-    ('campaign_1000_runs_s', 'campaign: seconds for 1,000 paper-scenario runs of 60 s (at the measured rate)',
-     120.0, '<'),
-)
-
-
-def node_kind_costs(run) -> dict:
-    """``{kind: (processes, run CPU us per step each, start-up CPU s each, peak RSS MB max)}`` of a per-node run.
-
-    Only processes holding one node count (a per-node run has no other kind).
-    """
-    kinds = {}
-    for proc in run['processes']:
-        if len(proc['nodes']) == 1:
-            kinds.setdefault(runs.node_kind(proc['nodes'][0]), []).append(proc)
-    out = {}
-    for kind, procs in sorted(kinds.items()):
-        n = len(procs)
-        run_us = sum(p['cpu_s'] - p['startup_cpu_s'] for p in procs) / n * 1e6 / run['steps']
-        start = sum(p['startup_cpu_s'] for p in procs) / n
-        out[kind] = (n, run_us, start, max(p['peak_rss_kb'] for p in procs) / 1024)
-    return out
 
 
 def machine_info() -> dict:
@@ -402,74 +363,8 @@ def _memory(results):
             by_kind.setdefault(runs.node_kind(name), []).append(proc['peak_rss_kb'])
     results['memory'] = {
         'paper_per_node_max_kb': {k: max(v) for k, v in sorted(by_kind.items())},
-        'per_run': {key: run['memory'] for key, run in _all_runs(results)},
+        'per_run': {key: run['memory'] for key, run in all_runs(results)},
     }
-
-
-def _all_runs(results):
-    for layout, run in results.get('paper', {}).get('lockstep', {}).items():
-        yield f'paper/{layout}', run
-    if 'standard_views' in results.get('paper', {}):
-        yield 'paper/per-node-no-standard-views', results['paper']['standard_views']['without']
-    for row in results.get('scaling', []):
-        for layout, run in row['lockstep'].items():
-            yield f'team{row["uhs"]}/{layout}', run
-    for mode in ('lockstep', 'realtime'):
-        for backend, run in results.get('backends', {}).get(mode, {}).items():
-            yield f'backends/{backend}/{mode}', run
-    for run in results.get('realtime', []):
-        yield f'realtime{run["uhs"]}/{run["layout"]}', run
-
-
-def evaluate_goals(results) -> list:
-    """``[(key, description, target, comparison, measured, met), ...]`` (measured None: not run)."""
-    measured = {}
-    paper = results.get('paper', {})
-    lock = paper.get('lockstep', {})
-    if 'per-node' in lock:
-        measured['paper_lockstep_rtf'] = lock['per-node']['rtf']
-    if lock.get('single', {}).get('rtf'):
-        measured['paper_lockstep_single_rtf'] = lock['single']['rtf']
-    if lock.get('per-node', {}).get('steps'):
-        costs = node_kind_costs(lock['per-node'])
-        for kind in ('clock', 'virtual_leader', 'visualization', 'recorder'):
-            if kind in costs:
-                measured[f'{kind}_us_per_step'] = costs[kind][1]
-        rss = [costs[k][3] for k in ('sim', 'controller') if k in costs]
-        if rss:
-            measured['uh_process_peak_rss_mb'] = max(rss)
-    if 'inprocess' in paper:
-        measured['inprocess_rtf'] = paper['inprocess']['rtf']
-    views = paper.get('standard_views')
-    if views and views['rtf_ratio']:
-        measured['standard_views_slowdown'] = 1.0 / views['rtf_ratio']
-    for row in results.get('scaling', []):
-        rtfs = [r['rtf'] for r in row['lockstep'].values() if r.get('rtf')]
-        if row['uhs'] == 40 and rtfs:
-            measured['team40_lockstep_best_rtf'] = max(rtfs)
-    best = None
-    for run in results.get('realtime', []):
-        if run['p99_ms_max'] is None:
-            continue
-        if run['uhs'] == 5 and run['layout'] == 'per-node':
-            measured['realtime5_p99_ms'] = run['p99_ms_max']
-            measured['realtime5_missed'] = run['missed_steps'] + run['late_steps']
-        if run['uhs'] == 20:
-            key = (run['missed_steps'] + run['late_steps'], run['p99_ms_max'])
-            best = key if best is None or key < best else best
-    if best is not None:
-        measured['realtime20_best_missed'], measured['realtime20_best_p99_ms'] = best
-    if 'campaign' in results:
-        measured['campaign_efficiency'] = results['campaign']['efficiency']
-        measured['campaign_1000_runs_s'] = results['campaign']['time_for_1000_runs_s']
-    out = []
-    for key, text, target, cmp in GOALS:
-        value = measured.get(key)
-        met = None
-        if value is not None:
-            met = {'>=': value >= target, '<': value < target, '<=': value <= target}[cmp]
-        out.append((key, text, target, cmp, value, met))
-    return out
 
 
 def run_suite(mode, workdir, sections=('transport', 'paper', 'components', 'scaling', 'realtime')) -> dict:
@@ -495,172 +390,3 @@ def run_suite(mode, workdir, sections=('transport', 'paper', 'components', 'scal
     results['goals'] = [dict(zip(('key', 'description', 'target', 'comparison', 'measured', 'met'), g, strict=True))
                         for g in evaluate_goals(results)]
     return results
-
-
-def _f(value, fmt='{:.2f}', none='—'):
-    return none if value is None else fmt.format(value)
-
-
-def markdown(results) -> str:
-    """Return the results as markdown tables (what ``scripts/bench.sh`` prints)."""
-    m = results['machine']
-    lines = [f'## Benchmark ({results["mode"]}, {results["date"]}, commit {m.get("commit") or "?"})', '',
-             f'Machine: {m.get("cpu_model")}, {m.get("nproc")} cores, {m.get("memory_mb")} MB; load average '
-             f'{", ".join(f"{x:.1f}" for x in m["loadavg"])} at start, '
-             f'{", ".join(f"{x:.1f}" for x in m.get("loadavg_end", m["loadavg"]))} at the end. '
-             f'Suite wall time {results.get("wall_s", 0):.0f} s.', '']
-    tr = results.get('transport')
-    if tr:
-        lines += ['### Cost of one message (ping-pong of a 132-byte UHState)', '',
-                  '| path | CPU us per message (receiving and answering side) | round trip us |', '|---|---|---|',
-                  f'| loopback UDP between two processes (kernel only) | {tr["udp"]["echo_cpu_us_per_message"]:.1f} | '
-                  f'{tr["udp"]["round_trip_us"]:.0f} |',
-                  f'| node runtime + Cyclone DDS, another process | {tr["dds"]["echo_cpu_us_per_message"]:.1f} | '
-                  f'{tr["dds"]["round_trip_us"]:.0f} |',
-                  f'| node runtime + Cyclone DDS, same process (publish + spin_once) | '
-                  f'{tr["inprocess"]["cpu_us_per_message"]:.1f} | — |', '']
-        fan = tr.get('fanout_cpu_us_per_publish')
-        if fan:
-            lines += ['| subscriber processes | ' + ' | '.join(str(k) for k in fan) + ' |',
-                      '|---|' + '---|' * len(fan),
-                      '| publishing thread CPU us per publish (with a 0.5 ms sleep between publishes) | ' +
-                      ' | '.join(f'{v:.1f}' for v in fan.values()) + ' |', '']
-    paper = results.get('paper')
-    if paper:
-        ref = paper['inprocess']
-        lines += [f'### Paper scenario ({paper["duration_s"]:g} s simulated)', '',
-                  '| run | processes | real-time factor | ratio to in-process | CPU s of the node processes '
-                  '(start-up + run) | run CPU ms per step |',
-                  '|---|---|---|---|---|---|',
-                  f'| in-process reference | 1 | {_f(ref["rtf"], "{:.1f}")} | 1 | — | '
-                  f'{_f(1000 * ref["wall_s"] / (paper["duration_s"] / 0.01), "{:.2f}")} (wall) |']
-
-        def lockstep_row(label, run, ratio):
-            steps = run['steps'] or paper['duration_s'] / 0.01
-            return (f'| {label} | {run["n_processes"]} | {_f(run["rtf"])} | {ratio} | {run["cpu_s"]:.1f} '
-                    f'({run["cpu_startup_s"]:.1f} + {run["cpu_run_s"]:.1f}) | {1000 * run["cpu_run_s"] / steps:.2f} |')
-        for layout, run in paper['lockstep'].items():
-            lines.append(lockstep_row(f'lockstep, {layout}', run, _f(run['ratio_to_inprocess'], '{:.3f}')))
-        views = paper.get('standard_views')
-        if views:
-            lines.append(lockstep_row('lockstep, per-node, `--no-standard-views`', views['without'], '—'))
-            lines.append(f'\n/tf, odom and /diagnostics: real-time factor with / without '
-                         f'{_f(views["rtf_ratio"], "{:.3f}")}, '
-                         f'run CPU with / without {_f(views["cpu_ratio"], "{:.3f}")}')
-        lines.append('')
-    per_node = (paper or {}).get('lockstep', {}).get('per-node')
-    if per_node and per_node.get('steps'):
-        lines += ['### Where the CPU goes, one process per node (paper scenario, lockstep)', '',
-                  '| node | processes | run CPU us per step (each) | start-up CPU s (each) | peak RSS MB (each) |',
-                  '|---|---|---|---|---|']
-        for kind, (n, run_us, start, rss) in node_kind_costs(per_node).items():
-            lines.append(f'| {kind} | {n} | {run_us:.0f} | {start:.2f} | {rss:.1f} |')
-        lines.append('')
-    camp = results.get('campaign')
-    if camp:
-        lines += [f'### Campaign throughput ({camp["runs"]} paper-scenario runs of {camp["duration_s"]:g} s, '
-                  f'{camp["workers"]} local workers)', '',
-                  '| one run in process (s) | ideal runs/s (cores / one run) | campaign runs/s (cold start) | '
-                  'efficiency | 1,000 runs at this rate (s) |', '|---|---|---|---|---|',
-                  f'| {camp["one_run_s"]:.3f} | {camp["ideal_runs_per_s"]:.2f} | {camp["runs_per_s"]:.2f} | '
-                  f'{camp["efficiency"]:.2f} | {camp["time_for_1000_runs_s"]:.0f} |', '']
-    comp = results.get('components')
-    if comp:
-        c = comp['paper']
-        lines += [f'### Per-step cost in process (paper scenario, {c["steps"]} steps x {c["uhs"]} UHs)', '',
-                  '| part | mean us per UH-step | median us |', '|---|---|---|']
-        for key, label in (('controller', 'controller (UHController.step)'),
-                           ('model', f'model (HelicopterPlant.step, RK4 x {c["substeps"]})'),
-                           ('fault_truth', 'true lumped faults (lumped_faults)')):
-            lines.append(f'| {label} | {c[key]["mean_us"]:.1f} | {c[key]["median_us"]:.1f} |')
-        total = sum(c[k]['mean_us'] for k in ('controller', 'model', 'fault_truth'))
-        lines += [f'| sum (floor of one UH-step) | {total:.1f} | |', '']
-    scaling = results.get('scaling')
-    if scaling:
-        d = scaling[0]['duration_s']
-        lines += [f'### Scaling, lockstep ({d:g} s simulated, generated teams)', '',
-                  '| UHs | leaders:followers | layout | processes | real-time factor | CPU s of the node processes '
-                  '(start-up + run) | run CPU ms per step | per UH-step | peak RSS MB (sum over processes) | '
-                  'in-process RTF | ratio |',
-                  '|---|---|---|---|---|---|---|---|---|---|---|']
-        for row in scaling:
-            for layout, run in row['lockstep'].items():
-                steps = run['steps'] or d / 0.01
-                per_step = 1000 * run['cpu_run_s'] / steps
-                lines.append(
-                    f'| {row["uhs"]} | {row["leaders"]}:{row["followers"]} | {layout} | {run["n_processes"]} | '
-                    f'{_f(run["rtf"])} | {run["cpu_s"]:.1f} ({run["cpu_startup_s"]:.1f} + {run["cpu_run_s"]:.1f}) | '
-                    f'{per_step:.2f} | {per_step / row["uhs"]:.3f} | {run["memory"]["total_kb"] / 1024:.0f} | '
-                    f'{_f(row["inprocess"]["rtf"], "{:.1f}")} | '
-                    f'{_f(run["ratio_to_inprocess"], "{:.3f}")} |')
-        lines.append('')
-    realtime = results.get('realtime')
-    if realtime:
-        d = realtime[0]['duration_s']
-        lines += [f'### Real time, rate 1 ({d:g} s simulated = wall)', '',
-                  '| UHs | layout | latency p50 (median over controllers) ms | worst p99 ms | worst max ms | '
-                  'late steps | missed steps | controller steps | sims\' late-command log |',
-                  '|---|---|---|---|---|---|---|---|---|']
-        for run in realtime:
-            lines.append(f'| {run["uhs"]} | {run["layout"]} | {_f(run["p50_ms_median"], "{:.2f}")} | '
-                         f'{_f(run["p99_ms_max"])} | '
-                         f'{_f(run["max_ms"])} | {run["late_steps"]} | {run["missed_steps"]} | '
-                         f'{run["controller_steps"]} | {run["late_commands_logged"]} |')
-        lines.append('')
-    backends = results.get('backends')
-    if backends:
-        lines += ['### Backends: Cyclone DDS and rclpy (paper scenario, one process per node)', '',
-                  '| backend | lockstep real-time factor | lockstep CPU per step µs | real time p99 ms | '
-                  'late steps | missed steps | real time CPU per step µs | runs ended with |',
-                  '|---|---|---|---|---|---|---|---|']
-        for name, lock in backends['lockstep'].items():
-            rt_run = backends['realtime'][name]
-            # a run that failed (e.g. the clock died) has no meaningful latency: say so in the row
-            ended = ', '.join(f'{what} exit {run["status"]}' for what, run in
-                              (('lockstep', lock), ('real time', rt_run)) if run['status'] != 0) or 'exit 0'
-            lines.append(f'| {name} | {_f(lock["rtf"])} | {_f(lock["cpu_us_per_step"], "{:.0f}")} | '
-                         f'{_f(rt_run["p99_ms_max"])} | {rt_run["late_steps"]} | {rt_run["missed_steps"]} | '
-                         f'{_f(rt_run["cpu_us_per_step"], "{:.0f}")} | {ended} |')
-        if set(backends['lockstep']) == {'dds', 'rclpy'}:
-            d, r = backends['lockstep']['dds'], backends['lockstep']['rclpy']
-            if d['rtf'] and r['rtf']:
-                lines.append(f'\nrclpy / DDS backend, lockstep real-time factor: {r["rtf"] / d["rtf"]:.2f}')
-        if backends.get('executors'):
-            lines += ['', '| executor (5 topics of UHState at 100 Hz each) | backend | CPU per received message µs |',
-                      '|---|---|---|']
-            lines += [f'| {e["case"]} ({e["executor"]}) | {e["backend"]} | {_f(e["cpu_us_per_message"], "{:.0f}")} |'
-                      for e in backends['executors']]
-        contention = backends.get('contention')
-        if contention and contention['runs']:
-            lines += ['', f'Real time on a busy machine ({contention["busy_processes"]} busy-looping processes at '
-                      'normal priority during the run; docs/performance.md#real-time-scheduling):', '',
-                      '| backend | control loop scheduling | late steps | missed steps | late commands (sims) | '
-                      'p99 ms | runs ended with |', '|---|---|---|---|---|---|---|']
-            for key, run in contention['runs'].items():
-                backend, _ = key.split('/')
-                how = (f'SCHED_FIFO {run["priority"]}' if run['priority_granted'] else
-                       'normal' if run['priority'] == 0 else f'normal (SCHED_FIFO {run["priority"]} not permitted)')
-                lines.append(f'| {backend} | {how} | {run["late_steps"]} | {run["missed_steps"]} | '
-                             f'{run["late_commands"]} | {_f(run["p99_ms_max"])} | exit {run["status"]} |')
-        if backends['skipped_rclpy']:
-            lines.append(f'\nrclpy not measured: {backends["skipped_rclpy"]}')
-        lines.append('')
-    mem = results.get('memory', {}).get('paper_per_node_max_kb')
-    if mem:
-        lines += ['### Peak memory per node process (paper scenario, one process per node)', '',
-                  '| node | peak RSS MB |', '|---|---|']
-        lines += [f'| {k} | {v / 1024:.1f} |' for k, v in mem.items()]
-        lines.append('')
-    abnormal = [(key, run['abnormal_exits']) for key, run in _all_runs(results) if run.get('abnormal_exits')]
-    if abnormal:
-        lines += ['Node processes that did not exit with status 0 (negative: killed by that signal): ' +
-                  '; '.join(f'{key}: {codes}' for key, codes in abnormal) + '.', '']
-    goals = results.get('goals')
-    if goals:
-        lines += ['### Goals', '', '| goal | target | measured | met |', '|---|---|---|---|']
-        for g in goals:
-            met = '—' if g['met'] is None else ('yes' if g['met'] else 'no')
-            lines.append(f'| {g["description"]} | {g["comparison"]} {g["target"]} | '
-                         f'{_f(g["measured"], "{:.3g}")} | {met} |')
-        lines.append('')
-    return '\n'.join(lines)

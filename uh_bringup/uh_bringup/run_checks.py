@@ -14,7 +14,8 @@ from uh_bringup import netns
 from uh_controller_node.controller import ControllerError, UHController
 from uh_controller_node.gains import scenario_gains
 from uh_core.airframe import HelicopterParamsError, load_helicopter_params
-from uh_runtime import live_view, scheduling
+from uh_runtime import scheduling
+from uh_runtime.bags import live_view
 from uh_runtime.network import MAX_DOMAIN_ID, default_cyclonedds_uri
 from uh_sim_node.faults import FaultError
 from uh_sim_node.helicopter import plant_from_scenario
@@ -137,6 +138,10 @@ def check_run(args) -> tuple:
     if args.out is not None and not str(args.out).strip():
         raise UsageError("--out '': give a directory (or leave --out out for runs/<timestamp>)")
     scenario = load_scenario(args.scenario)
+    if scenario.safety.enabled:
+        raise UsageError(f'{args.scenario}: safety.enabled is true, but the nodes of a team run do not run the '
+                         'safety filter yet (uh-simulate does, docs/safety.md); set safety.enabled: false to fly the '
+                         'law alone')
     if args.duration is not None:
         try:
             duration_steps(args.duration, scenario.dt)

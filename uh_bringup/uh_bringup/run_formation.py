@@ -20,7 +20,7 @@ tail of its log, and the run goes on only where that makes sense:
   last command it got (status 3); the visualisation is not needed (status 3).
 
 Every node failure is listed in ``run.json`` (``node_failures``). If the recorder did not finalise
-the bag (killed), the bag is recovered up to its last complete chunk (:func:`uh_runtime.bag.recover_bag`).
+the bag (killed), the bag is recovered up to its last complete chunk (:func:`uh_runtime.bags.bag.recover_bag`).
 
 ``--hosts netns`` runs each UH's nodes in a network namespace of its own (:mod:`uh_bringup.netns`),
 ``--loss PCT`` drops that share of the packets on every link between helicopters.
@@ -54,7 +54,8 @@ from uh_runtime.command_line import ArgumentParser
 from uh_bringup.netns import NetnsError
 from uh_bringup.run_checks import CONFIG_ERRORS, HOSTS, LAYOUTS, UsageError, check_run, validate_team
 from uh_bringup.run_outcome import (EXIT_DEGRADED, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, RunRecord,
-                                    exit_status, recover_bag_if_needed, run_info, write_metrics)
+                                    exit_status, overlap_notice, recover_bag_if_needed, run_info,
+                                    write_metrics)
 from uh_bringup.run_processes import process_commands
 from uh_bringup.run_setup import (open_network, realtime_priority, run_environment, run_node_names, start_team,
                                   team_specs, write_environment_script)
@@ -62,7 +63,8 @@ from uh_bringup.run_watch import MAX_RESPAWNS, RunProgress, RunWatcher
 from uh_bringup.supervisor import Supervisor
 from uh_bringup.team_nodes import node_specs
 from uh_controller_node.gains import CASES
-from uh_runtime import live_view, scheduling
+from uh_runtime import scheduling
+from uh_runtime.bags import live_view
 from uh_runtime.network import MAX_DOMAIN_ID
 from uh_wire.run_defaults import CLOCK_MODES, DEFAULT_STALE_TIMEOUT, DEFAULT_STARTUP_TIMEOUT
 
@@ -185,6 +187,9 @@ def run(args) -> int:
     after = time.monotonic() - started - wall
     print(f'[run] done in {wall + after:.1f} s wall ({wall:.1f} s the team, {after:.1f} s recovery, metrics and '
           f'report): {out}', file=sys.stderr)
+    overlap = overlap_notice(out / 'metrics.json', scenario.safety.enabled)
+    if overlap:
+        print(f'[run] {overlap}', file=sys.stderr)
     return status
 
 

@@ -12,12 +12,13 @@ from pathlib import Path
 
 from uh_report.bag_metrics import write_metrics_from_bag
 from uh_report.report import ReportError, run_of_arrays, write_report
-from uh_runtime.bag import recover_bag
-from uh_runtime.bag_reader import BagError
+from uh_runtime.bags.bag import recover_bag
+from uh_runtime.bags.bag_reader import BagError
+from uh_topology.safety import overlap_line
 
 __all__ = ['EXIT_OK', 'EXIT_FAILED', 'EXIT_USAGE', 'EXIT_DEGRADED', 'EXIT_INTERRUPTED', 'RunRecord',
-           'run_info', 'write_run_json', 'recover_bag_if_needed', 'exit_status', 'write_metrics', 'write_run_report',
-           'RUN_REPORT_FIGURES']
+           'run_info', 'write_run_json', 'recover_bag_if_needed', 'exit_status', 'write_metrics', 'overlap_notice',
+           'write_run_report', 'RUN_REPORT_FIGURES']
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DEGRADED, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
@@ -116,6 +117,15 @@ def write_metrics(out: Path, scenario, case: str, wall: float, report: bool = Fa
     if report:
         write_run_report(out, scenario, case, arrays, metrics)
     return None
+
+
+def overlap_notice(metrics_path: Path, enabled: bool) -> str | None:
+    """Return the one line a run ends with when its rotor disks overlapped (docs/safety.md), else None."""
+    try:
+        metrics = json.loads(metrics_path.read_text())
+    except (OSError, ValueError):
+        return None
+    return overlap_line(metrics, enabled)
 
 
 def write_run_report(out: Path, scenario, case: str, arrays: dict, metrics: dict) -> Path | None:

@@ -64,7 +64,7 @@ class NodeKind:
 
 #: node kind -> how it is packaged, started and composed
 NODES = {
-    'recorder': NodeKind('uh_runtime', 'recorder_node', 'uh_runtime.recorder:RecorderNode', infrastructure=True),
+    'recorder': NodeKind('uh_runtime', 'recorder_node', 'uh_runtime.bags.recorder:RecorderNode', infrastructure=True),
     'sim': NodeKind('uh_sim_node', 'sim_node', 'uh_sim_node.sim_node:SimNode', per_uh=True,
                     entry='uh_sim_node.entry_points:sim_node'),
     'controller': NodeKind('uh_controller_node', 'controller_node',
@@ -75,7 +75,8 @@ NODES = {
     'virtual_leader': NodeKind('uh_sim_node', 'virtual_leader_node',
                                'uh_sim_node.virtual_leader_node:VirtualLeaderNode'),
     'clock': NodeKind('uh_sim_node', 'lockstep_clock_node', 'uh_sim_node.clock_node:ClockNode'),
-    'live_view': NodeKind('uh_runtime', 'live_view_node', 'uh_runtime.live_view:LiveViewNode', infrastructure=True),
+    'live_view': NodeKind('uh_runtime', 'live_view_node', 'uh_runtime.bags.live_view:LiveViewNode',
+                          infrastructure=True),
 }
 
 

@@ -25,7 +25,8 @@ from uh_runtime.command_line import ArgumentParser, directory_argument
 from uh_report.report import main as report_main
 from uh_topology.errors import ScenarioError
 
-from .runner import CampaignError, CampaignInterrupted, Progress, run_campaign, success_text, summary_lines
+from .progress import Progress, success_text, summary_lines
+from .runner import CampaignError, CampaignInterrupted, run_campaign
 from .spec import load_spec
 
 __all__ = ['main', 'build_parser', 'PROG']

@@ -10,7 +10,8 @@ from the YAML text, runs each case with
 (:func:`uh_team.campaign_store.metric_row` plus status, reason and wall time). Only the main
 process writes the results file, one committed row per run as soon as it arrives
 (:mod:`uh_team.campaign_store`), so an interruption loses at most the runs in flight and a
-re-run skips every stored key.
+re-run skips every stored key. What a worker runs is :mod:`uh_campaign.worker`; the progress line
+and the closing summary are :mod:`uh_campaign.progress`.
 
 Outcome of a run: ``ok``; ``diverged`` when the simulation raised a
 :class:`~uh_team.team_simulation.SimulationError` about a non-finite state; ``failed`` with
@@ -55,7 +56,6 @@ running, commits their rows and raises :class:`CampaignInterrupted`.
 from __future__ import annotations
 
 import concurrent.futures as cf
-import gc
 import math
 import multiprocessing
 import os
@@ -68,15 +68,12 @@ from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
 
-import numpy as np
-
 from uh_team import campaign_store as store
 from uh_team.compile_kernels import compile_all
-from uh_team.metrics import metrics_from_arrays
-from uh_team.team_simulation import SimulationError, run_team_simulation
-from uh_topology.scenario import parse_scenario
 
+from .progress import Progress, summary_lines
 from .spec import CampaignSpec, resolve_scenario, scenario_file_name, scenario_yaml
+from .worker import failure_reason, init_local_worker, run_task
 
 __all__ = ['run_campaign', 'run_task', 'CampaignError', 'CampaignInterrupted', 'CampaignOutcome', 'Progress',
            'success_of', 'summary_lines', 'campaign_versions']
@@ -132,72 +129,6 @@ class CampaignOutcome:
 
 
 # ------------------------------------------------------------------------------------------------
-# Worker side
-
-
-_WARM = False
-
-
-def _warm_up() -> None:
-    """Once per process: load the numba kernels (from the cache, or compile them), then freeze.
-
-    What a run imports is imported with this module (its imports are at the top), so it is alive
-    here and frozen with the rest: ``gc.freeze()`` everything alive (as the nodes do at start-up,
-    ``uh_runtime.runner``; ``UH_GC_FREEZE=0`` keeps the default). The imports and the kernels'
-    dispatchers are a large, permanent object graph that every full collection would walk again:
-    frozen, a 60 s run of the paper scenario takes about 0.39 s instead of 0.47 s.
-    """
-    global _WARM
-    if _WARM:
-        return
-    compile_all()
-    if os.environ.get('UH_GC_FREEZE', '1').strip() not in ('0', 'false', 'no'):
-        gc.collect()
-        gc.freeze()
-    _WARM = True
-
-
-def _init_local_worker() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)   # Ctrl-C is the main process's to handle
-    _warm_up()
-
-
-def run_task(task: dict) -> list:
-    """Run the cases of one resolved scenario (in a worker); one row per case.
-
-    ``task``: ``draw``, ``sweep_index``, ``sweep_value``, ``scenario_file`` (relative to the
-    campaign directory, for messages and the row), ``scenario_text`` (its YAML) and ``cases``.
-    The rows hold every :data:`~uh_team.campaign_store.RUN_COLUMNS` column but ``success``.
-    """
-    _warm_up()
-    key = {'draw': task['draw'], 'sweep_index': task['sweep_index'], 'sweep_value': task['sweep_value'],
-           'scenario_file': task['scenario_file']}
-    try:
-        scenario = parse_scenario(task['scenario_text'], source=task['scenario_file'])
-    except Exception as exc:   # noqa: BLE001 - any error of the scenario is the runs' outcome
-        return [dict(key, case_name=case, status='failed', reason=_reason(exc), wall_time_s=0.0)
-                for case in task['cases']]
-    rows = []
-    for case in task['cases']:
-        start = time.perf_counter()
-        row = dict(key, case_name=case, status='ok', reason=None)
-        try:
-            run = run_team_simulation(scenario, case, duration=scenario.duration)
-            row.update(store.metric_row(metrics_from_arrays(run.arrays(), scenario, case)))
-        except SimulationError as exc:
-            row.update(status='diverged' if 'non-finite' in str(exc) else 'failed', reason=_reason(exc))
-        except Exception as exc:   # noqa: BLE001 - recorded, the campaign goes on
-            row.update(status='failed', reason=_reason(exc))
-        row['wall_time_s'] = time.perf_counter() - start
-        rows.append(row)
-    return rows
-
-
-def _reason(exc: BaseException) -> str:
-    return f'{type(exc).__name__}: {exc}'
-
-
-# ------------------------------------------------------------------------------------------------
 # Executors
 
 
@@ -210,7 +141,7 @@ class _LocalPool:
         self.workers = workers
         self.slots = workers * _IN_FLIGHT_PER_WORKER
         self.pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=self.context,
-                                           initializer=_init_local_worker)
+                                           initializer=init_local_worker)
         self.description = f'{workers} local worker process{"es" if workers != 1 else ""}'
         self.unstarted = workers    # workers not started yet (the pool starts them as tasks come)
 
@@ -218,7 +149,7 @@ class _LocalPool:
         """Return a new pool in place of a broken one (after :class:`WorkerDied`)."""
         self.pool.shutdown(wait=False, cancel_futures=True)
         self.pool = cf.ProcessPoolExecutor(max_workers=self.workers, mp_context=self.context,
-                                           initializer=_init_local_worker)
+                                           initializer=init_local_worker)
         self.unstarted = self.workers
 
     def submit(self, task):
@@ -386,7 +317,7 @@ def _tasks(spec: CampaignSpec, directory: Path, done: set):
                 mapping = resolve_scenario(spec, draw, s)
             except Exception as exc:   # noqa: BLE001 - e.g. no valid graph for this draw
                 yield None, [dict(draw=draw, sweep_index=s, case_name=case, sweep_value=sweep_value, status='failed',
-                                  reason=_reason(exc), wall_time_s=0.0) for case in cases]
+                                  reason=failure_reason(exc), wall_time_s=0.0) for case in cases]
                 continue
             header = (f'# Resolved scenario of campaign {spec.name!r}, draw {draw}'
                       + (f', {spec.sweep.parameter} = {value!r}' if spec.sweep is not None else '')
@@ -570,7 +501,7 @@ def _task_rows(executor, future, task, lost: list) -> list:
     except CampaignError:
         raise
     except Exception as exc:   # noqa: BLE001 - an executor's error, not the runs' outcome
-        lost.append((len(task['cases']), _reason(exc)))
+        lost.append((len(task['cases']), failure_reason(exc)))
         return []
 
 
@@ -590,127 +521,3 @@ def _drain(executor, inflight: dict, commit) -> None:
                     return
         if inflight:
             executor.wait(list(inflight), _POLL)
-
-
-# ------------------------------------------------------------------------------------------------
-# Progress and summary
-
-
-#: Characters of the progress bar drawn on a terminal.
-_BAR_WIDTH = 30
-
-
-class Progress:
-    """Progress of a campaign on a stream (stderr).
-
-    Runs done / total, failures, runs/s and ETA. On a terminal a bar on one line rewritten in place (at most 5 times a
-    second); otherwise a line at every further 10 % of the runs. ``quiet`` writes nothing.
-
-    ``stream`` defaults to stderr, ``tty`` to whether the stream is a terminal; ``label`` starts each
-    line.
-    """
-
-    def __init__(self, stream=None, quiet: bool = False, tty: bool | None = None, label: str = 'uh-campaign'):
-        self.stream = stream if stream is not None else sys.stderr
-        self.quiet = quiet
-        self.tty = bool(tty if tty is not None else getattr(self.stream, 'isatty', lambda: False)())
-        self.label = label
-        self.total = self.first = 0
-        self._t0 = time.monotonic()
-        self._last_write = 0.0
-        self._next_tenth = 1
-        self._open_line = False
-
-    def start(self, total: int, done: int) -> None:
-        """Start counting: ``total`` runs, ``done`` of them stored before (announced when resuming)."""
-        self.total, self.first = total, done
-        self._t0 = time.monotonic()
-        if done:
-            self.note(f'resuming: {done} of {total} runs already stored')
-        self._next_tenth = (10 * done) // max(total, 1) + 1
-
-    def note(self, text: str) -> None:
-        """Print ``text`` on a line of its own, after the progress line (nothing when ``quiet``)."""
-        if not self.quiet:
-            self._end_line()
-            print(f'{self.label}: {text}', file=self.stream, flush=True)
-
-    def update(self, done: int, failures: int) -> None:
-        """Show ``done`` runs and ``failures`` (on a terminal at most 5 times a second, else every 10 %)."""
-        if self.quiet:
-            return
-        now = time.monotonic()
-        finished = done >= self.total
-        if self.tty:
-            if not finished and now - self._last_write < 0.2:
-                return
-            self._last_write = now
-            self.stream.write('\r' + self._line(done, failures, now) + '\x1b[K')
-            self._open_line = True
-            if finished:
-                self._end_line()
-            self.stream.flush()
-        elif 10 * done >= self._next_tenth * self.total:
-            self._next_tenth = (10 * done) // max(self.total, 1) + 1
-            print(self._line(done, failures, now), file=self.stream, flush=True)
-
-    def _line(self, done, failures, now) -> str:
-        elapsed = max(now - self._t0, 1e-9)
-        rate = (done - self.first) / elapsed
-        left = self.total - done
-        eta = _duration(left / rate) if rate > 0 and left else ('0 s' if not left else '?')
-        pct = 100.0 * done / max(self.total, 1)
-        filled = int(_BAR_WIDTH * done / max(self.total, 1))
-        bar = f'[{"#" * filled}{"." * (_BAR_WIDTH - filled)}] ' if self.tty else ''
-        return (f'{self.label}: {bar}{done}/{self.total} runs ({pct:.0f} %), {failures} not ok, '
-                f'{rate:.2f} runs/s, ETA {eta}')
-
-    def _end_line(self) -> None:
-        if self._open_line:
-            self.stream.write('\n')
-            self._open_line = False
-
-
-def _duration(seconds: float) -> str:
-    seconds = int(round(seconds))
-    if seconds < 60:
-        return f'{seconds} s'
-    if seconds < 3600:
-        return f'{seconds // 60} min {seconds % 60:02d} s'
-    return f'{seconds // 3600} h {seconds % 3600 // 60:02d} min'
-
-
-def summary_lines(directory, spec: CampaignSpec) -> list:
-    """Per case (and sweep value).
-
-    Runs stored, success count and rate, median formation and containment RMS of the ``ok`` runs (from the results
-    file).
-    """
-    runs = store.read_runs(Path(directory) / store.DB_NAME)
-    lines = []
-    sweep = spec.sweep is not None
-    for s, value in enumerate(spec.sweep_values):
-        if sweep:
-            lines.append(f'{spec.sweep.parameter} = {value}:')
-        for case in spec.cases:
-            mask = (runs['case_name'] == case) & (runs['sweep_index'] == s)
-            n = int(mask.sum())
-            ok = mask & (runs['status'] == 'ok')
-            wins = int((runs['success'][mask] == 1).sum())
-            rate = f'{100.0 * wins / n:.1f} %' if n else 'n/a'
-
-            def median(column, ok=ok):   # called in this iteration: ``ok`` bound explicitly
-                values = runs[column][ok]
-                values = values[np.isfinite(values)]
-                return f'{np.median(values):.4g} m' if values.size else 'n/a'
-
-            bad = n - int(ok.sum())
-            lines.append(f'{"  " if sweep else ""}{case:9s} {wins}/{n} succeeded ({rate}), '
-                         f'median formation RMS {median("formation_rms_m")}, containment RMS '
-                         f'{median("containment_rms_m")}' + (f', {bad} not ok' if bad else ''))
-    return lines
-
-
-def success_text(spec: CampaignSpec) -> str:
-    """Return the spec's success criterion in words."""
-    return ', '.join(f'{m} <= {t:g}' for m, t in spec.success.items()) or 'status ok'

@@ -16,7 +16,7 @@ Every gain is declared once, in :data:`GAINS` (a :class:`Gain`: key, unit, allow
 meaning, slot in the kernels' parameter vector). From that table come the records
 :class:`ControllerGains` and :class:`LoopGains`, the reader of the file (errors
 ``<file>:<line>: <loop>: <key> must be ...``), the slots of :data:`GAIN_SLOTS` and
-:data:`LOOP_GAIN_SLOTS` (``uh_controller_node.control_kernels`` lays out its parameter vector by
+:data:`LOOP_GAIN_SLOTS` (``uh_controller_node.control_layout`` lays out its parameter vector by
 them), the gains as ROS parameters (:func:`gain_parameters`) and the table of docs/scenario.md
 (:func:`gains_markdown_table`).
 

@@ -31,6 +31,8 @@ import numpy as np
 from uh_core import compiled_kernels as _compiled_kernels
 from uh_core.compiled_kernels import njit
 
+from uh_core import kernel_cache as _kernel_cache
+from uh_core import layout as _layout
 from uh_core.layout import STATE_SIZE, X_P, X_V
 
 __all__ = ['Link', 'LOSS_STREAM', 'JITTER_STREAM', 'PREDICTION_MARGIN', 'hash_uniform', 'arrival_extra',
@@ -295,6 +297,10 @@ def compile_impairment_kernels() -> float:
     add_noise(np.zeros(STATE_SIZE), np.ones(STATE_SIZE), 1, 2, 3, 4, np.empty(STATE_SIZE))
     predict_state(np.zeros(STATE_SIZE), prediction_age(5, 3, 1, 2, 0.01), 0.01, np.empty(STATE_SIZE))
     return time.perf_counter() - start
+
+
+# numba caches each kernel by this file only: empty the cache when the layout it reads changes
+_kernel_cache.refresh_cache(_kernel_cache.module_dispatchers(globals()), [_layout.__file__])
 
 # run the ahead-of-time compiled kernels instead where this process asks for them (docs/performance.md#memory)
 _compiled_kernels.install(globals())

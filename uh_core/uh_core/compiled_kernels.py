@@ -1,15 +1,44 @@
 """Ahead-of-time compiled kernels: the model, the control law and the fault isolator without numba.
 
-The kernels of :mod:`uh_sim_node.plant_kernels`, :mod:`uh_controller_node.control_kernels`,
-:mod:`uh_controller_node.isolation_kernels` and :mod:`uh_controller_node.impairments` are numba
-code. A process that runs them through numba's JIT holds numba and LLVM in memory (about 90 MB for
-``import numba`` alone, 175 MB for a node), even when every kernel comes from numba's on-disk cache.
-:func:`build` compiles the same Python functions, with the same argument types, into one CPython
-extension module (``numba.pycc``); a process that loads it runs the kernels with numpy alone.
-docs/performance.md#memory says what this saves and how it was checked to be bit-identical.
+The kernel modules (the model's, the control law's, the fault isolator's, the link impairments'
+and the safety filter's) are numba code. A process that runs them through numba's JIT holds numba
+and LLVM in memory (about 90 MB for ``import numba`` alone, 175 MB for a node), even when every
+kernel comes from numba's on-disk cache. :func:`build` compiles the same Python functions, with the
+same argument types, into one CPython extension module (``numba.pycc``); a process that loads it
+runs the kernels with numpy alone. docs/performance.md#memory says what this saves and how it was
+checked to be bit-identical.
 
-Which form a process runs is chosen once, when the first kernel module is imported, by the
-environment variable ``UH_KERNELS``:
+Which modules are kernel modules
+--------------------------------
+Each package declares its own kernel modules, in its ``setup.py``, as entry points; this module
+reads them (:func:`kernel_modules`, with :mod:`importlib.metadata`, without importing the modules)
+and names no module of a package above it. Three groups:
+
+``uh_kernels`` (:data:`KERNEL_GROUP`)
+    One entry per kernel module: name = the prefix of its kernels' names in the compiled module,
+    value = ``module:warm_up``, the function that compiles the kernels the nodes call from Python
+    (``module`` alone for a module whose kernels only other kernels call: the warm-ups of those
+    compile them)::
+
+        entry_points={'uh_kernels': [
+            'control__ = uh_controller_node.control_kernels:compile_control_kernels',
+            'loops__ = uh_controller_node.loop_kernels', ...]}
+
+``uh_kernel_inputs`` (:data:`KERNEL_INPUT_GROUP`)
+    The modules whose contents the kernels compile in without being kernel modules (the layouts of
+    the state, the status and the law's parameter vector, the gains' slots): name = a label,
+    value = the module.
+``uh_kernel_builder`` (:data:`KERNEL_BUILDER_GROUP`)
+    The module whose ``python -m`` builds the compiled kernels (:func:`build_command`).
+
+Entry points exist once a package is installed (``pip install``, which ``scripts/_venv.sh`` runs
+again whenever a ``setup.py`` changes, or ``colcon build``). A module that uses this file's
+:func:`njit` and :func:`install` and is not declared runs numba's JIT; ``tests/test_kernel_registry.py``
+checks that every such module is declared, by the package that holds it.
+
+Which form a process runs
+-------------------------
+Chosen once, when the first kernel module is imported, by the environment variable ``UH_KERNELS``:
 
 ``numba`` (the default)
     numba's JIT (and its on-disk cache), as every process did before.
@@ -19,11 +48,11 @@ environment variable ``UH_KERNELS``:
 ``compiled``
     The compiled module, and an error (:class:`KernelModeError`) when there is none for these sources.
 
-The compiled module's name carries a digest of the kernel sources, :mod:`uh_core.layout`, this file
-and the versions of numba, Python and the machine (:func:`kernel_digest`), so a module built for
-other sources is never loaded: after a kernel edit, ``auto`` runs numba until
-``python -m uh_team.compile_kernels`` builds the new one, and a node's start line says so
-(:func:`kernel_form`: the stale module's name and that command).
+The compiled module's name carries a digest of the declared modules (the entry points and their
+files' contents), this file and the versions of numba, Python and the machine
+(:func:`kernel_digest`), so a module built for other sources is never loaded: after a kernel edit,
+``auto`` runs numba until the builder (``python -m uh_team.compile_kernels``) builds the new one,
+and a node's start line says so (:func:`kernel_form`: the stale module's name and that command).
 
 A kernel module uses this file's :func:`njit` in place of numba's, and calls :func:`install` at its
 end::
@@ -34,9 +63,9 @@ end::
 
 In a process running compiled kernels, :func:`njit` leaves the functions as they are (numba is not
 imported) and :func:`install` replaces each kernel that has a compiled form by it. The compiled
-forms are those :func:`build` finds compiled, with one signature each, after each module's
-``compile_*_kernels`` function ran: the kernels the nodes call from Python. The others (building
-blocks that only tests call from Python) stay plain Python functions there.
+forms are those :func:`build` finds compiled, with one signature each, after every module's warm-up
+ran: the kernels the nodes call from Python. The others (building blocks that only tests call from
+Python) stay plain Python functions there.
 """
 from __future__ import annotations
 
@@ -48,13 +77,17 @@ import os
 import platform
 import sys
 import tempfile
+import time
 import warnings
+from functools import cache
 from pathlib import Path
+from typing import NamedTuple
 
-__all__ = ['MODE_VARIABLE', 'DIR_VARIABLE', 'MODES', 'KERNEL_MODULES', 'KERNEL_INPUT_MODULES', 'KernelModeError',
-           'mode', 'kernel_digest', 'library_name', 'search_dirs', 'find_built', 'compiled_library', 'njit', 'install',
-           'active_modules', 'require_numba', 'prefer_compiled', 'run_node_main', 'kernel_form', 'build',
-           'BUILD_COMMAND']
+__all__ = ['MODE_VARIABLE', 'DIR_VARIABLE', 'MODES', 'KERNEL_GROUP', 'KERNEL_INPUT_GROUP', 'KERNEL_BUILDER_GROUP',
+           'KernelModule', 'KernelModeError', 'kernel_modules', 'kernel_input_modules', 'build_command', 'mode',
+           'kernel_digest', 'library_name', 'search_dirs', 'find_built', 'compiled_library', 'njit', 'install',
+           'active_modules', 'require_numba', 'prefer_compiled', 'run_node_main', 'kernel_form', 'warm_up_kernels',
+           'build']
 
 #: Environment variable that selects the kernels' form (:data:`MODES`).
 MODE_VARIABLE = 'UH_KERNELS'
@@ -62,17 +95,76 @@ MODE_VARIABLE = 'UH_KERNELS'
 DIR_VARIABLE = 'UH_COMPILED_KERNELS_DIR'
 MODES = ('numba', 'auto', 'compiled')
 
-#: ``module: (prefix of its kernels' names in the compiled module, its warm-up function)``.
-KERNEL_MODULES = {
-    'uh_sim_node.plant_kernels': ('plant__', 'compile_plant_kernels'),
-    'uh_controller_node.control_kernels': ('control__', 'compile_control_kernels'),
-    'uh_controller_node.isolation_kernels': ('isolation__', 'compile_isolation_kernels'),
-    'uh_controller_node.impairments': ('impairments__', 'compile_impairment_kernels'),
-}
+#: Entry-point group of the kernel modules: ``prefix = module:warm_up`` (or ``prefix = module``).
+KERNEL_GROUP = 'uh_kernels'
+#: Entry-point group of the modules the kernels compile in without being kernel modules: ``label = module``.
+KERNEL_INPUT_GROUP = 'uh_kernel_inputs'
+#: Entry-point group of the module whose ``python -m`` builds the compiled kernels: ``label = module:main``.
+KERNEL_BUILDER_GROUP = 'uh_kernel_builder'
 
 
 class KernelModeError(RuntimeError):
     """``UH_KERNELS`` holds no mode of :data:`MODES`, or asks for compiled kernels that were not built."""
+
+
+class KernelModule(NamedTuple):
+    """A kernel module as its package declares it (an entry point of :data:`KERNEL_GROUP`).
+
+    Attributes
+    ----------
+    module : str
+        Its dotted name.
+    prefix : str
+        The prefix of its kernels' names in the compiled module (``control__``): the entry point's name.
+    warm_up : str
+        Its function that compiles the kernels the nodes call; empty when other modules' warm-ups compile them.
+    """
+
+    module: str
+    prefix: str
+    warm_up: str
+
+
+def _entry_points(group: str) -> list:
+    """Return the installed entry points of ``group``, sorted by name and value (not in the order found)."""
+    return sorted(importlib.metadata.entry_points(group=group), key=lambda point: (point.name, point.value))
+
+
+@cache
+def kernel_modules() -> dict:
+    """Return ``{module: KernelModule}`` of every declared kernel module, in the order of their prefixes.
+
+    Read from the entry points of :data:`KERNEL_GROUP`; the modules are not imported.
+
+    Raises
+    ------
+    KernelModeError
+        Two entries declare the same module or the same prefix, or a prefix does not end in ``__``.
+    """
+    found = {}
+    for point in _entry_points(KERNEL_GROUP):
+        kernel = KernelModule(point.module, point.name, point.attr or '')
+        clash = [k for k in found.values() if k.module == kernel.module or k.prefix == kernel.prefix]
+        if clash or not kernel.prefix.endswith('__'):
+            raise KernelModeError(f'entry point {point.name} = {point.value} of group {KERNEL_GROUP}: '
+                                  + (f'clashes with {clash[0].prefix} = {clash[0].module}' if clash else
+                                     'a prefix ends in "__"'))
+        found[kernel.module] = kernel
+    return found
+
+
+@cache
+def kernel_input_modules() -> tuple:
+    """Return the modules the kernels compile in without being kernel modules (:data:`KERNEL_INPUT_GROUP`), sorted."""
+    return tuple(sorted({point.module for point in _entry_points(KERNEL_INPUT_GROUP)}))
+
+
+def build_command() -> str:
+    """Return the command that builds the compiled kernels for these sources (:data:`KERNEL_BUILDER_GROUP`)."""
+    builders = _entry_points(KERNEL_BUILDER_GROUP)
+    if not builders:
+        return f'the kernel builder (none is installed: no entry point of group {KERNEL_BUILDER_GROUP})'
+    return f'python -m {builders[0].module}'
 
 
 def mode() -> str:
@@ -89,29 +181,29 @@ def mode() -> str:
     return value
 
 
-#: Modules whose contents the kernels compile in without being kernel modules: the gains' slots of
-#: the law's parameter vector are declared in ``gains.py``.
-KERNEL_INPUT_MODULES = ('uh_controller_node.gains',)
-
-
 def _source_files() -> list[Path]:
-    """Return the files the compiled code is made from: the kernel modules and inputs, ``layout.py``, this file."""
+    """Return the files the compiled code is made from: the declared kernel modules and inputs, this file."""
     files = []
-    for name in (*KERNEL_MODULES, *KERNEL_INPUT_MODULES):
+    for name in (*kernel_modules(), *kernel_input_modules()):
         spec = importlib.util.find_spec(name)
         if spec is None or not spec.origin:
             raise KernelModeError(f'kernel module {name} is not installed')
         files.append(Path(spec.origin))
-    return files + [Path(__file__).with_name('layout.py'), Path(__file__)]
+    return files + [Path(__file__)]
 
 
 _digest_cache: list = []
 
 
 def kernel_digest() -> str:
-    """SHA-256, hex, of the kernel sources (:func:`_source_files`) and the numba, Python and machine versions."""
+    """SHA-256, hex, of the kernel sources (:func:`_source_files`), their entry points and the versions.
+
+    The versions are numba's, Python's and the machine's. The entry points count: a prefix or a
+    warm-up declared otherwise names other kernels.
+    """
     if not _digest_cache:
         total = hashlib.sha256()
+        total.update(repr((sorted(kernel_modules().values()), kernel_input_modules())).encode())
         for path in _source_files():
             total.update(hashlib.sha256(path.read_bytes()).digest())
         total.update(f'numba {importlib.metadata.version("numba")} python {sys.version} '
@@ -155,10 +247,6 @@ _decision: list = []      # [the loaded compiled module or None], fixed by the f
 _active: set = set()
 _fallback: list = []      # [why a process of mode auto runs numba], when it does
 
-#: The command that builds the compiled kernels for the sources as they are.
-BUILD_COMMAND = 'python -m uh_team.compile_kernels'
-
-
 def _built_for_other_sources() -> list[Path]:
     """Compiled modules in :func:`search_dirs` that were built for other kernel sources (stale ones)."""
     suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
@@ -178,18 +266,24 @@ def compiled_library():
         return _decision[0]
     chosen = mode()
     library = None
-    if chosen != 'numba':
+    if chosen != 'numba' and not kernel_modules():
+        unregistered = (f'no kernel module is declared (entry points of group {KERNEL_GROUP}): the packages are not '
+                        'installed with their metadata (scripts/_venv.sh, or colcon build)')
+        if chosen == 'compiled':
+            raise KernelModeError(f'{MODE_VARIABLE}=compiled, but {unregistered}')
+        _fallback.append(unregistered)
+    elif chosen != 'numba':
         path = find_built()
         if path is None and chosen == 'compiled':
             raise KernelModeError(
                 f'{MODE_VARIABLE}=compiled, but no compiled kernels were built for these sources (looked for '
                 f'{_file_name(library_name())} in {", ".join(map(str, search_dirs()))}): run '
-                f'python -m uh_team.compile_kernels, or set {MODE_VARIABLE}=auto to fall back to numba')
+                f'{build_command()}, or set {MODE_VARIABLE}=auto to fall back to numba')
         if path is None:
             stale = _built_for_other_sources()
             _fallback.append(f'the compiled kernels {stale[0].name} are stale (built for other kernel sources): '
-                             f'{BUILD_COMMAND} rebuilds them' if stale else
-                             f'no compiled kernels were built for these sources: {BUILD_COMMAND} builds them')
+                             f'{build_command()} rebuilds them' if stale else
+                             f'no compiled kernels were built for these sources: {build_command()} builds them')
         else:
             loader = importlib.machinery.ExtensionFileLoader(library_name(), str(path))
             spec = importlib.util.spec_from_file_location(library_name(), path, loader=loader)
@@ -228,7 +322,7 @@ def njit(*args, **kwargs):
     decorated with it.
     """
     def decorate(function):
-        if function.__module__ in KERNEL_MODULES and compiled_library() is not None:
+        if compiled_library() is not None and function.__module__ in kernel_modules():
             return function
         import numba
         return numba.njit(*args, **kwargs)(function)
@@ -241,10 +335,10 @@ def install(namespace: dict) -> bool:
     Returns True when the module now runs compiled kernels, False when it runs numba's.
     """
     name = namespace.get('__name__')
-    library = compiled_library() if name in KERNEL_MODULES else None
-    if library is None:
+    library = compiled_library()
+    if library is None or name not in kernel_modules():
         return False
-    prefix = KERNEL_MODULES[name][0]
+    prefix = kernel_modules()[name].prefix
     for attribute in dir(library):
         if attribute.startswith(prefix):
             namespace[attribute[len(prefix):]] = getattr(library, attribute)
@@ -276,13 +370,45 @@ def require_numba(user: str) -> None:
             f'({MODE_VARIABLE}={os.environ.get(MODE_VARIABLE)}): start it with {MODE_VARIABLE}=numba')
 
 
+def warm_up_kernels() -> dict:
+    """Run every declared kernel module's warm-up function (numba compiles, or loads from its cache).
+
+    Returns ``{module: seconds}`` per module with a warm-up, in the order of :func:`kernel_modules`.
+    """
+    spent = {}
+    for kernel in kernel_modules().values():
+        if kernel.warm_up:
+            start = time.perf_counter()
+            getattr(importlib.import_module(kernel.module), kernel.warm_up)()
+            spent[kernel.module] = time.perf_counter() - start
+    return spent
+
+
+def _export_kernels(compiler) -> int:
+    """Export to ``compiler`` every public kernel of the declared modules that has one signature; how many."""
+    exported = 0
+    for module_name, kernel in kernel_modules().items():
+        module = importlib.import_module(module_name)
+        for attribute, value in sorted(vars(module).items()):
+            py_func = getattr(value, 'py_func', None)
+            if (getattr(py_func, '__module__', None) != module_name or attribute not in module.__all__
+                    or len(value.signatures) != 1):
+                continue
+            (signature,) = value.signatures
+            return_type = value.overloads[signature].signature.return_type
+            compiler.export(kernel.prefix + attribute, return_type(*signature))(py_func)
+            exported += 1
+    return exported
+
+
 def build(log=None) -> tuple[Path, bool]:
     """Compile the kernels into the module :func:`find_built` looks for, unless it exists.
 
-    Runs each kernel module's warm-up function under numba, then compiles every public kernel (in
-    the module's ``__all__``) that then has exactly one compiled signature, with that signature (its
-    types, its return type) and numba's default options, for this machine's CPU, with
-    ``numba.pycc``. Needs a C compiler.
+    Runs every kernel module's warm-up function under numba (:func:`warm_up_kernels`; all of them
+    first, as one module's kernels may be compiled by another's warm-up), then compiles every public
+    kernel (in its module's ``__all__``) that then has exactly one compiled signature, with that
+    signature (its types, its return type) and numba's default options, for this machine's CPU,
+    with ``numba.pycc``. Needs a C compiler.
 
     Parameters
     ----------
@@ -313,19 +439,8 @@ def build(log=None) -> tuple[Path, bool]:
     compiler = CC(name)
     compiler.target_cpu = 'host'   # as numba's JIT compiles for the CPU it runs on
     compiler.verbose = False
-    exported = 0
-    for module_name, (prefix, warm_up) in KERNEL_MODULES.items():
-        module = importlib.import_module(module_name)
-        getattr(module, warm_up)()
-        for attribute, value in sorted(vars(module).items()):
-            py_func = getattr(value, 'py_func', None)
-            if (getattr(py_func, '__module__', None) != module_name or attribute not in module.__all__
-                    or len(value.signatures) != 1):
-                continue
-            (signature,) = value.signatures
-            return_type = value.overloads[signature].signature.return_type
-            compiler.export(prefix + attribute, return_type(*signature))(py_func)
-            exported += 1
+    warm_up_kernels()
+    exported = _export_kernels(compiler)
     target = None
     for directory in search_dirs():
         try:

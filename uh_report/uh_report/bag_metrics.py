@@ -4,13 +4,13 @@
 ``scenario.ids`` order), the same layout as the in-process reference simulation's
 ``timeseries.npz``; :func:`write_metrics_from_bag` computes ``metrics.json`` from them with the one
 metrics module (:mod:`uh_team.metrics`). The MCAP records are read with the ``mcap`` library
-(:func:`uh_runtime.bag_reader.read_messages`, which checks every chunk); the messages are decoded
+(:func:`uh_runtime.bags.bag_reader.read_messages`, which checks every chunk); the messages are decoded
 with rosbags' type store, the numeric fields of a topic all at once (:mod:`uh_report.cdr_columns`):
 well under a second for the 126,000 messages of a 60 s paper run.
 
 A bag that cannot be read raises :class:`BagContentError` saying which file and why: no such
 directory, a file instead of a bag directory, no ``metadata.yaml``, a file that is not MCAP, an MCAP
-file cut short (a recorder killed with SIGKILL: ``python -m uh_runtime.bag recover DIR`` restores it
+file cut short (a recorder killed with SIGKILL: ``python -m uh_runtime.bags.bag recover DIR`` restores it
 up to its last complete chunk), a message that does not decode. Messages a receiver would have
 rejected (non-finite values, another UH's id on a UH's topic) are left out like the nodes leave
 them out, and counted in ``rejected``.
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from uh_core.layout import SATURATION_FLAGS
-from uh_runtime.bag_reader import BagError, bag_file, find_bag_files, read_messages
+from uh_runtime.bags.bag_reader import BagError, bag_file, find_bag_files, read_messages
 from uh_runtime.messages import typestore
 from uh_team.metrics import metrics_from_arrays
 from uh_team.run_arrays import new_run_arrays
@@ -302,7 +302,7 @@ def _diagnose_mcap(bag_dir: Path) -> str:
         return ''
     return (f'; its MCAP file {result.path.name} is cut short or damaged after {result.good_bytes} of '
             f'{result.file_bytes} bytes ({result.problem}), as a recorder killed mid-run leaves it: '
-            f'`python -m uh_runtime.bag recover {bag_dir}` restores it up to its last complete chunk')
+            f'`python -m uh_runtime.bags.bag recover {bag_dir}` restores it up to its last complete chunk')
 
 
 def write_metrics_from_bag(bag_dir, scenario, case: str, out_path,

@@ -1,6 +1,6 @@
 """Figures of a formation-containment run (the paper's Figures 4-12), drawn with Matplotlib's Agg backend.
 
-Each function takes :class:`uh_report.report.RunData` objects (the arrays of
+Each function takes :class:`uh_report.run_data.RunData` objects (the arrays of
 ``uh_report.bag_metrics.read_team_bag`` or of ``timeseries.npz``, UH axis in ``scenario.ids``
 order) and writes one PNG of a fixed pixel size (:data:`FIGURE_SIZES` at :data:`DPI`), so a test
 can check what was drawn. Errors are computed with the one metrics module

@@ -12,19 +12,14 @@ __all__ = ['BackendError', 'select_backend', 'BACKENDS', 'FACADE_NAMES']
 #: The backends this package knows.
 BACKENDS = ('rclpy', 'dds')
 
-#: The names every backend exports (its ``__all__``) and ``import uh_runtime as rt`` re-exports.
+#: The names every backend exports (its ``__all__``) and ``import uh_runtime as rt`` re-exports: the part of
+#: rclpy's API the project's nodes, tools and tests use.
 FACADE_NAMES = (
-    'Clock', 'ClockType', 'Context', 'Duration', 'Executor', 'ExternalShutdownException',
-    'MultiThreadedExecutor', 'Node', 'NotInitializedException', 'Publisher', 'ROSClock',
-    'SingleThreadedExecutor', 'StaticSingleThreadedExecutor', 'Subscription', 'Time', 'Timer', 'get_default_context',
-    'get_global_executor', 'init', 'ok', 'shutdown', 'spin', 'spin_once',
-    'spin_until_future_complete', 'try_shutdown', 'get_logger', 'FloatingPointRange',
-    'IntegerRange', 'InvalidParameterTypeException', 'InvalidParameterValueException',
-    'Parameter', 'ParameterAlreadyDeclaredException', 'ParameterDescriptor',
-    'ParameterException', 'ParameterNotDeclaredException', 'ParameterType',
-    'ParameterUninitializedException', 'SetParametersResult', 'DurabilityPolicy',
-    'HistoryPolicy', 'LivelinessPolicy', 'QoSProfile', 'ReliabilityPolicy',
-    'qos_profile_sensor_data', 'qos_profile_system_default', 'remove_ros_args',
+    'Context', 'Duration', 'ExternalShutdownException', 'MultiThreadedExecutor', 'Node', 'NotInitializedException',
+    'SingleThreadedExecutor', 'StaticSingleThreadedExecutor', 'init', 'ok', 'spin', 'spin_once', 'try_shutdown',
+    'FloatingPointRange', 'IntegerRange', 'Parameter', 'ParameterDescriptor', 'ParameterType',
+    'SetParametersResult', 'DurabilityPolicy', 'HistoryPolicy', 'QoSProfile', 'ReliabilityPolicy',
+    'remove_ros_args',
 )
 
 

@@ -202,7 +202,7 @@ def _store_key() -> str | None:
 def _cached_store(fielddefs):
     """Return a store like :func:`_build_store`'s with the definitions ``fielddefs`` (from the cache).
 
-    Type hashes, this module's classes and the CDR codecs (:mod:`uh_runtime.cdr`) read the
+    Type hashes, this module's classes and the CDR codecs (:mod:`uh_runtime.dds.cdr`) read the
     definitions only. rosbags' message classes (``types``: ``serialize_cdr``, ``deserialize_cdr``,
     ``register``) are those of :func:`_build_store`, called at first use: importing rosbags'
     standard store, which defines ~1000 classes, took 0.1 s of every node's start.

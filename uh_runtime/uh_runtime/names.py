@@ -3,7 +3,7 @@
 The DDS prefixes rmw gives a ROS topic (``/uh1/state`` is DDS topic ``rt/uh1/state``) and the
 request and reply topics of a ROS service (``rq/<service>Request``, ``rr/<service>Reply``), as
 rmw_cyclonedds_cpp names them; and the ROS topic on which the recorder reports how far it has
-written (:mod:`uh_runtime.recorder`; listed with its type and QoS in :mod:`uh_wire.topics`).
+written (:mod:`uh_runtime.bags.recorder`; listed with its type and QoS in :mod:`uh_wire.topics`).
 A leaf module: importing it loads nothing else.
 """
 

@@ -5,7 +5,7 @@ import os
 import sys
 
 from . import facade as rt
-from .signals import sigint_ignored
+from .dds.signals import sigint_ignored
 
 __all__ = ['check_parameter_overrides', 'run_node', 'declared_parameter_names', 'override_names',
            'log_on_exit']
@@ -43,7 +43,7 @@ def check_parameter_overrides(node, ignore=()):
     UnknownParameterOverrideError
         Lists the unknown names and every declared parameter.
     """
-    from .parameters import UnknownParameterOverrideError
+    from .dds.parameters import UnknownParameterOverrideError
     declared = set(declared_parameter_names(node))
     unknown = [name for name in override_names(node)
                if name not in declared and not any(fnmatch.fnmatchcase(name, pat) for pat in ignore)]
@@ -83,7 +83,7 @@ def _freeze_startup_objects() -> None:
 
 def _clear_errors():
     """Exception types that are the user's mistake and get a one-line message, no traceback."""
-    from . import arguments, parameters
+    from .dds import arguments, parameters
     errors = [parameters.ParameterException, arguments.RosArgsError, arguments.InvalidNameError]
     try:
         import rclpy.exceptions as rex

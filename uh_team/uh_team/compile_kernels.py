@@ -3,9 +3,12 @@
 ``python -m uh_team.compile_kernels`` (run by ``scripts/_venv.sh`` whenever the kernel
 sources change, and by the launch file before any node starts) fills numba's on-disk cache: without
 it, the first processes to need a kernel compile it, each on its own (a distributed run starts about
-a dozen node processes at once). It then builds the kernels the nodes call into one extension module
-(:func:`uh_core.compiled_kernels.build`), which the node processes load instead of numba
-(docs/performance.md#memory); where that fails (no C compiler), it says so and the nodes run numba.
+a dozen node processes at once). It runs the warm-up of every kernel module its package declares
+(:func:`uh_core.compiled_kernels.warm_up_kernels`) and compiles the in-process team loop, then builds
+the kernels the nodes call into one extension module (:func:`uh_core.compiled_kernels.build`), which
+the node processes load instead of numba (docs/performance.md#memory); where that fails (no C
+compiler), it says so and the nodes run numba. This package declares this module the kernels'
+builder (entry point group ``uh_kernel_builder``): the nodes name it when the compiled kernels are stale.
 """
 from __future__ import annotations
 
@@ -13,11 +16,7 @@ import argparse
 import sys
 import time
 
-from uh_controller_node.control_kernels import compile_control_kernels
 from uh_core import compiled_kernels
-from uh_controller_node.impairments import compile_impairment_kernels
-from uh_controller_node.isolation_kernels import compile_isolation_kernels
-from uh_sim_node.plant_kernels import compile_plant_kernels
 
 from .team_kernel import compile_team_kernel
 
@@ -25,10 +24,9 @@ __all__ = ['compile_all', 'main']
 
 
 def compile_all() -> dict:
-    """Compile (or load from the cache) every kernel; seconds spent per group of kernels."""
-    return {'model': compile_plant_kernels(), 'control law': compile_control_kernels(),
-            'impairments': compile_impairment_kernels(), 'fault isolation': compile_isolation_kernels(),
-            'team loop': compile_team_kernel()}
+    """Compile (or load from the cache) every kernel; seconds spent per kernel module (last name), and the team loop."""
+    spent = {module.rpartition('.')[2]: seconds for module, seconds in compiled_kernels.warm_up_kernels().items()}
+    return {**spent, 'team loop': compile_team_kernel()}
 
 
 def main(argv=None) -> int:
@@ -38,8 +36,9 @@ def main(argv=None) -> int:
     """
     parser = argparse.ArgumentParser(
         prog='python -m uh_team.compile_kernels',
-        description='Compile the numba kernels of the helicopter model, the control law, the fault isolator and '
-                    'the in-process team loop, and store them in numba\'s cache (__pycache__ next to the sources, or '
+        description='Compile the numba kernels of the helicopter model, the control law, the fault isolator, the '
+                    'link impairments, the safety filter (every kernel module a package declares) and the '
+                    'in-process team loop, and store them in numba\'s cache (__pycache__ next to the sources, or '
                     'NUMBA_CACHE_DIR).')
     parser.add_argument('--no-compiled-module', action='store_true',
                         help='only fill numba\'s cache; do not build the ahead-of-time compiled kernels the node '

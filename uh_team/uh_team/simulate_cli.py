@@ -23,6 +23,7 @@ import numpy as np
 from uh_runtime.command_line import ArgumentParser, directory_argument, unwritable_reason
 from uh_controller_node.gains import CASES, scenario_gains
 from uh_topology.errors import ScenarioError
+from uh_topology.safety import add_safety_argument, overlap_line, safety_override
 from uh_topology.scenario import duration_steps, load_scenario
 
 from .metric_registry import summary_keys
@@ -52,6 +53,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='simulated time in seconds (default: the scenario duration)')
     p.add_argument('--force', action='store_true',
                    help='write into a non-empty output directory, replacing metrics.json and timeseries.npz')
+    add_safety_argument(p)
     return p
 
 
@@ -133,7 +135,7 @@ def _main(argv) -> int:
     if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0.0):
         return _fail(f'--duration must be a finite number of seconds > 0, got {args.duration!r}')
     try:
-        scenario = load_scenario(args.scenario)
+        scenario = load_scenario(args.scenario, safety=safety_override(args.safety))
         scenario_gains(scenario, args.case)    # the gains file, checked before anything is written
     except ScenarioError as exc:
         return _fail(f'invalid scenario: {exc}')
@@ -145,6 +147,8 @@ def _main(argv) -> int:
     problem = _check_out_dir(args.out, args.force)
     if problem:
         return _fail(problem)
+    for issue in scenario.separation_warnings:
+        print(f'{PROG}: warning: {issue.text()}: closer than the minimum separation (docs/safety.md)', file=sys.stderr)
     progress = _Progress(sys.stderr, f'{scenario.name}/{args.case}') if sys.stderr.isatty() else None
     try:
         run = run_team_simulation(scenario, args.case, duration=args.duration, progress=progress)
@@ -185,6 +189,9 @@ def _main(argv) -> int:
               f'{summary["missed"]}, max delay {_number(summary["max_delay"], ".2f")} s')
     print(f'wrote {args.out / "metrics.json"} and {args.out / "timeseries.npz"}')
     sys.stdout.flush()          # a closed pipe shows up here, inside main()'s handler
+    overlap = overlap_line(metrics, scenario.safety.enabled)
+    if overlap:
+        print(f'{PROG}: warning: {overlap}', file=sys.stderr)
     return 0
 
 

@@ -20,8 +20,8 @@ steps update in place). The steps write a :class:`TeamRecord` (:func:`empty_reco
 array is one field of its group, filled in :func:`team_arrays` and read in :func:`run_team_steps`.
 
 numba re-validates a cached kernel against its own source file only, so a cached
-:func:`run_team_steps` would keep an old control law, model or layout after ``control_kernels.py``,
-``plant_kernels.py``, ``faults.py`` or ``uh_core/layout.py`` changed. :func:`refresh_cache` (run on
+:func:`run_team_steps` would keep an old control law, model or layout after one of the law's kernel
+modules, ``plant_kernels.py``, ``faults.py`` or ``uh_core/layout.py`` changed. :func:`refresh_cache` (run on
 import, through :func:`uh_core.kernel_cache.refresh_cache`) keeps a digest of those files next to
 the cache and empties this kernel's cache index when they differ.
 """
@@ -41,20 +41,21 @@ from uh_sim_node import plant_kernels as _plant
 from uh_sim_node.plant_kernels import lumped_faults, plant_step
 
 from uh_controller_node import control_kernels as _ctl
+from uh_controller_node import control_layout as _control_layout
 from uh_controller_node import gains as _gains
 from uh_controller_node import impairments as _impairments
+from uh_controller_node import learning_kernels as _learning_kernels
+from uh_controller_node import loop_kernels as _loop_kernels
 from uh_controller_node.impairments import add_noise, delivered_step, predict_state, prediction_age
-from uh_controller_node.control_kernels import (
-    INPUT_SIZE, S_F_HAT_P, S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_U_P, S_Z1, STATE_SIZE,
-    STATUS_SIZE, STEP_DONE, uh_control_step,
-)
+from uh_controller_node.control_kernels import INPUT_SIZE, STATE_SIZE, STATUS, STATUS_SIZE, STEP_DONE, uh_control_step
 from uh_core import compiled_kernels as _compiled_kernels
 
 # this loop calls the kernels from numba code: a process running them compiled cannot import it
 _compiled_kernels.require_numba('uh_team.team_kernel')
 
 __all__ = ['TeamConfig', 'TeamImpairments', 'TeamState', 'TeamRecord', 'TeamArrays', 'team_arrays',
-           'empty_record', 'run_team_steps', 'refresh_cache', 'compile_team_kernel', 'TEAM_DONE']
+           'empty_record', 'run_team_steps', 'record_states', 'impaired_states', 'record_status', 'advance_plants',
+           'refresh_cache', 'compile_team_kernel', 'TEAM_DONE']
 
 #: :func:`run_team_steps` returns this when every step ran; otherwise the step at which a state
 #: was found non-finite (its row of ``states`` is recorded, nothing after it).
@@ -267,35 +268,20 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
     int
         :data:`TEAM_DONE`, or the step at which a state was not finite (its states are recorded).
     """
-    # the groups' fields as locals: the loop below reads them as it read separate arguments
     hears, count, links, ids = team.hears, team.count, team.links, team.ids
     control_params, offsets, nb_weights, nb_offsets = team.control_params, team.offsets, team.nb_weights, \
         team.nb_offsets
-    plant_params, faults, disturbance, substeps = team.plant_params, team.faults, team.disturbance, team.substeps
-    impaired, impairment_seed, noise = links_impaired.impaired, links_impaired.seed, links_impaired.noise
-    delay, loss, drop_step = links_impaired.delay, links_impaired.loss, links_impaired.drop_step
-    jitter, predict = links_impaired.jitter, links_impaired.predict
     x, weights_p, weights_w, memory = live.x, live.weights_p, live.weights_w, live.memory
-    states, commands, saturated = record.states, record.commands, record.saturated
-    fault_true_p, fault_true_w = record.fault_true_p, record.fault_true_w
-    fault_est_p, fault_est_w, u_p, z1 = record.fault_est_p, record.fault_est_w, record.u_p, record.z1
+    states, commands = record.states, record.commands
     n = x.shape[0]
-    u = np.empty(4)
     status = np.empty(STATUS_SIZE)
-    out_p = np.empty(3)
-    out_w = np.empty(3)
     own = np.empty(STATE_SIZE)
     sent = np.empty(STATE_SIZE)
+    u = np.empty(INPUT_SIZE)
+    out_p = np.empty(3)
+    out_w = np.empty(3)
     for k in range(k0, k1):
-        t = k * dt
-        finite = True
-        for c in range(n):
-            for i in range(STATE_SIZE):
-                v = x[c, i]
-                states[k, c, i] = v
-                if not np.isfinite(v):
-                    finite = False
-        if not finite:
+        if not record_states(k, x, states):
             return k
         reference = references[k]
         # 1. every controller on the states at t_k (its own and its neighbours', ascending id)
@@ -303,18 +289,8 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
             m = count[c]
             nb = np.empty((m, STATE_SIZE))
             received = x[c]   # the own state as the controller receives it
-            if impaired:
-                add_noise(x[c], noise, impairment_seed, ids[c], ids[c], k, own)
-                received = own
-                for j in range(m):
-                    r = hears[c, j]
-                    s = delivered_step(k, delay[c, j], jitter[c, j], loss[c, j], drop_step[r], impairment_seed,
-                                       ids[c], ids[r])
-                    if predict and s < k:   # the state sent at s, predicted to k (as ReceivedStates does)
-                        add_noise(states[s, r], noise, impairment_seed, ids[c], ids[r], s, sent)
-                        predict_state(sent, prediction_age(k, s, delay[c, j], jitter[c, j], dt), dt, nb[j])
-                    else:
-                        add_noise(states[s, r], noise, impairment_seed, ids[c], ids[r], s, nb[j])
+            if links_impaired.impaired:
+                received = impaired_states(k, c, dt, x, states, hears[c], ids, links_impaired, own, sent, nb)
             else:
                 for j in range(m):
                     nb[j] = x[hears[c, j]]
@@ -323,41 +299,124 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
                                    memory[c], commands[k, c], status)
             if done != STEP_DONE:
                 return k
-            for i in range(3):
-                fault_est_p[k, c, i] = status[S_F_HAT_P + i]
-                fault_est_w[k, c, i] = status[S_F_HAT_W + i]
-                u_p[k, c, i] = status[S_U_P + i]
-                z1[k, c, i] = status[S_Z1 + i]
-            saturated[k, c] = (status[S_SAT_TILT] != 0.0 or status[S_SAT_COLLECTIVE] != 0.0
-                               or status[S_SAT_CYCLIC] != 0.0)
+            record_status(k, c, status, record.fault_est_p, record.fault_est_w, record.u_p, record.z1,
+                          record.saturated)
         # 2. the true lumped faults for that command; 3. every plant holds it over [t_k, t_k+1)
-        for c in range(n):
-            for i in range(4):
-                u[i] = commands[k, c, i]
-            lumped_faults(x[c], u, t, plant_params[c], faults[c], out_p, out_w)
-            for i in range(3):
-                fault_true_p[k, c, i] = out_p[i]
-                fault_true_w[k, c, i] = out_w[i]
-            if k < last:
-                plant_step(x[c], u, t, dt, substeps, plant_params[c], faults[c], disturbance[c])
+        advance_plants(k, last, dt, x, commands, team.plant_params, team.faults, team.disturbance, team.substeps,
+                       record.fault_true_p, record.fault_true_w, u, out_p, out_w)
     return TEAM_DONE
 
 
+# The parts of a step of run_team_steps. Inlined into it (numba's inline='always': the same
+# operations in the same order, without a call per UH and step, which cost 3-5 % of the loop); they
+# take arrays, not the groups, so that no group is taken apart again per call. The kernel modules
+# compiled ahead of time (uh_core.compiled_kernels) do not use inline='always': with an inlined
+# kernel among them, numba.pycc's type inference failed on another kernel of the build.
+
+
+@njit(cache=True, inline='always')
+def record_states(k, x, states):
+    """Copy the plants' states ``x`` (n, 12) to row ``k`` of ``states``; return whether they are all finite."""
+    finite = True
+    for c in range(x.shape[0]):
+        for i in range(STATE_SIZE):
+            v = x[c, i]
+            states[k, c, i] = v
+            if not np.isfinite(v):
+                finite = False
+    return finite
+
+
+@njit(cache=True, inline='always')
+def impaired_states(k, c, dt, x, states, hears, ids, links_impaired, own, sent, nb):
+    """Return the own state row ``c``'s controller receives at step ``k`` through impaired links; write its neighbours'.
+
+    As :mod:`uh_controller_node.impairments` defines: the own state and each neighbour's state
+    noisy, a neighbour's the one it sent at the step its link delivers (from ``states``, the
+    recorded history), predicted to step ``k`` when the controllers predict (as ``ReceivedStates`` does).
+
+    Parameters
+    ----------
+    k, c : int
+        Step and the receiving UH's row.
+    dt : float
+        Control period, s.
+    x, states : ndarray (n, 12), (K+1, n, 12)
+        The plants' states now and the recorded ones.
+    hears, ids : ndarray (max_nb,), (n,) int64
+        The rows heard by UH ``c``, and the UH ids of the rows.
+    links_impaired : TeamImpairments
+    own, sent : ndarray (12,)
+        Scratch: the noisy own state (returned), a neighbour's state before its prediction.
+    nb : ndarray (n_nb, 12)
+        Output: the neighbours' states received, in the order of ``hears``.
+    """
+    seed, noise = links_impaired.seed, links_impaired.noise
+    add_noise(x[c], noise, seed, ids[c], ids[c], k, own)
+    for j in range(nb.shape[0]):
+        r = hears[j]
+        delay, jitter = links_impaired.delay[c, j], links_impaired.jitter[c, j]
+        s = delivered_step(k, delay, jitter, links_impaired.loss[c, j], links_impaired.drop_step[r], seed,
+                           ids[c], ids[r])
+        if links_impaired.predict and s < k:   # the state sent at s, predicted to k
+            add_noise(states[s, r], noise, seed, ids[c], ids[r], s, sent)
+            predict_state(sent, prediction_age(k, s, delay, jitter, dt), dt, nb[j])
+        else:
+            add_noise(states[s, r], noise, seed, ids[c], ids[r], s, nb[j])
+    return own
+
+
+@njit(cache=True, inline='always')
+def record_status(k, c, status, fault_est_p, fault_est_w, u_p, z1, saturated):
+    """Write what the record keeps of row ``c``'s status at step ``k``: Fhat_p, Fhat_w, u_p, z1, saturation."""
+    for i in range(3):
+        fault_est_p[k, c, i] = status[STATUS.fault_estimate_position + i]
+        fault_est_w[k, c, i] = status[STATUS.fault_estimate_attitude + i]
+        u_p[k, c, i] = status[STATUS.u_p + i]
+        z1[k, c, i] = status[STATUS.z1 + i]
+    saturated[k, c] = (status[STATUS.saturated_tilt] != 0.0 or status[STATUS.saturated_collective] != 0.0
+                       or status[STATUS.saturated_cyclic] != 0.0)
+
+
+@njit(cache=True, inline='always')
+def advance_plants(k, last, dt, x, commands, plant_params, faults, disturbance, substeps, fault_true_p, fault_true_w,
+                   u, out_p, out_w):
+    """Record the true lumped faults of step ``k``'s commands and, unless ``k == last``, integrate every plant.
+
+    Each plant holds its command ``commands[k, c]`` over [t_k, t_k+1) (RK4, ``substeps`` substeps;
+    ``plant_params``, ``faults``, ``disturbance`` per row as in :class:`TeamConfig`). ``u`` (4,),
+    ``out_p``, ``out_w`` (3,): scratch for the command and the faults' parts.
+    """
+    t = k * dt
+    for c in range(x.shape[0]):
+        for i in range(4):
+            u[i] = commands[k, c, i]
+        lumped_faults(x[c], u, t, plant_params[c], faults[c], out_p, out_w)
+        for i in range(3):
+            fault_true_p[k, c, i] = out_p[i]
+            fault_true_w[k, c, i] = out_w[i]
+        if k < last:
+            plant_step(x[c], u, t, dt, substeps, plant_params[c], faults[c], disturbance[c])
+
+
 #: Files whose contents are compiled into :func:`run_team_steps` besides this one.
-_DEPENDENCIES = (Path(_ctl.__file__), Path(_gains.__file__), Path(_plant.__file__), Path(_faults.__file__),
+_DEPENDENCIES = (Path(_ctl.__file__), Path(_loop_kernels.__file__), Path(_learning_kernels.__file__),
+                 Path(_control_layout.__file__), Path(_gains.__file__), Path(_plant.__file__), Path(_faults.__file__),
                  Path(_layout.__file__), Path(_impairments.__file__))
 
 
 def refresh_cache() -> bool:
-    """Empty :func:`run_team_steps`' numba cache index if the files it depends on changed since it was cached.
+    """Empty the numba cache index of this file's kernels if the files they depend on changed since they were cached.
 
-    Those files are :data:`_DEPENDENCIES`: ``control_kernels.py``, ``gains.py`` (the gains' slots of the
-    law's parameter vector), ``plant_kernels.py``, ``faults.py``,
-    ``uh_core/layout.py``, ``impairments.py``; the digest is kept next to the cache in
+    Those files are :data:`_DEPENDENCIES`: the law's kernel modules (``control_kernels.py``,
+    ``loop_kernels.py``, ``learning_kernels.py``), ``control_layout.py`` and ``gains.py`` (the layout of
+    its arrays, the gains' slots), ``plant_kernels.py``, ``faults.py``, ``uh_core/layout.py``,
+    ``impairments.py``; the digest is kept next to the cache in
     ``team_kernel.dependencies.sha256``. Returns True when the cache was emptied
     (:func:`uh_core.kernel_cache.refresh_cache`).
     """
-    return _kernel_cache.refresh_cache([run_team_steps], _DEPENDENCIES, 'team_kernel.dependencies.sha256')
+    return _kernel_cache.refresh_cache(_kernel_cache.module_dispatchers(globals()), _DEPENDENCIES,
+                                       'team_kernel.dependencies.sha256')
 
 
 refresh_cache()

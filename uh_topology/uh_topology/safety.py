@@ -26,7 +26,10 @@ from .scenario_keys import SEPARATION_MARGIN, key_names, read_key
 from .schema import ConfigContext
 
 __all__ = ['SafetySpec', 'read_safety', 'default_min_separation', 'formation_points', 'close_pairs',
-           'SeparationIssue']
+           'SeparationIssue', 'SAFETY_CHOICES', 'add_safety_argument', 'safety_override', 'overlap_line']
+
+#: The values of the run scripts' ``--safety``.
+SAFETY_CHOICES = ('on', 'off')
 
 
 @dataclass(frozen=True)
@@ -110,3 +113,27 @@ def close_pairs(points: dict, limit: float, what: str) -> list:
         if distance < limit:
             found.append(SeparationIssue(what, i, j, distance))
     return sorted(found, key=lambda issue: issue.distance)
+
+
+def add_safety_argument(parser) -> None:
+    """Add ``--safety on|off`` to an argparse parser (the run scripts share its wording)."""
+    parser.add_argument('--safety', choices=SAFETY_CHOICES, default=None,
+                        help="the collision-avoidance filter (docs/safety.md): 'on' or 'off' overrides the "
+                             "scenario's safety.enabled; 'off' is the paper's law alone (default: the scenario's)")
+
+
+def safety_override(value: str | None) -> bool | None:
+    """``--safety``'s value as :func:`uh_topology.scenario.load_scenario` takes it (None: the scenario's)."""
+    return None if value is None else value == 'on'
+
+
+def overlap_line(metrics: dict, enabled: bool) -> str | None:
+    """One line when a run's rotor disks overlapped (``metrics.json`` content), else None."""
+    overlap = metrics.get('rotor_overlap_s')
+    if not overlap:
+        return None
+    limit = (metrics.get('separation') or {}).get('rotor_overlap_m')
+    where = f'{metrics["min_separation_pair"]} came within {metrics["min_separation_m"]:.2f} m'
+    what = 'with the safety filter on' if enabled else "the paper's law alone (safety off) let rotors touch"
+    advice = '' if enabled else '; --safety on keeps them apart (docs/safety.md)'
+    return f'{what}: {where}, rotor disks overlapping (under {limit:.2f} m) for {overlap:g} s{advice}'

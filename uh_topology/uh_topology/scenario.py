@@ -519,13 +519,20 @@ def _faults(ctx: ConfigContext, faults_raw, team: Team) -> dict:
     return faults
 
 
-def parse_scenario(text: str, *, source: str | None = None, base_dir=None) -> Scenario:
-    """Parse and validate scenario YAML text (``base_dir`` resolves relative file names)."""
+def parse_scenario(text: str, *, source: str | None = None, base_dir=None, safety: bool | None = None) -> Scenario:
+    """Parse and validate scenario YAML text (``base_dir`` resolves relative file names).
+
+    ``safety`` (True/False) replaces the file's ``safety.enabled`` before validation (the run
+    scripts' ``--safety on|off``); None keeps it.
+    """
     data, lines = parse_yaml(text, source)
     if data is None:
         raise E.MissingFieldError('the scenario is empty; required keys: '
                                   + ', '.join(key_names(scenario_keys.SCENARIO_KEYS, required=True)),
                                   source=source)
+    if safety is not None and isinstance(data, dict):
+        given = data.get('safety')
+        data['safety'] = {**(given if isinstance(given, dict) else {}), 'enabled': bool(safety)}
     return scenario_from_mapping(data, source=source, base_dir=base_dir, lines=lines)
 
 
@@ -535,7 +542,7 @@ def bundled_scenarios() -> tuple:
                         if not p.stem.endswith('_gains') and not p.stem.startswith('campaign_')))
 
 
-def load_scenario(path_or_name) -> Scenario:
+def load_scenario(path_or_name, safety: bool | None = None) -> Scenario:
     """Load and validate a scenario.
 
     Parameters
@@ -543,6 +550,8 @@ def load_scenario(path_or_name) -> Scenario:
     path_or_name : str or Path
         A YAML file, or the name of a bundled scenario (``'paper'`` ->
         ``uh_topology/config/paper.yaml``).
+    safety : bool, optional
+        Replaces the file's ``safety.enabled`` (``--safety on|off``); None keeps the file's.
 
     Raises
     ------
@@ -551,7 +560,9 @@ def load_scenario(path_or_name) -> Scenario:
     ScenarioError
         Any of the specific subclasses of :mod:`uh_topology.errors`.
     """
-    if isinstance(path_or_name, Scenario):
+    if isinstance(path_or_name, Scenario) and (safety is None or path_or_name.safety.enabled == safety):
         return path_or_name
+    if isinstance(path_or_name, Scenario):
+        raise ValueError('a loaded scenario cannot change its safety setting: load it from its file again')
     path, content = read_config_file(path_or_name, 'scenario', bundled_scenarios)
-    return parse_scenario(content, source=str(path), base_dir=path.resolve().parent)
+    return parse_scenario(content, source=str(path), base_dir=path.resolve().parent, safety=safety)

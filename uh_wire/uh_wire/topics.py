@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from uh_runtime.names import RECORDER_PROGRESS_TOPIC
-from uh_runtime.qos import QoSWords, profile_from_words
+from uh_runtime.dds.qos import QoSWords, profile_from_words
 
 __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
@@ -152,6 +152,6 @@ def run_topics(uh_ids, impaired: bool = False, views: bool = True,
 def qos_profile(spec: QosSpec):
     """Build the node runtime's ``QoSProfile`` (rclpy's on a ROS 2 machine) from ``spec``.
 
-    See :func:`uh_runtime.qos.profile_from_words`.
+    See :func:`uh_runtime.dds.qos.profile_from_words`.
     """
     return profile_from_words(spec)

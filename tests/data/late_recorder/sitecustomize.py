@@ -13,7 +13,7 @@ _TOPIC = os.environ.get('UH_TEST_LATE_TOPIC')
 if _TOPIC and os.path.basename(sys.argv[0] if sys.argv else '') == 'recorder_node':
     import time
 
-    from uh_runtime import recorder
+    from uh_runtime.bags import recorder
 
     _first_seen = []
     _late_s = float(os.environ.get('UH_TEST_LATE_S', '3'))

@@ -17,7 +17,7 @@ configuration in ``CYCLONEDDS_URI``, else the runs' default
 (:func:`uh_runtime.network.default_cyclonedds_uri`: loopback only, or as
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` and ``ROS_STATIC_PEERS`` say).
 
-With a run's node table (``UH_RUN_NODES`` from its ``env.sh``, :mod:`uh_runtime.node_table`), ``topic
+With a run's node table (``UH_RUN_NODES`` from its ``env.sh``, :mod:`uh_runtime.cli.node_table`), ``topic
 list``, ``topic info``, ``node list`` and ``param list`` wait for those nodes, or name the ones not seen.
 """
 import argparse
@@ -26,11 +26,11 @@ import os
 import sys
 import time
 
-from .command_line import ArgumentParser
-from .arguments import (InvalidNameError, parse_parameter_value, validate_full_topic_name, validate_namespace,
-                        validate_node_name)
-from .names import ROS_TOPIC_PREFIX
-from .network import MAX_DOMAIN_ID, apply_network_default
+from ..command_line import ArgumentParser
+from ..dds.arguments import (InvalidNameError, parse_parameter_value, validate_full_topic_name, validate_namespace,
+                             validate_node_name)
+from ..names import ROS_TOPIC_PREFIX
+from ..network import MAX_DOMAIN_ID, apply_network_default
 from .node_table import RUN_NODES_VARIABLE, report_missing, run_nodes
 
 # The graph, the message classes, the QoS conversions and the DDS backend are imported inside the
@@ -42,7 +42,7 @@ __all__ = ['main', 'build_parser']
 
 #: How long the graph must stay unchanged before a listing without a run's node table is complete, s:
 #: one heartbeat period (3 s) of a Fast DDS participant's ``ros_discovery_info`` writer, in case the
-#: renewed reader (:data:`uh_runtime.graph.INFO_GRACE`) misses its first (docs/ros2.md).
+#: renewed reader (:data:`uh_runtime.dds.graph.INFO_GRACE`) misses its first (docs/ros2.md).
 QUIET = 3.2
 
 #: Default ``--spin-time``: the longest wait, which the quiet time must fit in.
@@ -163,7 +163,7 @@ def build_parser():
 
 
 def _graph(args):
-    from .graph import Graph
+    from ..dds.graph import Graph
     domain = _domain_default() if args.domain_id is None else args.domain_id
     if not 0 <= domain <= MAX_DOMAIN_ID:
         raise UsageError(f'--domain-id {domain} is outside 0..{MAX_DOMAIN_ID} (the range ROS 2 allows)')
@@ -245,7 +245,7 @@ def _qos_text(profile, dds_qos):
 
 
 def cmd_topic_info(args):
-    from .graph import format_gid
+    from ..dds.graph import format_gid
     topic = _check_topic(args.topic_name)
     graph = args.graph
     missing = _discover(args)
@@ -295,8 +295,8 @@ def _reader(graph, topic, cls, pubs, depth, raw=False):
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
 
-    from . import messages
-    from .qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
+    from .. import messages
+    from ..dds.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
     reliable = pubs and all(p.qos_profile.reliability == ReliabilityPolicy.RELIABLE for p in pubs)
     latched = pubs and all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in pubs)
     profile = QoSProfile(
@@ -322,7 +322,7 @@ def _field(msg, path):
 
 
 def cmd_topic_echo(args):
-    from . import messages
+    from .. import messages
     topic = _check_topic(args.topic_name)
     graph = args.graph
     start = time.monotonic()
@@ -362,7 +362,7 @@ def cmd_topic_echo(args):
 
 
 def cmd_topic_hz(args):
-    from . import messages
+    from .. import messages
     topic = _check_topic(args.topic_name)
     graph = args.graph
     start = time.monotonic()
@@ -422,14 +422,14 @@ class _ParamClients:
     """Parameter service clients on a context of the domain (created on demand, per node and service)."""
 
     def __init__(self, args):
-        from .dds_backend.context import Context
+        from ..dds.context import Context
         self._context = Context()
         self._context.init(args=['uh'], domain_id=_domain_default() if args.domain_id is None else args.domain_id)
         self._clients = {}
         self._wait = args.spin_time
 
     def call(self, node: str, service: str, **fields):
-        from .dds_backend.services import ServiceClient
+        from ..dds.services import ServiceClient
         key = (node, service)
         if key not in self._clients:
             name = ''.join(part.capitalize() for part in service.split('_'))
@@ -460,7 +460,7 @@ def _node_name(name: str) -> str:
 
 
 def _value_text(msg) -> str:
-    from .dds_backend.services import parameter_value
+    from ..dds.services import parameter_value
     value = parameter_value(msg)
     return 'Parameter not set.' if value is None else f'{_TYPE_NAMES[int(msg.type)].capitalize()} value is: {value}'
 
@@ -504,8 +504,8 @@ def cmd_param_get(args):
 
 
 def cmd_param_set(args):
-    from .dds_backend.services import value_message
-    from .messages import dds_message
+    from ..dds.services import value_message
+    from ..messages import dds_message
     value = parse_parameter_value(args.value)
     clients = _ParamClients(args)
     try:
@@ -563,7 +563,7 @@ def main(argv=None) -> int:
     name, an unknown type or field); 130 interrupted.
     """
     args = build_parser().parse_args(argv)
-    # uh reads the graph through Cyclone DDS (uh_runtime.graph): its message classes and QoS must be that
+    # uh reads the graph through Cyclone DDS (uh_runtime.dds.graph): its message classes and QoS must be that
     # backend's also where rclpy is importable (a sourced ROS 2, .venv-rclpy), or it silently finds nothing.
     # Set for the command only: a caller in the same process keeps its own choice.
     previous = os.environ.get('UH_BACKEND')

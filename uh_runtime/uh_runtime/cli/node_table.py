@@ -9,7 +9,7 @@ import os
 import shlex
 import sys
 
-from .arguments import InvalidNameError, validate_namespace, validate_node_name
+from ..dds.arguments import InvalidNameError, validate_namespace, validate_node_name
 
 __all__ = ['RUN_NODES_VARIABLE', 'export_line', 'run_nodes', 'report_missing']
 

@@ -18,7 +18,7 @@ them from a profile, :func:`qos_profile_yaml` writes the ``offered_qos_profiles`
 import enum
 from dataclasses import dataclass
 
-from .backend import select_backend
+from ..backend import select_backend
 
 __all__ = [
     'QoSProfile', 'ReliabilityPolicy', 'DurabilityPolicy', 'HistoryPolicy', 'LivelinessPolicy',
@@ -169,7 +169,7 @@ def to_dds_qos(profile: QoSProfile, user_data: bytes | None = None, ignore_local
 
     ``ignore_local``: Cyclone's ``IgnoreLocal(Participant)`` (what rmw_cyclonedds sets for
     ``ignore_local_publications``): no match with endpoints of the same participant, which
-    :mod:`uh_runtime.intra_process` serves instead.
+    :mod:`uh_runtime.dds.intra_process` serves instead.
     """
     from cyclonedds.qos import Policy, Qos
     from cyclonedds.util import duration
@@ -314,7 +314,7 @@ def qos_profile_yaml(reliability: str, durability: str, history: str, depth: int
 
     ``reliability`` is ``reliable``/``best_effort``, ``durability`` ``volatile``/``transient_local``,
     ``history`` ``keep_last``/``keep_all``; deadline, lifespan and lease are infinite as in ROS 2's
-    defaults. The layout is the one rosbag2 on Jazzy writes (see :mod:`uh_runtime.bag`).
+    defaults. The layout is the one rosbag2 on Jazzy writes (see :mod:`uh_runtime.bags.bag`).
     """
     inf = 'sec: {}\n    nsec: {}'.format(*divmod(DDS_INFINITY, 1_000_000_000))
     return (

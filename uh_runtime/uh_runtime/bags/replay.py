@@ -12,12 +12,12 @@ and nodes with ``use_sim_time`` see the run again.
 Timing: message ``m`` is due at ``t_start + (log_time(m) - log_time(first)) / rate`` on the
 monotonic clock; messages are sent in log-time order, ties in the order they are stored in the
 file (the order they were recorded in). Log times of this project's bags are simulation times
-(see :mod:`uh_runtime.recorder`); those of ``ros2 bag record`` are receive times.
+(see :mod:`uh_runtime.bags.recorder`); those of ``ros2 bag record`` are receive times.
 
-Bags are checked before anything is published (:func:`uh_runtime.bag_reader.open_bag`): a missing
+Bags are checked before anything is published (:func:`uh_runtime.bags.bag_reader.open_bag`): a missing
 or empty directory, a file that is not MCAP, a file cut short (no footer: the recorder was killed),
 a damaged summary or chunk (CRC mismatch) and unusable QoS metadata are reported as
-:class:`~uh_runtime.bag_reader.BagError` naming the file and what is wrong.
+:class:`~uh_runtime.bags.bag_reader.BagError` naming the file and what is wrong.
 
 Exit status: 0 done, 1 nobody subscribed in time (``--wait-for-subscribers``), 2 bad arguments or
 an unreadable bag, 130 interrupted (Ctrl-C, SIGTERM).
@@ -34,11 +34,12 @@ import sys
 import time
 
 import uh_runtime as rt
-from uh_runtime import live_view, messages
-from uh_runtime.bag_reader import BagError, BagInfo, iter_bag_messages, open_bag
+from uh_runtime import messages
+from uh_runtime.bags import live_view
+from uh_runtime.bags.bag_reader import BagError, BagInfo, iter_bag_messages, open_bag
 from uh_runtime.command_line import ArgumentParser
+from uh_runtime.dds.qos import QoSWords, profile_from_words
 from uh_runtime.network import MAX_DOMAIN_ID, loopback_environment
-from uh_runtime.qos import QoSWords, profile_from_words
 
 __all__ = ['ReplayNode', 'build_parser', 'main']
 
@@ -392,11 +393,11 @@ def main(args=None) -> int:
 
 
 def _start_live_view(host: str, port: int):
-    """Start the live view node (:mod:`uh_runtime.live_view`) beside the replay, in its DDS domain.
+    """Start the live view node (:mod:`uh_runtime.bags.live_view`) beside the replay, in its DDS domain.
 
     Return its process once it accepts connections.
     """
-    viewer = subprocess.Popen([sys.executable, '-P', '-m', 'uh_runtime.live_view', '--ros-args',
+    viewer = subprocess.Popen([sys.executable, '-P', '-m', 'uh_runtime.bags.live_view', '--ros-args',
                                '-p', f'host:={host}', '-p', f'port:={port}'], env=dict(os.environ))
     deadline = time.monotonic() + 30.0
     while time.monotonic() < deadline and viewer.poll() is None:

@@ -11,7 +11,7 @@ sample of a reader in one batch.
 import threading
 import time
 
-from ..qos import DDS_INFINITY
+from .qos import DDS_INFINITY
 from .context import get_default_context
 
 __all__ = ['Executor', 'SingleThreadedExecutor', 'StaticSingleThreadedExecutor',
@@ -282,7 +282,7 @@ class SingleThreadedExecutor(Executor):
 
 
 class StaticSingleThreadedExecutor(SingleThreadedExecutor):
-    """The facade's executor for the project's nodes (``uh_runtime.rclpy_executor`` on rclpy).
+    """The facade's executor for the project's nodes (``uh_runtime.rclpy_backend.executors`` on rclpy).
 
     This backend's executor already keeps its DDS waitset between waits, so it is the same one.
     """

@@ -8,7 +8,10 @@ worked out when the code is generated wherever it is known (a few microseconds p
 
 The codecs are built from the same rosbags type definitions as the classes
 (:mod:`uh_runtime.messages`) and produce the same bytes as ``IdlStruct.serialize()`` and rosbags'
-``serialize_cdr`` (tests/test_messages.py checks all three). Rules (OMG CDR / XCDR1, as ROS 2):
+``serialize_cdr`` (tests/test_messages.py checks all three) and read what rosbags' ``deserialize_cdr``
+reads (tests/test_cdr_codec.py, random messages of every uh_msgs type). This is the project's one CDR
+reader besides rosbags'; the report's :mod:`uh_report.cdr_columns` holds no CDR rule (it reads numeric
+fields at the offsets rosbags' own encoder gives them). Rules (OMG CDR / XCDR1, as ROS 2):
 a primitive is aligned to its size (8 for 64-bit) relative to the start of the payload after the
 4-byte encapsulation header; a string is a uint32 length including the terminating NUL, the bytes
 and the NUL; a sequence is a uint32 count and its elements; a fixed array is its elements.
@@ -18,6 +21,8 @@ import struct
 import threading
 
 from rosbags.typesys.base import Nodetype
+
+from .. import messages
 
 __all__ = ['codec', 'Codec']
 
@@ -337,7 +342,6 @@ def codec(cls) -> Codec:
     with _lock:
         if typename in _codecs:
             return _codecs[typename]
-        from . import messages
         gen = _Gen(messages.typestore(), {})
         gen.classes_used = set()
         ser = gen.ser_function(typename, top=True)

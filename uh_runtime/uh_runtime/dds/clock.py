@@ -2,7 +2,7 @@
 
 Mirrors ``rclpy.time``, ``rclpy.duration`` and ``rclpy.clock`` (Jazzy): times and durations are
 integer nanoseconds; a ``ROSClock`` is system time, or the last ``/clock`` value while sim time is
-active (the node's TimeSource sets it, see :mod:`uh_runtime.dds_backend.node`).
+active (the node's TimeSource sets it, see :mod:`uh_runtime.dds.node`).
 """
 import time
 

@@ -1,4 +1,4 @@
-"""Recorder node (``recorder``): records topics to a rosbag2 MCAP bag (:mod:`uh_runtime.bag`).
+"""Recorder node (``recorder``): records topics to a rosbag2 MCAP bag (:mod:`uh_runtime.bags.bag`).
 
 Like ``ros2 bag record -a -s mcap``: it discovers every topic in the DDS domain (or the ones given
 in ``topics``; ``/parameter_events`` and ``/rosout`` included, so a bag shows when a gain changed
@@ -27,8 +27,8 @@ lockstep run loses nothing however slow the disk.
 
 SIGINT/SIGTERM finalise the bag (summary and ``metadata.yaml``). Every ``FLUSH_PERIOD_S`` the
 chunk being filled is closed and written, so a SIGKILL leaves an MCAP file readable up to its last
-complete chunk, losing less than :data:`uh_runtime.bag.CHUNK_SIZE` bytes and at most
-:data:`uh_runtime.bag.FLUSH_PERIOD_S` of recording; :func:`uh_runtime.bag.recover_bag` completes it.
+complete chunk, losing less than :data:`uh_runtime.bags.bag.CHUNK_SIZE` bytes and at most
+:data:`uh_runtime.bags.bag.FLUSH_PERIOD_S` of recording; :func:`uh_runtime.bags.bag.recover_bag` completes it.
 """
 from __future__ import annotations
 
@@ -37,11 +37,11 @@ import struct
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_runtime.bag import FLUSH_PERIOD_S, BagWriter
-from uh_runtime.bag_reader import BagError
-from uh_runtime.arguments import InvalidNameError, validate_full_topic_name
+from uh_runtime.bags.bag import FLUSH_PERIOD_S, BagWriter
+from uh_runtime.bags.bag_reader import BagError
+from uh_runtime.dds.arguments import InvalidNameError, validate_full_topic_name
+from uh_runtime.dds.qos import QoSWords, merge_offered, profile_from_words, qos_profile_yaml, words_of
 from uh_runtime.names import RECORDER_PROGRESS_TOPIC
-from uh_runtime.qos import QoSWords, merge_offered, profile_from_words, qos_profile_yaml, words_of
 
 __all__ = ['RecorderNode', 'LogClock', 'RecordedProgress', 'STAMP_WINDOW_NS', 'PROGRESS_EVERY', 'PROGRESS_FLUSH_S',
            'main', 'stamp_of', 'stamped_first', 'new_topics']

@@ -2,10 +2,10 @@
 
 See docs/visualization.md#live-view-in-foxglove.
 
-Follows every topic of the DDS domain like the recorder (:func:`uh_runtime.recorder.new_topics`),
+Follows every topic of the DDS domain like the recorder (:func:`uh_runtime.bags.recorder.new_topics`),
 subscribes to it raw, and logs each CDR payload unchanged to a channel of a ``foxglove-sdk``
 WebSocket server (``foxglove.websocket.v1``), with the type's ``ros2msg`` definition as the schema
-(the same text a bag's MCAP schema holds, :func:`uh_runtime.bag.message_definition`). The Foxglove
+(the same text a bag's MCAP schema holds, :func:`uh_runtime.bags.bag.message_definition`). The Foxglove
 app connected to ``ws://HOST:PORT`` decodes them like a ROS 2 connection: 3-D scene from ``/tf``
 and ``/markers``, plots, diagnostics.
 
@@ -24,10 +24,10 @@ import time
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_runtime.bag import message_definition
-from uh_runtime.bag_reader import BagError
-from uh_runtime.qos import merge_offered, profile_from_words
-from uh_runtime.recorder import LogClock, new_topics, stamped_first
+from uh_runtime.bags.bag import message_definition
+from uh_runtime.bags.bag_reader import BagError
+from uh_runtime.bags.recorder import LogClock, new_topics, stamped_first
+from uh_runtime.dds.qos import merge_offered, profile_from_words
 
 __all__ = ['LiveViewNode', 'LiveViewError', 'add_arguments', 'check_available', 'check_port', 'connect_hint',
            'require_foxglove', 'main', 'DEFAULT_PORT']
@@ -155,7 +155,7 @@ class LiveViewNode(rt.Node):
     def on_message(self, name: str, channel, data: bytes, stamped: bool) -> None:
         """Log the CDR bytes ``data`` of topic ``name`` on its Foxglove ``channel``.
 
-        The log time is that of :class:`~uh_runtime.recorder.LogClock` (ns), wall time for an unstamped
+        The log time is that of :class:`~uh_runtime.bags.recorder.LogClock` (ns), wall time for an unstamped
         message before the first ``/clock``.
         """
         log_ns = self.log_clock.of(name, data, stamped)

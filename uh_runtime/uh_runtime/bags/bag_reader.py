@@ -1,7 +1,7 @@
 """Reading rosbag2 bags in MCAP storage, and the one error type of bags (:class:`BagError`).
 
-The reader of every part of the project that reads a bag: the player (:mod:`uh_runtime.replay`),
-the recovery of a bag a killed recorder left (:func:`uh_runtime.bag.recover_bag`), the metrics and
+The reader of every part of the project that reads a bag: the player (:mod:`uh_runtime.bags.replay`),
+the recovery of a bag a killed recorder left (:func:`uh_runtime.bags.bag.recover_bag`), the metrics and
 the report of a run (``uh_bringup``). It plays the part of rosbag2's readers (``rosbag2_py``'s
 ``SequentialReader``); the MCAP records are read with the ``mcap`` library.
 
@@ -26,7 +26,7 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .qos import QoSWords, parse_offered_qos
+from ..dds.qos import QoSWords, parse_offered_qos
 
 __all__ = ['BagError', 'MCAP_MAGIC', 'find_bag_files', 'bag_file', 'BagTopic', 'BagInfo', 'open_bag',
            'iter_bag_messages', 'ReadResult', 'read_messages']
@@ -165,7 +165,7 @@ class BagInfo:
 
 def _recover_hint(path: Path) -> str:
     """Return the sentence that ends the error of a cut or damaged MCAP file: how to recover its bag."""
-    return (f'; `python -m uh_runtime.bag recover {path.parent}` restores the bag up to its last complete '
+    return (f'; `python -m uh_runtime.bags.bag recover {path.parent}` restores the bag up to its last complete '
             'chunk (the damaged file is kept beside it)')
 
 

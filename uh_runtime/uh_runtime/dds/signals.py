@@ -3,7 +3,7 @@
 A thread blocked in a Cyclone wait set does not return to Python when a signal arrives, so the
 signal's handler would only run at the next timeout. :func:`wake_on_signals` makes every signal
 call ``wake()`` on the registered objects (the DDS backend's contexts and the discovery
-:class:`uh_runtime.graph.Graph`), which triggers their guard conditions: the wait returns and Python
+:class:`uh_runtime.dds.graph.Graph`), which triggers their guard conditions: the wait returns and Python
 runs the handler at once. :func:`shut_down_on_sigterm` handles SIGTERM like rclpy does, by shutting
 the contexts down (spinning then raises ``ExternalShutdownException``). :func:`sigint_deferred`
 holds Ctrl-C back while Cyclone DDS calls back into Python; :func:`sigint_ignored` ignores it

@@ -26,12 +26,12 @@ import time
 
 from .. import messages as _messages
 from ..names import REPLY_PREFIX, REQUEST_PREFIX
-from ..parameters import (
+from .parameters import (
     InvalidParameterTypeException, InvalidParameterValueException, Parameter,
     ParameterDescriptor, ParameterNotDeclaredException, ParameterType, ParameterUninitializedException,
     SetParametersResult,
 )
-from ..qos import QoSProfile, DurabilityPolicy, HistoryPolicy, ReliabilityPolicy, to_dds_qos
+from .qos import QoSProfile, DurabilityPolicy, HistoryPolicy, ReliabilityPolicy, to_dds_qos
 from .clock import Clock, ClockType
 from .context import typehash_user_data
 
@@ -101,7 +101,7 @@ class Service:
 
     ``callback(request, response)`` returns the response; ``srv_type`` is ``'pkg/srv/Name'`` (one of
     :data:`uh_runtime.messages.SERVICE_DEFINITIONS`). Made by :meth:`Node.create_service
-    <uh_runtime.dds_backend.node.Node.create_service>` of ``node``: ``srv_name`` is resolved as a
+    <uh_runtime.dds.node.Node.create_service>` of ``node``: ``srv_name`` is resolved as a
     topic name of the node, ``qos_profile`` is that of the request reader and the reply writer.
     """
 

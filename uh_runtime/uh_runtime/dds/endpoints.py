@@ -1,17 +1,17 @@
 """A node's entities on the Cyclone DDS backend: ``Publisher``, ``Subscription``, ``Timer``.
 
 Mirrors ``rclpy.publisher``, ``rclpy.subscription`` and ``rclpy.timer``. A publisher writes the
-CDR bytes of a message (generated codecs, :mod:`uh_runtime.cdr`) padded to a multiple of 4 bytes
+CDR bytes of a message (generated codecs, :mod:`uh_runtime.dds.cdr`) padded to a multiple of 4 bytes
 as rmw_cyclonedds sends them, and hands the message itself to the subscriptions of this process
-(:mod:`uh_runtime.intra_process`); a subscription takes every available sample of its reader in one
+(:mod:`uh_runtime.dds.intra_process`); a subscription takes every available sample of its reader in one
 batch; a timer fires on its node's clock with rcl's rule for missed periods. Nodes create them
-(:mod:`uh_runtime.dds_backend.node`), executors run their callbacks.
+(:mod:`uh_runtime.dds.node`), executors run their callbacks.
 """
 import collections
 
-from .. import intra_process as _intra
+from . import intra_process as _intra
 from .. import messages as _messages
-from ..qos import DDS_INFINITY, DurabilityPolicy, HistoryPolicy
+from .qos import DDS_INFINITY, DurabilityPolicy, HistoryPolicy
 from .clock import ROSClock
 
 __all__ = ['Publisher', 'Subscription', 'Timer']
@@ -23,7 +23,7 @@ _PAD4 = [b'', b'\0', b'\0\0', b'\0\0\0']
 class Publisher:
     """``rclpy.publisher.Publisher``: ``publish(msg)``, ``topic_name``, ``get_subscription_count()``.
 
-    Made by :meth:`Node.create_publisher <uh_runtime.dds_backend.node.Node.create_publisher>` around
+    Made by :meth:`Node.create_publisher <uh_runtime.dds.node.Node.create_publisher>` around
     its DDS ``writer``.
     """
 
@@ -36,7 +36,7 @@ class Publisher:
         self.gid = writer.get_guid().bytes
         from cyclonedds._clayer import ddspy_write
 
-        from ..cdr import codec
+        from .cdr import codec
         self._write = ddspy_write
         self._ref = writer._ref
         self._serialize = codec(msg_type).serialize
@@ -104,7 +104,7 @@ class Publisher:
 class Subscription:
     """``rclpy.subscription.Subscription``; the callback gets a message (or CDR bytes if ``raw``).
 
-    Made by :meth:`Node.create_subscription <uh_runtime.dds_backend.node.Node.create_subscription>`
+    Made by :meth:`Node.create_subscription <uh_runtime.dds.node.Node.create_subscription>`
     around its DDS ``reader``.
     """
 
@@ -123,7 +123,7 @@ class Subscription:
         self.gid = reader.get_guid().bytes
         from cyclonedds._clayer import ddspy_take
 
-        from ..cdr import codec
+        from .cdr import codec
         self._take = ddspy_take
         self._codec = codec(msg_type)
         self._deserialize = self._codec.deserialize
@@ -170,7 +170,7 @@ class Subscription:
 class Timer:
     """``rclpy.timer.Timer`` on a node clock (wall or sim time).
 
-    Made by :meth:`Node.create_timer <uh_runtime.dds_backend.node.Node.create_timer>`: ``callback()``
+    Made by :meth:`Node.create_timer <uh_runtime.dds.node.Node.create_timer>`: ``callback()``
     every ``period_ns`` ns of ``clock``, from now (cancelled until :meth:`reset` unless ``autostart``);
     ValueError for a period that is not positive.
     """

@@ -4,22 +4,22 @@ Names, parameters, publishers/subscriptions/timers, graph queries and sim time.
 
 Mirrors ``rclpy.node``. ROS topic ``/uh1/state`` is DDS topic ``rt/uh1/state`` with type
 ``uh_msgs::msg::dds_::UHState_``; readers and writers get the QoS mapping of rmw_cyclonedds (see
-:mod:`uh_runtime.qos`) and USER_DATA ``typehash=RIHS01_<hex>;``. Graph queries
-(``count_subscribers`` ...) read DDS discovery through :class:`uh_runtime.graph.Graph`. With
+:mod:`uh_runtime.dds.qos`) and USER_DATA ``typehash=RIHS01_<hex>;``. Graph queries
+(``count_subscribers`` ...) read DDS discovery through :class:`uh_runtime.dds.graph.Graph`. With
 ``use_sim_time`` the node subscribes to ``/clock`` like rclpy's TimeSource.
 """
 import weakref
 
-from .. import arguments as _args
+from . import arguments as _args
 from .. import messages as _messages
-from ..graph import Graph
-from ..parameters import (
+from .graph import Graph
+from .parameters import (
     InvalidParameterTypeException, InvalidParameterValueException, Parameter,
     ParameterAlreadyDeclaredException, ParameterDescriptor, ParameterImmutableException,
     ParameterNotDeclaredException, ParameterType, ParameterUninitializedException,
     SetParametersResult, check_value,
 )
-from ..qos import as_profile, qos_profile_clock, qos_profile_rosout_default, to_dds_qos
+from .qos import as_profile, qos_profile_clock, qos_profile_rosout_default, to_dds_qos
 from .clock import ROSClock
 from .context import (
     DISCOVERY_TOPIC, ROS_TOPIC_PREFIX, NotInitializedException, get_default_context,
@@ -30,6 +30,10 @@ from .logger import RcutilsLogger, set_logger_level
 
 __all__ = ['Node']
 
+#: rclpy's reason when the pre-set callbacks leave nothing to set.
+_EMPTY_AFTER_PRE_SET = ('parameter list cannot be empty, this might be due to pre_set_parameters_callback '
+                        'modifying the original parameters list.')
+
 
 class Node:
     """``rclpy.node.Node`` on Cyclone DDS (the subset listed in docs/runtime.md).
@@ -37,8 +41,6 @@ class Node:
     The constructor takes rclpy's arguments with rclpy's meaning; ``enable_logger_service`` is
     accepted and ignored. Raises :class:`NotInitializedException` when the context is not running.
     """
-
-    PARAM_REL_TOL = 1e-6
 
     def __init__(self, node_name, *, context=None, cli_args=None, namespace=None,
                  use_global_arguments=True, enable_rosout=True, start_parameter_services=True,
@@ -122,7 +124,7 @@ class Node:
     # -- names ------------------------------------------------------------------------------
     @property
     def context(self):
-        """The :class:`~uh_runtime.dds_backend.context.Context` the node belongs to, as rclpy's ``Node.context``."""
+        """The :class:`~uh_runtime.dds.context.Context` the node belongs to, as rclpy's ``Node.context``."""
         return self._context
 
     @property
@@ -208,7 +210,7 @@ class Node:
         return sub
 
     def create_service(self, srv_type, srv_name, callback, *, qos_profile=None, callback_group=None):
-        """Create a service server (:class:`~uh_runtime.dds_backend.services.Service`).
+        """Create a service server (:class:`~uh_runtime.dds.services.Service`).
 
         ``srv_type`` is ``'pkg/srv/Name'``, one of :data:`uh_runtime.messages.SERVICE_DEFINITIONS`.
         """
@@ -503,9 +505,14 @@ class Node:
     def set_parameters_atomically(self, parameter_list):
         """Set ``parameter_list`` all or none, as rclpy's ``Node.set_parameters_atomically`` does.
 
-        Types, descriptors and on-set callbacks must accept every value (the result names the first refusal);
-        then the values are stored and announced and the post-set callbacks run.
+        The pre-set callbacks may first change the list (:meth:`add_pre_set_parameters_callback`); types,
+        descriptors and on-set callbacks must accept every value (the result names the first refusal); then
+        the values are stored and announced and the post-set callbacks run.
         """
+        if self._pre_set_callbacks:
+            parameter_list = [param for callback in self._pre_set_callbacks for param in callback(parameter_list)]
+            if not parameter_list:
+                return SetParametersResult(successful=False, reason=_EMPTY_AFTER_PRE_SET)
         for param in parameter_list:
             if param.name not in self._parameters:
                 if not self._allow_undeclared:
@@ -544,7 +551,11 @@ class Node:
         self._on_set_callbacks.remove(callback)
 
     def add_pre_set_parameters_callback(self, callback):
-        """Register a pre-set callback, as rclpy's API does; this backend stores it but never calls it."""
+        """Register ``callback(params) -> params`` ahead of the others, as rclpy does.
+
+        Before parameters are set (not declared), each callback gets the list being set and returns parameters;
+        the lists they return, joined, are set instead (atomically). An empty list is an unsuccessful set.
+        """
         self._pre_set_callbacks.insert(0, callback)
 
     def add_post_set_parameters_callback(self, callback):

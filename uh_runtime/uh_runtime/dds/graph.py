@@ -20,8 +20,8 @@ import time
 import uuid
 from dataclasses import dataclass
 
-from . import messages as _messages
-from .names import ROS_PREFIXES, ROS_TOPIC_PREFIX
+from .. import messages as _messages
+from ..names import ROS_PREFIXES, ROS_TOPIC_PREFIX
 from .qos import (
     DDS_INFINITY, DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, from_dds_qos, to_dds_qos,
 )

@@ -14,13 +14,13 @@ import sys
 import threading
 import weakref
 
-from .. import arguments as _args
-from .. import intra_process as _intra
+from . import arguments as _args
+from . import intra_process as _intra
 from .. import messages as _messages
 from ..names import ROS_TOPIC_PREFIX
 from ..network import MAX_DOMAIN_ID
-from ..qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
-from ..signals import restore_sigterm, shut_down_on_sigterm
+from .qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
+from .signals import restore_sigterm, shut_down_on_sigterm
 from .logger import set_logger_level
 
 __all__ = ['Context', 'NotInitializedException', 'get_default_context', 'init', 'ok', 'shutdown',
@@ -57,7 +57,7 @@ class Context:
         self._on_shutdown = []
         self._initialised = False
         self._torn_down = False
-        # in-process delivery between the nodes of this process (uh_runtime.intra_process)
+        # in-process delivery between the nodes of this process (uh_runtime.dds.intra_process)
         self._intra = _intra.IntraProcess(self.wake) if _intra.enabled() else None
 
     # -- lifecycle --------------------------------------------------------------------------

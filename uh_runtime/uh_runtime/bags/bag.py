@@ -18,14 +18,14 @@ written), and :meth:`BagWriter.flush` closes the chunk being filled (the recorde
 ``FLUSH_PERIOD_S``). A process killed with SIGKILL therefore loses at most the chunk being filled:
 fewer than ``CHUNK_SIZE`` bytes of messages plus the message that would have completed it, and no
 more than ``FLUSH_PERIOD_S`` seconds of recording. What is on disk is readable up to its last
-complete chunk with :func:`uh_runtime.bag_reader.read_messages` (the ``mcap`` stream reader,
+complete chunk with :func:`uh_runtime.bags.bag_reader.read_messages` (the ``mcap`` stream reader,
 stopping cleanly at the damage), and :func:`recover_bag` turns it into a complete bag again
-(summary, ``metadata.yaml``) that ``ros2 bag`` and rosbags open: ``python -m uh_runtime.bag recover
+(summary, ``metadata.yaml``) that ``ros2 bag`` and rosbags open: ``python -m uh_runtime.bags.bag recover
 BAG_DIR``. A bag closed normally (SIGINT/SIGTERM of the recorder) is complete.
 
-Reading bags, and the error type :class:`~uh_runtime.bag_reader.BagError` of both writing and
-reading, are :mod:`uh_runtime.bag_reader`; the ``offered_qos_profiles`` YAML is
-:func:`uh_runtime.qos.qos_profile_yaml`.
+Reading bags, and the error type :class:`~uh_runtime.bags.bag_reader.BagError` of both writing and
+reading, are :mod:`uh_runtime.bags.bag_reader`; the ``offered_qos_profiles`` YAML is
+:func:`uh_runtime.dds.qos.qos_profile_yaml`.
 """
 from __future__ import annotations
 
@@ -35,10 +35,10 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
-from .command_line import ArgumentParser
+from ..command_line import ArgumentParser
+from ..dds.qos import qos_profile_yaml
+from ..messages import type_hash, typestore, uh_msg_texts
 from .bag_reader import BagError, ReadResult, bag_file, read_messages
-from .messages import type_hash, typestore, uh_msg_texts
-from .qos import qos_profile_yaml
 
 __all__ = ['BagWriter', 'TopicInfo', 'message_definition', 'CHUNK_SIZE', 'FLUSH_PERIOD_S', 'recover_bag']
 
@@ -142,7 +142,7 @@ class BagWriter:
     def add_topic(self, name: str, type_name: str, offered_qos_profiles: str) -> TopicInfo:
         """Register topic ``name`` of ``type_name`` with its offered QoS.
 
-        ``offered_qos_profiles`` is rosbag2 YAML, see :func:`uh_runtime.qos.qos_profile_yaml`.
+        ``offered_qos_profiles`` is rosbag2 YAML, see :func:`uh_runtime.dds.qos.qos_profile_yaml`.
         """
         if name in self.topics:
             return self.topics[name]
@@ -229,7 +229,7 @@ def recover_bag(bag_dir) -> ReadResult:
     Raises
     ------
     BagError
-        No MCAP file in ``bag_dir`` (see :func:`uh_runtime.bag_reader.find_bag_files`), or not an
+        No MCAP file in ``bag_dir`` (see :func:`uh_runtime.bags.bag_reader.find_bag_files`), or not an
         MCAP file.
     """
     source = bag_file(bag_dir)
@@ -258,7 +258,7 @@ def recover_bag(bag_dir) -> ReadResult:
 
 
 def _main(argv=None) -> int:
-    parser = ArgumentParser(prog='python -m uh_runtime.bag',
+    parser = ArgumentParser(prog='python -m uh_runtime.bags.bag',
                                      description='Check or recover a bag a killed recorder left behind.')
     sub = parser.add_subparsers(dest='command', required=True)
     for name, text in (('check', 'read the bag up to its last complete chunk and report'),
