@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from numba import njit
 
+from uh_core.layout import STATUS_FIELDS, STATUS_FLAG, STATUS_VECTOR3
 from uh_controller_node import control_kernels as ck
 from uh_controller_node.controller import ControllerError, ControllerStatusData, UHController
 from uh_controller_node.fault_isolation import IsolationStatus
@@ -50,6 +51,8 @@ def _assert_same_status(a, b):
         other = getattr(b, name)
         if isinstance(value, np.ndarray):
             assert np.array_equal(value, other), name
+        elif isinstance(value, float) and math.isnan(value):   # closest_distance with the filter off
+            assert isinstance(other, float) and math.isnan(other), name
         else:
             assert value == other, name
 
@@ -71,8 +74,8 @@ def test_wrap_angle_is_the_ieee_remainder_bit_for_bit():
 def test_status_and_memory_layouts_are_consistent():
     vectors = [ck.S_Z1, ck.S_Z2, ck.S_Z3, ck.S_Z4, ck.S_F_HAT_P, ck.S_F_HAT_W, ck.S_ZN_P, ck.S_ZN_W, ck.S_U_P,
                ck.S_EULER_D]
-    scalars = [ck.S_THRUST, ck.S_W_NORM_P, ck.S_W_NORM_W, ck.S_SAT_TILT, ck.S_SAT_COLLECTIVE, ck.S_SAT_CYCLIC,
-               ck.S_COST_RATE]
+    # every scalar field of the registry, at the index the kernels write it (STATUS.<field>)
+    scalars = [getattr(ck.STATUS, f.name) for f in STATUS_FIELDS if f.kind != STATUS_VECTOR3]
     slots = sorted([i for s in vectors for i in range(s, s + 3)] + scalars)
     assert slots == list(range(ck.STATUS_SIZE))            # every slot used once
     assert len(vectors) == ck.STATUS_VECTORS and max(vectors) + 3 == 3 * ck.STATUS_VECTORS
@@ -139,7 +142,7 @@ def _team_control_step(states, reference, dt, hears, count, params, offsets, nb_
             nb[j] = states[hears[c, j]]
         done = ck.uh_control_step(params[c], states[c], nb, nb_weights[c, :m], nb_offsets[c, :m], offsets[c],
                                   links[c], reference, dt, weights_p[c], weights_w[c], memory[c], u[c],
-                                  status[c])
+                                  status[c], np.empty(0), np.empty((0, 6)))
         if done != ck.STEP_DONE:
             return c
     return -1
@@ -182,7 +185,8 @@ def test_team_kernel_built_from_kernel_arrays_reproduces_the_controllers_bit_for
                 [st.z1, st.z2, st.z3, st.z4, st.fault_estimate_position, st.fault_estimate_attitude,
                  st.prediction_error_position, st.prediction_error_attitude, st.u_p, st.euler_desired]),
                 st.thrust_command, st.weight_norm_position, st.weight_norm_attitude, st.saturated_tilt,
-                st.saturated_collective, st.saturated_cyclic, st.cost_rate])
+                st.saturated_collective, st.saturated_cyclic, st.cost_rate, st.safety_active,
+                st.closest_distance], equal_nan=True)   # closest_distance: NaN with the filter off
     for c, a in enumerate(arrays):
         assert np.array_equal(memory[c], a.memory) and np.array_equal(weights_w[c], a.weights_w)
     # the run exercised the learning states (and the limits)
@@ -190,6 +194,10 @@ def test_team_kernel_built_from_kernel_arrays_reproduces_the_controllers_bit_for
     assert np.all(np.abs(weights_p).sum(axis=(1, 2)) > 0.0)
     assert np.all(np.abs(weights_w).sum(axis=(1, 2)) > 0.0)
     assert saturated
+
+
+#: The status fields that are flags (bool in the record).
+FLAGS = {f.name for f in STATUS_FIELDS if f.kind == STATUS_FLAG}
 
 
 def test_status_record_has_the_documented_types(paper):
@@ -200,8 +208,8 @@ def test_status_record_has_the_documented_types(paper):
     for name, value in _status_fields(st).items():
         if name in ('uh_id', 'step'):
             assert type(value) is int
-        elif name.startswith('saturated'):
-            assert type(value) is bool
+        elif name in FLAGS:
+            assert type(value) is bool, name
         elif name == 'stale_neighbours':
             assert value == ()
         elif name == 'isolation':   # the fault isolator's per-channel tuples (4 entries each)

@@ -30,7 +30,8 @@ JSON_KEYS = ('case', 'sim_time_s', 'wall_time_s', 'settle_time_s', 'formation_rm
              'hull_distance_max_m', 'mse_formation', 'mse_containment', 'cpi', 'fault_estimation',
              'false_fault_estimate', 'fault_nrmse', 'saturation_fraction', 'fault_isolation', 'faults',
              # docs/safety.md: the separation metrics, added at the end
-             'min_separation_m', 'min_separation_pair', 'separation_violation_s', 'rotor_overlap_s', 'separation')
+             'min_separation_m', 'min_separation_pair', 'separation_violation_s', 'rotor_overlap_s', 'safety_active_s',
+             'separation')
 STORE_COLUMNS = {
     'formation_rms_m': 'RMS formation error of the leaders after settle, m',
     'containment_rms_m': 'RMS containment error of the followers after settle, m',
@@ -48,6 +49,7 @@ STORE_COLUMNS = {
     'min_separation_m': 'smallest hub-to-hub distance of any two UHs over the run, m',
     'separation_violation_s': 'time some pair is closer than the minimum separation, s',
     'rotor_overlap_s': 'time some pair is closer than two rotor radii (rotor disks overlap), s',
+    'safety_active_s': 'time the safety filter of some UH changed its u_p, s',
 }
 REPORT_ROWS = [
     ('case', 'controller case', '', None),
@@ -61,6 +63,7 @@ REPORT_ROWS = [
     ('min_separation_m', 'closest approach of two UHs (hub to hub)', 'm', 'higher'),
     ('separation_violation_s', 'time under the minimum separation', 's', 'lower'),
     ('rotor_overlap_s', 'time with rotor disks overlapping', 's', 'lower'),
+    ('safety_active_s', 'time the safety filter acted', 's', 'lower'),
     ('saturation_fraction', 'saturated fraction of steps', '-', 'lower'),
     ('false_fault_estimate.max.p', 'false fault estimate RMS ‖F̂_p‖, max over UHs (threshold 0.05)', 'm/s²', 'lower'),
     ('false_fault_estimate.max.w', 'false fault estimate RMS ‖F̂_w‖, max over UHs (threshold 0.1)', 'rad/s²', 'lower'),
@@ -75,7 +78,8 @@ REPORT_ROWS = [
     ('wall_time_s', 'wall time of the run', 's', None),
 ]
 SUMMARY_KEYS = ('formation_rms_m', 'containment_rms_m', 'hull_distance_max_m', 'mse_formation', 'mse_containment',
-                'cpi', 'saturation_fraction', 'min_separation_m', 'separation_violation_s', 'rotor_overlap_s')
+                'cpi', 'saturation_fraction', 'min_separation_m', 'separation_violation_s', 'rotor_overlap_s',
+                'safety_active_s')
 CAMPAIGN_UNITS = {'formation_rms_m': 'm', 'containment_rms_m': 'm', 'hull_distance_max_m': 'm',
                   'fault_error_p': 'm/s²', 'fault_error_w': 'rad/s²', 'false_fault_p': 'm/s²',
                   'false_fault_w': 'rad/s²', 'saturation_fraction': '-'}

@@ -456,7 +456,7 @@ def test_empty_or_non_mapping_documents():
 
 
 def test_unknown_scenario_name():
-    with pytest.raises(E.ScenarioNotFoundError, match=r"no scenario file 'papr'.*bundled name \(paper"):
+    with pytest.raises(E.ScenarioNotFoundError, match=r"no scenario file 'papr'.*bundled name \(crowd, paper, "):
         load_scenario('papr')
 
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 import statistics
 import time
 
+import numpy as np
+
 __all__ = ['reference_rtf', 'component_costs']
 
 
@@ -27,20 +29,23 @@ def reference_rtf(scenario, duration: float | None = None, case: str = 'proposed
             'wall_s': run.wall_time, 'rtf': duration / run.wall_time, 'finite': bool(run.all_finite())}
 
 
-def component_costs(scenario, steps: int = 1000, case: str = 'proposed') -> dict:
+def component_costs(scenario, steps: int = 1000, case: str = 'proposed', safety: bool = False) -> dict:
     """Mean and median microseconds per UH-step of the controller, the model and the fault truth.
 
     Runs ``steps`` control steps of the whole team in process (the reference simulation's order)
     and times every call with ``perf_counter_ns``; the timer itself costs well under 1 % of a
-    call. The first 50 steps (start-up transients, first-call caches) are left out.
+    call. The first 50 steps (start-up transients, first-call caches) are left out. With
+    ``safety`` the controllers run the safety filter (docs/safety.md), its proximity input built
+    from the true states before each controller step and timed with it (``controller``).
     """
+    from uh_controller_node.safety import proximity_input
     from uh_controller_node.controller import UHController
     from uh_core.airframe import load_helicopter_params
     from uh_sim_node.helicopter import plant_from_scenario
     from uh_sim_node.reference import VirtualLeaderReference
     from uh_topology.scenario import load_scenario
 
-    sc = load_scenario(scenario)
+    sc = load_scenario(scenario, safety=safety)
     ids = tuple(sc.ids)
     params = load_helicopter_params(sc.helicopter)
     plants = [plant_from_scenario(sc, i, params) for i in ids]
@@ -57,11 +62,15 @@ def component_costs(scenario, steps: int = 1000, case: str = 'proposed') -> dict
         t = k * dt
         r = reference.at(t)
         xs = [p.x for p in plants]
+        stacked = np.array(xs)
+        positions, velocities = stacked[:, 0:3], stacked[:, 3:6]
         us = []
         for c, ctl in enumerate(ctls):
             nb = {ids[j]: xs[j] for j in hears[c]}
             ref = r if linked[c] else None
             t0 = clock()
+            if safety:
+                ctl.set_proximity(proximity_input(positions, velocities, c, ctl.sensing_radius))
             u, _ = ctl.step(k, xs[c], nb, ref, dt)
             t1 = clock()
             us.append(u)
@@ -79,5 +88,5 @@ def component_costs(scenario, steps: int = 1000, case: str = 'proposed') -> dict
 
     def stats(ns):
         return {'mean_us': statistics.fmean(ns) / 1000.0, 'median_us': statistics.median(ns) / 1000.0}
-    return {'scenario': str(sc.name), 'uhs': len(ids), 'steps': steps, 'substeps': int(sc.substeps),
+    return {'scenario': str(sc.name), 'uhs': len(ids), 'steps': steps, 'substeps': int(sc.substeps), 'safety': safety,
             'controller': stats(t_ctl), 'model': stats(t_plant), 'fault_truth': stats(t_truth)}

@@ -168,7 +168,8 @@ def _transport(cfg, workdir, results):
 
 def _components(cfg, workdir, results):
     _log(f'per-step costs in process, {cfg["component_steps"]} steps')
-    results['components'] = {'paper': inprocess.component_costs('paper', cfg['component_steps'])}
+    results['components'] = {'paper': inprocess.component_costs('paper', cfg['component_steps']),
+                             'paper_safety': inprocess.component_costs('paper', cfg['component_steps'], safety=True)}
 
 
 def _scaling(cfg, workdir, results):

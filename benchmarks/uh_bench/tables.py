@@ -131,8 +131,15 @@ def _components_table(comp) -> list:
                        ('fault_truth', 'true lumped faults (lumped_faults)')):
         lines.append(f'| {label} | {c[key]["mean_us"]:.1f} | {c[key]["median_us"]:.1f} |')
     total = sum(c[k]['mean_us'] for k in ('controller', 'model', 'fault_truth'))
-    lines += [f'| sum (floor of one UH-step) | {total:.1f} | |', '']
-    return lines
+    lines += [f'| sum (floor of one UH-step) | {total:.1f} | |']
+    s = comp.get('paper_safety')
+    if s:
+        with_filter = s['controller']['mean_us'] + s['model']['mean_us'] + s['fault_truth']['mean_us']
+        lines += [f'| controller with the safety filter and its proximity input | {s["controller"]["mean_us"]:.1f} | '
+                  f'{s["controller"]["median_us"]:.1f} |',
+                  f'| sum with the safety filter (x {with_filter / total:.2f} of the sum without) | '
+                  f'{with_filter:.1f} | |']
+    return lines + ['']
 
 
 def _scaling_table(scaling) -> list:

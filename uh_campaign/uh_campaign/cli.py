@@ -24,6 +24,7 @@ from pathlib import Path
 from uh_runtime.command_line import ArgumentParser, directory_argument
 from uh_report.report import main as report_main
 from uh_topology.errors import ScenarioError
+from uh_topology.safety import add_safety_argument, safety_override
 
 from .progress import Progress, success_text, summary_lines
 from .runner import CampaignError, CampaignInterrupted, run_campaign
@@ -66,6 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='do not write the report (uh-report DIR: DIR/report/) when every run is stored')
     p.add_argument('--quiet', action='store_true',
                    help='no progress and no summary on stderr (errors are still printed)')
+    add_safety_argument(p)
     return p
 
 
@@ -107,6 +109,7 @@ def main(argv=None) -> int:
         spec = load_spec(args.spec)
         if args.runs is not None:
             spec = spec.with_runs(args.runs)
+        spec = spec.with_safety(safety_override(args.safety))
     except ScenarioError as exc:
         return _fail(str(exc))
 

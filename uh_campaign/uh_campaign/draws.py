@@ -16,8 +16,8 @@ from uh_topology.schema import type_name, unit_suffix
 
 __all__ = ['FaultDraws', 'Draws', 'GeneratorSpec', 'GENERATOR_WEIGHTS', 'read_range', 'read_generator', 'read_draws']
 
-_DRAW_KEYS = ('position_spread', 'attitude_spread', 'yaw_spread', 'model_mismatch', 'disturbance_amplitude',
-              'faults')
+_DRAW_KEYS = ('position_spread', 'min_initial_separation', 'attitude_spread', 'yaw_spread', 'model_mismatch',
+              'disturbance_amplitude', 'faults')
 _FAULT_KEYS = ('faulted_uhs', 'candidates', 'channels', 'channels_per_uh', 'rho', 'bias_constant',
                'bias_amplitude', 'bias_frequency', 'onset_time')
 _GENERATOR_REQUIRED = ('leaders', 'followers')
@@ -54,6 +54,7 @@ class Draws:
     """
 
     position_spread: float = 0.0        # m
+    min_initial_separation: float = 0.0  # m; 0: no condition on the drawn positions
     attitude_spread: float = 0.0        # rad, roll and pitch
     yaw_spread: float = 0.0             # rad
     model_mismatch: tuple | None = None
@@ -139,6 +140,8 @@ def read_draws(ctx, raw, n_uhs: int) -> Draws:
     faults = _fault_draws(ctx, raw['faults'], n_uhs) if raw.get('faults') is not None else None
     return Draws(
         position_spread=ctx.number(raw.get('position_spread', 0.0), path + ('position_spread',), lo=0.0, unit='m'),
+        min_initial_separation=ctx.number(raw.get('min_initial_separation', 0.0), path + ('min_initial_separation',),
+                                          lo=0.0, unit='m'),
         attitude_spread=ctx.number(raw.get('attitude_spread', 0.0), path + ('attitude_spread',), lo=0.0,
                                    hi=math.pi / 2, hi_open=True, unit='rad'),
         yaw_spread=ctx.number(raw.get('yaw_spread', 0.0), path + ('yaw_spread',), lo=0.0, unit='rad'),

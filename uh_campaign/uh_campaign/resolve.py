@@ -10,6 +10,7 @@ error at the spec key behind it.
 from __future__ import annotations
 
 import copy
+import math
 import re
 
 import numpy as np
@@ -24,6 +25,9 @@ from uh_topology.scenario import scenario_from_mapping
 from uh_topology.schema import format_key_path, parse_yaml, read_text_file
 
 from .draws import Draws, FaultDraws
+
+#: Draws of the initial positions tried for ``draws.min_initial_separation`` before the draw is refused.
+POSITION_ATTEMPTS = 1000
 
 __all__ = ['draw_generators', 'scenario_file_name', 'resolve_scenario', 'scenario_yaml', 'check_draw_zero',
            'key_path']
@@ -90,13 +94,16 @@ def resolve_scenario(spec, draw: int, sweep_index: int = 0) -> dict:
         _set_path(data, spec.sweep.path, spec.sweep.values[sweep_index])
     if isinstance(data.get('impairments'), dict):
         data['impairments']['seed'] = int(rng['impairments'].integers(0, 2 ** 31 - 1))
+    if spec.safety_override is not None:
+        given = data.get('safety')
+        data['safety'] = {**(given if isinstance(given, dict) else {}), 'enabled': spec.safety_override}
     return data
 
 
 def _apply_draws(data: dict, draws: Draws, rng: dict) -> None:
     uhs = data['uhs']
     n = len(uhs)
-    dp = rng['position'].uniform(-draws.position_spread, draws.position_spread, size=(n, 3))
+    dp = _position_draw(data, draws, rng['position'])
     tilt = rng['attitude'].uniform(-draws.attitude_spread, draws.attitude_spread, size=(n, 2))
     yaw = rng['attitude'].uniform(-draws.yaw_spread, draws.yaw_spread, size=n)
     for c, uh in enumerate(uhs):
@@ -114,6 +121,28 @@ def _apply_draws(data: dict, draws: Draws, rng: dict) -> None:
         dist['amplitude'] = [float(v) for v in rng['disturbance'].uniform(*draws.disturbance_amplitude, size=3)]
     if draws.faults is not None:
         data['faults'] = _draw_faults(draws.faults, [int(uh['id']) for uh in uhs], rng['faults'])
+
+
+def _position_draw(data: dict, draws: Draws, rng) -> np.ndarray:
+    """Draw the initial-position offsets (n, 3), m, until every pair starts ``min_initial_separation`` apart.
+
+    Without that key one draw is taken, as always; with it the draw is repeated from the same stream
+    (at most ``POSITION_ATTEMPTS`` times) until the pairs are far enough apart.
+    """
+    base = np.array([[float(v) for v in uh['initial_state']['position']] for uh in data['uhs']])
+    for _ in range(POSITION_ATTEMPTS):
+        dp = rng.uniform(-draws.position_spread, draws.position_spread, size=base.shape)
+        if not draws.min_initial_separation or _closest(base + dp) >= draws.min_initial_separation:
+            return dp
+    raise E.InvalidValueError(f'draws.min_initial_separation: no draw of {POSITION_ATTEMPTS} put every pair of '
+                              f'initial positions {draws.min_initial_separation:g} m apart; allowed: a smaller '
+                              'separation or a larger position_spread')
+
+
+def _closest(points: np.ndarray) -> float:
+    """Smallest distance between two rows of ``points`` (n, 3), m (inf for fewer than two)."""
+    first, second = np.triu_indices(points.shape[0], k=1)
+    return float(np.linalg.norm(points[first] - points[second], axis=1).min()) if first.size else math.inf
 
 
 def _draw_faults(fd: FaultDraws, ids: list, rng) -> list:

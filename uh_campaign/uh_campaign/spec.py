@@ -86,6 +86,9 @@ are drawn uniformly in ``[low, high]``, integer ranges uniformly among ``low..hi
 ``position_spread``
     m, >= 0, default 0: every UH's initial position moves by a uniform draw in
     ``[-spread, spread]`` per axis.
+``min_initial_separation``
+    m, >= 0, default 0 (no condition): the positions are drawn again (from the same stream, at most
+    1000 times) until every pair starts at least this far apart, hub to hub (docs/safety.md).
 ``attitude_spread``
     rad, in [0, pi/2), default 0: roll and pitch move by a uniform draw in ``[-spread, spread]``
     (the base scenario's largest roll or pitch plus the spread must stay below pi/2).
@@ -277,6 +280,7 @@ class CampaignSpec:
     sweep: Sweep | None
     draws: Draws
     runs_override: int | None = None
+    safety_override: bool | None = None
     lines: dict = field(default_factory=dict, repr=False)
     base_mapping: dict | None = field(default=None, repr=False)   # the self-contained base scenario
 
@@ -295,13 +299,16 @@ class CampaignSpec:
         """Identify the campaign a results file belongs to.
 
         The sha256 of the spec text, of the base scenario it resolves to (with its gains, so
-        editing the scenario or gains file is a new campaign) and of the ``--runs`` override, if any.
+        editing the scenario or gains file is a new campaign) and of the ``--runs`` and ``--safety``
+        overrides, if any.
         """
         h = hashlib.sha256(self.text.encode())
         if self.base_mapping is not None:
             h.update(b'\n' + yaml.safe_dump(self.base_mapping, sort_keys=True).encode())
         if self.runs_override is not None:
             h.update(f'\n--runs {self.runs_override}'.encode())
+        if self.safety_override is not None:
+            h.update(f'\n--safety {"on" if self.safety_override else "off"}'.encode())
         return h.hexdigest()
 
     def with_runs(self, runs: int) -> 'CampaignSpec':
@@ -314,6 +321,17 @@ class CampaignSpec:
         if runs == self.runs and self.runs_override is None:
             return self
         return replace(self, runs=runs, runs_override=runs)
+
+    def with_safety(self, enabled: bool | None) -> 'CampaignSpec':
+        """Give the spec whose every scenario has ``safety.enabled = enabled`` (``--safety on|off``; None: as is).
+
+        Part of the digest: a campaign with the filter on is not resumed into one with it off.
+        """
+        if enabled is None:
+            return self
+        spec = replace(self, safety_override=bool(enabled))
+        check_draw_zero(spec)
+        return spec
 
     def units(self):
         """Every run key ``(draw, sweep_index, case)``, draw-major."""

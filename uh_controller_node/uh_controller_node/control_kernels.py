@@ -102,6 +102,7 @@ from . import control_layout as _control_layout
 from . import gains as _gains
 from . import learning_kernels as _learning_kernels
 from . import loop_kernels as _loop_kernels
+from . import safety_kernels as _safety_kernels
 from .control_layout import (CONTROL_PARAMS_SIZE, FLAG_STARTED, FLAG_TIME, GAIN_ENTRIES, GAIN_INDEX, LOOP,
                              LOOP_GAIN_ENTRIES, LOOP_GAIN_OFFSET, LOOP_GAINS_SIZE, M_ALPHA_F, M_ALPHA_WF, M_F_HAT_P,
                              M_F_HAT_W, M_FLAGS, M_OMEGA_HAT, M_THETA_DF, M_V_HAT, MEMORY_ROWS, MODEL_ENTRIES,
@@ -109,6 +110,8 @@ from .control_layout import (CONTROL_PARAMS_SIZE, FLAG_STARTED, FLAG_TIME, GAIN_
 from .learning_kernels import (PROJECTION_TOLERANCE, composite_weight_update, estimator_advance,
                                fault_observer_update, frobenius_norm, in_learning_phase, project_columns,
                                rbf_activations, rbf_centre, rbf_output)
+from .safety_kernels import (PROXIMITY_COLUMNS, SAFETY_OUT_SIZE, SAFETY_PARAMS_SIZE, SO_ACTIVE,
+                             SO_CLOSEST_DISTANCE, SO_PAIRS, safety_filter)
 from .loop_kernels import (achieved_acceleration, control_effectiveness, euler_rate_inverse, euler_rate_transpose,
                            filter_advance, filter_gain, filter_rate, inner_advance, inner_drift, inner_law,
                            outer_advance, outer_law, thrust_and_attitude, wrap_angle)
@@ -281,8 +284,29 @@ def first_non_finite_state(own_state, nb_states):
 
 
 @njit(cache=True)
+def filtered_acceleration(safety, own_state, u_p, proximity, status):
+    """Return the acceleration the attitude extraction realises: ``u_p``, or the safety filter's answer.
+
+    The filter is a layer outside the law (docs/safety.md): with ``safety`` empty it is off and
+    ``u_p`` itself is returned; otherwise :func:`~uh_controller_node.safety_kernels.safety_filter`
+    runs on the UH's own position and velocity and its proximity input. Writes the status fields
+    ``safety_active`` and ``closest_distance`` (NaN when the filter is off or reports no UH).
+    """
+    if safety.shape[0] == 0:
+        status[STATUS.safety_active] = 0.0
+        status[STATUS.closest_distance] = math.nan
+        return u_p
+    applied = np.empty(3)
+    out = np.empty(SAFETY_OUT_SIZE)
+    safety_filter(safety, own_state[X_P:X_P + 3], own_state[X_V:X_V + 3], u_p, proximity, applied, out)
+    status[STATUS.safety_active] = out[SO_ACTIVE]
+    status[STATUS.closest_distance] = out[SO_CLOSEST_DISTANCE] if out[SO_PAIRS] > 0 else math.nan
+    return applied
+
+
+@njit(cache=True)
 def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset, leader_link,
-                    reference, dt, weights_p, weights_w, memory, u, status):
+                    reference, dt, weights_p, weights_w, memory, u, status, safety, proximity):
     """Run one control step of one UH at t_k (docs/graph.md, docs/control_law.md).
 
     The command ``u`` and ``status`` are written out, the internal states advanced to t_{k+1}.
@@ -317,6 +341,11 @@ def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset
         Output: ``(theta_col, theta_tr, delta_lat, delta_lon)`` rad, within the input limits.
     status : ndarray (STATUS_SIZE,)
         Output (see module doc).
+    safety : ndarray (SAFETY_PARAMS_SIZE,) or (0,)
+        The safety filter's parameters (:mod:`~uh_controller_node.safety_kernels`); empty: the filter
+        is off and ``u_p`` goes to the attitude extraction as the law designed it.
+    proximity : ndarray (n, PROXIMITY_COLUMNS)
+        ``[p, v]`` of the UHs the proximity input reports (read only with the filter on).
 
     Returns
     -------
@@ -350,8 +379,9 @@ def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset
                                      reference, z1, work[_W_FEEDFORWARD])
     outer_law(params, degree, z1, work[_W_FEEDFORWARD], v, started, memory, weights_p, act_p,
               work[_W_ALPHA_V], work[_W_ALPHA_V_RATE], work[_W_NET_P], work[_W_DRIFT_P], z2, zn_p, u_p)
+    applied = filtered_acceleration(safety, own_state, u_p, proximity, status)
     phi_d, theta_d, thrust, theta_col, thrust_achieved, sat_tilt, sat_col = \
-        thrust_and_attitude(params, u_p, psi_d)
+        thrust_and_attitude(params, applied, psi_d)
     euler_d[0] = phi_d
     euler_d[1] = theta_d
     euler_d[YAW] = psi_d
@@ -406,14 +436,15 @@ def compile_control_kernels() -> float:
     uh_control_step(params, np.zeros(STATE_SIZE), np.zeros((no_neighbours, STATE_SIZE)),
                     np.ones(no_neighbours), np.zeros((no_neighbours, 3)), np.zeros(3), 1.0,
                     np.zeros(REFERENCE_SIZE), 0.01, np.zeros((3, 3)), np.zeros((3, 3)),
-                    np.zeros((MEMORY_ROWS, 3)), np.zeros(INPUT_SIZE), np.zeros(STATUS_SIZE))
+                    np.zeros((MEMORY_ROWS, 3)), np.zeros(INPUT_SIZE), np.zeros(STATUS_SIZE),
+                    np.ones(SAFETY_PARAMS_SIZE), np.zeros((1, PROXIMITY_COLUMNS)))
     return time.perf_counter() - start
 
 
 # numba caches each kernel by this file only: empty the cache when a table or a kernel it compiles in changes
 _kernel_cache.refresh_cache(_kernel_cache.module_dispatchers(globals()),
                             [_layout.__file__, _gains.__file__, _control_layout.__file__, _learning_kernels.__file__,
-                             _loop_kernels.__file__])
+                             _loop_kernels.__file__, _safety_kernels.__file__])
 
 # run the ahead-of-time compiled kernels instead where this process asks for them (docs/performance.md#memory)
 _compiled_kernels.install(globals())

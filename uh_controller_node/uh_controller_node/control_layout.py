@@ -121,6 +121,8 @@ class ControlArrays(NamedTuple):
     weights_p : ndarray (mu_p, 3)
     weights_w : ndarray (mu_w, 3)
     memory : ndarray (MEMORY_ROWS, 3)
+    safety : ndarray (SAFETY_PARAMS_SIZE,) or (0,)
+        The safety filter's parameters (:mod:`~uh_controller_node.safety_kernels`); empty when it is off.
     """
 
     params: np.ndarray
@@ -131,6 +133,7 @@ class ControlArrays(NamedTuple):
     weights_p: np.ndarray
     weights_w: np.ndarray
     memory: np.ndarray
+    safety: np.ndarray
 
 
 def control_parameters(gains, model) -> np.ndarray:

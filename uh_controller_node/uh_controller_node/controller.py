@@ -54,6 +54,8 @@ from .fault_isolation import FaultIsolator, IsolationSettings, IsolationStatus
 from .isolation_kernels import compile_isolation_kernels
 from .gains import ControllerGains, scenario_gains
 from .nominal_model import nominal_model
+from .safety import safety_parameters
+from .safety_kernels import PROXIMITY_COLUMNS
 
 __all__ = ['ControllerError', 'ControllerStatusData', 'LoopState', 'UHController', 'load_controller_kernels']
 
@@ -322,7 +324,11 @@ class UHController:
         self._weights_p = np.zeros((self.gains.outer.rbf.nodes, 3))
         self._weights_w = np.zeros((self.gains.inner.rbf.nodes, 3))
         self._memory = np.zeros((MEMORY_ROWS, 3))
+        # ... the safety filter's parameters (a layer outside the law, docs/safety.md; empty: off) ...
+        self._safety_spec = getattr(scenario, 'safety', None)     # None: a scenario-like object without one
+        self._safety = self._safety_parameters()
         # ... and input buffers, refilled every step
+        self._proximity = np.empty((0, PROXIMITY_COLUMNS))
         self._own = np.empty(STATE_SIZE)
         self._nb_states = np.empty((n_nb, STATE_SIZE))
         self._reference = np.zeros(REFERENCE_SIZE)
@@ -355,7 +361,7 @@ class UHController:
         (``np.stack``) for a team kernel. ``memory[M_THETA_DF]`` is the filtered attitude command.
         """
         return ControlArrays(self._params, self._offset, self._nb_weights, self._nb_offsets, self.leader_link,
-                             self._weights_p, self._weights_w, self._memory)
+                             self._weights_p, self._weights_w, self._memory, self._safety)
 
     # ------------------------------------------------------------------------------------------
     def _check_inputs(self, neighbour_states, reference, dt):
@@ -413,6 +419,31 @@ class UHController:
         return self._run(k, self._nb_states, self._nb_weights, self._nb_offsets, self.leader_link, dt,
                          self.neighbours)
 
+    def set_proximity(self, proximity) -> None:
+        """Give the safety filter the UHs its proximity input reports, for the next steps (docs/safety.md).
+
+        ``proximity``: array (n, 6) of ``[p m, v m/s]`` rows, inertial frame (any order). Ignored
+        while the filter is off.
+        """
+        rows = np.asarray(proximity, dtype=float).reshape(-1, PROXIMITY_COLUMNS)
+        self._proximity = np.ascontiguousarray(rows)
+
+    @property
+    def safety_enabled(self) -> bool:
+        """Whether this controller runs the safety filter."""
+        return self._safety.shape[0] > 0
+
+    @property
+    def sensing_radius(self) -> float:
+        """Radius of the UH's proximity input, m (``safety.sensing_radius`` of the scenario)."""
+        return float(self._safety_spec.sensing_radius) if self._safety_spec is not None else 0.0
+
+    def _safety_parameters(self) -> np.ndarray:
+        """Return the filter's parameter vector for the current gains, or an empty one when it is off."""
+        if self._safety_spec is None or not self._safety_spec.enabled:
+            return np.empty(0)
+        return safety_parameters(self._safety_spec, self.model, self.gains.tilt_limit, self.gains.min_vertical_accel)
+
     def set_gains(self, gains: ControllerGains) -> None:
         """Use ``gains`` from the next step on (a live change, docs/control_law.md#gains-as-parameters).
 
@@ -429,6 +460,7 @@ class UHController:
             raise ControllerError('the RBF networks (rbf_*) cannot change while the controller runs')
         self._params = control_parameters(gains, self.model)
         self.gains = gains
+        self._safety = self._safety_parameters()
 
     def reachable_without(self, lost) -> bool:
         """Tell whether this UH still has a directed path from the virtual leader without the UHs ``lost``.
@@ -546,7 +578,7 @@ class UHController:
         status = np.empty(STATUS_SIZE)
         done = uh_control_step(self._params, self._own, nb_states, nb_weights, nb_offsets, self._offset,
                                leader_link, self._reference, dt, self._weights_p, self._weights_w,
-                               self._memory, u, status)
+                               self._memory, u, status, self._safety, self._proximity)
         if done != STEP_DONE:
             if done == 0:
                 what, values = f'UH {self.uh_id} own state', self._own

@@ -14,7 +14,7 @@ from uh_core.airframe import HelicopterParams
 
 from . import safety_kernels as sk
 
-__all__ = ['safety_parameters']
+__all__ = ['safety_parameters', 'proximity_input']
 
 
 def safety_parameters(spec, nominal: HelicopterParams, tilt_limit: float, min_vertical_accel: float) -> np.ndarray:
@@ -44,3 +44,18 @@ def safety_parameters(spec, nominal: HelicopterParams, tilt_limit: float, min_ve
     params[sk.SF_TILT_LIMIT] = tilt_limit
     params[sk.SF_MIN_VERTICAL_ACCEL] = min_vertical_accel
     return params
+
+
+def proximity_input(positions, velocities, own: int, sensing_radius: float) -> np.ndarray:
+    """Return UH row ``own``'s proximity input: ``[p, v]`` of every other row within ``sensing_radius`` m.
+
+    ``positions``, ``velocities``: (n, 3) arrays, m and m/s, inertial frame (the true states: the
+    plant side's sensing, docs/safety.md#what-the-filter-knows). The rows keep their order; the
+    same kernel (:func:`~uh_controller_node.safety_kernels.proximity_rows`) builds the input of the
+    in-process team loop.
+    """
+    positions = np.ascontiguousarray(positions, dtype=float)
+    velocities = np.ascontiguousarray(velocities, dtype=float)
+    out = np.empty((max(positions.shape[0] - 1, 1), sk.PROXIMITY_COLUMNS))
+    rows = sk.proximity_rows(positions, velocities, int(own), float(sensing_radius), out)
+    return out[:rows]

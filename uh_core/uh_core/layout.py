@@ -27,6 +27,7 @@ __all__ = [
     'STATUS_INDEX', 'STATUS_SIZE',
     'S_Z1', 'S_Z2', 'S_Z3', 'S_Z4', 'S_F_HAT_P', 'S_F_HAT_W', 'S_ZN_P', 'S_ZN_W', 'S_U_P', 'S_EULER_D',
     'S_THRUST', 'S_W_NORM_P', 'S_W_NORM_W', 'S_SAT_TILT', 'S_SAT_COLLECTIVE', 'S_SAT_CYCLIC', 'S_COST_RATE',
+    'S_SAFETY_ACTIVE', 'S_CLOSEST_DISTANCE',
     'SATURATION_FLAGS',
     'STATUS_VECTORS',
 ]
@@ -93,6 +94,9 @@ STATUS_FIELDS = (
     StatusField('saturated_collective', STATUS_FLAG, 'collective limit active'),
     StatusField('saturated_cyclic', STATUS_FLAG, 'a cyclic or the tail-rotor limit active'),
     StatusField('cost_rate', STATUS_FLOAT, '|z1|^2 + |u_p|^2, the integrand of the CPI (docs/metrics.md)'),
+    StatusField('safety_active', STATUS_FLAG, 'the safety filter changed u_p this step (docs/safety.md)'),
+    StatusField('closest_distance', STATUS_FLOAT, 'hub-to-hub distance to the closest UH the proximity input '
+                'reports, m; NaN when it reports none or the filter is off'),
 )
 #: ``(name, kind)`` of :data:`STATUS_FIELDS`.
 STATUS_LAYOUT = tuple((f.name, f.kind) for f in STATUS_FIELDS)
@@ -123,6 +127,8 @@ S_SAT_TILT = STATUS_INDEX['saturated_tilt']
 S_SAT_COLLECTIVE = STATUS_INDEX['saturated_collective']
 S_SAT_CYCLIC = STATUS_INDEX['saturated_cyclic']
 S_COST_RATE = STATUS_INDEX['cost_rate']
+S_SAFETY_ACTIVE = STATUS_INDEX['safety_active']
+S_CLOSEST_DISTANCE = STATUS_INDEX['closest_distance']
 #: The saturation flags of the status (its ``STATUS_FLAG`` fields, ``saturated_*``), in order.
 SATURATION_FLAGS = tuple(name for name, kind in STATUS_LAYOUT if kind == STATUS_FLAG)
 #: Number of 3-vector fields; they come first and fill ``status[:3 * STATUS_VECTORS]``.

@@ -242,6 +242,14 @@ def _separation(v: RunValues) -> dict:
             'closest_time_s': closest['time_s'], 'design_warnings': warnings}
 
 
+def _safety_active_s(v: RunValues):
+    """Seconds during which the safety filter of at least one UH changed its ``u_p`` (steps 0..K-1)."""
+    active = None if v.arrays is None else v.arrays.get('safety_active')
+    if active is None:
+        return None
+    return float(np.count_nonzero(np.asarray(active)[:v.steps].any(axis=1)) * v.dt)
+
+
 def _time_below(v: RunValues, limit: str):
     return time_below(v.time, v.positions, separation_limits(v.scenario)[limit])
 
@@ -364,6 +372,10 @@ METRICS = (
            label='time with rotor disks overlapping', report_row=86, json_type='number or null',
            doc='time some pair is closer than two rotor radii of the airframe (their rotor disks overlap), s',
            compute=lambda v: _time_below(v, 'rotor_overlap_m'), stored=True, summary=True),
+    Metric('safety_active_s', 's', 'time the safety filter of some UH changed its u_p, s', 'lower',
+           label='time the safety filter acted', report_row=88, json_type='number or null',
+           doc='time during which the [safety filter](safety.md) of at least one UH changed its `u_p`, s '
+               '(0 with the filter off)', compute=_safety_active_s, stored=True, summary=True),
     Metric('separation', json_type='object',
            doc='`limit_m` (the minimum separation), `rotor_overlap_m` (two rotor radii), `closest_time_s` and '
                "`design_warnings` (the scenario's formation targets or initial positions closer than the limit)",

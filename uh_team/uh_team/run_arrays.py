@@ -48,7 +48,8 @@ def new_run_arrays(samples: int, n: int, with_reference: bool = True, with_z1: b
     dict
         The :data:`STEP_VECTORS` (samples, n, length) filled with NaN (a step never written stays
         NaN, as a step a real-time run did not record), ``reference`` after ``commands`` if asked,
-        ``z1`` if asked, and ``saturated`` (samples, n) bool, False.
+        ``z1`` if asked, and ``saturated`` and ``safety_active`` (the safety filter changed ``u_p``,
+        docs/safety.md) (samples, n) bool, False.
     """
     out = {}
     for name, length in STEP_VECTORS:
@@ -58,4 +59,5 @@ def new_run_arrays(samples: int, n: int, with_reference: bool = True, with_z1: b
     if with_z1:
         out['z1'] = np.full((samples, n, 3), np.nan)
     out['saturated'] = np.zeros((samples, n), dtype=bool)
+    out['safety_active'] = np.zeros((samples, n), dtype=bool)
     return out

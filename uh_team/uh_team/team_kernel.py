@@ -47,6 +47,9 @@ from uh_controller_node import impairments as _impairments
 from uh_controller_node import learning_kernels as _learning_kernels
 from uh_controller_node import loop_kernels as _loop_kernels
 from uh_controller_node.impairments import add_noise, delivered_step, predict_state, prediction_age
+from uh_controller_node import safety_kernels as _safety_kernels
+from uh_controller_node.safety_kernels import PROXIMITY_COLUMNS, SF_SENSING_RADIUS, proximity_rows
+from uh_core.layout import X_P, X_V
 from uh_controller_node.control_kernels import INPUT_SIZE, STATE_SIZE, STATUS, STATUS_SIZE, STEP_DONE, uh_control_step
 from uh_core import compiled_kernels as _compiled_kernels
 
@@ -84,6 +87,8 @@ class TeamConfig(NamedTuple):
         RK4 substeps per control period (one value for the team).
     ids : ndarray (n,) int64
         UH ids of the rows.
+    safety : ndarray (n, SAFETY_PARAMS_SIZE) or (n, 0)
+        The safety filter's parameters per UH (docs/safety.md); no columns: the filter is off.
     """
 
     hears: np.ndarray
@@ -98,6 +103,7 @@ class TeamConfig(NamedTuple):
     disturbance: np.ndarray
     substeps: int
     ids: np.ndarray
+    safety: np.ndarray
 
 
 class TeamImpairments(NamedTuple):
@@ -154,6 +160,8 @@ class TeamRecord(NamedTuple):
     commands : ndarray (K+1, n, 4)
     fault_true_p, fault_true_w, fault_est_p, fault_est_w, u_p, z1 : ndarray (K+1, n, 3)
     saturated : ndarray (K+1, n) bool
+    safety_active : ndarray (K+1, n) bool
+        The safety filter changed the UH's ``u_p`` at that step.
     """
 
     states: np.ndarray
@@ -165,6 +173,7 @@ class TeamRecord(NamedTuple):
     u_p: np.ndarray
     z1: np.ndarray
     saturated: np.ndarray
+    safety_active: np.ndarray
 
 
 class TeamArrays(NamedTuple):
@@ -208,7 +217,8 @@ def team_arrays(ids, controllers, plants, impairments=None, dt: float | None = N
         control_params=np.stack([a.params for a in ctl]), offsets=np.stack([a.offset for a in ctl]),
         nb_weights=nb_weights, nb_offsets=nb_offsets, plant_params=np.stack([p.params for p in plant]),
         faults=np.stack([p.faults for p in plant]), disturbance=np.stack([p.disturbance for p in plant]),
-        substeps=substeps.pop(), ids=np.array([int(i) for i in ids], dtype=np.int64))
+        substeps=substeps.pop(), ids=np.array([int(i) for i in ids], dtype=np.int64),
+        safety=np.stack([a.safety for a in ctl]))
     state = TeamState(x=np.stack([p.x for p in plants]), weights_p=np.stack([a.weights_p for a in ctl]),
                       weights_w=np.stack([a.weights_w for a in ctl]), memory=np.stack([a.memory for a in ctl]))
     return TeamArrays(config, _team_impairments(ids, controllers, impairments, dt, max_nb), state)
@@ -274,6 +284,10 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
     x, weights_p, weights_w, memory = live.x, live.weights_p, live.weights_w, live.memory
     states, commands = record.states, record.commands
     n = x.shape[0]
+    safety = team.safety
+    filtered = safety.shape[1] > 0
+    proximity = np.empty((max(n - 1, 1), PROXIMITY_COLUMNS))
+    sensed = 0
     status = np.empty(STATUS_SIZE)
     own = np.empty(STATE_SIZE)
     sent = np.empty(STATE_SIZE)
@@ -294,13 +308,16 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
             else:
                 for j in range(m):
                     nb[j] = x[hears[c, j]]
+            if filtered:    # the plant side's sensing: the true states at t_k (docs/safety.md)
+                sensed = proximity_rows(x[:, X_P:X_P + 3], x[:, X_V:X_V + 3], c, safety[c, SF_SENSING_RADIUS],
+                                        proximity)
             done = uh_control_step(control_params[c], received, nb, nb_weights[c, :m], nb_offsets[c, :m],
                                    offsets[c], links[c], reference, dt, weights_p[c], weights_w[c],
-                                   memory[c], commands[k, c], status)
+                                   memory[c], commands[k, c], status, safety[c], proximity[:sensed])
             if done != STEP_DONE:
                 return k
             record_status(k, c, status, record.fault_est_p, record.fault_est_w, record.u_p, record.z1,
-                          record.saturated)
+                          record.saturated, record.safety_active)
         # 2. the true lumped faults for that command; 3. every plant holds it over [t_k, t_k+1)
         advance_plants(k, last, dt, x, commands, team.plant_params, team.faults, team.disturbance, team.substeps,
                        record.fault_true_p, record.fault_true_w, u, out_p, out_w)
@@ -367,8 +384,8 @@ def impaired_states(k, c, dt, x, states, hears, ids, links_impaired, own, sent, 
 
 
 @njit(cache=True, inline='always')
-def record_status(k, c, status, fault_est_p, fault_est_w, u_p, z1, saturated):
-    """Write what the record keeps of row ``c``'s status at step ``k``: Fhat_p, Fhat_w, u_p, z1, saturation."""
+def record_status(k, c, status, fault_est_p, fault_est_w, u_p, z1, saturated, safety_active):
+    """Write what the record keeps of row ``c``'s status at step ``k``: Fhat_p, Fhat_w, u_p, z1, saturation, safety."""
     for i in range(3):
         fault_est_p[k, c, i] = status[STATUS.fault_estimate_position + i]
         fault_est_w[k, c, i] = status[STATUS.fault_estimate_attitude + i]
@@ -376,6 +393,7 @@ def record_status(k, c, status, fault_est_p, fault_est_w, u_p, z1, saturated):
         z1[k, c, i] = status[STATUS.z1 + i]
     saturated[k, c] = (status[STATUS.saturated_tilt] != 0.0 or status[STATUS.saturated_collective] != 0.0
                        or status[STATUS.saturated_cyclic] != 0.0)
+    safety_active[k, c] = status[STATUS.safety_active] != 0.0
 
 
 @njit(cache=True, inline='always')
@@ -402,7 +420,7 @@ def advance_plants(k, last, dt, x, commands, plant_params, faults, disturbance, 
 #: Files whose contents are compiled into :func:`run_team_steps` besides this one.
 _DEPENDENCIES = (Path(_ctl.__file__), Path(_loop_kernels.__file__), Path(_learning_kernels.__file__),
                  Path(_control_layout.__file__), Path(_gains.__file__), Path(_plant.__file__), Path(_faults.__file__),
-                 Path(_layout.__file__), Path(_impairments.__file__))
+                 Path(_layout.__file__), Path(_impairments.__file__), Path(_safety_kernels.__file__))
 
 
 def refresh_cache() -> bool:
@@ -411,7 +429,7 @@ def refresh_cache() -> bool:
     Those files are :data:`_DEPENDENCIES`: the law's kernel modules (``control_kernels.py``,
     ``loop_kernels.py``, ``learning_kernels.py``), ``control_layout.py`` and ``gains.py`` (the layout of
     its arrays, the gains' slots), ``plant_kernels.py``, ``faults.py``, ``uh_core/layout.py``,
-    ``impairments.py``; the digest is kept next to the cache in
+    ``impairments.py``, ``safety_kernels.py``; the digest is kept next to the cache in
     ``team_kernel.dependencies.sha256``. Returns True when the cache was emptied
     (:func:`uh_core.kernel_cache.refresh_cache`).
     """
@@ -436,7 +454,8 @@ def compile_team_kernel() -> float:
         control_params=params, offsets=np.zeros((n, 3)), nb_weights=np.zeros((n, max_nb)),
         nb_offsets=np.zeros((n, max_nb, 3)), plant_params=np.ones((n, _plant.PARAMS_SIZE)),
         faults=np.zeros((n, _plant.NUM_CHANNELS, _plant.FAULT_FIELDS)),
-        disturbance=np.zeros((n, 3, _plant.DISTURBANCE_FIELDS)), substeps=1, ids=np.ones(n, dtype=np.int64))
+        disturbance=np.zeros((n, 3, _plant.DISTURBANCE_FIELDS)), substeps=1, ids=np.ones(n, dtype=np.int64),
+        safety=np.zeros((n, 0)))
     links_impaired = TeamImpairments(False, 0, np.zeros((n, max_nb), dtype=np.int64), np.zeros((n, max_nb)),
                                      np.zeros(n, dtype=np.int64), np.zeros(STATE_SIZE),
                                      np.zeros((n, max_nb), dtype=np.int64), False)
@@ -448,8 +467,8 @@ def compile_team_kernel() -> float:
 
 
 def empty_record(rows: int, n: int) -> TeamRecord:
-    """Make a :class:`TeamRecord` of ``rows`` steps of ``n`` UHs, uninitialised (``saturated`` all False)."""
+    """Make a :class:`TeamRecord` of ``rows`` steps of ``n`` UHs, uninitialised (the flags all False)."""
     return TeamRecord(states=np.empty((rows, n, STATE_SIZE)), commands=np.empty((rows, n, INPUT_SIZE)),
                       **{name: np.empty((rows, n, 3)) for name in ('fault_true_p', 'fault_true_w', 'fault_est_p',
                                                                     'fault_est_w', 'u_p', 'z1')},
-                      saturated=np.zeros((rows, n), dtype=np.bool_))
+                      saturated=np.zeros((rows, n), dtype=np.bool_), safety_active=np.zeros((rows, n), dtype=np.bool_))

@@ -32,6 +32,7 @@ from uh_topology.scenario import duration_steps
 from uh_controller_node.controller import UHController
 from uh_controller_node.gains import CASES, GainsError
 from uh_controller_node.impairments import ReceivedStates
+from uh_controller_node.safety import proximity_input
 
 from .metrics import containment_errors, formation_errors
 from .run_arrays import RUN_REF_POSITION, new_run_arrays
@@ -74,6 +75,8 @@ class TeamRun:
         Consensus errors, m.
     saturated : ndarray (K+1, n) bool
         Any input limit active.
+    safety_active : ndarray (K+1, n) bool
+        The safety filter changed the UH's ``u_p`` (docs/safety.md; all False with the filter off).
     errors : ndarray (K+1, n)
         Formation error ``|p_i - h_i - p_0|`` (leaders) or containment error
         ``|p_k - sum_j w_kj p_j|`` (followers), m.
@@ -98,12 +101,13 @@ class TeamRun:
     u_p: np.ndarray
     z1: np.ndarray
     saturated: np.ndarray
+    safety_active: np.ndarray
     errors: np.ndarray
     wall_time: float
     stuck_uhs: tuple = field(default_factory=tuple)
 
     ARRAY_KEYS = ('time', 'states', 'commands', 'reference', 'fault_true_p', 'fault_true_w',
-                  'fault_est_p', 'fault_est_w', 'u_p', 'z1', 'saturated', 'errors')
+                  'fault_est_p', 'fault_est_w', 'u_p', 'z1', 'saturated', 'safety_active', 'errors')
 
     def arrays(self) -> dict:
         """Return the time series as a dict (``timeseries.npz`` content, plus ``ids``)."""
@@ -113,7 +117,8 @@ class TeamRun:
 
     def all_finite(self) -> bool:
         """Tell whether no array holds NaN or infinity."""
-        return all(np.isfinite(getattr(self, k)).all() for k in self.ARRAY_KEYS if k != 'saturated')
+        return all(np.isfinite(getattr(self, k)).all() for k in self.ARRAY_KEYS
+                   if k not in ('saturated', 'safety_active'))
 
 
 def _errors(states, reference, scenario):
@@ -257,7 +262,10 @@ def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress,
         states[k] = xs
         if not np.isfinite(states[k]).all():
             _non_finite(K, dt, ids, states, k)
+        positions, velocities = states[k, :, X_P_SLICE], states[k, :, 3:6]
         for c, ctl in enumerate(controllers):
+            if ctl.safety_enabled:    # the plant side's sensing: the true states at t_k (docs/safety.md)
+                ctl.set_proximity(proximity_input(positions, velocities, c, ctl.sensing_radius))
             own, nb = xs[c], {ids[j]: xs[j] for j in hears[c]}
             if received is not None:
                 own, nb = received[c].receive(k, own, nb)
@@ -268,6 +276,7 @@ def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress,
             out['u_p'][k, c] = st.u_p
             out['z1'][k, c] = st.z1
             out['saturated'][k, c] = st.saturated_tilt or st.saturated_collective or st.saturated_cyclic
+            out['safety_active'][k, c] = st.safety_active
         for c, plant in enumerate(plants):
             out['fault_true_p'][k, c], out['fault_true_w'][k, c] = plant.lumped_faults(commands[k, c], t)
             if k < K:
