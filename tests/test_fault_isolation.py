@@ -17,9 +17,8 @@ import pytest
 import yaml
 from model_oracle import lumped_faults
 
-from uh_controller_node.fault_isolation import (
-    CHANNELS, FaultIsolator, IsolationSettings, healthy_deviation_statistics, input_deviation,
-    isolate_run)
+from uh_controller_node.fault_isolation import CHANNELS, FaultIsolator, IsolationSettings, input_deviation
+from uh_controller_node.isolation_runs import healthy_deviation_statistics, isolate_run
 from uh_controller_node.nominal_model import nominal_model
 from uh_core.airframe import load_helicopter_params
 from uh_sim_node.helicopter import hover_trim

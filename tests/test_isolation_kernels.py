@@ -19,6 +19,7 @@ import yaml
 
 from uh_controller_node import fault_isolation as fi
 from uh_controller_node import isolation_kernels as kernels
+from uh_controller_node import isolation_runs
 from uh_controller_node.nominal_model import nominal_model
 from uh_core.airframe import load_helicopter_params
 
@@ -92,7 +93,7 @@ def compare_run(scenario, case, arrays) -> int:
     for j in range(len(tuple(scenario.ids))):
         steps = list(oracle._steps(data, j))
         isolating += compare_one_uh(nominal, scenario.model_mismatch, float(scenario.dt), o_settings, steps)
-    same(fi.isolate_run(arrays, scenario, case), oracle.isolate_run(arrays, scenario, case), 'isolate_run')
+    same(isolation_runs.isolate_run(arrays, scenario, case), oracle.isolate_run(arrays, scenario, case), 'isolate_run')
     return isolating
 
 
@@ -196,7 +197,7 @@ def test_a_trace_of_the_wrong_shape_is_rejected():
 USE_EVERY_KERNEL = """
 import json
 import numpy as np
-from uh_controller_node import fault_isolation as fi, isolation_kernels as kernels
+from uh_controller_node import fault_isolation as fi, isolation_kernels as kernels, isolation_runs
 from uh_controller_node.nominal_model import nominal_model
 from uh_core.airframe import load_helicopter_params
 from uh_team.team_simulation import run_team_simulation
@@ -208,7 +209,7 @@ kernels.compile_isolation_kernels()
 compiled = {d.py_func.__name__: len(d.signatures) for d in public}
 scenario = load_scenario('paper')
 arrays = run_team_simulation(scenario, 'proposed', duration=11.0).arrays()   # past the 10 s onsets
-isolated = sum(len(fi.isolate_run(arrays, scenario)[f'uh{uh}']['isolated']) for uh in scenario.ids)
+isolated = sum(len(isolation_runs.isolate_run(arrays, scenario)[f'uh{uh}']['isolated']) for uh in scenario.ids)
 nominal = nominal_model(load_helicopter_params(), scenario.model_mismatch)
 iso = fi.FaultIsolator(nominal, scenario.model_mismatch, float(scenario.dt))
 for k in range(arrays['time'].shape[0]):

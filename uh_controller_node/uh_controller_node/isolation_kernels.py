@@ -2,7 +2,7 @@
 
 These functions *are* the isolator's arithmetic: :class:`uh_controller_node.fault_isolation.FaultIsolator`
 calls :func:`isolation_step` once per control step (online, in every controller), and
-:func:`uh_controller_node.fault_isolation.isolate_run` calls :func:`isolation_run`, which loops over
+:func:`uh_controller_node.isolation_runs.isolate_run` calls :func:`isolation_run`, which loops over
 every step of a run calling the same :func:`isolation_step`; so the online and the offline isolator
 are one code and give the same bits. They are compiled with numba (``@njit(cache=True)``, no
 fastmath, no parallelism: IEEE double arithmetic, in the order of operations of the formulas in

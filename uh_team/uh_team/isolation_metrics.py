@@ -10,14 +10,15 @@ import math
 
 import numpy as np
 
-from uh_controller_node.fault_isolation import IDENTIFIABLE, IDENTIFICATION_TEXT, isolate_run
+from uh_controller_node.fault_isolation import IDENTIFIABLE, IDENTIFICATION_TEXT
+from uh_controller_node.isolation_runs import isolate_run
 from uh_core.layout import CHANNEL_NAMES
 
 from .fault_metrics import fault_spec_value, run_faults
 
 __all__ = ['ISOLATION_ARRAYS', 'fault_isolation_metrics']
 
-#: Arrays the fault isolation needs (``uh_controller_node.fault_isolation.isolate_run``).
+#: Arrays the fault isolation needs (``uh_controller_node.isolation_runs.isolate_run``).
 ISOLATION_ARRAYS = ('time', 'states', 'commands', 'fault_est_p', 'fault_est_w')
 
 
@@ -45,7 +46,7 @@ def fault_isolation_metrics(arrays, scenario, case: str) -> dict | None:
     The verdicts of the isolator every controller runs step by step (docs/faults.md#isolation-and-identification),
     scored against the scenario's faults. The verdicts are those the controllers published when ``arrays`` has an
     ``isolation`` entry for every UH (``uh_report.bag_metrics.read_team_bag``), else
-    ``uh_controller_node.fault_isolation.isolate_run`` over the arrays (the same computation).
+    ``uh_controller_node.isolation_runs.isolate_run`` over the arrays (the same computation).
 
     Parameters
     ----------
