@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs the lint step and the test suite: sets up .venv (pinned dependencies + the project's packages)
 # if needed, checks the code with ruff (ruff.toml: pycodestyle, pyflakes, bugbear, pep257 docstrings
-# on every public definition outside tests/), then runs pytest, then the real-rclpy tier. Extra
+# on every public definition outside tests/, isort's import order), then runs pytest, then the real-rclpy tier. Extra
 # arguments go to pytest, e.g. scripts/test.sh -k topology -x
 #   scripts/test.sh --quick   the quick tier: every package, no DDS processes and no long runs
 #                             (under 2 minutes on 2 cores; the full suite is the default and CI's)

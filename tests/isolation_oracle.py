@@ -16,11 +16,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from uh_core.airframe import load_helicopter_params
-from uh_core.layout import X_OMEGA, X_THETA_SLICE
-
 from uh_controller_node.gains import ControllerGains
 from uh_controller_node.nominal_model import nominal_model
+from uh_core.airframe import load_helicopter_params
+from uh_core.layout import X_OMEGA, X_THETA_SLICE
 
 __all__ = ['CHANNELS', 'IsolationSettings', 'ChannelReport', 'IsolationStatus', 'FaultIsolator', 'input_deviation',
            'isolate_run', 'healthy_deviation_statistics', 'IDENTIFICATION_CODES', 'NOT_ISOLATED',

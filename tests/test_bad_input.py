@@ -304,11 +304,12 @@ def test_inject_fault_without_a_team_says_so(domain_id):
 @pytest.fixture(scope='module')
 def small_bag(tmp_path_factory):
     """Write a complete team bag with the project's bag writer: 40 steps of reference and states."""
+    import numpy as np
+
     from uh_runtime import messages as m
     from uh_runtime.dds.cdr import codec
-    from uh_wire.wire import reference_to_msg, state_to_msg
     from uh_sim_node.reference import VirtualLeaderReference
-    import numpy as np
+    from uh_wire.wire import reference_to_msg, state_to_msg
 
     paper = load_scenario('paper')
     ref = VirtualLeaderReference(paper.reference)
@@ -403,6 +404,7 @@ def test_invalid_messages_in_a_bag_are_left_out_and_counted(tmp_path):
     it is left out of the arrays like the receiving nodes leave it out.
     """
     import numpy as np
+
     from uh_runtime import messages as m
     from uh_runtime.dds.cdr import codec
     from uh_sim_node.reference import VirtualLeaderReference

@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from team_runs import start_run, wait_for_log
 
 from uh_report.bag_metrics import read_team_bag
 from uh_runtime.network import reserve_domain_id
 from uh_topology.scenario import load_scenario
-from team_runs import start_run, wait_for_log
 
 ROOT = Path(__file__).resolve().parents[1]
 ROGUE = ROOT / 'tests' / 'data' / 'reliability_rogue_publisher.py'

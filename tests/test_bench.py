@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from uh_topology.generate import GenerateError, LINK_EVERY, split_team, team_mapping, write_team_scenario
+from uh_topology.generate import LINK_EVERY, GenerateError, split_team, team_mapping, write_team_scenario
 from uh_topology.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

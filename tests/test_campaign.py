@@ -17,14 +17,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from scenario_texts import paper_yaml
+from team_runs import kill_session
+
 from uh_campaign import cli
-from uh_team import campaign_store as store
 from uh_campaign.runner import run_campaign
 from uh_campaign.spec import bundled_specs, load_spec, resolve_scenario, scenario_yaml
+from uh_team import campaign_store as store
 from uh_topology import errors as E
-from team_runs import kill_session
 
 # 10 draws x 2 sweep values x 3 cases = 60 runs of 12 s (settle time: half of it)
 REFERENCE_SPEC = """\

@@ -11,9 +11,9 @@ import pytest
 import yaml
 from spinning import spinning_in_thread
 
-from uh_runtime.cli import uh as cli
 from uh_runtime import dds as rt
 from uh_runtime import messages
+from uh_runtime.cli import uh as cli
 from uh_runtime.dds.qos import DurabilityPolicy, QoSProfile
 
 BOUND = 10.0  # s; bounds a failure only

@@ -6,8 +6,8 @@ every dt / rate wall seconds.
 Deterministic: wall time comes from a fake clock, log lines go to a list; no sleeps, no DDS.
 """
 import pytest
-
 from fake_wall import FakeClock, RecordingLogger
+
 from uh_sim_node.clock_advance import REALTIME_FINAL_WAIT_S, ClockAdvancer
 
 IDS = (1, 2, 3)

@@ -17,8 +17,14 @@ import numpy as np
 import pytest
 import yaml
 
-from uh_controller_node.control_kernels import (FLAG_STARTED, M_FLAGS, MEMORY_ROWS, control_parameters,
-                                                outer_advance, outer_law)
+from uh_controller_node.control_kernels import (
+    FLAG_STARTED,
+    M_FLAGS,
+    MEMORY_ROWS,
+    control_parameters,
+    outer_advance,
+    outer_law,
+)
 from uh_controller_node.gains import ControllerGains
 
 GAINS_FILE = Path(__file__).resolve().parents[1] / 'uh_topology' / 'uh_topology' / 'config' / 'paper_gains.yaml'

@@ -13,10 +13,18 @@ import numpy as np
 import pytest
 import yaml
 
-from uh_controller_node.control_kernels import (CP_MIN_VERTICAL_ACCEL, CP_TILT_LIMIT, M_F_HAT_P, M_F_HAT_W,
-                                                control_parameters,
-                                                filter_advance, filter_gain, filter_rate, thrust_and_attitude,
-                                                wrap_angle)
+from uh_controller_node.control_kernels import (
+    CP_MIN_VERTICAL_ACCEL,
+    CP_TILT_LIMIT,
+    M_F_HAT_P,
+    M_F_HAT_W,
+    control_parameters,
+    filter_advance,
+    filter_gain,
+    filter_rate,
+    thrust_and_attitude,
+    wrap_angle,
+)
 from uh_controller_node.controller import ControllerError, UHController
 from uh_controller_node.gains import CASES, ControllerGains, GainsError
 from uh_controller_node.nominal_model import nominal_model

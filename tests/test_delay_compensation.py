@@ -10,12 +10,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
 from scenario_texts import paper_yaml
+
 from uh_bringup import run_formation
 from uh_controller_node.impairments import (
-    JITTER_STREAM, LOSS_STREAM, PREDICTION_MARGIN, ReceivedStates, add_noise, arrival_extra, delivered_step,
-    predict_state, prediction_age, reference_hash)
+    JITTER_STREAM,
+    LOSS_STREAM,
+    PREDICTION_MARGIN,
+    ReceivedStates,
+    add_noise,
+    arrival_extra,
+    delivered_step,
+    predict_state,
+    prediction_age,
+    reference_hash,
+)
 from uh_core.layout import STATE_SIZE, X_P, X_V
 from uh_team.team_simulation import run_team_simulation
 from uh_topology import errors as E

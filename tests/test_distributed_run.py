@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
+from team_runs import kill_session, start_run, wait_for_log
 
 from uh_report.bag_metrics import read_team_bag
-from uh_team.team_simulation import run_team_simulation
 from uh_runtime.network import reserve_domain_id
-from uh_wire import topics
+from uh_team.team_simulation import run_team_simulation
 from uh_topology.scenario import load_scenario
-from team_runs import start_run, wait_for_log, kill_session
+from uh_wire import topics
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -373,8 +373,8 @@ def test_the_bag_holds_tf_odometry_and_diagnostics_that_follow_from_the_states(l
     and the diagnostics report the scenario's faults.
     """
     from uh_core import frames
-    from uh_wire.standard_msgs import level_of
     from uh_runtime.messages import typestore
+    from uh_wire.standard_msgs import level_of
     out, _, _ = lockstep_run
     store = typestore()
     states, tf, odom, diag = {}, {}, {}, []

@@ -441,10 +441,10 @@ def test_each_controller_publishes_what_isolate_run_computes_over_the_same_run()
     the message unchanged.
     """
     from uh_controller_node.controller import UHController
-    from uh_wire.wire import status_to_msg
     from uh_sim_node.reference import VirtualLeaderReference
     from uh_team.team_simulation import run_team_simulation
     from uh_topology.scenario import load_scenario
+    from uh_wire.wire import status_to_msg
 
     scenario = load_scenario('paper')
     run = run_team_simulation(scenario, 'proposed', duration=14.0)   # past the 10 s onsets

@@ -41,8 +41,8 @@ def controller(domain_id, tmp_path):
 
     Its gains are overridden by a /**: parameters file; the fixture also gives a caller context.
     """
-    from uh_runtime import dds as rt
     from uh_controller_node.controller_node import ControllerNode
+    from uh_runtime import dds as rt
     override = tmp_path / 'gains.yaml'
     override.write_text('/**:\n  ros__parameters:\n    outer:\n      k: 1.3\n')
     ctx = rt.Context()

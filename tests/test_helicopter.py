@@ -7,8 +7,15 @@ import math
 
 import numpy as np
 import pytest
-from model_oracle import (clip_inputs, euler_rate_matrix, reference_step, rotation_matrix, rotor_moments,
-                          state_derivative, thrust)
+from model_oracle import (
+    clip_inputs,
+    euler_rate_matrix,
+    reference_step,
+    rotation_matrix,
+    rotor_moments,
+    state_derivative,
+    thrust,
+)
 
 from uh_controller_node.nominal_model import nominal_model
 from uh_core.airframe import HelicopterParams, HelicopterParamsError, default_params_path, load_helicopter_params
@@ -141,6 +148,7 @@ def test_uh_simulate_with_an_airframe_that_is_not_utf8_exits_2_with_one_line(tmp
     import subprocess
     import sys
     from pathlib import Path
+
     from scenario_texts import paper_yaml
     airframe = tmp_path / 'airframe.yaml'
     airframe.write_bytes(default_params_path().read_bytes() + b'# \x80\n')

@@ -7,10 +7,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from scenario_texts import paper_yaml
-from uh_controller_node.impairments import (LOSS_STREAM, ReceivedStates, add_noise, delivered_step, hash_uniform,
-                                            reference_hash)
+
+from uh_controller_node.impairments import (
+    LOSS_STREAM,
+    ReceivedStates,
+    add_noise,
+    delivered_step,
+    hash_uniform,
+    reference_hash,
+)
 from uh_team.team_simulation import run_team_simulation
 from uh_topology import errors as E
 from uh_topology.scenario import NO_DROPOUT, load_scenario, parse_scenario

@@ -10,8 +10,8 @@ leader).
 """
 import numpy as np
 import pytest
-
 from fake_wall import FakeClock, RecordingLogger
+
 from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser, input_label
 from uh_topology.graph import reachable_from
 from uh_topology.scenario import load_scenario

@@ -10,8 +10,8 @@ import sys
 import time
 
 import pytest
-
 from test_report import shared_team_run
+
 from uh_bringup import launch_run
 from uh_bringup.launch_run import ARGUMENTS, LaunchRun, RunFailed, Step, check_arguments
 

@@ -87,6 +87,7 @@ def test_status_record_and_wire_follow_the_status_layout():
     import dataclasses
 
     import numpy as np
+
     from uh_controller_node.controller import ControllerStatusData
     from uh_wire import wire
 

@@ -21,12 +21,12 @@ from spinning import spinning_in_thread
 
 from uh_bringup.run_setup import run_node_names, write_environment_script
 from uh_bringup.team_nodes import NODES, node_class, node_specs
-from uh_runtime.cli import uh as cli
 from uh_runtime import dds as rt
-from uh_runtime.dds import graph as graph_module
 from uh_runtime import messages
-from uh_runtime.dds.graph import INFO_GRACE, INFO_RETRY, Graph
+from uh_runtime.cli import uh as cli
 from uh_runtime.cli.node_table import run_nodes
+from uh_runtime.dds import graph as graph_module
+from uh_runtime.dds.graph import INFO_GRACE, INFO_RETRY, Graph
 from uh_topology.scenario import load_scenario
 
 PAPER_NODES = ['/clock', '/recorder', '/uh1/controller', '/uh1/sim', '/uh2/controller', '/uh2/sim',

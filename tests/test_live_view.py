@@ -17,11 +17,11 @@ from pathlib import Path
 import pytest
 
 pytest.importorskip('foxglove', reason='the live view needs foxglove-sdk')
+from team_runs import stop_run  # noqa: E402
 from websockets.sync.client import connect  # noqa: E402
 
 from uh_runtime.messages import typestore  # noqa: E402
 from uh_runtime.network import loopback_environment  # noqa: E402
-from team_runs import stop_run  # noqa: E402
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
-
 from test_report import shared_team_run
 
 pytestmark = [pytest.mark.dds, pytest.mark.slow]

@@ -4,8 +4,8 @@ For every uh_msgs type and the standard types the stack uses, the IdlStruct clas
 to exactly the bytes rosbags' ``serialize_cdr`` produces for the same non-trivial values, and
 read them back unchanged (docs/runtime.md: the payload is ROS 2 CDR).
 """
-import json
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np

@@ -4,11 +4,25 @@ import math
 import numpy as np
 import pytest
 
-from uh_team.metrics import (FALSE_ESTIMATE_START, FALSE_ESTIMATE_THRESHOLD_P, FALSE_ESTIMATE_THRESHOLD_W,
-                             FAULT_WINDOW_DELAY, METRIC_KEYS, NRMSE_FLOOR_P, NRMSE_FLOOR_W, NRMSE_TARGET,
-                             FaultedUH, MetricsError, compute_metrics, containment_errors, faulted_uhs,
-                             hull_distance, nrmse_below_floor, point_segment_distance,
-                             point_triangle_distance)
+from uh_team.metrics import (
+    FALSE_ESTIMATE_START,
+    FALSE_ESTIMATE_THRESHOLD_P,
+    FALSE_ESTIMATE_THRESHOLD_W,
+    FAULT_WINDOW_DELAY,
+    METRIC_KEYS,
+    NRMSE_FLOOR_P,
+    NRMSE_FLOOR_W,
+    NRMSE_TARGET,
+    FaultedUH,
+    MetricsError,
+    compute_metrics,
+    containment_errors,
+    faulted_uhs,
+    hull_distance,
+    nrmse_below_floor,
+    point_segment_distance,
+    point_triangle_distance,
+)
 
 A, B, C = np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
 

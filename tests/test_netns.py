@@ -16,10 +16,10 @@ import time
 from pathlib import Path
 
 import pytest
+from team_runs import kill_session
 
 from uh_bringup import netns
 from uh_runtime.network import reserve_domain_id
-from team_runs import kill_session
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN = ROOT / 'scripts' / 'run_formation.sh'
@@ -157,9 +157,10 @@ def test_team_flies_over_a_lossy_network(tmp_path, nft):
     assert info['hosts'] == 'netns' and all(n > 0 for n in info['dropped_packets'].values()), info
     # data crossed the network: every controller (each hears a UH in another namespace) computed
     # commands up to the end, and they were recorded from the ground namespace
+    import numpy as np
+
     from uh_report.bag_metrics import read_team_bag
     from uh_topology.scenario import load_scenario
-    import numpy as np
     bag = read_team_bag(out / 'bag', load_scenario('paper'))
     commanded = ~np.isnan(bag['commands'][:, :, 0])
     assert commanded[-50:].any(axis=0).all()           # every UH was commanded in the last 0.5 s

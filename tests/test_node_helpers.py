@@ -7,8 +7,8 @@ diagnostics window) and :class:`uh_controller_node.controller_diagnostics.Contro
 import types
 
 import numpy as np
-
 from fake_wall import RecordingLogger
+
 from uh_controller_node.controller_diagnostics import ControllerDiagnostics
 from uh_controller_node.input_sync import REFERENCE, LagStats, StepInputs
 from uh_core import diagnostics as D

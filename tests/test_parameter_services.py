@@ -12,9 +12,9 @@ from spinning import spinning_in_thread
 
 from uh_runtime import dds as rt
 from uh_runtime import messages
-from uh_runtime.dds.services import ServiceClient, parameter_value, value_message
 from uh_runtime.dds.parameters import FloatingPointRange, ParameterDescriptor
 from uh_runtime.dds.qos import qos_profile_rosout_default
+from uh_runtime.dds.services import ServiceClient, parameter_value, value_message
 
 pytestmark = pytest.mark.dds
 BOUND = 10.0   # s; bounds a failure only (replies come within milliseconds on loopback)
@@ -205,10 +205,12 @@ def test_a_client_that_cannot_be_answered_is_named_once_and_ours_is_not(served, 
     Its request writer does not say ``clientid=`` in USER_DATA, as this backend's and rmw_cyclonedds' do.
     """
     import time
+
     from cyclonedds.pub import DataWriter
+
     from uh_runtime.dds.context import typehash_user_data
-    from uh_runtime.dds.services import FOREIGN_CLIENT_CHECK_S, qos_profile_parameters
     from uh_runtime.dds.qos import to_dds_qos
+    from uh_runtime.dds.services import FOREIGN_CLIENT_CHECK_S, qos_profile_parameters
     node, call, caller = served
     warnings = []
     logger = node.get_logger()

@@ -8,9 +8,15 @@ import math
 import numpy as np
 import pytest
 
-from uh_controller_node.control_kernels import (PROJECTION_TOLERANCE, composite_weight_update,
-                                                fault_observer_update, project_columns, rbf_activations,
-                                                rbf_centre, rbf_output)
+from uh_controller_node.control_kernels import (
+    PROJECTION_TOLERANCE,
+    composite_weight_update,
+    fault_observer_update,
+    project_columns,
+    rbf_activations,
+    rbf_centre,
+    rbf_output,
+)
 
 
 def activations(x, nodes, low, high, width):

@@ -11,12 +11,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from scenario_texts import paper_yaml
+
 from uh_bringup import run_formation
 from uh_controller_node.controller_diagnostics import NeighbourAges
-from uh_controller_node.impairments import (LOSS_STREAM, ReceivedStates, arrival_extra, delivered_step, hash_uniform,
-                                            prediction_age)
+from uh_controller_node.impairments import (
+    LOSS_STREAM,
+    ReceivedStates,
+    arrival_extra,
+    delivered_step,
+    hash_uniform,
+    prediction_age,
+)
 from uh_controller_node.input_sync import LagStats
 from uh_controller_node.realtime_received import RealtimeReceivedStates, newest_arrived, received_states_for
 from uh_core.layout import STATE_SIZE, X_P, X_V

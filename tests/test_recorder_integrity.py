@@ -17,11 +17,11 @@ from pathlib import Path
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
+from team_runs import kill_session
 
 from uh_runtime.bags.bag import CHUNK_SIZE, recover_bag
 from uh_runtime.bags.bag_reader import bag_file, read_messages
 from uh_runtime.network import reserve_domain_id
-from team_runs import kill_session
 
 ROOT = Path(__file__).resolve().parents[1]
 TALKER = ROOT / 'tests' / 'data' / 'reliability_talker.py'
@@ -105,6 +105,7 @@ def test_sigkill_loses_at_most_the_chunk_being_filled(recording):
 
 def _state_msg(k):
     import numpy as np
+
     from uh_wire.wire import state_to_msg
     return state_to_msg(1, k, k * 0.01, np.zeros(12))
 

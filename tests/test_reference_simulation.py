@@ -242,8 +242,7 @@ def test_fault_estimates_tell_faults_from_model_error(name):
     fault on a healthy UH or before an onset (the metric thresholds); every scored fault vector whose truth is above the
     floor estimated with NRMSE < 0.25.
     """
-    from uh_team.metrics import (FALSE_ESTIMATE_THRESHOLD_P, FALSE_ESTIMATE_THRESHOLD_W, NRMSE_TARGET,
-                                 nrmse_below_floor)
+    from uh_team.metrics import FALSE_ESTIMATE_THRESHOLD_P, FALSE_ESTIMATE_THRESHOLD_W, NRMSE_TARGET, nrmse_below_floor
     scenario = load_scenario(name)
     run = run_team_simulation(scenario, 'proposed')
     m = metrics_from_arrays(run.arrays(), scenario, 'proposed')

@@ -11,16 +11,15 @@ from pathlib import Path
 
 import pytest
 import yaml
-
 from scenario_texts import paper_yaml
+
 from uh_bringup import run_formation
 from uh_campaign import cli as campaign_cli
 from uh_campaign.spec import parse_spec
 from uh_team import simulate_cli
 from uh_topology import errors as E
 from uh_topology import scenario_keys
-from uh_topology.scenario import (COMPENSATIONS, DEFAULT_COMPENSATION, DEFAULT_SETTLE_TIME, load_scenario,
-                                  parse_scenario)
+from uh_topology.scenario import COMPENSATIONS, DEFAULT_COMPENSATION, DEFAULT_SETTLE_TIME, load_scenario, parse_scenario
 from uh_topology.scenario_keys import IMPAIRMENT_KEYS, SCENARIO_KEYS, ScenarioKey, key_named, markdown_table
 from uh_topology.schema import read_text_file
 

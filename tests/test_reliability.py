@@ -21,12 +21,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from rosbags.rosbag2 import Reader
+from team_runs import kill_session, start_run, wait_for_log
 
 from uh_report.bag_metrics import read_team_bag
 from uh_runtime.messages import typestore
 from uh_runtime.network import reserve_domain_id
 from uh_topology.scenario import load_scenario
-from team_runs import start_run, wait_for_log, kill_session
 
 ROOT = Path(__file__).resolve().parents[1]
 RUN = ROOT / 'scripts' / 'run_formation.sh'

@@ -236,8 +236,8 @@ def test_a_truncated_bag_is_named(tmp_path, capsys):
 def test_a_damaged_chunk_is_named(tmp_path, capsys):
     """A chunk with a CRC (this project's bags) is checked byte for byte."""
     from rosbags.typesys import Stores, get_typestore
-
     from test_report import damaged_chunk
+
     from uh_runtime.bags.bag import BagWriter
     from uh_runtime.dds.qos import qos_profile_yaml
     store = get_typestore(Stores.ROS2_JAZZY)

@@ -233,7 +233,8 @@ def test_tables_mark_an_nrmse_below_the_floor_as_not_meaningful():
 
     It takes no part in the bold of its row, and the absolute error next to it is still shown; false estimate rows.
     """
-    from uh_report.report import csv_table, markdown_table as report_table
+    from uh_report.report import csv_table
+    from uh_report.report import markdown_table as report_table
     runs = [_run_with_metrics('below', _fault_metrics(0.3, None)), _run_with_metrics('above', _fault_metrics(1.4, 0.5))]
     rows = {r[2].strip('`'): r[3:] for r in markdown_table(report_table(runs))[1:]}
     assert rows['fault_estimation.uh3.w.nrmse'] == ['n/m', '0.5']      # only one number: no bold
@@ -352,7 +353,8 @@ def test_the_console_script_exits_2_without_traceback(tmp_path):
 
 
 def test_tables_show_the_fault_isolation_summary_and_a_per_run_table():
-    from uh_report.report import ISOLATION_HEAD, html_table, isolation_table, markdown_table as report_table
+    from uh_report.report import ISOLATION_HEAD, html_table, isolation_table
+    from uh_report.report import markdown_table as report_table
     entry = {'faulty': True, 'onset': 10.0, 'isolated': True, 'detected_at': 10.56, 'delay': 0.56, 'rho': None,
              'bias': None, 'identifiable': False, 'reason': 'actual input nearly constant', 'rho_true': 0.8,
              'bias_constant_true': 0.0}

@@ -5,11 +5,22 @@ Also the parameter value checks of uh_runtime.dds.parameters. Pure: no DDS.
 import pytest
 
 from uh_runtime.dds.arguments import (
-    InvalidNameError, RemapRule, RosArgsError, expand_topic_name, load_params_file,
-    node_pattern_matches, parse_ros_args, remap_topic, remove_ros_args,
+    InvalidNameError,
+    RemapRule,
+    RosArgsError,
+    expand_topic_name,
+    load_params_file,
+    node_pattern_matches,
+    parse_ros_args,
+    remap_topic,
+    remove_ros_args,
 )
 from uh_runtime.dds.parameters import (
-    FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, check_value,
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    ParameterType,
+    check_value,
 )
 
 

@@ -9,10 +9,17 @@ import spinning
 from uh_runtime import dds as rt
 from uh_runtime import messages
 from uh_runtime.dds.parameters import (
-    FloatingPointRange, IntegerRange, InvalidParameterTypeException,
-    InvalidParameterValueException, Parameter, ParameterAlreadyDeclaredException,
-    ParameterDescriptor, ParameterNotDeclaredException, ParameterUninitializedException,
-    SetParametersResult, UnknownParameterOverrideError,
+    FloatingPointRange,
+    IntegerRange,
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    Parameter,
+    ParameterAlreadyDeclaredException,
+    ParameterDescriptor,
+    ParameterNotDeclaredException,
+    ParameterUninitializedException,
+    SetParametersResult,
+    UnknownParameterOverrideError,
 )
 from uh_runtime.dds.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from uh_runtime.runner import check_parameter_overrides

@@ -15,12 +15,11 @@ import time
 from pathlib import Path
 
 import pytest
-
-from uh_runtime import scheduling
-from uh_bringup.team_nodes import NODES, node_specs
-from uh_topology.scenario import load_scenario
-
 from team_runs import start_run, stop_run, wait_for_log
+
+from uh_bringup.team_nodes import NODES, node_specs
+from uh_runtime import scheduling
+from uh_topology.scenario import load_scenario
 
 PRIORITY = 7   # any value of 1..98 shows the mechanism; not the default, so the test sees it was passed on
 

@@ -87,6 +87,7 @@ def test_a_target_that_fails_to_wake_does_not_stop_later_wake_ups():
     """
     import threading
     import time
+
     from uh_runtime.dds.signals import wake_on_signals
 
     class Gone:

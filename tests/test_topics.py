@@ -3,8 +3,8 @@ from pathlib import Path
 
 import pytest
 
-from uh_wire import topics as T
 from uh_topology.scenario import load_scenario
+from uh_wire import topics as T
 
 ROOT = Path(__file__).resolve().parents[1]
 

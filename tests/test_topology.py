@@ -11,10 +11,23 @@ from uh_controller_node import gains as controller_gains
 from uh_core.layout import CHANNEL_ALIASES
 from uh_topology import errors as E
 from uh_topology import schema
-from uh_topology.graph import (check_assumption1, check_lemma1, containment_pattern, containment_weights,
-                               laplacian, laplacian_blocks, leader_tracking_matrix)
-from uh_topology.scenario import (FaultSpec, Scenario, bundled_scenarios, load_scenario, parse_scenario,
-                                  scenario_from_mapping)
+from uh_topology.graph import (
+    check_assumption1,
+    check_lemma1,
+    containment_pattern,
+    containment_weights,
+    laplacian,
+    laplacian_blocks,
+    leader_tracking_matrix,
+)
+from uh_topology.scenario import (
+    FaultSpec,
+    Scenario,
+    bundled_scenarios,
+    load_scenario,
+    parse_scenario,
+    scenario_from_mapping,
+)
 
 PAPER = load_scenario('paper')
 PAPER_FILE = Path(PAPER.source)

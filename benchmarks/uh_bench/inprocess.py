@@ -38,8 +38,8 @@ def component_costs(scenario, steps: int = 1000, case: str = 'proposed', safety:
     ``safety`` the controllers run the safety filter (docs/safety.md), its proximity input built
     from the true states before each controller step and timed with it (``controller``).
     """
-    from uh_controller_node.safety import proximity_input
     from uh_controller_node.controller import UHController
+    from uh_controller_node.safety import proximity_input
     from uh_core.airframe import load_helicopter_params
     from uh_sim_node.helicopter import plant_from_scenario
     from uh_sim_node.reference import VirtualLeaderReference

@@ -83,8 +83,7 @@ def main(argv=None) -> int:
         ids = [int(i) for i in args.ids.split(',') if i]
 
     from cyclonedds._clayer import ddspy_take
-    from cyclonedds.core import (GuardCondition, InstanceState, ReadCondition, SampleState,
-                                 ViewState, WaitSet)
+    from cyclonedds.core import GuardCondition, InstanceState, ReadCondition, SampleState, ViewState, WaitSet
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.qos import Policy, Qos
     from cyclonedds.sub import DataReader, Subscriber

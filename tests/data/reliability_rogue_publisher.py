@@ -58,8 +58,9 @@ def main() -> int:
     fault(uh_id=3, rho=0.9)
     fault(rho=0.0, onset_time=1.0e6)
 
-    from uh_wire.wire import command_to_msg, state_to_msg
     import numpy as np
+
+    from uh_wire.wire import command_to_msg, state_to_msg
     bad_state = state_to_msg(2, 100, 1.0, np.zeros(12))
     bad_state.position.x = math.nan
     state_pub.publish(bad_state)

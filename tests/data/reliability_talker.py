@@ -14,8 +14,8 @@ import numpy as np
 
 import uh_runtime as rt
 from uh_runtime import messages as m
-from uh_wire.wire import state_to_msg
 from uh_wire import topics
+from uh_wire.wire import state_to_msg
 
 
 def main() -> int:

@@ -21,13 +21,20 @@ import os
 import sys
 
 from launch import LaunchDescription
-from launch.actions import (DeclareLaunchArgument, EmitEvent, ExecuteProcess, LogInfo, OpaqueFunction,
-                            RegisterEventHandler)
+from launch.actions import (
+    DeclareLaunchArgument,
+    EmitEvent,
+    ExecuteProcess,
+    LogInfo,
+    OpaqueFunction,
+    RegisterEventHandler,
+)
 from launch.event_handlers import OnProcessExit, OnShutdown
 from launch.events import Shutdown, matches_action
 from launch.events.process import ShutdownProcess
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
+
 from uh_bringup.launch_run import ARGUMENTS, LaunchRun, check_arguments, compile_command, write_launch_record
 from uh_bringup.team_nodes import NODES, backend_environment, node_specs
 from uh_runtime.network import apply_network_default

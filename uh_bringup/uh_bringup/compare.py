@@ -19,8 +19,8 @@ import sys
 import time
 from pathlib import Path
 
-from uh_runtime.command_line import ArgumentParser
 from uh_controller_node.gains import CASES
+from uh_runtime.command_line import ArgumentParser
 from uh_topology.errors import ScenarioError
 from uh_topology.scenario import duration_steps, load_scenario
 

@@ -21,10 +21,10 @@ import re
 import sys
 import time
 
-from uh_runtime.command_line import ArgumentParser
 import uh_runtime as rt
 from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
 from uh_runtime import messages as m
+from uh_runtime.command_line import ArgumentParser
 from uh_runtime.network import MAX_DOMAIN_ID, apply_network_default
 from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_wire import topics

@@ -33,8 +33,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
-from uh_bringup.run_outcome import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, recover_bag_if_needed, \
-    write_metrics, write_run_json
+from uh_bringup.run_outcome import (
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    recover_bag_if_needed,
+    write_metrics,
+    write_run_json,
+)
 from uh_controller_node.gains import CASES
 from uh_runtime.command_line import ArgumentParser, unwritable_reason
 from uh_runtime.scheduling import DEFAULT_PRIORITY, MAX_PRIORITY

@@ -50,21 +50,38 @@ import signal
 import sys
 import time
 
-from uh_runtime.command_line import ArgumentParser
 from uh_bringup.netns import NetnsError
 from uh_bringup.run_checks import CONFIG_ERRORS, HOSTS, LAYOUTS, UsageError, check_run, validate_team
-from uh_bringup.run_outcome import (EXIT_DEGRADED, EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, RunRecord,
-                                    exit_status, overlap_notice, recover_bag_if_needed, run_info,
-                                    write_metrics)
+from uh_bringup.run_outcome import (
+    EXIT_DEGRADED,
+    EXIT_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    RunRecord,
+    exit_status,
+    overlap_notice,
+    recover_bag_if_needed,
+    run_info,
+    write_metrics,
+)
 from uh_bringup.run_processes import process_commands
-from uh_bringup.run_setup import (open_network, realtime_priority, run_environment, run_node_names, start_team,
-                                  team_specs, write_environment_script)
+from uh_bringup.run_setup import (
+    open_network,
+    realtime_priority,
+    run_environment,
+    run_node_names,
+    start_team,
+    team_specs,
+    write_environment_script,
+)
 from uh_bringup.run_watch import MAX_RESPAWNS, RunProgress, RunWatcher
 from uh_bringup.supervisor import Supervisor
 from uh_bringup.team_nodes import node_specs
 from uh_controller_node.gains import CASES
 from uh_runtime import scheduling
 from uh_runtime.bags import live_view
+from uh_runtime.command_line import ArgumentParser
 from uh_runtime.network import MAX_DOMAIN_ID
 from uh_wire.run_defaults import CLOCK_MODES, DEFAULT_STALE_TIMEOUT, DEFAULT_STARTUP_TIMEOUT
 

@@ -135,7 +135,7 @@ def write_run_report(out: Path, scenario, case: str, arrays: dict, metrics: dict
     :data:`RUN_REPORT_FIGURES`; ``uh-report out`` redraws it with every figure. A report that cannot
     be written is said on stderr and leaves the run's result as it is.
     """
-    import matplotlib     # a file-only backend before any figure: runs draw without a display
+    import matplotlib  # a file-only backend before any figure: runs draw without a display
     matplotlib.use('Agg')
     try:
         write_report([run_of_arrays(out, scenario, case, arrays, metrics)], out / 'report', RUN_REPORT_FIGURES,

@@ -17,8 +17,8 @@ from uh_bringup.run_processes import processes
 from uh_bringup.team_nodes import backend_environment, node_specs
 from uh_runtime import scheduling
 from uh_runtime.bags import live_view
-from uh_runtime.network import environment_script, loopback_environment, reserve_domain_id
 from uh_runtime.cli.node_table import export_line
+from uh_runtime.network import environment_script, loopback_environment, reserve_domain_id
 
 __all__ = ['run_environment', 'realtime_priority', 'write_environment_script', 'open_network', 'start_team',
            'dds_processes', 'team_specs', 'run_node_names']

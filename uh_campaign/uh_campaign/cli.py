@@ -21,8 +21,8 @@ import sys
 import threading
 from pathlib import Path
 
-from uh_runtime.command_line import ArgumentParser, directory_argument
 from uh_report.report import main as report_main
+from uh_runtime.command_line import ArgumentParser, directory_argument
 from uh_topology.errors import ScenarioError
 from uh_topology.safety import add_safety_argument, safety_override
 

@@ -191,13 +191,12 @@ from pathlib import Path
 import yaml
 
 from uh_controller_node.gains import CASES
+from uh_team.campaign_store import METRIC_COLUMNS
 from uh_topology import errors as E
 from uh_topology import scenario_keys
 from uh_topology.scenario import bundled_scenarios, parse_scenario
 from uh_topology.scenario_keys import key_named
 from uh_topology.schema import CONFIG_DIR, ConfigContext, parse_yaml, read_config_file, type_name
-
-from uh_team.campaign_store import METRIC_COLUMNS
 
 from .draws import GENERATOR_WEIGHTS, Draws, FaultDraws, GeneratorSpec, read_draws, read_generator
 from .resolve import check_draw_zero, draw_generators, key_path, resolve_scenario, scenario_file_name, scenario_yaml

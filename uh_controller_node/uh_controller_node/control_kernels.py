@@ -88,33 +88,116 @@ import re
 import time
 
 import numpy as np
-from uh_core import compiled_kernels as _compiled_kernels
-from uh_core.compiled_kernels import njit
 
+from uh_core import compiled_kernels as _compiled_kernels
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
-from uh_core.layout import (INPUT_SIZE, R_P, R_V, R_YAW, REFERENCE_SIZE, S_COST_RATE, S_EULER_D, S_F_HAT_P,
-                            S_F_HAT_W, S_SAT_COLLECTIVE, S_SAT_CYCLIC, S_SAT_TILT, S_THRUST, S_U_P, S_W_NORM_P,
-                            S_W_NORM_W, S_Z1, S_Z2, S_Z3, S_Z4, S_ZN_P, S_ZN_W, STATE_SIZE, STATUS_SIZE,
-                            STATUS_VECTORS, U_COL, U_LAT, U_LON, U_TR, X_OMEGA, X_P, X_THETA, X_V, YAW)
+from uh_core.compiled_kernels import njit
+from uh_core.layout import (
+    INPUT_SIZE,
+    R_P,
+    R_V,
+    R_YAW,
+    REFERENCE_SIZE,
+    S_COST_RATE,
+    S_EULER_D,
+    S_F_HAT_P,
+    S_F_HAT_W,
+    S_SAT_COLLECTIVE,
+    S_SAT_CYCLIC,
+    S_SAT_TILT,
+    S_THRUST,
+    S_U_P,
+    S_W_NORM_P,
+    S_W_NORM_W,
+    S_Z1,
+    S_Z2,
+    S_Z3,
+    S_Z4,
+    S_ZN_P,
+    S_ZN_W,
+    STATE_SIZE,
+    STATUS_SIZE,
+    STATUS_VECTORS,
+    U_COL,
+    U_LAT,
+    U_LON,
+    U_TR,
+    X_OMEGA,
+    X_P,
+    X_THETA,
+    X_V,
+    YAW,
+)
 
 from . import control_layout as _control_layout
 from . import gains as _gains
 from . import learning_kernels as _learning_kernels
 from . import loop_kernels as _loop_kernels
 from . import safety_kernels as _safety_kernels
-from .control_layout import (CONTROL_PARAMS_SIZE, FLAG_STARTED, FLAG_TIME, GAIN_ENTRIES, GAIN_INDEX, LOOP,
-                             LOOP_GAIN_ENTRIES, LOOP_GAIN_OFFSET, LOOP_GAINS_SIZE, M_ALPHA_F, M_ALPHA_WF, M_F_HAT_P,
-                             M_F_HAT_W, M_FLAGS, M_OMEGA_HAT, M_THETA_DF, M_V_HAT, MEMORY_ROWS, MODEL_ENTRIES,
-                             MODEL_INDEX, PARAM, STATUS, ControlArrays, control_parameters)
-from .learning_kernels import (PROJECTION_TOLERANCE, composite_weight_update, estimator_advance,
-                               fault_observer_update, frobenius_norm, in_learning_phase, project_columns,
-                               rbf_activations, rbf_centre, rbf_output)
-from .safety_kernels import (PROXIMITY_COLUMNS, SAFETY_OUT_SIZE, SAFETY_PARAMS_SIZE, SO_ACTIVE,
-                             SO_CLOSEST_DISTANCE, SO_PAIRS, safety_filter)
-from .loop_kernels import (achieved_acceleration, control_effectiveness, euler_rate_inverse, euler_rate_transpose,
-                           filter_advance, filter_gain, filter_rate, inner_advance, inner_drift, inner_law,
-                           outer_advance, outer_law, thrust_and_attitude, wrap_angle)
+from .control_layout import (
+    CONTROL_PARAMS_SIZE,
+    FLAG_STARTED,
+    FLAG_TIME,
+    GAIN_ENTRIES,
+    GAIN_INDEX,
+    LOOP,
+    LOOP_GAIN_ENTRIES,
+    LOOP_GAIN_OFFSET,
+    LOOP_GAINS_SIZE,
+    M_ALPHA_F,
+    M_ALPHA_WF,
+    M_F_HAT_P,
+    M_F_HAT_W,
+    M_FLAGS,
+    M_OMEGA_HAT,
+    M_THETA_DF,
+    M_V_HAT,
+    MEMORY_ROWS,
+    MODEL_ENTRIES,
+    MODEL_INDEX,
+    PARAM,
+    STATUS,
+    ControlArrays,
+    control_parameters,
+)
+from .learning_kernels import (
+    PROJECTION_TOLERANCE,
+    composite_weight_update,
+    estimator_advance,
+    fault_observer_update,
+    frobenius_norm,
+    in_learning_phase,
+    project_columns,
+    rbf_activations,
+    rbf_centre,
+    rbf_output,
+)
+from .loop_kernels import (
+    achieved_acceleration,
+    control_effectiveness,
+    euler_rate_inverse,
+    euler_rate_transpose,
+    filter_advance,
+    filter_gain,
+    filter_rate,
+    inner_advance,
+    inner_drift,
+    inner_law,
+    outer_advance,
+    outer_law,
+    thrust_and_attitude,
+    wrap_angle,
+)
+from .safety_kernels import (
+    PROXIMITY_COLUMNS,
+    SAFETY_OUT_SIZE,
+    SAFETY_PARAMS_SIZE,
+    SO_ACTIVE,
+    SO_CLOSEST_DISTANCE,
+    SO_PAIRS,
+    safety_filter,
+)
 
 __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'YAW', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',

@@ -34,6 +34,7 @@ from collections import namedtuple
 from typing import NamedTuple
 
 import numpy as np
+
 from uh_core.layout import INPUT_SIZE, STATUS_INDEX
 
 from .gains import GAIN_SLOTS, LOOP_GAIN_SLOTS

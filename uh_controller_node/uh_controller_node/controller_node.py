@@ -41,12 +41,10 @@ from uh_controller_node.node_parameters import GainParameters, declare_controlle
 from uh_controller_node.realtime_received import received_states_for
 from uh_core import compiled_kernels
 from uh_runtime import messages as m
-from uh_wire import topics
+from uh_wire import topics, wire
 from uh_wire.published import PublishedCounts
 from uh_wire.run_config import declare_run_parameters, declare_view_parameters
 from uh_wire.standard_msgs import diagnostic_array_msg, view_publisher
-from uh_wire.wire import (WireError, command_to_msg, msg_to_reference, msg_to_state, received_states_to_msg,
-                          status_to_msg)
 
 __all__ = ['ControllerNode', 'main']
 
@@ -118,20 +116,20 @@ class ControllerNode(rt.Node):
     # -- inputs: offered to the synchroniser -------------------------------------------------------
     def on_own_state(self, msg) -> None:
         """Offer the own ``UHState`` to the synchroniser, compute the released steps (bad ones rejected)."""
-        self._offer(OWN, msg, 'own state', msg_to_state, self.uh_id)
+        self._offer(OWN, msg, 'own state', wire.msg_to_state, self.uh_id)
 
     def on_neighbour_state(self, j: int, msg) -> None:
         """Offer neighbour ``j``'s ``UHState`` to the synchroniser, compute the released steps (bad ones rejected)."""
-        self._offer(j, msg, f'state of uh{j}', msg_to_state, j)
+        self._offer(j, msg, f'state of uh{j}', wire.msg_to_state, j)
 
     def on_reference(self, msg) -> None:
         """Offer the leader's ``Reference`` to the synchroniser, compute the released steps (bad ones rejected)."""
-        self._offer(REFERENCE, msg, 'reference', msg_to_reference)
+        self._offer(REFERENCE, msg, 'reference', wire.msg_to_reference)
 
     def _offer(self, key, msg, what: str, convert, *expected_id) -> None:
         try:
             value = convert(msg, *expected_id)
-        except WireError as exc:
+        except wire.WireError as exc:
             self.sync.reject(what, exc)
             return
         if self._arrive is not None and key not in (OWN, REFERENCE):
@@ -167,11 +165,12 @@ class ControllerNode(rt.Node):
                 self.diagnostics.not_computed()
                 continue
             t = k * self.dt
-            self.command_pub.publish(command_to_msg(self.uh_id, k, t, u))
-            self.status_pub.publish(status_to_msg(self.uh_id, k, t, status, inputs.stale_labels, self.ages.overall()))
+            self.command_pub.publish(wire.command_to_msg(self.uh_id, k, t, u))
+            self.status_pub.publish(wire.status_to_msg(self.uh_id, k, t, status, inputs.stale_labels,
+                                                       self.ages.overall()))
             self.published.add(self.command_topic, self.status_topic)
             if self.received is not None:
-                self.received_pub.publish(received_states_to_msg(   # as delivered, not as predicted
+                self.received_pub.publish(wire.received_states_to_msg(   # as delivered, not as predicted
                     self.uh_id, k, self.dt, own, self.received.delivered, self.received.sample_steps))
                 self.published.add(self.received_topic)
             if self.views.enabled:

@@ -42,7 +42,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-
 from . import isolation_kernels as K
 
 __all__ = ['CHANNELS', 'IsolationSettings', 'ChannelReport', 'IsolationStatus', 'FaultIsolator', 'input_deviation',

@@ -28,11 +28,11 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from uh_core import compiled_kernels as _compiled_kernels
-from uh_core.compiled_kernels import njit
 
+from uh_core import compiled_kernels as _compiled_kernels
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
+from uh_core.compiled_kernels import njit
 from uh_core.layout import STATE_SIZE, X_P, X_V
 
 __all__ = ['Link', 'LOSS_STREAM', 'JITTER_STREAM', 'PREDICTION_MARGIN', 'hash_uniform', 'arrival_extra',

@@ -32,9 +32,9 @@ import time
 from dataclasses import dataclass
 from typing import Callable
 
+from uh_core.layout import X_P, X_THETA, YAW
 from uh_wire import topics
 from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
-from uh_core.layout import X_P, X_THETA, YAW
 
 __all__ = ['InputSynchroniser', 'StepInputs', 'LagStats', 'OWN', 'REFERENCE', 'input_label',
            'REJECT_LOG_PERIOD']

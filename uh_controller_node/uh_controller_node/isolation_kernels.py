@@ -50,11 +50,11 @@ import math
 import time
 
 import numpy as np
-from uh_core import compiled_kernels as _compiled_kernels
-from uh_core.compiled_kernels import njit
 
+from uh_core import compiled_kernels as _compiled_kernels
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
+from uh_core.compiled_kernels import njit
 from uh_core.layout import X_OMEGA, X_THETA
 
 __all__ = ['ISO_PARAMS_SIZE', 'ISO_STATE_SIZE', 'VERDICT_SIZE', 'TRACE_COLUMNS', 'STATUS_ROWS', 'new_isolation_state',

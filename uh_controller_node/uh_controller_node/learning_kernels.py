@@ -14,10 +14,9 @@ from __future__ import annotations
 import math
 
 from uh_core import compiled_kernels as _compiled_kernels
-from uh_core.compiled_kernels import njit
-
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
+from uh_core.compiled_kernels import njit
 
 from . import control_layout as _control_layout
 from . import gains as _gains

@@ -15,11 +15,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from uh_core import compiled_kernels as _compiled_kernels
-from uh_core.compiled_kernels import njit
 
+from uh_core import compiled_kernels as _compiled_kernels
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
+from uh_core.compiled_kernels import njit
 from uh_core.layout import U_COL, U_LAT, U_LON, U_TR, YAW
 
 from . import control_layout as _control_layout

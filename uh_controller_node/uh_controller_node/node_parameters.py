@@ -10,8 +10,15 @@ only if the gains it makes pass the gains file's checks.
 from __future__ import annotations
 
 import uh_runtime as rt
-from uh_controller_node.gains import (CASES, ControllerGains, GainsError, gain_parameters, gains_source, located,
-                                      nest_gains)
+from uh_controller_node.gains import (
+    CASES,
+    ControllerGains,
+    GainsError,
+    gain_parameters,
+    gains_source,
+    located,
+    nest_gains,
+)
 from uh_wire.run_config import DEFAULT_STALE_TIMEOUT, RunConfigError, declare_float_parameter
 
 __all__ = ['SYNC_PARAMETERS', 'declare_controller_parameters', 'GainParameters']

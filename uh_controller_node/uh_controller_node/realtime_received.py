@@ -24,8 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uh_controller_node.impairments import (Link, ReceivedStates, add_noise, compile_impairment_kernels,
-                                           newest_delivered)
+from uh_controller_node.impairments import Link, ReceivedStates, add_noise, compile_impairment_kernels, newest_delivered
 from uh_core.layout import STATE_SIZE
 
 __all__ = ['newest_arrived', 'RealtimeReceivedStates', 'received_states_for']

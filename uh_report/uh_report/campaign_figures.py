@@ -41,7 +41,7 @@ def plot_distribution(runs: dict, cases, metric: str, path: Path, labels: dict |
 
     Log x-axis when the positive values span :data:`LOG_SPAN_RATIO` or more. None (no file) when no case has a value.
     """
-    from matplotlib.figure import Figure     # matplotlib only when figures are drawn (slow to import)
+    from matplotlib.figure import Figure  # matplotlib only when figures are drawn (slow to import)
 
     series = {case: ecdf(runs[metric][ok_finite(runs, case, metric)]) for case in cases}
     series = {case: xy for case, xy in series.items() if len(xy[0])}
@@ -74,7 +74,7 @@ def plot_sweep(table: list[dict], cases, parameter: str, path: Path, labels: dic
     Median (line) and interquartile range (band) of ``formation_rms_m`` and ``containment_rms_m`` per case, and the
     success rate with its Wilson interval (error bars, shifted slightly per case so they do not overlap) per case.
     """
-    from matplotlib.figure import Figure     # as in plot_distribution
+    from matplotlib.figure import Figure  # as in plot_distribution
 
     fig = Figure(figsize=_SWEEP_SIZE, dpi=_DPI, layout='constrained')
     axes = fig.subplots(1, 3)

@@ -37,11 +37,31 @@ from uh_team.campaign_store import DB_NAME, METRIC_COLUMNS, RUN_COLUMNS
 
 from .campaign_figures import LOG_SPAN_RATIO, plot_distribution, plot_sweep
 from .campaign_load import CASE_ORDER, Campaign, CampaignReportError, is_campaign_dir, load_campaign
-from .campaign_stats import (BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED, CONFIDENCE, DISTRIBUTION_METRICS, METRIC_UNITS,
-                             PAIRED_METRICS, SWEEP_METRICS, WORST_COUNT, bootstrap_median_ci, distribution_summary,
-                             ecdf, failure_groups, paired_comparison, paired_differences, reason_pattern,
-                             rerun_commands, status_counts, success_rate, success_table, sweep_table, wilcoxon_p,
-                             wilson_interval, worst_runs)
+from .campaign_stats import (
+    BOOTSTRAP_RESAMPLES,
+    BOOTSTRAP_SEED,
+    CONFIDENCE,
+    DISTRIBUTION_METRICS,
+    METRIC_UNITS,
+    PAIRED_METRICS,
+    SWEEP_METRICS,
+    WORST_COUNT,
+    bootstrap_median_ci,
+    distribution_summary,
+    ecdf,
+    failure_groups,
+    paired_comparison,
+    paired_differences,
+    reason_pattern,
+    rerun_commands,
+    status_counts,
+    success_rate,
+    success_table,
+    sweep_table,
+    wilcoxon_p,
+    wilson_interval,
+    worst_runs,
+)
 from .document import Document, csv_text, make_writable_dir
 
 __all__ = ['CampaignReportError', 'Campaign', 'is_campaign_dir', 'load_campaign', 'wilson_interval',

@@ -211,7 +211,7 @@ def wilcoxon_p(differences) -> tuple[float, str]:
         return math.nan, 'fewer than 2 pairs'
     if not np.any(d != 0.0):
         return math.nan, 'all differences are zero'
-    from scipy.stats import wilcoxon     # slow to import, as in wilson_interval
+    from scipy.stats import wilcoxon  # slow to import, as in wilson_interval
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')      # ties or few non-zero values: scipy's note on its method
         return float(wilcoxon(d).pvalue), ''

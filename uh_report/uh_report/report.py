@@ -40,12 +40,20 @@ import re
 import sys
 from pathlib import Path
 
-from uh_runtime.command_line import ArgumentParser, directory_argument
 from uh_core.layout import CHANNEL_NAMES
+from uh_runtime.command_line import ArgumentParser, directory_argument
 from uh_team.fault_metrics import fault_list
 from uh_team.metric_registry import display_unit, report_metrics
-from uh_team.metrics import (FALSE_ESTIMATE_START, FAULT_WINDOW_DELAY, LUMPED_FAULTS, NOT_MEANINGFUL_MARK,
-                             NRMSE_FLOOR_P, NRMSE_FLOOR_W, faulted_uhs, nrmse_below_floor)
+from uh_team.metrics import (
+    FALSE_ESTIMATE_START,
+    FAULT_WINDOW_DELAY,
+    LUMPED_FAULTS,
+    NOT_MEANINGFUL_MARK,
+    NRMSE_FLOOR_P,
+    NRMSE_FLOOR_W,
+    faulted_uhs,
+    nrmse_below_floor,
+)
 
 from . import report_figures as F
 from .campaign_report import CampaignReportError, is_campaign_dir, write_campaign_report
@@ -497,7 +505,7 @@ def _campaign_main(args, campaign_dir) -> int:
 
 def main(argv=None) -> int:
     """Entry point of ``uh-report``; returns the exit status (see the module docstring)."""
-    import matplotlib     # a file-only backend before any figure: uh-report draws without a display
+    import matplotlib  # a file-only backend before any figure: uh-report draws without a display
     matplotlib.use('Agg')
 
     args = build_parser().parse_args(argv)

@@ -25,10 +25,10 @@ import time
 import uh_runtime as rt
 from uh_runtime import messages as m
 from uh_sim_node.clock_advance import REALTIME_FINAL_WAIT_S, REALTIME_START_WAIT_S, ClockAdvancer
+from uh_wire import topics
 from uh_wire.run_config import declare_run_parameters, declare_standard_views
 from uh_wire.run_defaults import DEFAULT_STARTUP_TIMEOUT
 from uh_wire.wire import clock_msg, stamp_seconds
-from uh_wire import topics
 
 __all__ = ['ClockNode', 'expected_endpoints', 'RECORDER_NODE', 'main', 'REALTIME_FINAL_WAIT_S', 'REALTIME_START_WAIT_S']
 

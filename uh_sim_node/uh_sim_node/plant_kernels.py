@@ -115,13 +115,12 @@ import time
 from typing import NamedTuple
 
 import numpy as np
-from uh_core import compiled_kernels as _compiled_kernels
-from uh_core.compiled_kernels import njit
 
+from uh_core import compiled_kernels as _compiled_kernels
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
-from uh_core.layout import (INPUT_SIZE, NUM_CHANNELS, STATE_SIZE, U_COL, U_LAT, U_LON, U_TR, X_OMEGA, X_P,
-                            X_THETA, X_V)
+from uh_core.compiled_kernels import njit
+from uh_core.layout import INPUT_SIZE, NUM_CHANNELS, STATE_SIZE, U_COL, U_LAT, U_LON, U_TR, X_OMEGA, X_P, X_THETA, X_V
 
 __all__ = [
     'STATE_SIZE', 'INPUT_SIZE', 'X_P', 'X_V', 'X_THETA', 'X_OMEGA', 'U_COL', 'U_TR', 'U_LAT', 'U_LON',

@@ -14,6 +14,7 @@ The derivatives are analytic. ``psi0`` is not wrapped (it grows with t); consume
 from __future__ import annotations
 
 import math
+
 import numpy as np
 
 from uh_core.records import Reference

@@ -31,10 +31,8 @@ from uh_sim_node.command_watch import CommandWatch
 from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
-from uh_wire import topics
+from uh_wire import run_config, topics
 from uh_wire.published import PublishedCounts
-from uh_wire.run_config import (DEFAULT_STALE_TIMEOUT, declare_float_parameter, declare_run_parameters,
-                                declare_view_parameters)
 from uh_wire.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg, view_publisher
 from uh_wire.wire import WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg
 
@@ -46,7 +44,7 @@ class SimNode(rt.Node):
 
     def __init__(self, **kwargs):
         super().__init__('sim', **kwargs)
-        run = declare_run_parameters(self)
+        run = run_config.declare_run_parameters(self)
         self.uh_id, self.scenario, self.mode = run.uh_id, run.scenario, run.clock_mode
         self.dt, self.last_step = run.dt, run.last_step
         self.plant = plant_from_scenario(self.scenario, self.uh_id)
@@ -56,12 +54,12 @@ class SimNode(rt.Node):
         self.command = hover_trim(self.plant.params)
         self.step = 0                 # index of the state the plant holds
         self.published_step = -1      # last state index published
-        stale_timeout = declare_float_parameter(
-            self, 'stale_timeout', DEFAULT_STALE_TIMEOUT, 60.0,
+        stale_timeout = run_config.declare_float_parameter(
+            self, 'stale_timeout', run_config.DEFAULT_STALE_TIMEOUT, 60.0,
             'realtime: simulated seconds after which a held command is reported stale')
         self.watch = CommandWatch(self.uh_id, self.dt, max(1, int(round(stale_timeout / self.dt))),
                                   self.get_logger())
-        self.views = declare_view_parameters(self, self.dt)
+        self.views = run_config.declare_view_parameters(self, self.dt)
         self.diagnostics_phase = self.views.diagnostics_phase(self.scenario.ids, self.uh_id, controller=False)
         qos = topics.qos_profile(topics.STEP_QOS)
         self.state_pub = self.create_publisher(m.UHState, topics.STATE.name, qos)

@@ -5,14 +5,14 @@ One message per ``/clock`` step, computed analytically at t_k = k dt.
 from __future__ import annotations
 
 import uh_runtime as rt
+from uh_core import frames
 from uh_runtime import messages as m
 from uh_sim_node.reference import VirtualLeaderReference
-from uh_wire.run_config import declare_run_parameters, declare_view_parameters
-from uh_wire.wire import clock_step, reference_to_msg
-from uh_core import frames
 from uh_wire import topics
 from uh_wire.published import PublishedCounts
+from uh_wire.run_config import declare_run_parameters, declare_view_parameters
 from uh_wire.standard_msgs import tf_msg, transform_msg, view_publisher
+from uh_wire.wire import clock_step, reference_to_msg
 
 __all__ = ['VirtualLeaderNode', 'main']
 

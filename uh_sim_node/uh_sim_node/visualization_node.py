@@ -23,10 +23,10 @@ import numpy as np
 import uh_runtime as rt
 from uh_core.layout import X_P_SLICE, X_THETA_SLICE
 from uh_runtime import messages as m
-from uh_wire.run_config import declare_run_parameters
-from uh_wire.wire import WireError, msg_to_state, stamp
 from uh_wire import topics
 from uh_wire.published import PublishedCounts
+from uh_wire.run_config import declare_run_parameters
+from uh_wire.wire import WireError, msg_to_state, stamp
 
 __all__ = ['VisualizationNode', 'main']
 

@@ -28,8 +28,7 @@ from typing import Callable
 import numpy as np
 
 from .error_metrics import containment_errors, formation_errors
-from .fault_metrics import (LUMPED_FAULTS, LumpedFault, false_fault_estimate, fault_estimation, fault_list,
-                            none_if_nan)
+from .fault_metrics import LUMPED_FAULTS, LumpedFault, false_fault_estimate, fault_estimation, fault_list, none_if_nan
 from .hull_geometry import hull_distance
 from .isolation_metrics import fault_isolation_metrics
 from .separation_metrics import closest_approach, separation_limits, time_below

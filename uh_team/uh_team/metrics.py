@@ -19,10 +19,23 @@ import numpy as np
 from uh_core.layout import X_P_SLICE
 
 from .error_metrics import consensus_errors, containment_errors, formation_errors
-from .fault_metrics import (FALSE_ESTIMATE_START, FALSE_ESTIMATE_THRESHOLD_P, FALSE_ESTIMATE_THRESHOLD_W,
-                            FAULT_WINDOW_DELAY, LUMPED_FAULTS, NOT_MEANINGFUL_MARK, NRMSE_FLOOR_P, NRMSE_FLOOR_W,
-                            NRMSE_TARGET, FaultedUH, LumpedFault, MetricsError, faulted_uhs, nrmse_below_floor,
-                            rms_norm)
+from .fault_metrics import (
+    FALSE_ESTIMATE_START,
+    FALSE_ESTIMATE_THRESHOLD_P,
+    FALSE_ESTIMATE_THRESHOLD_W,
+    FAULT_WINDOW_DELAY,
+    LUMPED_FAULTS,
+    NOT_MEANINGFUL_MARK,
+    NRMSE_FLOOR_P,
+    NRMSE_FLOOR_W,
+    NRMSE_TARGET,
+    FaultedUH,
+    LumpedFault,
+    MetricsError,
+    faulted_uhs,
+    nrmse_below_floor,
+    rms_norm,
+)
 from .hull_geometry import hull_distance, point_segment_distance, point_triangle_distance
 from .isolation_metrics import ISOLATION_ARRAYS, fault_isolation_metrics
 from .metric_registry import RunValues, json_keys, json_metrics

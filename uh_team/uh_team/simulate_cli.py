@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from uh_runtime.command_line import ArgumentParser, directory_argument, unwritable_reason
 from uh_controller_node.gains import CASES, scenario_gains
+from uh_runtime.command_line import ArgumentParser, directory_argument, unwritable_reason
 from uh_topology.errors import ScenarioError
 from uh_topology.safety import add_safety_argument, overlap_line, safety_override
 from uh_topology.scenario import duration_steps, load_scenario

@@ -34,24 +34,23 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from uh_core import kernel_cache as _kernel_cache
-from uh_core import layout as _layout
-from uh_sim_node import faults as _faults
-from uh_sim_node import plant_kernels as _plant
-from uh_sim_node.plant_kernels import lumped_faults, plant_step
-
 from uh_controller_node import control_kernels as _ctl
 from uh_controller_node import control_layout as _control_layout
 from uh_controller_node import gains as _gains
 from uh_controller_node import impairments as _impairments
 from uh_controller_node import learning_kernels as _learning_kernels
 from uh_controller_node import loop_kernels as _loop_kernels
-from uh_controller_node.impairments import add_noise, delivered_step, predict_state, prediction_age
 from uh_controller_node import safety_kernels as _safety_kernels
-from uh_controller_node.safety_kernels import PROXIMITY_COLUMNS, SF_SENSING_RADIUS, proximity_rows
-from uh_core.layout import X_P, X_V
 from uh_controller_node.control_kernels import INPUT_SIZE, STATE_SIZE, STATUS, STATUS_SIZE, STEP_DONE, uh_control_step
+from uh_controller_node.impairments import add_noise, delivered_step, predict_state, prediction_age
+from uh_controller_node.safety_kernels import PROXIMITY_COLUMNS, SF_SENSING_RADIUS, proximity_rows
 from uh_core import compiled_kernels as _compiled_kernels
+from uh_core import kernel_cache as _kernel_cache
+from uh_core import layout as _layout
+from uh_core.layout import X_P, X_V
+from uh_sim_node import faults as _faults
+from uh_sim_node import plant_kernels as _plant
+from uh_sim_node.plant_kernels import lumped_faults, plant_step
 
 # this loop calls the kernels from numba code: a process running them compiled cannot import it
 _compiled_kernels.require_numba('uh_team.team_kernel')

@@ -22,17 +22,16 @@ from typing import Callable
 
 import numpy as np
 
+from uh_controller_node.controller import UHController
+from uh_controller_node.gains import CASES, GainsError
+from uh_controller_node.impairments import ReceivedStates
+from uh_controller_node.safety import proximity_input
 from uh_core.airframe import load_helicopter_params
 from uh_core.layout import R_P_SLICE, R_V_SLICE, R_YAW, REFERENCE_SIZE, X_P_SLICE
 from uh_sim_node.helicopter import plant_from_scenario
 from uh_sim_node.reference import VirtualLeaderReference
 from uh_topology.errors import GainsFileError
 from uh_topology.scenario import duration_steps
-
-from uh_controller_node.controller import UHController
-from uh_controller_node.gains import CASES, GainsError
-from uh_controller_node.impairments import ReceivedStates
-from uh_controller_node.safety import proximity_input
 
 from .metrics import containment_errors, formation_errors
 from .run_arrays import RUN_REF_POSITION, new_run_arrays

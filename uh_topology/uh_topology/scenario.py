@@ -44,13 +44,12 @@ from uh_core.records import FaultSpec
 
 from . import errors as E
 from . import scenario_keys
-from .impairments import COMPENSATIONS, DEFAULT_COMPENSATION, NO_DROPOUT, ImpairmentSpec, read_impairments
-from .scenario_keys import SCENARIO_KEYS, key_named, key_names, read_key
-from .schema import (CONFIG_DIR, ConfigContext, parse_yaml, read_config_file, read_only_array, read_text_file,
-                     type_name)
 from .graph import laplacian, leader_tracking_matrix
+from .impairments import COMPENSATIONS, DEFAULT_COMPENSATION, NO_DROPOUT, ImpairmentSpec, read_impairments
 from .safety import SafetySpec, close_pairs, formation_points, read_safety
+from .scenario_keys import SCENARIO_KEYS, key_named, key_names, read_key
 from .scenario_team import Team, check_assumptions, read_edges, read_reference_links, read_team
+from .schema import CONFIG_DIR, ConfigContext, parse_yaml, read_config_file, read_only_array, read_text_file, type_name
 
 __all__ = [
     'Scenario', 'FaultSpec', 'ReferenceSpec', 'DisturbanceSpec', 'ImpairmentSpec', 'load_scenario', 'parse_scenario',

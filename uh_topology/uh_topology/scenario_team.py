@@ -11,8 +11,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import errors as E
-from .graph import (check_lemma1, containment_pattern, laplacian_blocks, unreachable_follower_message,
-                    unreachable_followers, unreachable_leader_message, unreachable_leaders)
+from .graph import (
+    check_lemma1,
+    containment_pattern,
+    laplacian_blocks,
+    unreachable_follower_message,
+    unreachable_followers,
+    unreachable_leader_message,
+    unreachable_leaders,
+)
 from .schema import ConfigContext, read_only_array, type_name
 
 __all__ = ['Team', 'read_team', 'read_edges', 'read_reference_links', 'check_assumptions']

@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import functools
 
-from uh_runtime import messages as m
-
 from uh_core import frames
+from uh_runtime import messages as m
 
 from . import topics
 from .wire import stamp

@@ -23,8 +23,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from uh_runtime.names import RECORDER_PROGRESS_TOPIC
 from uh_runtime.dds.qos import QoSWords, profile_from_words
+from uh_runtime.names import RECORDER_PROGRESS_TOPIC
 
 __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',

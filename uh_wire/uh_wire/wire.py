@@ -11,10 +11,9 @@ import math
 
 import numpy as np
 
-from uh_runtime import messages as m
-
 from uh_core.layout import STATUS_FLAG, STATUS_FLOAT, STATUS_LAYOUT, STATUS_VECTOR3
 from uh_core.records import Reference
+from uh_runtime import messages as m
 
 __all__ = [
     'WireError', 'stamp', 'stamp_seconds', 'state_to_msg', 'msg_to_state', 'received_states_to_msg',

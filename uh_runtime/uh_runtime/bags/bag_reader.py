@@ -171,11 +171,11 @@ def _recover_hint(path: Path) -> str:
 
 def _check_mcap_file(path: Path, check_chunks: bool):
     """Summary of one MCAP file after checking its magic, footer, summary and chunk CRCs."""
+    from mcap.data_stream import ReadDataStream
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
     from mcap.records import Chunk, Message
     from mcap.stream_reader import breakup_chunk
-    from mcap.data_stream import ReadDataStream
 
     f, size = _open_mcap(path)
     with f:

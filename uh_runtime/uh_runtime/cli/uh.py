@@ -27,8 +27,7 @@ import sys
 import time
 
 from ..command_line import ArgumentParser
-from ..dds.arguments import (InvalidNameError, parse_parameter_value, validate_full_topic_name, validate_namespace,
-                             validate_node_name)
+from ..dds import arguments as ros_arguments
 from ..names import ROS_TOPIC_PREFIX
 from ..network import MAX_DOMAIN_ID, apply_network_default
 from .node_table import RUN_NODES_VARIABLE, report_missing, run_nodes
@@ -174,8 +173,8 @@ def _check_topic(name):
     if not name.startswith('/'):
         name = '/' + name
     try:
-        return validate_full_topic_name(name)
-    except InvalidNameError as exc:
+        return ros_arguments.validate_full_topic_name(name)
+    except ros_arguments.InvalidNameError as exc:
         raise UsageError(str(exc)) from None
 
 
@@ -452,9 +451,9 @@ def _node_name(name: str) -> str:
     name = name if name.startswith('/') else '/' + name
     namespace, _, base = name.rpartition('/')
     try:
-        validate_namespace(namespace or '/')
-        validate_node_name(base)
-    except InvalidNameError as exc:
+        ros_arguments.validate_namespace(namespace or '/')
+        ros_arguments.validate_node_name(base)
+    except ros_arguments.InvalidNameError as exc:
         raise UsageError(f'node {name!r}: {exc}') from None
     return name
 
@@ -506,7 +505,7 @@ def cmd_param_get(args):
 def cmd_param_set(args):
     from ..dds.services import value_message
     from ..messages import dds_message
-    value = parse_parameter_value(args.value)
+    value = ros_arguments.parse_parameter_value(args.value)
     clients = _ParamClients(args)
     try:
         param = dds_message('rcl_interfaces/msg/Parameter')(name=args.parameter_name, value=value_message(value))

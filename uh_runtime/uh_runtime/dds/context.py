@@ -14,14 +14,14 @@ import sys
 import threading
 import weakref
 
-from . import arguments as _args
-from . import intra_process as _intra
 from .. import messages as _messages
 from ..names import ROS_TOPIC_PREFIX
 from ..network import MAX_DOMAIN_ID
+from . import arguments as _args
+from . import intra_process as _intra
+from .logger import set_logger_level
 from .qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
 from .signals import restore_sigterm, shut_down_on_sigterm
-from .logger import set_logger_level
 
 __all__ = ['Context', 'NotInitializedException', 'get_default_context', 'init', 'ok', 'shutdown',
            'try_shutdown', 'typehash_user_data', 'DISCOVERY_TOPIC', 'ROS_TOPIC_PREFIX']

@@ -9,10 +9,10 @@ batch; a timer fires on its node's clock with rcl's rule for missed periods. Nod
 """
 import collections
 
-from . import intra_process as _intra
 from .. import messages as _messages
-from .qos import DDS_INFINITY, DurabilityPolicy, HistoryPolicy
+from . import intra_process as _intra
 from .clock import ROSClock
+from .qos import DDS_INFINITY, DurabilityPolicy, HistoryPolicy
 
 __all__ = ['Publisher', 'Subscription', 'Timer']
 

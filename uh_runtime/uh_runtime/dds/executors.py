@@ -11,8 +11,8 @@ sample of a reader in one batch.
 import threading
 import time
 
-from .qos import DDS_INFINITY
 from .context import get_default_context
+from .qos import DDS_INFINITY
 
 __all__ = ['Executor', 'SingleThreadedExecutor', 'StaticSingleThreadedExecutor',
            'MultiThreadedExecutor', 'ExternalShutdownException', 'get_global_executor', 'spin',

@@ -23,7 +23,13 @@ from dataclasses import dataclass
 from .. import messages as _messages
 from ..names import ROS_PREFIXES, ROS_TOPIC_PREFIX
 from .qos import (
-    DDS_INFINITY, DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, from_dds_qos, to_dds_qos,
+    DDS_INFINITY,
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    from_dds_qos,
+    to_dds_qos,
 )
 from .signals import sigint_deferred, wake_on_signals
 
@@ -106,11 +112,18 @@ class Graph:
         import os
 
         from cyclonedds.builtin import (
-            BuiltinDataReader, BuiltinTopicDcpsParticipant, BuiltinTopicDcpsPublication,
+            BuiltinDataReader,
+            BuiltinTopicDcpsParticipant,
+            BuiltinTopicDcpsPublication,
             BuiltinTopicDcpsSubscription,
         )
         from cyclonedds.core import (
-            GuardCondition, InstanceState, ReadCondition, SampleState, ViewState, WaitSet,
+            GuardCondition,
+            InstanceState,
+            ReadCondition,
+            SampleState,
+            ViewState,
+            WaitSet,
         )
         from cyclonedds.domain import DomainParticipant
         from cyclonedds.qos import Policy, Qos

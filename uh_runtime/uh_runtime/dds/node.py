@@ -1,32 +1,35 @@
 """``Node`` of the Cyclone DDS backend, with rclpy's (Jazzy) semantics for the subset listed in docs/runtime.md.
 
-Names, parameters, publishers/subscriptions/timers, graph queries and sim time.
-
-Mirrors ``rclpy.node``. ROS topic ``/uh1/state`` is DDS topic ``rt/uh1/state`` with type
+Names, parameters, publishers/subscriptions/timers, graph queries and sim time; mirrors
+``rclpy.node``. ROS topic ``/uh1/state`` is DDS topic ``rt/uh1/state`` with type
 ``uh_msgs::msg::dds_::UHState_``; readers and writers get the QoS mapping of rmw_cyclonedds (see
 :mod:`uh_runtime.dds.qos`) and USER_DATA ``typehash=RIHS01_<hex>;``. Graph queries
-(``count_subscribers`` ...) read DDS discovery through :class:`uh_runtime.dds.graph.Graph`. With
+(``count_subscribers`` ...) read DDS discovery through :class:`uh_runtime.dds.graph.Graph`; with
 ``use_sim_time`` the node subscribes to ``/clock`` like rclpy's TimeSource.
 """
 import weakref
 
-from . import arguments as _args
 from .. import messages as _messages
+from . import arguments as _args
+from . import context as _context
+from .clock import ROSClock
+from .endpoints import Publisher, Subscription, Timer
 from .graph import Graph
+from .logger import RcutilsLogger, set_logger_level
 from .parameters import (
-    InvalidParameterTypeException, InvalidParameterValueException, Parameter,
-    ParameterAlreadyDeclaredException, ParameterDescriptor, ParameterImmutableException,
-    ParameterNotDeclaredException, ParameterType, ParameterUninitializedException,
-    SetParametersResult, check_value,
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    Parameter,
+    ParameterAlreadyDeclaredException,
+    ParameterDescriptor,
+    ParameterImmutableException,
+    ParameterNotDeclaredException,
+    ParameterType,
+    ParameterUninitializedException,
+    SetParametersResult,
+    check_value,
 )
 from .qos import as_profile, qos_profile_clock, qos_profile_rosout_default, to_dds_qos
-from .clock import ROSClock
-from .context import (
-    DISCOVERY_TOPIC, ROS_TOPIC_PREFIX, NotInitializedException, get_default_context,
-    typehash_user_data,
-)
-from .endpoints import Publisher, Subscription, Timer
-from .logger import RcutilsLogger, set_logger_level
 
 __all__ = ['Node']
 
@@ -47,9 +50,9 @@ class Node:
                  parameter_overrides=None, allow_undeclared_parameters=False,
                  automatically_declare_parameters_from_overrides=False,
                  enable_logger_service=False):
-        self._context = context or get_default_context()
+        self._context = context or _context.get_default_context()
         if not self._context.ok():
-            raise NotInitializedException('cannot create node')
+            raise _context.NotInitializedException('cannot create node')
         self.publishers = []
         self.subscriptions = []
         self.services = []
@@ -180,8 +183,8 @@ class Node:
         profile = as_profile(qos_profile)
         name = self.resolve_topic_name(topic)
         intra = self._context._intra
-        dds_qos = to_dds_qos(profile, typehash_user_data(msg_type), ignore_local=intra is not None)
-        return name, profile, intra, self._context.topic(ROS_TOPIC_PREFIX + name, msg_type), dds_qos
+        dds_qos = to_dds_qos(profile, _context.typehash_user_data(msg_type), ignore_local=intra is not None)
+        return name, profile, intra, self._context.topic(_context.ROS_TOPIC_PREFIX + name, msg_type), dds_qos
 
     def create_publisher(self, msg_type, topic, qos_profile, *, callback_group=None,
                          event_callbacks=None, qos_overriding_options=None, publisher_class=None):
@@ -326,7 +329,7 @@ class Node:
             self._graph_cache = Graph(
                 participant=self._context.participant,
                 info_topic=self._context.topic(
-                    DISCOVERY_TOPIC,
+                    _context.DISCOVERY_TOPIC,
                     _messages.dds_message('rmw_dds_common/msg/ParticipantEntitiesInfo')))
         self._graph_cache.update()
         return self._graph_cache

@@ -26,14 +26,19 @@ import time
 
 from .. import messages as _messages
 from ..names import REPLY_PREFIX, REQUEST_PREFIX
-from .parameters import (
-    InvalidParameterTypeException, InvalidParameterValueException, Parameter,
-    ParameterDescriptor, ParameterNotDeclaredException, ParameterType, ParameterUninitializedException,
-    SetParametersResult,
-)
-from .qos import QoSProfile, DurabilityPolicy, HistoryPolicy, ReliabilityPolicy, to_dds_qos
 from .clock import Clock, ClockType
 from .context import typehash_user_data
+from .parameters import (
+    InvalidParameterTypeException,
+    InvalidParameterValueException,
+    Parameter,
+    ParameterDescriptor,
+    ParameterNotDeclaredException,
+    ParameterType,
+    ParameterUninitializedException,
+    SetParametersResult,
+)
+from .qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
 
 __all__ = ['Service', 'ServiceClient', 'ParameterServices', 'parameter_value', 'value_message',
            'qos_profile_parameters', 'qos_profile_parameter_events', 'REPLY_MATCH_WAIT_S',

@@ -7,13 +7,18 @@ imported when :func:`uh_runtime.backend.select_backend` chose rclpy.
 """
 import rclpy
 from rcl_interfaces.msg import (  # noqa: F401
-    FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult,
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
 )
 from rclpy.context import Context  # noqa: F401
 from rclpy.duration import Duration  # noqa: F401
 from rclpy.exceptions import NotInitializedException  # noqa: F401
 from rclpy.executors import (  # noqa: F401
-    ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor,
+    ExternalShutdownException,
+    MultiThreadedExecutor,
+    SingleThreadedExecutor,
 )
 from rclpy.node import Node  # noqa: F401
 from rclpy.parameter import Parameter  # noqa: F401
