@@ -113,3 +113,14 @@ def test_a_team_run_refuses_the_filter_its_nodes_do_not_run_yet(tmp_path, capsys
     err = capsys.readouterr().err.strip()
     assert '\n' not in err and 'safety.enabled is true, but the nodes of a team run do not run the safety' in err
     assert not (tmp_path / 'run').exists()              # nothing started
+
+
+def test_compare_refuses_the_filter_on_the_nodes_and_runs_it_in_process(tmp_path, capsys):
+    from uh_bringup import compare
+    assert compare.main(['--safety', 'on', '--out', str(tmp_path / 'nodes')]) == 2
+    assert 'do not run the safety filter yet; add --simulate' in capsys.readouterr().err
+    assert not (tmp_path / 'nodes').exists()
+    assert compare.main(['--simulate', '--safety', 'on', '--duration', '3', '--out', str(tmp_path / 'sim')]) == 0
+    for case in ('proposed', 'case1', 'case2'):
+        metrics = json.loads((tmp_path / 'sim' / case / 'metrics.json').read_text())
+        assert metrics['safety_active_s'] > 0 and metrics['rotor_overlap_s'] == 0.0

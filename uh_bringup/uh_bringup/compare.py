@@ -22,6 +22,7 @@ from pathlib import Path
 from uh_controller_node.gains import CASES
 from uh_runtime.command_line import ArgumentParser
 from uh_topology.errors import ScenarioError
+from uh_topology.safety import add_safety_argument, safety_override
 from uh_topology.scenario import duration_steps, load_scenario
 
 from .run_checks import UsageError, prepare_out, validate_team
@@ -58,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--simulate', action='store_true',
                    help='in-process reference simulation (uh-simulate) instead of the distributed stack: same '
                         'controllers, same numbers, a few seconds per case')
+    add_safety_argument(p)
     p.add_argument('--default-root', type=Path, default=Path('runs'), help=argparse.SUPPRESS)
     return p
 
@@ -65,7 +67,10 @@ def build_parser() -> argparse.ArgumentParser:
 def _check(args) -> Path:
     """Check the scenario, its gains, --duration and --out before anything runs; return the output directory."""
     try:
-        scenario = load_scenario(args.scenario)
+        scenario = load_scenario(args.scenario, safety=safety_override(args.safety))
+        if scenario.safety.enabled and not args.simulate:
+            raise UsageError('--safety on: the nodes of a team run do not run the safety filter yet; add --simulate '
+                             '(in process, docs/safety.md)')
         for case in CASES:
             validate_team(scenario, case)
     except ScenarioError as exc:
@@ -88,6 +93,8 @@ def _commands(args, out: Path) -> list:
     """Return the ``(label, argv)`` of every step: the three runs, then the report."""
     python = [sys.executable, '-P', '-m']
     extra = ['--duration', repr(args.duration)] if args.duration is not None else []
+    if args.safety is not None and args.simulate:
+        extra += ['--safety', args.safety]
     steps = []
     for case in CASES:
         if args.simulate:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import datetime
 import shutil
+import sys
 from pathlib import Path
 
 from uh_bringup import netns
@@ -148,6 +149,8 @@ def check_run(args) -> tuple:
         except ValueError as exc:
             raise UsageError(f'--duration {exc}') from None
     validate_team(scenario, args.case)
+    for issue in scenario.separation_warnings:
+        print(f'[run] warning: {issue.text()}: closer than the minimum separation (docs/safety.md)', file=sys.stderr)
     scenario_arg = args.scenario if args.scenario == 'paper' else str(Path(args.scenario).resolve())
     _check_environment(args)
     out = Path(args.out or Path('runs') / datetime.datetime.now().strftime('%Y%m%d-%H%M%S')).resolve()
