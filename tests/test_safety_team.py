@@ -124,3 +124,4 @@ def test_compare_refuses_the_filter_on_the_nodes_and_runs_it_in_process(tmp_path
     for case in ('proposed', 'case1', 'case2'):
         metrics = json.loads((tmp_path / 'sim' / case / 'metrics.json').read_text())
         assert metrics['safety_active_s'] > 0 and metrics['rotor_overlap_s'] == 0.0
+

@@ -22,7 +22,7 @@ from uh_sim_node.faults import FaultError
 from uh_sim_node.helicopter import plant_from_scenario
 from uh_sim_node.reference import ReferenceParameterError, VirtualLeaderReference
 from uh_topology.errors import ScenarioError
-from uh_topology.scenario import duration_steps, load_scenario
+from uh_topology.scenario import bundled_scenarios, duration_steps, load_scenario
 
 __all__ = ['UsageError', 'CONFIG_ERRORS', 'HOSTS', 'LAYOUTS', 'check_args', 'validate_team',
            'prepare_out', 'check_run']
@@ -151,7 +151,9 @@ def check_run(args) -> tuple:
     validate_team(scenario, args.case)
     for issue in scenario.separation_warnings:
         print(f'[run] warning: {issue.text()}: closer than the minimum separation (docs/safety.md)', file=sys.stderr)
-    scenario_arg = args.scenario if args.scenario == 'paper' else str(Path(args.scenario).resolve())
+    # the nodes load the scenario themselves: a bundled name as it is, a file by its absolute path
+    bundled = args.scenario in bundled_scenarios() and not Path(args.scenario).exists()
+    scenario_arg = args.scenario if bundled else str(Path(args.scenario).resolve())
     _check_environment(args)
     out = Path(args.out or Path('runs') / datetime.datetime.now().strftime('%Y%m%d-%H%M%S')).resolve()
     prepare_out(out, args.force)
