@@ -10,7 +10,6 @@ error at the spec key behind it.
 from __future__ import annotations
 
 import copy
-import math
 import re
 
 import numpy as np
@@ -19,6 +18,7 @@ import yaml
 from uh_controller_node.gains import ControllerGains, GainsError
 from uh_core.airframe import load_helicopter_params
 from uh_core.layout import CHANNEL_NAMES
+from uh_team.separation_metrics import closest_pair_series
 from uh_topology import errors as E
 from uh_topology.generate import GenerateError, team_mapping
 from uh_topology.scenario import scenario_from_mapping
@@ -130,19 +130,14 @@ def _position_draw(data: dict, draws: Draws, rng) -> np.ndarray:
     (at most ``POSITION_ATTEMPTS`` times) until the pairs are far enough apart.
     """
     base = np.array([[float(v) for v in uh['initial_state']['position']] for uh in data['uhs']])
+    least = draws.min_initial_separation
     for _ in range(POSITION_ATTEMPTS):
         dp = rng.uniform(-draws.position_spread, draws.position_spread, size=base.shape)
-        if not draws.min_initial_separation or _closest(base + dp) >= draws.min_initial_separation:
+        if not least or closest_pair_series((base + dp)[None])[0] >= least:   # one sample: the starts
             return dp
     raise E.InvalidValueError(f'draws.min_initial_separation: no draw of {POSITION_ATTEMPTS} put every pair of '
                               f'initial positions {draws.min_initial_separation:g} m apart; allowed: a smaller '
                               'separation or a larger position_spread')
-
-
-def _closest(points: np.ndarray) -> float:
-    """Smallest distance between two rows of ``points`` (n, 3), m (inf for fewer than two)."""
-    first, second = np.triu_indices(points.shape[0], k=1)
-    return float(np.linalg.norm(points[first] - points[second], axis=1).min()) if first.size else math.inf
 
 
 def _draw_faults(fd: FaultDraws, ids: list, rng) -> list:

@@ -424,7 +424,7 @@ def safety_filter(params, position, velocity, u_p, proximity, u, out):
         if demand > bound:
             broken = True
             norm = math.sqrt(u_p[0] * u_p[0] + u_p[1] * u_p[1] + u_p[2] * u_p[2])
-            pushes[n_pairs] = norm > 0.0 and demand - bound > 0.0 and \
+            pushes[n_pairs] = norm > 0.0 and \
                 -(normals[n_pairs, 0] * u_p[0] + normals[n_pairs, 1] * u_p[1]
                   + normals[n_pairs, 2] * u_p[2]) >= HEAD_ON_COS * norm
         n_pairs += 1

@@ -22,7 +22,7 @@ import numpy as np
 
 from . import errors as E
 from . import scenario_keys
-from .scenario_keys import SEPARATION_MARGIN, key_names, read_key
+from .scenario_keys import SEPARATION_MARGIN, key_named, key_names, read_key
 from .schema import ConfigContext
 
 __all__ = ['SafetySpec', 'read_safety', 'default_min_separation', 'formation_points', 'close_pairs',
@@ -30,6 +30,11 @@ __all__ = ['SafetySpec', 'read_safety', 'default_min_separation', 'formation_poi
 
 #: The values of the run scripts' ``--safety``.
 SAFETY_CHOICES = ('on', 'off')
+
+
+def _default(name: str):
+    """Return the declared default of the ``safety`` key ``name``."""
+    return key_named(scenario_keys.SAFETY_KEYS, name).default
 
 
 @dataclass(frozen=True)
@@ -45,13 +50,14 @@ class SafetySpec:
         m, 1/s, m/s^2, -, m/s^2.
     """
 
-    enabled: bool = False
-    min_separation: float | None = None
-    sensing_radius: float = 12.0
-    barrier_gain: float = 2.0
-    brake_accel: float = 2.0
-    slack_weight: float = 1.0e4
-    sidestep_accel: float = 0.5
+    # the defaults are those the keys declare (uh_topology.scenario_keys.SAFETY_KEYS), read once here
+    enabled: bool = _default('enabled')
+    min_separation: float | None = _default('min_separation')
+    sensing_radius: float = _default('sensing_radius')
+    barrier_gain: float = _default('barrier_gain')
+    brake_accel: float = _default('brake_accel')
+    slack_weight: float = _default('slack_weight')
+    sidestep_accel: float = _default('sidestep_accel')
 
     def separation(self, rotor_radius: float) -> float:
         """Return the minimum separation in force for an airframe of ``rotor_radius`` m."""
