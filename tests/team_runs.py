@@ -81,3 +81,28 @@ def assert_lockstep_run_equals_in_process(tmp_path, scenario, scenario_text: str
     assert np.array_equal(bag['states'], reference.states)
     assert np.array_equal(bag['commands'], reference.commands)
     return out, reference
+
+
+def controller_reads(domain: int, uh_ids, timeout: float = 30.0) -> dict:
+    """Return the topics each ``/uhN/controller`` of ``uh_ids`` reads, from the live graph of DDS domain ``domain``.
+
+    Read from DDS discovery and ``ros_discovery_info`` while the run goes on: ``{N: {topic, ...}}``.
+    """
+    from uh_runtime.dds.graph import Graph
+    from uh_runtime.network import loopback_config
+    os.environ.setdefault('CYCLONEDDS_URI', loopback_config())  # the run's network configuration
+    graph = Graph(domain_id=domain)
+    try:
+        def complete(_graph):
+            names = {(n, ns) for n, ns in graph.node_names_and_namespaces()}
+            return all(('controller', f'/uh{i}') in names for i in uh_ids)
+        assert graph.wait_until(complete, timeout_sec=timeout), 'controllers not discovered'
+        graph.settle(1.0)
+        reads = {}
+        for topic, _types in graph.topic_names_and_types():
+            for ep in graph.endpoints(topic, writers=False):
+                if ep.node_name == 'controller':
+                    reads.setdefault(int(ep.node_namespace[3:]), set()).add(topic)
+        return reads
+    finally:
+        graph.close()

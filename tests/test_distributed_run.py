@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 from rosbags.rosbag2 import Reader
-from team_runs import kill_session, start_run, wait_for_log
+from team_runs import controller_reads, kill_session, start_run, wait_for_log
 
 from uh_report.bag_metrics import read_team_bag
 from uh_runtime.network import reserve_domain_id
@@ -37,28 +37,6 @@ PAPER_READS = {
 }
 
 
-def _controller_reads(domain: int, timeout: float = 30.0) -> dict:
-    """Topics each /uhN/controller reads, from DDS discovery + ros_discovery_info (the live graph)."""
-    from uh_runtime.dds.graph import Graph
-    from uh_runtime.network import loopback_config
-    os.environ.setdefault('CYCLONEDDS_URI', loopback_config())  # the run's network configuration
-    graph = Graph(domain_id=domain)
-    try:
-        def complete(_graph):
-            names = {(n, ns) for n, ns in graph.node_names_and_namespaces()}
-            return all(('controller', f'/uh{i}') in names for i in PAPER_READS)
-        assert graph.wait_until(complete, timeout_sec=timeout), 'controllers not discovered'
-        graph.settle(1.0)
-        reads = {}
-        for topic, _types in graph.topic_names_and_types():
-            for ep in graph.endpoints(topic, writers=False):
-                if ep.node_name == 'controller':
-                    reads.setdefault(int(ep.node_namespace[3:]), set()).add(topic)
-        return reads
-    finally:
-        graph.close()
-
-
 def _assert_no_process_left(out: Path) -> None:
     pids = json.loads((out / 'run.json').read_text())['pids']
     for name, pid in pids.items():
@@ -77,7 +55,7 @@ def lockstep_run(tmp_path_factory):
     proc = start_run(out, domain, '--clock', 'lockstep')
     try:
         wait_for_log(out / 'logs' / 'clock.log', 'run of', proc, timeout=120)
-        reads = _controller_reads(domain)
+        reads = controller_reads(domain, PAPER_READS)
         output, _ = proc.communicate(timeout=600)
     finally:
         if proc.poll() is None:

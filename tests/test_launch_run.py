@@ -32,7 +32,7 @@ def _record(tmp_path):
 def _launch(tmp_path, **changes):
     """Return the LaunchRun of a launch with these arguments, its run.json written, on a fake clock at 100 s."""
     options = check_arguments(_values(tmp_path, **changes))
-    launch_run.write_launch_record(options, 20.0, environ={'ROS_DOMAIN_ID': '181'})
+    launch_run.write_launch_record(options, 20.0, False, environ={'ROS_DOMAIN_ID': '181'})
     now = [100.0]
     run = LaunchRun(options, 'python3', clock=lambda: now[0])
     return run, now
@@ -137,7 +137,7 @@ def test_the_after_run_step_writes_what_run_formation_writes(tmp_path_factory, t
     team = shared_team_run(tmp_path_factory)
     out = tmp_path / 'run'
     shutil.copytree(team / 'bag', out / 'bag')
-    launch_run.write_launch_record(check_arguments(_values(tmp_path, clock_mode='lockstep')), 22.0)
+    launch_run.write_launch_record(check_arguments(_values(tmp_path, clock_mode='lockstep')), 22.0, False)
     done = subprocess.run([sys.executable, '-P', '-m', 'uh_bringup.launch_run', str(out), '--wall-time', '12.5'],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
@@ -152,7 +152,7 @@ def test_the_after_run_step_writes_what_run_formation_writes(tmp_path_factory, t
 
 
 def test_the_after_run_step_fails_without_a_bag_and_refuses_a_directory_that_is_not_a_launch(tmp_path, capsys):
-    launch_run.write_launch_record(check_arguments(_values(tmp_path)), 20.0)
+    launch_run.write_launch_record(check_arguments(_values(tmp_path)), 20.0, False)
     (tmp_path / 'run' / 'bag').mkdir()
     assert launch_run.main([str(tmp_path / 'run'), '--no-report']) == 1
     assert '[run] metrics: cannot be computed' in capsys.readouterr().err

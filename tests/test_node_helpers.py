@@ -47,6 +47,7 @@ def test_command_watch_windows_count_since_the_previous_report():
 def _status(saturated=False):
     return types.SimpleNamespace(
         saturated_tilt=saturated, saturated_collective=False, saturated_cyclic=False,
+        safety_active=False, closest_distance=float('nan'),
         isolation=types.SimpleNamespace(isolated=(False, True, False, False)),
         fault_estimate_position=np.array([3.0, 4.0, 0.0]), fault_estimate_attitude=np.zeros(3))
 

@@ -103,25 +103,22 @@ def test_uh_simulate_refuses_a_bad_safety_value(tmp_path):
     assert result.stderr.count('\n') == 1
 
 
-def test_a_team_run_refuses_the_filter_its_nodes_do_not_run_yet(tmp_path, capsys):
-    scenario = tmp_path / 'swap_on.yaml'
-    scenario.write_text(Path(load_scenario('swap').source).read_text() + 'safety: {enabled: true}\n')
-    (tmp_path / 'paper_gains.yaml').write_text(load_scenario('paper').gains_path.read_text())
-    with pytest.raises(SystemExit) as exited:
-        run_formation.main(['--scenario', str(scenario), '--out', str(tmp_path / 'run')])
-    assert exited.value.code == 2
-    err = capsys.readouterr().err.strip()
-    assert '\n' not in err and 'safety.enabled is true, but the nodes of a team run do not run the safety' in err
-    assert not (tmp_path / 'run').exists()              # nothing started
-
-
-def test_compare_refuses_the_filter_on_the_nodes_and_runs_it_in_process(tmp_path, capsys):
+def test_a_team_run_takes_safety_on_or_off_and_refuses_anything_else(tmp_path, capsys):
     from uh_bringup import compare
-    assert compare.main(['--safety', 'on', '--out', str(tmp_path / 'nodes')]) == 2
-    assert 'do not run the safety filter yet; add --simulate' in capsys.readouterr().err
-    assert not (tmp_path / 'nodes').exists()
+    assert run_formation.build_parser().parse_args(['--safety', 'on']).safety == 'on'
+    with pytest.raises(SystemExit) as exited:
+        run_formation.main(['--safety', 'maybe', '--out', str(tmp_path / 'run')])
+    assert exited.value.code == 2 and "argument --safety: invalid choice: 'maybe'" in capsys.readouterr().err
+    assert not (tmp_path / 'run').exists()              # nothing started
+    # compare.sh hands --safety to each of its three team runs
+    args = compare.build_parser().parse_args(['--safety', 'on'])
+    for label, argv in compare._commands(args, tmp_path / 'cmp')[:3]:
+        assert argv[argv.index('--safety') + 1] == 'on', label
+
+
+def test_compare_runs_the_filter_in_process(tmp_path):
+    from uh_bringup import compare
     assert compare.main(['--simulate', '--safety', 'on', '--duration', '3', '--out', str(tmp_path / 'sim')]) == 0
     for case in ('proposed', 'case1', 'case2'):
         metrics = json.loads((tmp_path / 'sim' / case / 'metrics.json').read_text())
         assert metrics['safety_active_s'] > 0 and metrics['rotor_overlap_s'] == 0.0
-

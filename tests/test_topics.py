@@ -28,7 +28,8 @@ def test_team_topics_of_the_paper_scenario():
     assert '/uh5/fault_truth' in names and '/clock' in names
 
 
-@pytest.mark.parametrize('spec', [*T.TEAM, *T.PER_UH, *T.IMPAIRED_PER_UH, T.MARKERS, T.RECORDER_PROGRESS],
+@pytest.mark.parametrize('spec', [*T.TEAM, *T.PER_UH, *T.IMPAIRED_PER_UH, *T.SAFETY_PER_UH, T.MARKERS,
+                                  T.RECORDER_PROGRESS],
                          ids=lambda s: s.name)
 def test_docs_table_matches_the_registry(spec):
     doc = (ROOT / 'docs' / 'topics.md').read_text()

@@ -1,4 +1,4 @@
-"""Package setup of ``uh_sim_node`` (colcon and pip): the sim, virtual-leader, lockstep-clock and view nodes."""
+"""Package setup of ``uh_sim_node`` (colcon and pip): the sim, virtual-leader, sensing, lockstep-clock and view nodes."""
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -27,6 +27,7 @@ setup(
             'virtual_leader_node = uh_sim_node.virtual_leader_node:main',
             'lockstep_clock_node = uh_sim_node.clock_node:main',
             'visualization_node = uh_sim_node.visualization_node:main',
+            'sensing_node = uh_sim_node.sensing_node:main',
         ],
         # the kernel modules (uh_core.compiled_kernels): prefix in the compiled module = module:warm-up
         'uh_kernels': [

@@ -17,6 +17,8 @@ GOALS = (
     ('paper_lockstep_single_rtf', 'paper scenario, lockstep, `--processes single`: real-time factor', 20.0, '>='),
     ('standard_views_slowdown', 'paper scenario, lockstep, one process per node: real-time factor without '
      '/tf, odom and /diagnostics over with them', 1.10, '<='),
+    ('safety_rtf_ratio', 'paper scenario, lockstep, one process per node: real-time factor with the safety '
+     'filter and its sensing node over without (docs/safety.md#cost)', 0.85, '>='),
     ('inprocess_rtf', 'paper scenario, in-process reference: real-time factor', 200.0, '>='),
     ('clock_us_per_step', 'paper scenario, one process per node: run CPU per step of the clock (us)', 100.0, '<='),
     ('virtual_leader_us_per_step', 'the same, of the virtual leader (us)', 100.0, '<='),
@@ -62,6 +64,9 @@ def all_runs(results):
         yield f'paper/{layout}', run
     if 'standard_views' in results.get('paper', {}):
         yield 'paper/per-node-no-standard-views', results['paper']['standard_views']['without']
+    for setting, run in results.get('paper', {}).get('safety', {}).items():
+        if setting in ('on', 'off') and run is not lock_run(results):
+            yield f'paper/per-node-safety-{setting}', run
     for row in results.get('scaling', []):
         for layout, run in row['lockstep'].items():
             yield f'team{row["uhs"]}/{layout}', run
@@ -70,6 +75,11 @@ def all_runs(results):
             yield f'backends/{backend}/{mode}', run
     for run in results.get('realtime', []):
         yield f'realtime{run["uhs"]}/{run["layout"]}', run
+
+
+def lock_run(results):
+    """Return the per-node lockstep paper run of ``results`` (None without one)."""
+    return results.get('paper', {}).get('lockstep', {}).get('per-node')
 
 
 def evaluate_goals(results) -> list:
@@ -94,6 +104,9 @@ def evaluate_goals(results) -> list:
     views = paper.get('standard_views')
     if views and views['rtf_ratio']:
         measured['standard_views_slowdown'] = 1.0 / views['rtf_ratio']
+    safety = paper.get('safety')
+    if safety and safety['rtf_ratio']:
+        measured['safety_rtf_ratio'] = safety['rtf_ratio']
     for row in results.get('scaling', []):
         rtfs = [r['rtf'] for r in row['lockstep'].values() if r.get('rtf')]
         if row['uhs'] == 40 and rtfs:

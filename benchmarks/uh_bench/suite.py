@@ -59,6 +59,7 @@ from pathlib import Path
 
 from uh_runtime import scheduling
 from uh_runtime.network import release_domain_id, reserve_domain_id
+from uh_topology.scenario import load_scenario
 
 from . import campaign, executors, inprocess, runs, transport
 from .results import GOALS, all_runs, evaluate_goals
@@ -146,7 +147,27 @@ def _paper(cfg, workdir, results):
                           if with_views.get('cpu_run_s') and bare.get('cpu_run_s') else None)}
         _log(f'  real-time factor {bare["rtf"]} without the views; with / without: '
              f'{section["standard_views"]["rtf_ratio"]}')
+        section['safety'] = _safety_cost(d, workdir, section['lockstep']['per-node'])
     results['paper'] = section
+
+
+def _safety_cost(d, workdir, default_run) -> dict:
+    """Measure what the safety filter and its sensing node cost a per-node run (docs/safety.md#cost).
+
+    ``default_run`` ran with the scenario's setting; the same run is made with the other one, so
+    the ratio on / off comes from two runs of one sitting.
+    """
+    default_on = load_scenario('paper').safety.enabled
+    other = 'off' if default_on else 'on'
+    _log(f'lockstep paper scenario, per-node, --safety {other}, {d:g} s')
+    run = runs.run_team('paper', workdir / f'paper-per-node-safety-{other}', layout='per-node', duration=d,
+                        timeout=60 + 30 * d, extra_args=('--safety', other))
+    on, off = (default_run, run) if default_on else (run, default_run)
+    cost = {'on': on, 'off': off,
+            'rtf_ratio': on['rtf'] / off['rtf'] if on['rtf'] and off['rtf'] else None,
+            'cpu_ratio': on['cpu_run_s'] / off['cpu_run_s'] if on.get('cpu_run_s') and off.get('cpu_run_s') else None}
+    _log(f'  real-time factor on / off: {cost["rtf_ratio"]}')
+    return cost
 
 
 def _campaign(cfg, workdir, results):

@@ -89,6 +89,13 @@ def _paper_table(paper) -> list:
         lines.append(f'\n/tf, odom and /diagnostics: real-time factor with / without '
                      f'{_f(views["rtf_ratio"], "{:.3f}")}, '
                      f'run CPU with / without {_f(views["cpu_ratio"], "{:.3f}")}')
+    safety = paper.get('safety')
+    if safety:
+        lines.append(lockstep_row('lockstep, per-node, `--safety on`', safety['on'], '—'))
+        lines.append(lockstep_row('lockstep, per-node, `--safety off`', safety['off'], '—'))
+        lines.append(f'\nThe safety filter with its sensing node (docs/safety.md#cost): real-time factor on / off '
+                     f'{_f(safety["rtf_ratio"], "{:.3f}")} (goal: at least 0.85), '
+                     f'run CPU on / off {_f(safety["cpu_ratio"], "{:.3f}")}')
     lines.append('')
     return lines
 

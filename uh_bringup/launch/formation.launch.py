@@ -43,12 +43,13 @@ from uh_topology.scenario import load_scenario
 
 def _team(context):
     options = check_arguments({name: LaunchConfiguration(name).perform(context) for name, _, _ in ARGUMENTS})
-    scenario = load_scenario(options.scenario)
+    scenario = load_scenario(options.scenario, safety=options.safety)
     specs = node_specs(scenario, options.scenario, options.case, options.clock_mode, options.rate, options.duration,
                        f'{options.out}/bag', options.startup_timeout, options.stale_timeout,
                        visualization=options.visualization, standard_views=options.standard_views,
                        realtime_priority=options.realtime_priority)
-    write_launch_record(options, options.duration if options.duration is not None else scenario.duration)
+    write_launch_record(options, options.duration if options.duration is not None else scenario.duration,
+                        scenario.safety.enabled)
     run = LaunchRun(options, sys.executable)
     # the runs' discovery settings (uh_runtime.network.apply_network_default), which rclpy on Fast DDS
     # and the Cyclone DDS nodes meet on whatever the user has or has not set

@@ -45,6 +45,7 @@ from uh_bringup.run_outcome import (
 from uh_controller_node.gains import CASES
 from uh_runtime.command_line import ArgumentParser, unwritable_reason
 from uh_runtime.scheduling import DEFAULT_PRIORITY, MAX_PRIORITY
+from uh_topology.safety import SAFETY_CHOICES, safety_override
 from uh_topology.scenario import load_scenario
 from uh_wire.run_defaults import BACKENDS, CLOCK_MODES, DEFAULT_STALE_TIMEOUT, DEFAULT_STARTUP_TIMEOUT
 
@@ -55,6 +56,7 @@ __all__ = ['ARGUMENTS', 'LaunchOptions', 'check_arguments', 'compile_command', '
 ARGUMENTS = (
     ('scenario', 'paper', 'scenario YAML or "paper"'),
     ('case', 'proposed', 'proposed | case1 | case2'),
+    ('safety', '', "on | off: the collision-avoidance filter (docs/safety.md); empty: the scenario's safety.enabled"),
     ('clock_mode', 'realtime', 'lockstep | realtime'),
     ('rate', '1.0', 'realtime factor'),
     ('duration', '', "simulated s (default: the scenario's)"),
@@ -91,6 +93,7 @@ class LaunchOptions:
 
     scenario: str
     case: str
+    safety: bool | None      # --safety: True on, False off, None the scenario's
     clock_mode: str
     rate: float
     duration: float | None
@@ -140,6 +143,8 @@ def check_arguments(values: dict, now=None) -> LaunchOptions:
         raise _bad('backend', values['backend'], ': ' + ', '.join(BACKENDS))
     if values['case'] not in CASES:
         raise _bad('case', values['case'], ': ' + ', '.join(CASES))
+    if values['safety'] not in ('', *SAFETY_CHOICES):
+        raise _bad('safety', values['safety'], ': ' + ', '.join(SAFETY_CHOICES) + " or empty (the scenario's)")
     if values['clock_mode'] not in CLOCK_MODES:
         raise _bad('clock_mode', values['clock_mode'], ': ' + ', '.join(CLOCK_MODES))
     text = values['realtime_priority']
@@ -152,7 +157,8 @@ def check_arguments(values: dict, now=None) -> LaunchOptions:
     if problem is not None:
         raise _bad('out', values['out'], f' a directory that can be written ({out}: {problem})')
     return LaunchOptions(
-        scenario=values['scenario'], case=values['case'], clock_mode=values['clock_mode'],
+        scenario=values['scenario'], case=values['case'], safety=safety_override(values['safety'] or None),
+        clock_mode=values['clock_mode'],
         rate=_number(values, 'rate'), duration=_number(values, 'duration') if values['duration'] else None,
         out=out, metrics=_boolean(values, 'metrics'), report=_boolean(values, 'report'),
         visualization=_boolean(values, 'visualization'), standard_views=_boolean(values, 'standard_views'),
@@ -171,14 +177,16 @@ def after_run_command(python: str, options: LaunchOptions, wall_time: float) -> 
         ([] if options.report else ['--no-report'])
 
 
-def write_launch_record(options: LaunchOptions, duration: float, environ=None) -> None:
+def write_launch_record(options: LaunchOptions, duration: float, safety: bool, environ=None) -> None:
     """Write ``OUT/run.json`` at the start of the launch: what was run, ``exit_status`` None until the end.
 
-    Its ``scenario`` and ``case`` are what ``uh-report OUT`` reads, as for a run of ``run_formation.sh``.
+    Its ``scenario``, ``case`` and ``safety`` (whether the safety filter ran, ``'on'``/``'off'``) are
+    what ``uh-report OUT`` reads, as for a run of ``run_formation.sh``.
     """
     environ = os.environ if environ is None else environ
     write_run_json(options.out, {
         'command': sys.argv, 'launch': True, 'scenario': options.scenario, 'case': options.case,
+        'safety': 'on' if safety else 'off',
         'clock': options.clock_mode, 'rate': options.rate, 'processes': 'per-node', 'backend': options.backend,
         'visualization': options.visualization, 'standard_views': options.standard_views, 'duration_s': duration,
         'domain_id': int(environ.get('ROS_DOMAIN_ID') or 0), 'realtime_priority': options.realtime_priority,
@@ -317,7 +325,7 @@ def main(argv=None) -> int:
         parser.exit(EXIT_USAGE, f'{parser.prog}: error: {args.out / "run.json"}: not the record of a launch '
                                 f'({exc}); give the out:= directory of a launch\n')
     try:
-        scenario = load_scenario(scenario_arg)
+        scenario = load_scenario(scenario_arg, safety={'on': True, 'off': False}.get(info.get('safety')))
     except (OSError, ValueError) as exc:    # the scenario changed or went since the launch checked it
         parser.exit(EXIT_USAGE, f'{parser.prog}: error: {exc}\n')
     recovery = recover_bag_if_needed(args.out / 'bag')

@@ -22,6 +22,7 @@ from uh_sim_node.faults import FaultError
 from uh_sim_node.helicopter import plant_from_scenario
 from uh_sim_node.reference import ReferenceParameterError, VirtualLeaderReference
 from uh_topology.errors import ScenarioError
+from uh_topology.safety import safety_override
 from uh_topology.scenario import bundled_scenarios, duration_steps, load_scenario
 
 __all__ = ['UsageError', 'CONFIG_ERRORS', 'HOSTS', 'LAYOUTS', 'check_args', 'validate_team',
@@ -138,11 +139,7 @@ def check_run(args) -> tuple:
     check_args(args)
     if args.out is not None and not str(args.out).strip():
         raise UsageError("--out '': give a directory (or leave --out out for runs/<timestamp>)")
-    scenario = load_scenario(args.scenario)
-    if scenario.safety.enabled:
-        raise UsageError(f'{args.scenario}: safety.enabled is true, but the nodes of a team run do not run the '
-                         'safety filter yet (uh-simulate does, docs/safety.md); set safety.enabled: false to fly the '
-                         'law alone')
+    scenario = load_scenario(args.scenario, safety=safety_override(args.safety))
     if args.duration is not None:
         try:
             duration_steps(args.duration, scenario.dt)

@@ -83,6 +83,7 @@ from uh_runtime import scheduling
 from uh_runtime.bags import live_view
 from uh_runtime.command_line import ArgumentParser
 from uh_runtime.network import MAX_DOMAIN_ID
+from uh_topology.safety import add_safety_argument
 from uh_wire.run_defaults import CLOCK_MODES, DEFAULT_STALE_TIMEOUT, DEFAULT_STARTUP_TIMEOUT
 
 __all__ = ['main', 'build_parser', 'node_specs', 'process_commands', 'validate_team', 'LAYOUTS', 'MAX_RESPAWNS',
@@ -97,6 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
                     'metrics computed from the bag.')
     p.add_argument('--scenario', default='paper', help='scenario YAML, or "paper" (default) for the bundled one')
     p.add_argument('--case', default='proposed', choices=CASES, help='controller variant (default: proposed)')
+    add_safety_argument(p)
     p.add_argument('--clock', default='lockstep', choices=CLOCK_MODES,
                    help='lockstep: deterministic, as fast as possible (default); realtime: wall-clock ticks')
     p.add_argument('--rate', type=float, default=1.0, help='realtime: simulated seconds per wall second (default 1)')
@@ -184,7 +186,7 @@ def run(args) -> int:
     specs = team_specs(args, scenario, scenario_arg, out, priority)
     write_environment_script(out, env, run_node_names(specs))
     sup = Supervisor(out / 'logs', env, respawn_priority=priority)
-    record = RunRecord(out, run_info(args, duration, domain, priority), sup)
+    record = RunRecord(out, run_info(args, duration, domain, priority, scenario.safety.enabled), sup)
     started = time.monotonic()
     interrupted, codes, dropped = _supervise(args, scenario, specs, out, env, sup, record)
     wall = time.monotonic() - started

@@ -74,6 +74,7 @@ NODES = {
                               'uh_sim_node.visualization_node:VisualizationNode', infrastructure=True),
     'virtual_leader': NodeKind('uh_sim_node', 'virtual_leader_node',
                                'uh_sim_node.virtual_leader_node:VirtualLeaderNode'),
+    'sensing': NodeKind('uh_sim_node', 'sensing_node', 'uh_sim_node.sensing_node:SensingNode'),
     'clock': NodeKind('uh_sim_node', 'lockstep_clock_node', 'uh_sim_node.clock_node:ClockNode'),
     'live_view': NodeKind('uh_runtime', 'live_view_node', 'uh_runtime.bags.live_view:LiveViewNode',
                           infrastructure=True),
@@ -108,20 +109,24 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
                live_view: tuple | None = None, realtime_priority: int = 0) -> list[tuple[str, str, list]]:
     """Return ``[(name, node kind, ros args), ...]`` of every node of a run, recorder first and clock last.
 
-    The visualisation node only if ``visualization``; ``standard_views=False`` switches /tf, odom
+    The sensing node only if the scenario's safety filter is on (``scenario`` is loaded with the
+    run's ``--safety``; every node gets that setting as its ``safety`` parameter). The visualisation
+    node only if ``visualization``; ``standard_views=False`` switches /tf, odom
     and /diagnostics off, docs/visualization.md; ``live_view=(host, port)`` adds the Foxglove live
     view after the recorder. In realtime, ``realtime_priority`` > 0 runs the control loop's nodes
     (every kind that is not infrastructure) under SCHED_FIFO at that priority
     (docs/performance.md#real-time-scheduling).
     """
-    common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}']
+    # the safety filter's setting the run resolved (scenario or --safety), the same for every node
+    common = ['-p', f'scenario:={scenario_arg}', '-p', f'clock_mode:={clock}',
+              '-p', f'safety:={"on" if scenario.safety.enabled else "off"}']
     loop = (['-p', f'realtime_priority:={int(realtime_priority)}']
             if clock == 'realtime' and realtime_priority > 0 else [])
     views = [] if standard_views else ['-p', 'standard_views:=false']
     stale = ['-p', f'stale_timeout:={float(stale_timeout)}'] if stale_timeout is not None else []
     if duration is not None:
         common += ['-p', f'duration:={float(duration)}']
-    per_step = [name for name, spec in topics.team_topics(scenario.ids, scenario.impairments is not None)
+    per_step = [name for name, spec in topics.team_topics(scenario.ids, **topics.scenario_flags(scenario))
                 if spec.per_step]
     # injections may come from a publisher that lives a moment (ros2 topic pub --once)
     injections = [f'{topics.uh_topic(i, topics.FAULT)}={topics.FAULT.type}' for i in scenario.ids]
@@ -139,6 +144,8 @@ def node_specs(scenario, scenario_arg: str, case: str, clock: str, rate: float, 
     if visualization:
         specs.append(('visualization', 'visualization', ['--ros-args', *common]))
     specs.append(('virtual_leader', 'virtual_leader', ['--ros-args', *common, *loop, *views]))
+    if scenario.safety.enabled:    # each UH's proximity input (docs/safety.md#what-the-filter-knows)
+        specs.append(('sensing', 'sensing', ['--ros-args', *common, *loop]))
     specs.append(('clock', 'clock', ['--ros-args', *common, *loop, *views, '-p', f'rate:={float(rate)}',
                                      '-p', 'expect_recorder:=true',
                                      '-p', f'expect_visualization:={str(bool(visualization)).lower()}',

@@ -91,27 +91,32 @@ class ControllerDiagnostics:
         Steps between two reports.
     phase : int
         The step within each period at which the report is made.
+    safety : bool
+        The controller runs the safety filter: the reports say how often it acted and name the closest UH.
     """
 
-    def __init__(self, uh_id: int, every: int, phase: int):
-        self.uh_id, self.every, self.phase = uh_id, every, phase
-        self.window = diagnostics.ControllerWindow()
+    def __init__(self, uh_id: int, every: int, phase: int, safety: bool = False):
+        self.uh_id, self.every, self.phase, self.safety = uh_id, every, phase, bool(safety)
+        self.window = diagnostics.ControllerWindow(safety=self.safety)
         self._rejected_reported = 0
 
     def not_computed(self) -> None:
         """Count a step the law could not compute."""
         self.window.not_computed += 1
 
-    def add(self, k: int, inputs, status, sync, ages: NeighbourAges | None = None) -> diagnostics.Diagnostic | None:
+    def add(self, k: int, inputs, status, sync, ages: NeighbourAges | None = None,
+            closest_uh: int = 0) -> diagnostics.Diagnostic | None:
         """Add step ``k`` to the window; return the report if one is due at ``k``, else None.
 
         ``inputs`` is the step's :class:`~uh_controller_node.input_sync.StepInputs`, ``status`` the
         controller's status of the step and ``sync`` the node's
         :class:`~uh_controller_node.input_sync.InputSynchroniser` (input lags, rejected messages);
-        ``ages`` the neighbours' ages, reported with their window.
+        ``ages`` the neighbours' ages, reported with their window; ``closest_uh`` the UH the safety
+        filter's proximity input puts closest (0: none).
         """
         w = self.window
         w.steps += 1
+        w.safety_active_steps += bool(status.safety_active)
         if status.saturated_tilt or status.saturated_collective or status.saturated_cyclic:
             w.saturated_steps += 1
         for stats in sync.lag.values():
@@ -120,6 +125,7 @@ class ControllerDiagnostics:
         if k % self.every != self.phase:
             return None
         w.last_step = k
+        w.closest_uh, w.closest_distance = int(closest_uh), float(status.closest_distance)
         w.stale_neighbours = tuple(inputs.stale_labels)
         w.holding = inputs.hold is not None
         w.fault_isolated = tuple(status.isolation.isolated)
@@ -129,5 +135,5 @@ class ControllerDiagnostics:
         w.rejected_inputs, self._rejected_reported = rejected - self._rejected_reported, rejected
         if ages is not None:
             w.neighbour_ages = tuple(zip((f'uh{j}' for j in ages.neighbours), *ages.summary(), strict=True))
-        self.window = diagnostics.ControllerWindow()
+        self.window = diagnostics.ControllerWindow(safety=self.safety)
         return diagnostics.controller_diagnostic(self.uh_id, w)

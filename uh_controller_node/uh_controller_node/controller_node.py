@@ -3,6 +3,7 @@
 It subscribes to its own ``state``, to ``/uhj/state`` of exactly the UHs j with a_ij != 0 (its
 neighbours in the scenario's graph, :mod:`uh_topology`), and to ``/reference`` only if a_i0 != 0,
 runs :class:`uh_controller_node.controller.UHController` and publishes ``command`` and ``status``.
+With the safety filter on it also subscribes to its own ``proximity`` (the filter's input, never the law's).
 Its parameters besides the run's are in :mod:`uh_controller_node.node_parameters`.
 
 The node converts messages (:mod:`uh_wire.wire`) and publishes; which inputs each step is computed from is
@@ -36,8 +37,9 @@ from __future__ import annotations
 import uh_runtime as rt
 from uh_controller_node.controller import ControllerError, UHController, load_controller_kernels
 from uh_controller_node.controller_diagnostics import ControllerDiagnostics, NeighbourAges
-from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser
+from uh_controller_node.input_sync import OWN, PROXIMITY, REFERENCE, InputSynchroniser
 from uh_controller_node.node_parameters import GainParameters, declare_controller_parameters
+from uh_controller_node.proximity_input import ProximityInput
 from uh_controller_node.realtime_received import received_states_for
 from uh_core import compiled_kernels
 from uh_runtime import messages as m
@@ -72,9 +74,11 @@ class ControllerNode(rt.Node):
         self.received = received_states_for(self.uh_id, neighbours, scenario, self.dt, run.clock_mode)
         self._arrive = getattr(self.received, 'arrive', None)   # realtime: every valid neighbour state is kept
         self.ages = NeighbourAges(neighbours, self.dt)
+        sensed = self.controller.safety_enabled   # the safety filter's own input (docs/safety.md)
         self.sync = InputSynchroniser(self.uh_id, neighbours, linked, mode=run.clock_mode, dt=run.dt,
                                       last_step=run.last_step, reachable=self.controller.reachable_without,
-                                      logger=self.get_logger(), **sync)
+                                      logger=self.get_logger(), sensed=sensed, **sync)
+        self.proximity = ProximityInput()
         self.command_topic, self.status_topic, self.received_topic = (
             topics.uh_topic(self.uh_id, spec) for spec in (topics.COMMAND, topics.STATUS, topics.RECEIVED))
         self.published = PublishedCounts(self.command_topic, self.status_topic)
@@ -86,15 +90,18 @@ class ControllerNode(rt.Node):
         self.views = declare_view_parameters(self, self.dt)
         self.diagnostics = ControllerDiagnostics(
             self.uh_id, self.views.diagnostics_every,
-            self.views.diagnostics_phase(scenario.ids, self.uh_id, controller=True))
+            self.views.diagnostics_phase(scenario.ids, self.uh_id, controller=True), safety=sensed)
         if self.views.enabled:
             self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
-        self.create_subscription(m.UHState, topics.STATE.name, self.on_own_state, qos)
+        self._subscribe(m.UHState, topics.STATE.name, qos, OWN, 'own state', wire.msg_to_state, self.uh_id)
         for j in neighbours:
-            self.create_subscription(m.UHState, topics.uh_topic(j, topics.STATE),
-                                     lambda msg, j=j: self.on_neighbour_state(j, msg), qos)
+            self._subscribe(m.UHState, topics.uh_topic(j, topics.STATE), qos, j, f'state of uh{j}',
+                            wire.msg_to_state, j)
         if linked:
-            self.create_subscription(m.Reference, topics.REFERENCE.name, self.on_reference, qos)
+            self._subscribe(m.Reference, topics.REFERENCE.name, qos, REFERENCE, 'reference', wire.msg_to_reference)
+        if sensed:
+            self._subscribe(m.Proximity, topics.PROXIMITY.name, qos, PROXIMITY, 'proximity', wire.msg_to_proximity,
+                            self.uh_id)
         self._deadline = None
         if run.clock_mode == 'realtime':
             # no busy polling: a one-shot timer armed only while a step waits for its neighbours'
@@ -104,7 +111,8 @@ class ControllerNode(rt.Node):
             self.create_timer(SLOW_POLL_S, self._on_deadline)
         self.get_logger().info(f'uh{self.uh_id} ({case}, {run.clock_mode}): hears '
                                f"{', '.join(f'uh{j}' for j in neighbours) or 'no UH'}"
-                               f"{' and the virtual leader' if linked else ''}, {compiled_kernels.kernel_form()}")
+                               f"{' and the virtual leader' if linked else ''}"
+                               f"{'; safety filter on' if sensed else ''}, {compiled_kernels.kernel_form()}")
 
     def _apply_gains(self, params) -> None:
         """Give the controller the gains of an accepted parameter change (docs/control_law.md)."""
@@ -114,17 +122,9 @@ class ControllerNode(rt.Node):
             self.get_logger().info('gains changed: ' + ', '.join(f'{p.name} = {p.value}' for p in changed))
 
     # -- inputs: offered to the synchroniser -------------------------------------------------------
-    def on_own_state(self, msg) -> None:
-        """Offer the own ``UHState`` to the synchroniser, compute the released steps (bad ones rejected)."""
-        self._offer(OWN, msg, 'own state', wire.msg_to_state, self.uh_id)
-
-    def on_neighbour_state(self, j: int, msg) -> None:
-        """Offer neighbour ``j``'s ``UHState`` to the synchroniser, compute the released steps (bad ones rejected)."""
-        self._offer(j, msg, f'state of uh{j}', wire.msg_to_state, j)
-
-    def on_reference(self, msg) -> None:
-        """Offer the leader's ``Reference`` to the synchroniser, compute the released steps (bad ones rejected)."""
-        self._offer(REFERENCE, msg, 'reference', wire.msg_to_reference)
+    def _subscribe(self, msg_type, topic: str, qos, key, what: str, convert, *expected_id) -> None:
+        """Subscribe to ``topic``: each message is converted and offered as input ``key`` (bad ones rejected)."""
+        self.create_subscription(msg_type, topic, lambda msg: self._offer(key, msg, what, convert, *expected_id), qos)
 
     def _offer(self, key, msg, what: str, convert, *expected_id) -> None:
         try:
@@ -132,7 +132,7 @@ class ControllerNode(rt.Node):
         except wire.WireError as exc:
             self.sync.reject(what, exc)
             return
-        if self._arrive is not None and key not in (OWN, REFERENCE):
+        if self._arrive is not None and key not in (OWN, REFERENCE, PROXIMITY):
             self._arrive(key, int(msg.step), value)
         self._compute(self.sync.offer(key, int(msg.step), value))
         if key == OWN and self._deadline is not None and self.sync.waiting is not None:
@@ -154,6 +154,7 @@ class ControllerNode(rt.Node):
             if self.received is not None:   # what this UH receives under the scenario's impairments
                 own, neighbours = self.received.receive(k, own, neighbours)
             self.ages.add(k, neighbours, self.received, self.sync.lag)
+            self.proximity.use(self.controller, inputs.proximity)
             try:
                 if inputs.stale:
                     u, status = self.controller.step_degraded(k, own, neighbours, inputs.reference,
@@ -164,17 +165,17 @@ class ControllerNode(rt.Node):
                 self.get_logger().error(f'step {k} not computed: {exc}', throttle_duration_sec=1.0)
                 self.diagnostics.not_computed()
                 continue
-            t = k * self.dt
+            t, closest = k * self.dt, self.proximity.closest(own)
             self.command_pub.publish(wire.command_to_msg(self.uh_id, k, t, u))
             self.status_pub.publish(wire.status_to_msg(self.uh_id, k, t, status, inputs.stale_labels,
-                                                       self.ages.overall()))
+                                                       self.ages.overall(), closest))
             self.published.add(self.command_topic, self.status_topic)
             if self.received is not None:
                 self.received_pub.publish(wire.received_states_to_msg(   # as delivered, not as predicted
                     self.uh_id, k, self.dt, own, self.received.delivered, self.received.sample_steps))
                 self.published.add(self.received_topic)
             if self.views.enabled:
-                report = self.diagnostics.add(k, inputs, status, self.sync, self.ages)
+                report = self.diagnostics.add(k, inputs, status, self.sync, self.ages, closest)
                 if report is not None:
                     self.diag_pub.publish(diagnostic_array_msg(t, [report]))
                     self.published.add(topics.DIAGNOSTICS.name)

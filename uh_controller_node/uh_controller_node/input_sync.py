@@ -36,13 +36,15 @@ from uh_core.layout import X_P, X_THETA, YAW
 from uh_wire import topics
 from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
-__all__ = ['InputSynchroniser', 'StepInputs', 'LagStats', 'OWN', 'REFERENCE', 'input_label',
+__all__ = ['InputSynchroniser', 'StepInputs', 'LagStats', 'OWN', 'REFERENCE', 'PROXIMITY', 'input_label',
            'REJECT_LOG_PERIOD']
 
 #: Key of the UH's own state; neighbours are keyed by their id (int).
 OWN = 'own'
 #: Key of the virtual leader's reference.
 REFERENCE = 'ref'
+#: Key of the safety filter's proximity input (``/uhN/proximity``; not an input of the control law).
+PROXIMITY = 'proximity'
 #: Wall seconds between two logged rejections of the same input (the count goes on meanwhile).
 REJECT_LOG_PERIOD = 1.0
 #: Wall seconds (at least; ``startup_grace`` if longer) without an own state before it is reported.
@@ -73,6 +75,9 @@ class StepInputs:
         Keys (neighbour ids, :data:`REFERENCE`) of the inputs left out; empty: the full law.
     hold : tuple (ndarray (3,) m, float rad) or None
         Position and yaw to hold while the remaining graph breaks Assumption 1.
+    proximity : object or None
+        The newest proximity input (the safety filter's; lockstep: that of step k); None when the
+        UH has none or none has come yet.
     """
 
     step: int
@@ -81,6 +86,7 @@ class StepInputs:
     reference: object = None
     stale: tuple = ()
     hold: tuple | None = None
+    proximity: object = None
 
     @property
     def stale_labels(self) -> list:
@@ -128,6 +134,10 @@ class InputSynchroniser:
     reachable : callable(set of int) -> bool
         Whether the UH still has a path from the virtual leader without the given UHs (0 = the
         reference), e.g. :meth:`UHController.reachable_without`.
+    sensed : bool
+        The UH has a proximity input (:data:`PROXIMITY`, its safety filter is on). Lockstep waits
+        for that of step k like any input; realtime waits for it like a neighbour's state but never
+        counts it stale or leaves it out: the filter keeps the newest it has (docs/safety.md).
     stale_timeout : float
         Simulated seconds an input may lag the own state before it is stale (at least one step).
     sync_wait : float
@@ -152,7 +162,8 @@ class InputSynchroniser:
     """
 
     def __init__(self, uh_id: int, neighbours, linked: bool, *, mode: str, dt: float, last_step: int,
-                 reachable: Callable[[set], bool], logger, stale_timeout: float = DEFAULT_STALE_TIMEOUT,
+                 reachable: Callable[[set], bool], logger, sensed: bool = False,
+                 stale_timeout: float = DEFAULT_STALE_TIMEOUT,
                  sync_wait: float = 0.004, startup_grace: float = 1.0,
                  now: Callable[[], float] = time.monotonic):
         if mode not in ('lockstep', 'realtime'):
@@ -163,6 +174,7 @@ class InputSynchroniser:
         self.sync_wait, self.startup_grace = float(sync_wait), float(startup_grace)
         self.stale_steps = max(1, int(round(float(stale_timeout) / self.dt)))
         self.input_keys = (*self.neighbours, *((REFERENCE,) if self.linked else ()))
+        self.sensed = bool(sensed)
         self.next_step = 0                   # lockstep: the next step to release
         self._pending: dict[int, dict] = {}  # lockstep: step -> {key: value}
         self.latest: dict = {}               # realtime: key -> (step, newest valid value)
@@ -184,7 +196,7 @@ class InputSynchroniser:
 
         ``key`` names the input: :data:`OWN`, a neighbour id or :data:`REFERENCE`.
         """
-        if key != OWN and key not in self.input_keys:
+        if key != OWN and key not in self.input_keys and not (key == PROXIMITY and self.sensed):
             raise ValueError(f'uh{self.uh_id} does not hear {input_label(key)}')
         if self.lockstep:
             if k >= self.next_step:
@@ -231,11 +243,11 @@ class InputSynchroniser:
     # -- lockstep ----------------------------------------------------------------------------------
     def _ready_steps(self) -> list:
         out = []
-        needed = 1 + len(self.input_keys)
+        needed = 1 + len(self.input_keys) + int(self.sensed)
         while self.next_step <= self.last_step and len(self._pending.get(self.next_step, ())) == needed:
             inputs = self._pending.pop(self.next_step)
             out.append(StepInputs(self.next_step, inputs[OWN], {j: inputs[j] for j in self.neighbours},
-                                  inputs.get(REFERENCE)))
+                                  inputs.get(REFERENCE), proximity=inputs.get(PROXIMITY)))
             self.next_step += 1
         return out
 
@@ -271,7 +283,8 @@ class InputSynchroniser:
         if unheard and now - self.first_own_wall < self.startup_grace:
             return []  # waits for the first message of every input
         still_stale = [key for key in self.stale if key in unheard or steps[key] < k - self.stale_steps]
-        if all(key in still_stale or (key in steps and steps[key] >= k) for key in self.input_keys):
+        if all(key in still_stale or (key in steps and steps[key] >= k) for key in self.input_keys) \
+                and self._proximity_in(k):
             pass  # every input of step k is in, except those already known to be stale: no waiting for them
         elif not from_timer or now < deadline:
             return []  # late or stale data is judged by the timer only (see poll)
@@ -284,7 +297,18 @@ class InputSynchroniser:
         latest = self.latest
         return [StepInputs(k, latest[OWN][1], {j: latest[j][1] for j in self.neighbours if j not in stale},
                            latest[REFERENCE][1] if self.linked and REFERENCE not in stale else None,
-                           stale, self.hold)]
+                           stale, self.hold, latest[PROXIMITY][1] if PROXIMITY in latest else None)]
+
+    def _proximity_in(self, k: int) -> bool:
+        """realtime: whether step k need not wait for the proximity input.
+
+        True without one, when that of step k is in, or when the newest is more than the staleness
+        timeout old (the sensing node is silent: the filter goes on with the newest it has).
+        """
+        if not self.sensed:
+            return True
+        newest = self.latest.get(PROXIMITY, (-1,))[0]
+        return newest >= k or (newest < k - self.stale_steps and self.now() - self.first_own_wall >= self.startup_grace)
 
     def _check_own_silence(self, now: float) -> None:
         """Log once when the own state stops arriving (the UH's simulator is gone or cut off)."""

@@ -19,6 +19,7 @@ The message lists every reason, most severe first; the key-values carry the numb
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from .layout import CHANNEL_NAMES
@@ -59,6 +60,11 @@ class ControllerWindow:
     fault_estimate_attitude: float = 0.0
     #: ``(label, mean s, max s)`` per neighbour: age of its state used over the last simulated second
     neighbour_ages: tuple = ()
+    #: the safety filter runs (docs/safety.md); then the steps it changed u_p, and the closest UH at the report
+    safety: bool = False
+    safety_active_steps: int = 0
+    closest_uh: int = 0
+    closest_distance: float = math.nan
 
 
 @dataclass
@@ -108,6 +114,12 @@ def controller_diagnostic(uh_id: int, w: ControllerWindow) -> Diagnostic:
               '|Fhat_p| (m/s^2)': f'{w.fault_estimate_position:.4g}',
               '|Fhat_w| (rad/s^2)': f'{w.fault_estimate_attitude:.4g}',
               'steps not computed': w.not_computed}
+    if w.safety:
+        if w.safety_active_steps:
+            warnings.append(f'safety filter active in {w.safety_active_steps} of {w.steps} step(s)')
+        values.update({'safety filter active steps': w.safety_active_steps,
+                       'closest UH': f'uh{w.closest_uh}' if w.closest_uh else 'none sensed',
+                       'closest distance (m)': f'{w.closest_distance:.3f}'})
     for label, mean, worst in w.neighbour_ages:
         values[f'age of {label}, mean over 1 s (s)'] = f'{mean:.4g}'
         values[f'age of {label}, max over 1 s (s)'] = f'{worst:.4g}'

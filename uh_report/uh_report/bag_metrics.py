@@ -193,13 +193,14 @@ def _fill_rows(out: dict, bag: _Bag, spec, uh: int, c: int, last_step: int, part
 
 
 def _fill_status(out: dict, bag: _Bag, uh: int, c: int, last_step: int) -> None:
-    """Write UH ``uh``'s fault estimates, ``u_p`` and saturation into column ``c`` of ``out``.
+    """Write UH ``uh``'s fault estimates, ``u_p``, saturation and safety filter activity into column ``c`` of ``out``.
 
     The fault isolation of its last status (the highest step; the later message of equal steps) goes to
     ``out['isolation'][uh]``.
     """
     name = topics.uh_topic(uh, topics.STATUS)
-    cols = bag.columns(name, topics.STATUS.type, _STATUS_P + _STATUS_W + _xyz('u_p') + SATURATION_FLAGS)
+    cols = bag.columns(name, topics.STATUS.type, _STATUS_P + _STATUS_W + _xyz('u_p') + SATURATION_FLAGS
+                       + ('safety_active',))
     if cols is None:
         return
     ok = (cols['step'] <= last_step) & (cols['uh_id'] == uh)
@@ -211,6 +212,7 @@ def _fill_status(out: dict, bag: _Bag, uh: int, c: int, last_step: int) -> None:
     out['fault_est_w'][steps, c] = _stack(cols, _STATUS_W)[take]
     out['u_p'][steps, c] = _stack(cols, _xyz('u_p'))[take]
     out['saturated'][steps, c] = _stack(cols, SATURATION_FLAGS)[take].any(axis=1)
+    out['safety_active'][steps, c] = cols['safety_active'][take] != 0
     index = np.flatnonzero(ok)
     last = index[len(index) - 1 - np.argmax(cols['step'][index][::-1])]
     out['isolation'][uh] = _isolation_of(bag.decode(name, int(last)))

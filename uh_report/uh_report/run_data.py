@@ -81,14 +81,14 @@ def _read_json(path: Path) -> dict:
     return data
 
 
-def _load_scenario(name, run_dir: Path, where: str):
+def _load_scenario(name, run_dir: Path, where: str, safety: bool | None = None):
     candidates = [name]
     if not Path(str(name)).is_absolute() and name != 'paper':
         candidates.append(run_dir / str(name))
     problems = []
     for candidate in candidates:
         try:
-            return load_scenario(candidate)
+            return load_scenario(candidate, safety=safety)
         except ScenarioError as exc:
             problems.append(exc)
     # what is wrong with a file that exists, else that the name as given (relative to here) names none
@@ -123,7 +123,9 @@ def load_run(run_dir, scenario_name: str = 'paper', check_chunks: bool = True) -
                           'or timeseries.npz of uh-simulate)')
     run_json = _read_json(run_dir / 'run.json') if (run_dir / 'run.json').is_file() else {}
     metrics = _read_json(run_dir / 'metrics.json') if (run_dir / 'metrics.json').is_file() else None
-    scenario = _load_scenario(run_json.get('scenario', scenario_name), run_dir, str(run_dir))
+    # the safety filter's setting the run had (its --safety), recorded in run.json
+    safety = {'on': True, 'off': False}.get(run_json.get('safety'))
+    scenario = _load_scenario(run_json.get('scenario', scenario_name), run_dir, str(run_dir), safety)
     case = str(run_json.get('case') or (metrics or {}).get('case') or 'proposed')
 
     bag = _bag_dir(run_dir)

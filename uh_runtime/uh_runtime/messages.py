@@ -54,6 +54,7 @@ KNOWN_TYPES = {
     'FaultTruth': 'uh_msgs/msg/FaultTruth',
     'ControllerStatus': 'uh_msgs/msg/ControllerStatus',
     'ReceivedStates': 'uh_msgs/msg/ReceivedStates',
+    'Proximity': 'uh_msgs/msg/Proximity',
     'Clock': 'rosgraph_msgs/msg/Clock',
     'Header': 'std_msgs/msg/Header',
     'String': 'std_msgs/msg/String',

@@ -40,8 +40,11 @@ def expected_endpoints(scenario, recorder: bool) -> dict[str, tuple[int, int]]:
     linked = [i for i in scenario.ids if scenario.leader_link(i) > 0]
     out = {topics.CLOCK.name: (1, len(scenario.ids) + 1 + rec),     # sims, virtual leader
            topics.REFERENCE.name: (1, len(linked) + rec)}
+    sensing = 1 if scenario.safety.enabled else 0   # the sensing node hears every state, serves each proximity
     for i in scenario.ids:
-        out[topics.uh_topic(i, topics.STATE)] = (1, 1 + len(hears[i]) + rec)
+        out[topics.uh_topic(i, topics.STATE)] = (1, 1 + len(hears[i]) + sensing + rec)
+        if sensing:
+            out[topics.uh_topic(i, topics.PROXIMITY)] = (1, 1 + rec)
         out[topics.uh_topic(i, topics.COMMAND)] = (1, 2 + rec)         # sim, clock
         out[topics.uh_topic(i, topics.STATUS)] = (1, rec)
         out[topics.uh_topic(i, topics.FAULT_TRUTH)] = (1, rec)
@@ -91,9 +94,10 @@ class ClockNode(rt.Node):
             description='the run has a visualisation node: with expect_recorder, wait for the recorder on /markers',
             read_only=True))
         views = declare_standard_views(self)
+        flags = topics.scenario_flags(self.scenario)
         self.recorded = ([name for name, _ in topics.run_topics(
-            self.scenario.ids, self.scenario.impairments is not None, views,
-            bool(self.get_parameter('expect_visualization').value))] if expect_recorder else [])
+            self.scenario.ids, flags['impaired'], views, bool(self.get_parameter('expect_visualization').value),
+            flags['safety'])] if expect_recorder else [])
         self.startup_timer = self.create_timer(0.05, self.check_startup)
 
     @property

@@ -1,9 +1,10 @@
 """Parameters every node of a run declares, validated in one place.
 
-``scenario`` (file or ``paper``), ``clock_mode`` (``lockstep`` | ``realtime``), ``duration``
-(s, 0 = the scenario's), ``realtime_priority`` (realtime mode: the SCHED_FIFO priority of the
-node's process, 0 = normal scheduling; docs/performance.md#real-time-scheduling) and, for per-UH
-nodes, ``uh_id``. A bad value raises
+``scenario`` (file or ``paper``), ``safety`` (``on`` | ``off`` | empty = the scenario's
+``safety.enabled``: the collision-avoidance filter, docs/safety.md), ``clock_mode`` (``lockstep``
+| ``realtime``), ``duration`` (s, 0 = the scenario's), ``realtime_priority`` (realtime mode: the
+SCHED_FIFO priority of the node's process, 0 = normal scheduling;
+docs/performance.md#real-time-scheduling) and, for per-UH nodes, ``uh_id``. A bad value raises
 :class:`RunConfigError` naming the parameter and what is allowed; the node entry point turns it into
 a one-line error and a non-zero exit.
 """
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 
 import uh_runtime as rt
 from uh_runtime import scheduling
+from uh_topology.safety import SAFETY_CHOICES, safety_override
 from uh_topology.scenario import load_scenario
 
 __all__ = ['RunConfig', 'RunConfigError', 'ViewConfig', 'declare_run_parameters', 'declare_view_parameters',
@@ -61,6 +63,10 @@ def declare_run_parameters(node, per_uh: bool = True) -> RunConfig:
     """Declare and read the run parameters of ``node``; load and validate the scenario."""
     node.declare_parameter('scenario', 'paper', _describe(
         'scenario YAML file, or "paper" for the bundled paper scenario', read_only=True))
+    # dynamically typed: ``-p safety:=on`` arrives as a bool (YAML 1.1, as rcl parses it)
+    node.declare_parameter('safety', '', _describe(
+        'the collision-avoidance filter (docs/safety.md): on/true or off/false overrides the scenario\'s '
+        'safety.enabled; empty keeps it', read_only=True, dynamic_typing=True))
     node.declare_parameter('clock_mode', 'lockstep', _describe(
         'lockstep (deterministic, as fast as possible) or realtime (wall-clock ticks)', read_only=True))
     node.declare_parameter('duration', 0.0, _describe(
@@ -87,13 +93,24 @@ def declare_run_parameters(node, per_uh: bool = True) -> RunConfig:
             node.get_logger().info(f'real-time scheduling: SCHED_FIFO priority {priority}')
         else:
             node.get_logger().warn(f'real-time scheduling not used, the node runs at normal priority: {why_not}')
-    scenario = load_scenario(str(node.get_parameter('scenario').value))
+    scenario = load_scenario(str(node.get_parameter('scenario').value),
+                             safety=_safety_parameter(node.get_parameter('safety').value))
     if per_uh and uh_id not in scenario.ids:
         raise RunConfigError(f"parameter 'uh_id' is {uh_id}, but scenario {scenario.name!r} has UHs "
                              f"{', '.join(map(str, scenario.ids))}")
     duration = float(node.get_parameter('duration').value) or float(scenario.duration)
     last_step = int(round(duration / scenario.dt))
     return RunConfig(scenario, mode, float(scenario.dt), last_step, uh_id)
+
+
+def _safety_parameter(value) -> bool | None:
+    """Return the ``safety`` parameter as :func:`load_scenario` takes it: True, False or None (the scenario's)."""
+    if isinstance(value, bool):
+        return value
+    if value in ('', *SAFETY_CHOICES):
+        return safety_override(value or None)
+    raise RunConfigError(f"parameter 'safety' is {value!r}; allowed: {', '.join(SAFETY_CHOICES)}, true, false or "
+                         "empty (the scenario's safety.enabled)")
 
 
 @dataclass(frozen=True)

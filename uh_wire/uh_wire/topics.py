@@ -30,7 +30,8 @@ __all__ = [
     'QosSpec', 'TopicSpec', 'STEP_QOS', 'EVENT_QOS', 'STEP_DEPTH', 'RECORDER_LAG_STEPS',
     'STATE', 'COMMAND', 'STATUS', 'FAULT_TRUTH', 'FAULT', 'REFERENCE', 'CLOCK', 'MARKERS',
     'RECORDER_PROGRESS', 'VIEW_QOS', 'MARKER_QOS', 'VIEWS', 'run_topics',
-    'TF', 'ODOM', 'DIAGNOSTICS', 'RECEIVED', 'PER_UH', 'IMPAIRED_PER_UH',
+    'TF', 'ODOM', 'DIAGNOSTICS', 'RECEIVED', 'PROXIMITY', 'PER_UH', 'IMPAIRED_PER_UH', 'SAFETY_PER_UH',
+    'scenario_flags',
     'TEAM', 'uh_namespace',
     'uh_topic', 'team_topics', 'qos_profile',
 ]
@@ -105,9 +106,16 @@ RECEIVED = TopicSpec('received', 'uh_msgs/msg/ReceivedStates', STEP_QOS, True, '
                      'scenario\'s delay, jitter, loss, dropout and noise, before any prediction '
                      '(docs/campaigns.md#impairments)')
 
+PROXIMITY = TopicSpec('proximity', 'uh_msgs/msg/Proximity', STEP_QOS, True, 'sensing (safety filter on)',
+                      'controller of the same UH (its safety filter only); recorder',
+                      'every other UH within the safety filter\'s sensing radius at step k, as onboard sensing or '
+                      'a beacon would report it (docs/safety.md#what-the-filter-knows)')
+
 PER_UH = (STATE, COMMAND, STATUS, FAULT_TRUTH, FAULT, ODOM)
 #: Per-UH topics of a run whose scenario has impairments, besides PER_UH.
 IMPAIRED_PER_UH = (RECEIVED,)
+#: Per-UH topics of a run with the safety filter on, besides PER_UH.
+SAFETY_PER_UH = (PROXIMITY,)
 TEAM = (REFERENCE, CLOCK, TF, DIAGNOSTICS)
 #: The standard views: published unless a run switches them off (``standard_views``).
 VIEWS = (TF, ODOM, DIAGNOSTICS)
@@ -125,27 +133,33 @@ def uh_topic(uh_id: int, spec: TopicSpec) -> str:
     return f'{uh_namespace(uh_id)}/{spec.name}'
 
 
-def team_topics(uh_ids, impaired: bool = False) -> list[tuple[str, TopicSpec]]:
+def team_topics(uh_ids, impaired: bool = False, safety: bool = False) -> list[tuple[str, TopicSpec]]:
     """Return every recorded topic of a team with UHs ``uh_ids`` as ``[(full name, spec), ...]``.
 
-    With ``impaired``, the topics of a scenario with impairments.
+    With ``impaired``, the topics of a scenario with impairments; with ``safety``, those of a run
+    whose safety filter is on (:func:`scenario_flags` gives both for a scenario).
     """
     topics = [(spec.name, spec) for spec in TEAM]
-    per_uh = PER_UH + (IMPAIRED_PER_UH if impaired else ())
+    per_uh = PER_UH + (IMPAIRED_PER_UH if impaired else ()) + (SAFETY_PER_UH if safety else ())
     for uh_id in sorted(uh_ids):
         topics += [(uh_topic(uh_id, spec), spec) for spec in per_uh]
     return topics
 
 
+def scenario_flags(scenario) -> dict:
+    """Return the keyword arguments of :func:`team_topics` for ``scenario``: ``{'impaired': ..., 'safety': ...}``."""
+    return {'impaired': scenario.impairments is not None, 'safety': bool(scenario.safety.enabled)}
+
+
 def run_topics(uh_ids, impaired: bool = False, views: bool = True,
-               visualization: bool = True) -> list[tuple[str, TopicSpec]]:
+               visualization: bool = True, safety: bool = False) -> list[tuple[str, TopicSpec]]:
     """Return every topic a run's nodes publish, or subscribe to for the recorder, as ``[(full name, spec), ...]``.
 
     :func:`team_topics`, without the standard views when ``views`` is False, with ``/markers``
     when the run has its visualisation node. These are the topics the recorder must have
     subscribed to before the lockstep clock publishes step 0 (uh_sim_node.clock_node).
     """
-    topics = [(name, spec) for name, spec in team_topics(uh_ids, impaired) if views or spec not in VIEWS]
+    topics = [(name, spec) for name, spec in team_topics(uh_ids, impaired, safety) if views or spec not in VIEWS]
     return topics + ([(MARKERS.name, MARKERS)] if visualization else [])
 
 

@@ -17,6 +17,7 @@ from uh_runtime import messages as m
 
 __all__ = [
     'WireError', 'stamp', 'stamp_seconds', 'state_to_msg', 'msg_to_state', 'received_states_to_msg',
+    'proximity_to_msg', 'msg_to_proximity',
     'command_to_msg', 'msg_to_command', 'reference_to_msg', 'msg_to_reference', 'fault_truth_to_msg',
     'status_to_msg', 'vector3', 'clock_msg', 'clock_step',
 ]
@@ -102,6 +103,32 @@ def received_states_to_msg(uh_id: int, k: int, dt: float, own, neighbours: dict,
     return m.ReceivedStates(header=_header(k * dt), uh_id=int(uh_id), step=int(k), states=states)
 
 
+def proximity_to_msg(report, dt: float, sensing_radius: float):
+    """Build the ``Proximity`` of a :class:`uh_sim_node.sensing.ProximityReport` (step times ``step * dt``)."""
+    states = [state_to_msg(j, s, s * dt, x) for j, s, x in zip(report.ids, report.steps, report.states, strict=True)]
+    return m.Proximity(header=_header(report.step * dt), uh_id=int(report.uh_id), step=int(report.step),
+                       sensing_radius=float(sensing_radius), states=states)
+
+
+def msg_to_proximity(msg, expected_id: int) -> tuple[tuple, np.ndarray]:
+    """Return ``(ids, rows)`` of a ``Proximity`` for UH ``expected_id``: the UHs reported and their ``[p, v]`` (m, 6).
+
+    Rows in the message's order (ascending id), inertial frame, m and m/s: the safety filter's
+    input (:meth:`uh_controller_node.controller.UHController.set_proximity`). Raises
+    :class:`WireError` for another UH's message, a state of the UH itself, a repeated UH or a
+    non-finite value.
+    """
+    if int(msg.uh_id) != expected_id:
+        raise WireError(f'proximity message carries uh_id {msg.uh_id}, expected {expected_id}')
+    ids = tuple(int(s.uh_id) for s in msg.states)
+    if expected_id in ids or len(set(ids)) != len(ids):
+        raise WireError(f'proximity message of step {msg.step} reports UHs {list(ids)}: each other UH at most once, '
+                        f'never uh{expected_id} itself')
+    values = [c for s in msg.states for c in _values(s.position, s.velocity)]
+    _check_finite(values, f'proximity of uh{expected_id} at step {msg.step}')
+    return ids, np.array(values, dtype=float).reshape(len(ids), 6)
+
+
 def msg_to_state(msg, expected_id: int | None = None) -> np.ndarray:
     """State vector (12,) of a ``UHState``; raises :class:`WireError` if unusable."""
     if expected_id is not None and int(msg.uh_id) != expected_id:
@@ -161,13 +188,15 @@ _STATUS_FLAGS = tuple(name for name, kind in STATUS_LAYOUT if kind == STATUS_FLA
 _NAN4 = (math.nan,) * 4
 
 
-def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=(), ages=(math.nan, math.nan)):
+def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=(), ages=(math.nan, math.nan),
+                  closest_uh: int = 0):
     """Build a ``ControllerStatus`` from the controller core's status record.
 
     The fields of :data:`uh_core.layout.STATUS_LAYOUT` have the record's names; the fault isolation
     fields come from its ``isolation``, or say "nothing isolated" when that is None. ``ages`` is
     ``(mean, max)`` of the neighbours' ages in s
-    (:meth:`uh_controller_node.controller_diagnostics.NeighbourAges.overall`).
+    (:meth:`uh_controller_node.controller_diagnostics.NeighbourAges.overall`); ``closest_uh`` the
+    UH at ``status.closest_distance`` (0: none, or the safety filter is off).
     """
     fields = {name: vector3(getattr(status, name)) for name in _STATUS_VECTORS}
     fields.update((name, float(getattr(status, name))) for name in _STATUS_SCALARS)
@@ -186,4 +215,5 @@ def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=(), age
                       fault_identification=[int(v) for v in iso.identification])
     return m.ControllerStatus(header=_header(t), uh_id=int(uh_id), step=int(k),
                               stale_neighbours=[str(s) for s in stale_neighbours],
-                              neighbour_age_mean=float(ages[0]), neighbour_age_max=float(ages[1]), **fields)
+                              neighbour_age_mean=float(ages[0]), neighbour_age_max=float(ages[1]),
+                              closest_uh=int(closest_uh), **fields)
