@@ -27,13 +27,14 @@ ROOT = Path(__file__).resolve().parents[1]
 pytestmark = [pytest.mark.dds, pytest.mark.slow]
 
 # Who hears whom in the paper scenario, written out from docs/scenario.md (1<-0, 2<-1, 3<-2, 1<-3;
-# 4<-1, 4<-2, 4<-5; 5<-3, 5<-4), independently of the scenario file the nodes read.
+# 4<-1, 4<-2, 4<-5; 5<-3, 5<-4), independently of the scenario file the nodes read; and, the safety
+# filter being on by default, each controller's own proximity input (its filter's, not its law's).
 PAPER_READS = {
-    1: {'/uh1/state', '/uh3/state', '/reference'},
-    2: {'/uh2/state', '/uh1/state'},
-    3: {'/uh3/state', '/uh2/state'},
-    4: {'/uh4/state', '/uh1/state', '/uh2/state', '/uh5/state'},
-    5: {'/uh5/state', '/uh3/state', '/uh4/state'},
+    1: {'/uh1/state', '/uh3/state', '/reference', '/uh1/proximity'},
+    2: {'/uh2/state', '/uh1/state', '/uh2/proximity'},
+    3: {'/uh3/state', '/uh2/state', '/uh3/proximity'},
+    4: {'/uh4/state', '/uh1/state', '/uh2/state', '/uh5/state', '/uh4/proximity'},
+    5: {'/uh5/state', '/uh3/state', '/uh4/state', '/uh5/proximity'},
 }
 
 

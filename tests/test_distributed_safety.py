@@ -62,6 +62,27 @@ def test_a_lockstep_run_with_the_filter_equals_the_in_process_run_bit_for_bit(tm
     assert all(f'/uh{i}/proximity {steps}' in sensing for i in paper_with_filter.ids), sensing
 
 
+def test_with_safety_off_the_nodes_fly_the_papers_law_bit_for_bit(tmp_path):
+    out = tmp_path / 'run'
+    proc = start_run(out, reserve_domain_id(), '--clock', 'lockstep', '--safety', 'off', '--duration',
+                     str(DURATION), '--no-report')
+    try:
+        output, _ = proc.communicate(timeout=300)
+    finally:
+        kill_session(proc)
+    assert proc.returncode == 0, output
+    law = load_scenario('paper', safety=False)
+    reference = run_team_simulation(law, 'proposed', duration=DURATION)
+    bag = read_team_bag(out / 'bag', law)
+    assert np.array_equal(bag['states'], reference.states)
+    assert np.array_equal(bag['commands'], reference.commands)
+    assert not bag['safety_active'].any()
+    assert not (out / 'logs' / 'sensing.log').exists()          # no sensing node, no proximity topic
+    assert json.loads((out / 'run.json').read_text())['safety'] == 'off'
+    # ... and the law alone does let rotors touch, which the run says in its last line
+    assert 'let rotors touch' in output.strip().splitlines()[-1]
+
+
 def test_in_real_time_the_filter_keeps_the_rotors_apart_and_reads_only_its_own_proximity(tmp_path):
     out = tmp_path / 'run'
     domain = reserve_domain_id()

@@ -300,15 +300,26 @@ def team_run(scenario):
     return run_team_simulation(scenario, 'proposed').arrays()
 
 
-@pytest.fixture(scope='module')
-def bundled_runs():
+def _bundled(safety=None):
     from uh_topology.scenario import load_scenario
     out = {}
     for name in BUNDLED:
-        scenario = load_scenario(name)
+        scenario = load_scenario(name, safety=safety)
         arrays = team_run(scenario)
         out[name] = (scenario, arrays, isolate_run(arrays, scenario))
     return out
+
+
+@pytest.fixture(scope='module')
+def bundled_runs():
+    """Run the bundled scenarios as they run by default: the safety filter on."""
+    return _bundled()
+
+
+@pytest.fixture(scope='module')
+def law_runs():
+    """Run the bundled scenarios with the paper's law alone, which the default thresholds were derived from."""
+    return _bundled(safety=False)
 
 
 def check_requirements(scenario, arrays, result):
@@ -372,12 +383,12 @@ def test_isolate_run_is_deterministic_and_takes_the_scenarios_learning_phase(bun
     assert isolate_run(short, scenario)['uh2']['isolated'] == result['uh2']['isolated']
 
 
-def test_the_default_thresholds_and_noise_levels_follow_from_the_healthy_deviations(bundled_runs):
+def test_the_default_thresholds_and_noise_levels_follow_from_the_healthy_deviations(law_runs, bundled_runs):
     # docs/faults.md#isolation-and-identification: thresholds = 3 x the largest filtered healthy
-    # deviation, noise_rms >= the largest healthy RMS after learning phase + 1 s, residual_max =
-    # 5 x noise_rms (rounded up to two significant digits)
+    # deviation of the law alone, noise_rms >= the largest healthy RMS after learning phase + 1 s,
+    # residual_max = 5 x noise_rms (rounded up to two significant digits)
     measured = {name: {'filtered_max': 0.0, 'rms': 0.0} for name in CHANNELS}
-    for scenario, arrays, _ in bundled_runs.values():
+    for scenario, arrays, _ in law_runs.values():
         stats = healthy_deviation_statistics(arrays, scenario)
         for name in CHANNELS:
             for key in ('filtered_max', 'rms'):
@@ -387,6 +398,12 @@ def test_the_default_thresholds_and_noise_levels_follow_from_the_healthy_deviati
         assert 3.0 * peak <= SETTINGS.thresholds[c] <= 3.3 * peak
         assert measured[name]['rms'] <= SETTINGS.noise_rms[c] <= 1.1 * measured[name]['rms']
         assert SETTINGS.residual_max[c] == pytest.approx(5.0 * SETTINGS.noise_rms[c], rel=1e-9)
+    # with the safety filter (the default) the healthy deviations stay well under the thresholds
+    # too (measured: at most 1 % above the law's); the requirements tests check no false isolation
+    for scenario, arrays, _ in bundled_runs.values():
+        stats = healthy_deviation_statistics(arrays, scenario)
+        for c, name in enumerate(CHANNELS):
+            assert 2.5 * stats[name]['filtered_max'] <= SETTINGS.thresholds[c], (scenario.name, name)
 
 
 def test_a_manoeuvring_team_gets_its_constant_faults_identified(tmp_path):
@@ -446,7 +463,8 @@ def test_each_controller_publishes_what_isolate_run_computes_over_the_same_run()
     from uh_topology.scenario import load_scenario
     from uh_wire.wire import status_to_msg
 
-    scenario = load_scenario('paper')
+    # the isolator, not the safety filter: the controllers here are stepped without a proximity input
+    scenario = load_scenario('paper', safety=False)
     run = run_team_simulation(scenario, 'proposed', duration=14.0)   # past the 10 s onsets
     arrays = run.arrays()
     expected = isolate_run(arrays, scenario)

@@ -29,7 +29,8 @@ from uh_runtime.dds import graph as graph_module
 from uh_runtime.dds.graph import INFO_GRACE, INFO_RETRY, Graph
 from uh_topology.scenario import load_scenario
 
-PAPER_NODES = ['/clock', '/recorder', '/uh1/controller', '/uh1/sim', '/uh2/controller', '/uh2/sim',
+# the nodes of a paper run, the safety filter's sensing node included (on by default)
+PAPER_NODES = ['/clock', '/recorder', '/sensing', '/uh1/controller', '/uh1/sim', '/uh2/controller', '/uh2/sim',
                '/uh3/controller', '/uh3/sim', '/uh4/controller', '/uh4/sim', '/uh5/controller', '/uh5/sim',
                '/virtual_leader', '/visualization']
 

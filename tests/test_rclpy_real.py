@@ -196,7 +196,8 @@ def _exercise_the_running_team(out: Path) -> None:
     on_rclpy = CYCLONE_DDS if 'cyclonedds' in get_rmw_implementation_identifier() else FAST_DDS
     assert vendors == {'/uh1/sim': on_rclpy, '/uh2/sim': CYCLONE_DDS, '/uh3/sim': on_rclpy,
                        '/uh4/sim': CYCLONE_DDS, '/uh5/sim': on_rclpy}
-    expected = {'/clock', '/recorder', '/virtual_leader', '/visualization', '/rclpy_tier_probe',
+    # /sensing: the safety filter's sensing node (on by default)
+    expected = {'/clock', '/recorder', '/virtual_leader', '/visualization', '/sensing', '/rclpy_tier_probe',
                 *(f'/uh{i}/{kind}' for i in range(1, 6) for kind in ('sim', 'controller'))}
     # every time: env.sh names the run's nodes (UH_RUN_NODES), and uh node list waits for each of them, Fast DDS
     # participants' included (whose node tables come a heartbeat late unless asked again: docs/ros2.md), or names

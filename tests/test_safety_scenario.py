@@ -40,10 +40,10 @@ def test_the_bundled_airframe_has_a_rotor_of_0_8_m_and_the_default_separation_fo
     assert default_min_separation(rotor) == pytest.approx(2 * 0.8 + SEPARATION_MARGIN)
 
 
-def test_a_scenario_without_safety_has_the_defaults_and_the_filter_is_off():
+def test_a_scenario_without_safety_has_the_defaults_and_the_filter_is_on():
     scenario = load_scenario('paper')
     assert scenario.safety == SafetySpec()
-    assert scenario.safety.enabled is False
+    assert scenario.safety.enabled is True             # on by default: rotors never touch
     assert scenario.separation_warnings == ()
 
 
@@ -95,7 +95,7 @@ def test_initial_positions_closer_than_two_rotor_radii_are_refused_with_the_filt
 def test_with_the_filter_off_overlapping_places_are_a_warning(tmp_path):
     # the paper's law alone, as published: nothing is refused that loaded before, but the run says so
     replace = (('{position: [1.0, 1.0, 6.0]}', '{position: [2.0, -1.0, 7.0]}'),)
-    warnings = load_scenario(_paper(tmp_path, replace=replace)).separation_warnings
+    warnings = load_scenario(_paper(tmp_path, 'safety: {enabled: false}\n', replace=replace)).separation_warnings
     assert [issue.text() for issue in warnings] == ['initial positions of UH1 and UH4 are 1.00 m apart']
 
 

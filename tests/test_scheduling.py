@@ -130,7 +130,8 @@ def test_a_realtime_run_puts_the_control_loop_under_sched_fifo_and_not_the_recor
         stop_run(proc)
     output = proc.stdout.read()
     loop = [n for n in pids if n not in ('recorder', 'visualization')]
-    assert len(loop) == 12   # 5 simulators, 5 controllers, the virtual leader, the clock
+    # 5 simulators, 5 controllers, the virtual leader, the clock and the safety filter's sensing node (on by default)
+    assert len(loop) == 13 and 'sensing' in loop
     if permitted:
         assert f'real-time scheduling: SCHED_FIFO priority {PRIORITY} for the clock' in output
         for name in loop:   # every thread: the node's and the DDS receive threads

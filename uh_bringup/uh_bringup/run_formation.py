@@ -180,8 +180,10 @@ def run(args) -> int:
     scenario, scenario_arg, out = check_run(args)
     domain, env = run_environment(args.domain_id)
     duration = args.duration if args.duration is not None else scenario.duration
+    filter_state = 'on' if scenario.safety.enabled else "off (the paper's law alone)"
     print(f'[run] {scenario.name}: {len(scenario.leaders)} leaders, {len(scenario.followers)} followers, '
-          f'case {args.case}, {args.clock} clock, {duration:g} s simulated, DDS domain {domain}', file=sys.stderr)
+          f'case {args.case}, {args.clock} clock, {duration:g} s simulated, safety filter {filter_state}, '
+          f'DDS domain {domain}', file=sys.stderr)
     priority = realtime_priority(args)
     specs = team_specs(args, scenario, scenario_arg, out, priority)
     write_environment_script(out, env, run_node_names(specs))

@@ -94,6 +94,9 @@ def resolve_scenario(spec, draw: int, sweep_index: int = 0) -> dict:
         _set_path(data, spec.sweep.path, spec.sweep.values[sweep_index])
     if isinstance(data.get('impairments'), dict):
         data['impairments']['seed'] = int(rng['impairments'].integers(0, 2 ** 31 - 1))
+    if spec.safety is not None:
+        given = data.get('safety')
+        data['safety'] = {**(given if isinstance(given, dict) else {}), **copy.deepcopy(spec.safety)}
     if spec.safety_override is not None:
         given = data.get('safety')
         data['safety'] = {**(given if isinstance(given, dict) else {}), 'enabled': spec.safety_override}

@@ -54,8 +54,8 @@ Top-level keys
     Mapping ``metric: threshold``: a run succeeds when it ended ``ok`` and every named metric is
     ``<=`` its threshold (a metric without a value counts as not met). Metrics: the columns of
     :data:`uh_team.campaign_store.METRIC_COLUMNS`. Default ``{formation_rms_m: 0.05,
-    containment_rms_m: 0.02}`` (m); a given mapping replaces the default (``{}``: every ``ok``
-    run succeeds).
+    containment_rms_m: 0.02, rotor_overlap_s: 0.0}`` (m, m, s: no two rotor disks ever overlap); a
+    given mapping replaces the default (``{}``: every ``ok`` run succeeds).
 ``impairments``
     Optional mapping, the scenario key ``impairments`` (docs/scenario.md): delays, jitter, losses,
     noise, dropouts of the communication and the controllers' ``delay_compensation``. Copied into
@@ -63,6 +63,11 @@ Top-level keys
     each draw gets its own, drawn from the draw's generator, so loss and noise patterns differ
     between draws and repeat for the same draw (the seed of impairments that come from the base
     scenario or a sweep is replaced the same way).
+``safety``
+    Optional mapping, the scenario key ``safety`` (docs/safety.md): the collision-avoidance
+    filter's ``enabled`` and parameters, merged into every resolved scenario over the base
+    scenario's. ``{enabled: false}`` pins the paper's law alone (the studies of the law itself);
+    ``uh-campaign --safety on|off`` overrides ``enabled`` again.
 ``sweep``
     Optional mapping ``{parameter, values}``: every draw is run once per value, with the value
     written at ``parameter`` of the resolved scenario. ``parameter`` is a key path into the
@@ -209,11 +214,11 @@ __all__ = ['CampaignSpec', 'Draws', 'FaultDraws', 'GeneratorSpec', 'Sweep', 'loa
 BUNDLED_PREFIX = 'campaign_'
 
 #: Default success thresholds: metric -> largest value that still succeeds (m).
-DEFAULT_SUCCESS = {'formation_rms_m': 0.05, 'containment_rms_m': 0.02}
+DEFAULT_SUCCESS = {'formation_rms_m': 0.05, 'containment_rms_m': 0.02, 'rotor_overlap_s': 0.0}
 
 _TOP_REQUIRED = ('name', 'runs')
 _TOP_OPTIONAL = ('description', 'scenario', 'generator', 'seed', 'duration', 'settle_time', 'cases',
-                 'success', 'impairments', 'sweep', 'draws')
+                 'success', 'impairments', 'safety', 'sweep', 'draws')
 _KEY_PATH = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*|\[\d+\])*\Z')
 
 
@@ -276,6 +281,7 @@ class CampaignSpec:
     cases: tuple
     success: dict
     impairments: dict | None
+    safety: dict | None
     sweep: Sweep | None
     draws: Draws
     runs_override: int | None = None
@@ -417,6 +423,10 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
     success = _success(ctx, top.get('success', dict(DEFAULT_SUCCESS)))
 
     impairments = _impairments(ctx, top['impairments'], generator) if top.get('impairments') is not None else None
+    safety = None
+    if top.get('safety') is not None:   # its keys and values are checked when draw 0's scenario is loaded
+        safety = dict(ctx.mapping(top['safety'], ('safety',), (), [k.name for k in scenario_keys.SAFETY_KEYS],
+                                  what='a safety mapping (docs/safety.md)'))
 
     n_uhs = (generator.leaders + generator.followers if generator is not None else len(base_mapping['uhs']))
     draws = read_draws(ctx, top.get('draws') or {}, n_uhs)
@@ -431,7 +441,7 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
     spec = CampaignSpec(
         name=name, description=description, source=source, text=text, base_dir=base, scenario=scenario_file,
         generator=generator, runs=runs, seed=seed, duration=float(duration), settle_time=float(settle_time),
-        cases=cases, success=success, impairments=impairments, sweep=sweep, draws=draws, lines=lines,
+        cases=cases, success=success, impairments=impairments, safety=safety, sweep=sweep, draws=draws, lines=lines,
         base_mapping=base_mapping)
     check_draw_zero(spec)
     return spec

@@ -19,7 +19,6 @@ the air. A UH never heard is not reported (nothing is known of it).
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,29 +32,27 @@ def within_radius(positions, own: int, sensing_radius: float) -> list[int]:
     """Return the rows of ``positions`` (n, 3; m, inertial frame) within ``sensing_radius`` m of row ``own``.
 
     Row ``own`` is left out; rows keep their order. The test is that of the filter's kernel
-    (:func:`uh_controller_node.safety_kernels.proximity_rows`, the in-process team loop's sensing),
-    with the same floating-point operations in the same order, so both select the same rows.
+    (:func:`uh_controller_node.safety_kernels.proximity_rows`, the in-process team loop's sensing)
+    with the same floating-point operations in the same order (elementwise, each correctly
+    rounded), so both select the same rows.
     """
     p = np.asarray(positions, dtype=float)
-    rows = []
-    for j in range(p.shape[0]):
-        if j == own:
-            continue
-        d2 = 0.0
-        for a in range(3):
-            diff = float(p[j, a]) - float(p[own, a])
-            d2 += diff * diff
-        if math.sqrt(d2) <= sensing_radius:
-            rows.append(j)
-    return rows
+    diff = p - p[own]
+    d2 = diff[:, 0] * diff[:, 0]
+    d2 = d2 + diff[:, 1] * diff[:, 1]
+    d2 = d2 + diff[:, 2] * diff[:, 2]
+    inside = np.sqrt(d2) <= sensing_radius
+    inside[own] = False
+    return np.flatnonzero(inside).tolist()
 
 
 @dataclass(frozen=True)
 class ProximityReport:
     """One proximity message: what UH ``uh_id`` senses at step ``step``.
 
-    ``ids`` (ascending), ``steps`` (the step each state is of) and ``states`` (m, 12) of every other
-    UH within the sensing radius.
+    ``ids`` (ascending), ``steps`` (the step each state is of), ``states`` (m, 12) and
+    ``payloads`` (what was offered with each state, e.g. the received message) of every other UH
+    within the sensing radius.
     """
 
     uh_id: int
@@ -63,6 +60,7 @@ class ProximityReport:
     ids: tuple
     steps: tuple
     states: np.ndarray
+    payloads: tuple = ()
 
 
 class ProximitySensing:
@@ -86,11 +84,16 @@ class ProximitySensing:
         self.sensing_radius, self.lockstep, self.last_step = float(sensing_radius), bool(lockstep), int(last_step)
         self.states = np.zeros((len(self.ids), STATE_SIZE))
         self.steps = np.full(len(self.ids), -1, dtype=np.int64)   # -1: never heard
+        self.payloads: list = [None] * len(self.ids)              # what came with each UH's state held
         self.next_step = 0                                        # lockstep: the next step to serve
-        self._pending: dict[int, dict] = {}                       # lockstep: step -> {uh: state}
+        self._pending: dict[int, dict] = {}                       # lockstep: step -> {uh: (state, payload)}
 
-    def offer(self, uh_id: int, k: int, state) -> list[ProximityReport]:
-        """Take UH ``uh_id``'s valid state (12,) of step ``k``; return the proximity messages now due, in order."""
+    def offer(self, uh_id: int, k: int, state, payload=None) -> list[ProximityReport]:
+        """Take UH ``uh_id``'s valid state (12,) of step ``k``; return the proximity messages now due, in order.
+
+        ``payload`` (anything, e.g. the message the state came in) is handed back with the state in
+        the reports that hold it.
+        """
         if uh_id not in self.row:
             raise ValueError(f'uh{uh_id} is not in the team ({", ".join(f"uh{i}" for i in self.ids)})')
         if k > self.last_step:
@@ -99,14 +102,15 @@ class ProximitySensing:
             r = self.row[uh_id]
             if k <= self.steps[r]:
                 return []   # older than, or a repeat of, the state held (reordered, or history after a restart)
-            self.states[r], self.steps[r] = state, k
+            self.states[r], self.steps[r], self.payloads[r] = state, k, payload
             return [self.report(uh_id, k)]
         if k >= self.next_step:
-            self._pending.setdefault(k, {})[uh_id] = np.asarray(state, dtype=float)
+            self._pending.setdefault(k, {})[uh_id] = (np.asarray(state, dtype=float), payload)
         out = []
         while len(self._pending.get(self.next_step, ())) == len(self.ids):
-            for uh, x in self._pending.pop(self.next_step).items():
-                self.states[self.row[uh]], self.steps[self.row[uh]] = x, self.next_step
+            for uh, (x, held) in self._pending.pop(self.next_step).items():
+                r = self.row[uh]
+                self.states[r], self.steps[r], self.payloads[r] = x, self.next_step, held
             out += [self.report(uh, self.next_step) for uh in self.ids]
             self.next_step += 1
         return out
@@ -117,4 +121,5 @@ class ProximitySensing:
         own = heard.index(self.row[uh_id])
         rows = [heard[j] for j in within_radius(self.states[heard, X_P:X_P + 3], own, self.sensing_radius)]
         return ProximityReport(int(uh_id), int(k), tuple(self.ids[r] for r in rows),
-                               tuple(int(self.steps[r]) for r in rows), self.states[rows].copy())
+                               tuple(int(self.steps[r]) for r in rows), self.states[rows].copy(),
+                               tuple(self.payloads[r] for r in rows))

@@ -63,7 +63,8 @@ class SensingNode(rt.Node):
             self.get_logger().error(f'rejected state of uh{uh_id}: {exc}; keeping the last valid one '
                                     f'({count} rejected so far)', throttle_duration_sec=1.0)
             return
-        for report in self.sensing.offer(uh_id, int(msg.step), state):
+        # the received message travels on as it is (the states are republished unchanged)
+        for report in self.sensing.offer(uh_id, int(msg.step), state, msg):
             self.pubs[report.uh_id].publish(proximity_to_msg(report, self.dt, self.sensing_radius))
             self.published.add(self.names[report.uh_id])
 

@@ -17,6 +17,10 @@ reads from YAML) with N leaders and M followers:
 * the paper's actuator faults (docs/scenario.md) from t = 10 s, repeated over the team: the faults of
   UH 2 on leaders 2, 5, 8, ..., those of UH 3 on leaders 3, 6, 9, ..., those of UH 5 on every
   second follower.
+* the safety filter off (``safety: {enabled: false}``, the law alone): followers between the same
+  two leaders share a containment target, and with one leader every follower's target is its slot,
+  which no filter can hold apart (docs/safety.md#design-time-check); these teams measure the law's
+  cost as the team grows.
 
 The paper's values are read from the bundled ``uh_topology/config/paper.yaml``, their one home.
 
@@ -181,6 +185,7 @@ def team_mapping(n_leaders: int, n_followers: int, *, duration: float = 60.0, fa
         'uhs': uhs, 'edges': edges, 'reference_links': links,
         'reference': copy.deepcopy(paper['reference']),
         'disturbance': copy.deepcopy(paper['disturbance']),
+        'safety': {'enabled': False},   # shared containment targets: see the module docstring
     }
     if fault_list:
         mapping['faults'] = fault_list

@@ -160,8 +160,9 @@ SEPARATION_MARGIN = 0.15
 
 #: The keys of ``safety`` (docs/scenario.md#safety, docs/safety.md).
 SAFETY_KEYS = (
-    ScenarioKey('enabled', 'the filter runs: `true` or `false` (`false` is the paper\'s law alone, bit for bit); '
-                "the run scripts' `--safety on` and `--safety off` override it", default=False, kind='boolean'),
+    ScenarioKey('enabled', 'the filter runs: `true` (the default: rotors never touch) or `false` (the paper\'s law '
+                "alone, bit for bit); the run scripts' `--safety on` and `--safety off` override it", default=True,
+                kind='boolean'),
     ScenarioKey('min_separation', 'smallest hub-to-hub distance the filter keeps between two UHs (3-D), '
                 '>= 2 `rotor_radius` of the airframe', default=None,
                 default_text=f'2 `rotor_radius` + {SEPARATION_MARGIN:g}', unit='m', kind='number', lo=0.0,

@@ -104,8 +104,16 @@ def received_states_to_msg(uh_id: int, k: int, dt: float, own, neighbours: dict,
 
 
 def proximity_to_msg(report, dt: float, sensing_radius: float):
-    """Build the ``Proximity`` of a :class:`uh_sim_node.sensing.ProximityReport` (step times ``step * dt``)."""
-    states = [state_to_msg(j, s, s * dt, x) for j, s, x in zip(report.ids, report.steps, report.states, strict=True)]
+    """Build the ``Proximity`` of a :class:`uh_sim_node.sensing.ProximityReport` (step times ``step * dt``).
+
+    The report's payloads are used as its states where they are ``UHState`` messages (the ones
+    received: no copy); otherwise each state is built from its vector.
+    """
+    if report.payloads and all(p is not None for p in report.payloads):
+        states = list(report.payloads)
+    else:
+        states = [state_to_msg(j, s, s * dt, x)
+                  for j, s, x in zip(report.ids, report.steps, report.states, strict=True)]
     return m.Proximity(header=_header(report.step * dt), uh_id=int(report.uh_id), step=int(report.step),
                        sensing_radius=float(sensing_radius), states=states)
 
