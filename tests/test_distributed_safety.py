@@ -7,6 +7,7 @@ states, the reference if it hears it, and its own proximity input: nothing else.
 import json
 import os
 import signal
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,6 +25,10 @@ ROTOR_OVERLAP = 2.0 * load_helicopter_params('helicopter').rotor_radius      # 1
 #: the paper team's closest approach (UH3, UH4, UH5) is at t = 2.3 s: 4 s cover it and the filter's work
 DURATION = 4.0
 
+#: 50 ms late, a third of the steps lost, 5 cm and 5 cm/s of noise on the proximity input
+DEGRADED = ('safety: {proximity_delay_steps: 5, proximity_loss: 0.3, proximity_noise_position: 0.05,\n'
+            '         proximity_noise_velocity: 0.05, proximity_seed: 3}\n')
+
 # Who hears whom in the paper scenario, from docs/scenario.md, plus each UH's own proximity input.
 PAPER_READS_WITH_FILTER = {
     1: {'/uh1/state', '/uh3/state', '/reference', '/uh1/proximity'},
@@ -34,23 +39,27 @@ PAPER_READS_WITH_FILTER = {
 }
 
 
-@pytest.fixture(scope='module')
-def paper_with_filter():
-    return load_scenario('paper', safety=True)
-
-
-def test_a_lockstep_run_with_the_filter_equals_the_in_process_run_bit_for_bit(tmp_path, paper_with_filter):
+def test_a_lockstep_run_with_degraded_sensing_equals_the_in_process_run_bit_for_bit(tmp_path):
+    # the proximity input late, lossy and noisy (docs/safety.md#degraded-sensing): the controller nodes
+    # degrade what the sensing node sends with the kernels the in-process loop degrades the true states with
+    paper = Path(load_scenario('paper').source)
+    (tmp_path / 'paper_gains.yaml').write_text((paper.parent / 'paper_gains.yaml').read_text())
+    path = tmp_path / 'degraded.yaml'
+    path.write_text(paper.read_text() + DEGRADED)
+    scenario = load_scenario(path)
     out = tmp_path / 'run'
-    proc = start_run(out, reserve_domain_id(), '--clock', 'lockstep', '--safety', 'on', '--duration', str(DURATION),
-                     '--no-report')
+    proc = start_run(out, reserve_domain_id(), '--scenario', str(path), '--clock', 'lockstep', '--duration',
+                     str(DURATION), '--no-report')
     try:
         output, _ = proc.communicate(timeout=300)
     finally:
         kill_session(proc)
     assert proc.returncode == 0, output
-    reference = run_team_simulation(paper_with_filter, 'proposed', duration=DURATION)
+    reference = run_team_simulation(scenario, 'proposed', duration=DURATION)
     assert reference.safety_active.sum() > 100          # the filter works in this window: a real test
-    bag = read_team_bag(out / 'bag', paper_with_filter)
+    exact = run_team_simulation(load_scenario('paper'), 'proposed', duration=DURATION)
+    assert not np.array_equal(reference.commands, exact.commands)   # ... and the degradation matters
+    bag = read_team_bag(out / 'bag', scenario)
     assert np.array_equal(bag['states'], reference.states)
     assert np.array_equal(bag['commands'], reference.commands)
     assert np.array_equal(bag['safety_active'], reference.safety_active)
@@ -58,8 +67,8 @@ def test_a_lockstep_run_with_the_filter_equals_the_in_process_run_bit_for_bit(tm
     assert metrics['rotor_overlap_s'] == 0.0 and metrics['safety_active_s'] > 0
     assert json.loads((out / 'run.json').read_text())['safety'] == 'on'
     sensing = (out / 'logs' / 'sensing.log').read_text()
-    steps = int(round(DURATION / paper_with_filter.dt)) + 1
-    assert all(f'/uh{i}/proximity {steps}' in sensing for i in paper_with_filter.ids), sensing
+    steps = int(round(DURATION / scenario.dt)) + 1
+    assert all(f'/uh{i}/proximity {steps}' in sensing for i in scenario.ids), sensing
 
 
 def test_with_safety_off_the_nodes_fly_the_papers_law_bit_for_bit(tmp_path):

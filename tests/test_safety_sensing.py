@@ -34,7 +34,7 @@ def test_the_sensing_node_selects_exactly_the_rows_of_the_in_process_kernel():
     # the in-process team loop senses with the compiled kernel, the node with within_radius: the
     # lockstep bag equals the in-process run only if both pick the same rows, also at the boundary
     rng = np.random.default_rng(7)
-    out = np.empty((11, PROXIMITY_COLUMNS))
+    out, senders = np.empty((11, PROXIMITY_COLUMNS)), np.empty(11, dtype=np.int64)
     cases = 0
     for _ in range(3000):
         n = int(rng.integers(2, 12))
@@ -45,9 +45,10 @@ def test_the_sensing_node_selects_exactly_the_rows_of_the_in_process_kernel():
             radius = float(np.sqrt(((positions[j] - positions[own]) ** 2).sum()))
         else:
             radius = float(rng.uniform(0.5, 20.0))
-        rows = proximity_rows(positions, np.zeros((n, 3)), own, radius, out)
+        rows = proximity_rows(positions, np.zeros((n, 3)), own, radius, out, senders)
         picked = within_radius(positions, own, radius)
         assert np.array_equal(out[:rows, :3], positions[picked]), (positions, own, radius)
+        assert senders[:rows].tolist() == picked
         cases += len(picked)
     assert cases > 1000    # the draws do select UHs
 
@@ -99,8 +100,8 @@ def test_the_proximity_message_carries_the_states_exactly_and_bad_ones_are_rejec
     msg = wire.proximity_to_msg(report, 0.01, 12.0)
     assert (msg.uh_id, msg.step, msg.sensing_radius) == (1, 4, 12.0)
     assert [s.step for s in msg.states] == [4, 4]
-    ids, rows = wire.msg_to_proximity(msg, 1)
-    assert ids == (2, 3)
+    step, ids, rows = wire.msg_to_proximity(msg, 1)
+    assert step == 4 and ids == (2, 3)
     assert np.array_equal(rows, np.stack([x2[:6], x3[:6]]))           # float64 unchanged: bit for bit
     with pytest.raises(wire.WireError, match='expected 2'):
         wire.msg_to_proximity(msg, 2)
@@ -156,13 +157,23 @@ def test_the_controller_node_gives_the_filter_the_rows_and_names_the_closest_uh(
     class Controller:
         def set_proximity(self, rows):
             self.rows = rows
-    controller, held = Controller(), ProximityInput()
+    controller, held = Controller(), ProximityInput(3, load_scenario('paper').safety and _params(), 0.01)
     assert held.closest(np.zeros(12)) == 0
     rows = np.array([[3.0, 0.0, 0.0, 0, 0, 0], [0.0, 2.0, 0.0, 0, 0, 0], [9.0, 9.0, 9.0, 0, 0, 0]])
-    held.use(controller, ((4, 5, 7), rows))
+    held.use(controller, (0, (4, 5, 7), rows), 0)
     assert controller.rows is rows and held.closest(np.zeros(12)) == 5
-    held.use(controller, None)                                       # no new input: the newest is kept
+    held.use(controller, None, 1)                                    # no new input: the newest is kept
     assert held.closest(_state((8.0, 8.0, 8.0))) == 7
+
+
+def _params(**changes):
+    """Return the filter's parameter vector of the paper scenario with ``changes`` to its safety keys."""
+    import dataclasses
+
+    from uh_controller_node.controller import UHController
+    scenario = load_scenario('paper')
+    scenario = dataclasses.replace(scenario, safety=dataclasses.replace(scenario.safety, **changes))
+    return UHController(3, scenario).safety_parameters
 
 
 def test_controller_diagnostics_say_when_the_filter_acts_and_name_the_closest_uh():
@@ -200,3 +211,41 @@ def test_the_sensing_node_started_without_the_filter_or_with_a_bad_setting_says_
                              '-p', f'safety:={value}'], capture_output=True, text=True, timeout=120)
     assert result.returncode == 2, result.stderr
     assert expected in result.stderr and result.stderr.strip().count('\n') == 0, result.stderr
+
+
+def test_degraded_sensing_takes_the_newest_report_not_lost_at_least_the_delay_old_and_predicts_it():
+    class Controller:
+        def set_proximity(self, rows):
+            self.rows = rows
+    from uh_controller_node.safety_kernels import proximity_lost
+    params = _params(proximity_delay_steps=3, proximity_loss=0.4, proximity_seed=5)
+    held, controller = ProximityInput(2, params, 0.01), Controller()
+    lost = {s for s in range(1, 200) if proximity_lost(params, 2, s)}
+    assert 40 < len(lost) < 120 and 0 not in lost and proximity_lost(params, 2, 0) is False   # about 40 %
+    for k in range(200):
+        rows = np.array([[float(k), 0.0, 0.0, 1.0, 0.0, 0.0]])         # a UH at x = k m moving at 1 m/s
+        held.use(controller, (k, (7,), rows), k)
+        expected = max((s for s in range(k - 2) if s not in lost), default=None)
+        if expected is None:
+            assert controller.rows.shape == (0, 6)                     # nothing 3 steps old yet
+            continue
+        # the report of step s predicted over (k - s) dt with its velocity: x = s + (k - s) 0.01
+        assert controller.rows[0, 0] == pytest.approx(expected + (k - expected) * 0.01, abs=1e-12), k
+        assert min(held.history) == expected                          # nothing older than the input is kept
+
+
+def test_without_degradation_the_input_is_the_report_itself_and_noise_is_keyed_by_the_sent_step():
+    class Controller:
+        def set_proximity(self, rows):
+            self.rows = rows
+    rows = np.array([[1.0, 2.0, 3.0, 0.1, 0.2, 0.3]])
+    exact, controller = ProximityInput(2, _params(), 0.01), Controller()
+    exact.use(controller, (4, (7,), rows), 4)
+    assert controller.rows is rows                                      # as received, not even copied
+    noisy = ProximityInput(2, _params(proximity_noise_position=0.1, proximity_noise_velocity=0.2), 0.01)
+    noisy.use(controller, (4, (7,), rows), 4)
+    first = controller.rows.copy()
+    again = ProximityInput(2, _params(proximity_noise_position=0.1, proximity_noise_velocity=0.2), 0.01)
+    again.use(controller, (4, (7,), rows), 4)
+    assert np.array_equal(controller.rows, first) and not np.array_equal(first, rows)   # pure function of the keys
+    assert np.array_equal(rows, [[1.0, 2.0, 3.0, 0.1, 0.2, 0.3]])      # the report itself is left as it came

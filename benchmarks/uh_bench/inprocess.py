@@ -70,7 +70,7 @@ def component_costs(scenario, steps: int = 1000, case: str = 'proposed', safety:
             ref = r if linked[c] else None
             t0 = clock()
             if safety:
-                ctl.set_proximity(proximity_input(positions, velocities, c, ctl.sensing_radius))
+                ctl.set_proximity(proximity_input(positions, velocities, c, ctl.sensing_radius)[0])
             u, _ = ctl.step(k, xs[c], nb, ref, dt)
             t1 = clock()
             us.append(u)

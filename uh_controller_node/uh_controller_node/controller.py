@@ -358,6 +358,11 @@ class UHController:
         self._proximity = np.ascontiguousarray(rows)
 
     @property
+    def safety_parameters(self) -> np.ndarray:
+        """The safety filter's parameter vector (``SF_*`` of :mod:`~uh_controller_node.safety_kernels`; empty: off)."""
+        return self._safety
+
+    @property
     def safety_enabled(self) -> bool:
         """Whether this controller runs the safety filter."""
         return self._safety.shape[0] > 0

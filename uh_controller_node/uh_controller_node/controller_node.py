@@ -78,7 +78,7 @@ class ControllerNode(rt.Node):
         self.sync = InputSynchroniser(self.uh_id, neighbours, linked, mode=run.clock_mode, dt=run.dt,
                                       last_step=run.last_step, reachable=self.controller.reachable_without,
                                       logger=self.get_logger(), sensed=sensed, **sync)
-        self.proximity = ProximityInput()
+        self.proximity = ProximityInput(self.uh_id, self.controller.safety_parameters, self.dt)
         self.command_topic, self.status_topic, self.received_topic = (
             topics.uh_topic(self.uh_id, spec) for spec in (topics.COMMAND, topics.STATUS, topics.RECEIVED))
         self.published = PublishedCounts(self.command_topic, self.status_topic)
@@ -154,7 +154,7 @@ class ControllerNode(rt.Node):
             if self.received is not None:   # what this UH receives under the scenario's impairments
                 own, neighbours = self.received.receive(k, own, neighbours)
             self.ages.add(k, neighbours, self.received, self.sync.lag)
-            self.proximity.use(self.controller, inputs.proximity)
+            self.proximity.use(self.controller, inputs.proximity, k)
             try:
                 if inputs.stale:
                     u, status = self.controller.step_degraded(k, own, neighbours, inputs.reference,

@@ -43,19 +43,26 @@ def safety_parameters(spec, nominal: HelicopterParams, tilt_limit: float, min_ve
     params[sk.SF_GRAVITY] = nominal.gravity
     params[sk.SF_TILT_LIMIT] = tilt_limit
     params[sk.SF_MIN_VERTICAL_ACCEL] = min_vertical_accel
+    params[sk.SF_PROXIMITY_DELAY] = spec.proximity_delay_steps
+    params[sk.SF_PROXIMITY_LOSS] = spec.proximity_loss
+    params[sk.SF_PROXIMITY_NOISE_P] = spec.proximity_noise_position
+    params[sk.SF_PROXIMITY_NOISE_V] = spec.proximity_noise_velocity
+    params[sk.SF_PROXIMITY_SEED] = spec.proximity_seed
     return params
 
 
-def proximity_input(positions, velocities, own: int, sensing_radius: float) -> np.ndarray:
+def proximity_input(positions, velocities, own: int, sensing_radius: float) -> tuple[np.ndarray, np.ndarray]:
     """Return UH row ``own``'s proximity input: ``[p, v]`` of every other row within ``sensing_radius`` m.
 
     ``positions``, ``velocities``: (n, 3) arrays, m and m/s, inertial frame (the true states: the
-    plant side's sensing, docs/safety.md#what-the-filter-knows). The rows keep their order; the
-    same kernel (:func:`~uh_controller_node.safety_kernels.proximity_rows`) builds the input of the
-    in-process team loop.
+    plant side's sensing, docs/safety.md#what-the-filter-knows). Returns ``(rows, senders)``: the
+    rows, in the order of ``positions``, and the row of ``positions`` each one is of. The same kernel
+    (:func:`~uh_controller_node.safety_kernels.proximity_rows`) builds the input of the in-process
+    team loop.
     """
     positions = np.ascontiguousarray(positions, dtype=float)
     velocities = np.ascontiguousarray(velocities, dtype=float)
-    out = np.empty((max(positions.shape[0] - 1, 1), sk.PROXIMITY_COLUMNS))
-    rows = sk.proximity_rows(positions, velocities, int(own), float(sensing_radius), out)
-    return out[:rows]
+    size = max(positions.shape[0] - 1, 1)
+    out, senders = np.empty((size, sk.PROXIMITY_COLUMNS)), np.empty(size, dtype=np.int64)
+    rows = sk.proximity_rows(positions, velocities, int(own), float(sensing_radius), out, senders)
+    return out[:rows], senders[:rows]

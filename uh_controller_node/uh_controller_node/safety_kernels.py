@@ -44,13 +44,19 @@ import time
 import numpy as np
 
 from uh_core import compiled_kernels as _compiled_kernels
+from uh_core import kernel_cache as _kernel_cache
 from uh_core.compiled_kernels import njit
+
+from . import impairments as _impairments
+from .impairments import hash_uniform
 
 __all__ = ['SF_MIN_SEPARATION', 'SF_SENSING_RADIUS', 'SF_BARRIER_GAIN', 'SF_BRAKE_ACCEL', 'SF_SLACK_WEIGHT',
            'SF_SIDESTEP_ACCEL', 'SF_DRAG_PER_MASS', 'SF_GRAVITY', 'SF_TILT_LIMIT', 'SF_MIN_VERTICAL_ACCEL',
            'SAFETY_PARAMS_SIZE', 'PROXIMITY_COLUMNS', 'CONE_SIDES', 'HEAD_ON_COS', 'SO_ACTIVE', 'SO_SLACK',
            'SO_CLOSEST_DISTANCE', 'SO_CLOSEST_ROW', 'SO_PAIRS', 'SAFETY_OUT_SIZE', 'nnls', 'least_distance',
-           'pair_barrier', 'safety_filter', 'proximity_rows', 'compile_safety_kernels']
+           'pair_barrier', 'safety_filter', 'proximity_rows', 'compile_safety_kernels', 'SF_PROXIMITY_DELAY',
+           'SF_PROXIMITY_LOSS', 'SF_PROXIMITY_NOISE_P', 'SF_PROXIMITY_NOISE_V', 'SF_PROXIMITY_SEED',
+           'PROXIMITY_STREAM', 'proximity_lost', 'degrade_proximity']
 
 # the filter's parameter vector (uh_controller_node.safety.safety_parameters builds it)
 SF_MIN_SEPARATION = 0        # D_s, hub to hub, m
@@ -63,7 +69,15 @@ SF_DRAG_PER_MASS = 6         # D_v,nom / m, 1/s
 SF_GRAVITY = 7               # g, m/s^2
 SF_TILT_LIMIT = 8            # rad
 SF_MIN_VERTICAL_ACCEL = 9    # m/s^2
-SAFETY_PARAMS_SIZE = 10
+SF_PROXIMITY_DELAY = 10      # steps the proximity input arrives late (a whole number)
+SF_PROXIMITY_LOSS = 11       # probability that a step's proximity input is lost
+SF_PROXIMITY_NOISE_P = 12    # standard deviation of the noise on a reported position, m
+SF_PROXIMITY_NOISE_V = 13    # ... on a reported velocity, m/s
+SF_PROXIMITY_SEED = 14       # seed of the losses and the noise (a whole number)
+SAFETY_PARAMS_SIZE = 15
+
+#: First hash stream of the proximity input's impairments (loss; noise: the next 12), clear of the links' streams.
+PROXIMITY_STREAM = 1000
 
 #: Columns of a proximity row: ``[p (3), v (3)]`` of a reported UH, m and m/s, inertial frame.
 PROXIMITY_COLUMNS = 6
@@ -455,7 +469,7 @@ def safety_filter(params, position, velocity, u_p, proximity, u, out):
 
 
 @njit(cache=True)
-def proximity_rows(positions, velocities, own, sensing_radius, out):
+def proximity_rows(positions, velocities, own, sensing_radius, out, senders):
     """Write the proximity input of UH ``own``: ``[p, v]`` of every other UH within ``sensing_radius``.
 
     What a UH's sensing reports (docs/safety.md#what-the-filter-knows): the plant side knows every
@@ -471,6 +485,8 @@ def proximity_rows(positions, velocities, own, sensing_radius, out):
         m.
     out : ndarray (>= n - 1, PROXIMITY_COLUMNS)
         Output rows.
+    senders : ndarray (>= n - 1,) int64
+        Output: the row of ``positions`` each output row is of.
 
     Returns
     -------
@@ -489,8 +505,46 @@ def proximity_rows(positions, velocities, own, sensing_radius, out):
             for a in range(3):
                 out[rows, a] = positions[j, a]
                 out[rows, 3 + a] = velocities[j, a]
+            senders[rows] = j
             rows += 1
     return rows
+
+
+@njit(cache=True)
+def proximity_lost(params, receiver, step):
+    """Whether UH ``receiver``'s proximity input of ``step`` is lost (docs/safety.md#degraded-sensing).
+
+    A pure function of ``(proximity_seed, receiver, step)``, so every engine loses the same steps;
+    the input of step 0 is never lost.
+    """
+    loss = params[SF_PROXIMITY_LOSS]
+    if loss <= 0.0 or step == 0:
+        return False
+    return hash_uniform(int(params[SF_PROXIMITY_SEED]), receiver, 0, step, PROXIMITY_STREAM) < loss
+
+
+@njit(cache=True)
+def degrade_proximity(rows, count, sender_ids, receiver, sent_step, step, dt, params):
+    """Add the noise to the first ``count`` proximity rows of ``sent_step``, then predict them to ``step``.
+
+    In place (docs/safety.md#degraded-sensing). The noise of a reported UH is keyed by
+    ``(proximity_seed, receiver, its id, sent_step)`` (Box-Muller on two hashed uniforms per
+    component), so a kept input keeps its noise; each position is then moved by its (noisy)
+    velocity over ``(step - sent_step) dt`` s. Nothing changes without noise and for the current step.
+    """
+    sigma_p, sigma_v = params[SF_PROXIMITY_NOISE_P], params[SF_PROXIMITY_NOISE_V]
+    seed = int(params[SF_PROXIMITY_SEED])
+    for r in range(count):
+        for c in range(PROXIMITY_COLUMNS):
+            sigma = sigma_p if c < 3 else sigma_v
+            if sigma > 0.0:
+                u1 = hash_uniform(seed, receiver, sender_ids[r], sent_step, PROXIMITY_STREAM + 1 + 2 * c)
+                u2 = hash_uniform(seed, receiver, sender_ids[r], sent_step, PROXIMITY_STREAM + 2 + 2 * c)
+                rows[r, c] += sigma * math.sqrt(-2.0 * math.log(1.0 - u1)) * math.cos(2.0 * math.pi * u2)
+        if step > sent_step:
+            age = (step - sent_step) * dt
+            for a in range(3):
+                rows[r, a] += rows[r, 3 + a] * age
 
 
 def compile_safety_kernels() -> float:
@@ -503,8 +557,15 @@ def compile_safety_kernels() -> float:
     least_distance(np.zeros((2, 4)), np.zeros(2), np.zeros(4))
     nnls(np.zeros((2, 3)), np.zeros(2), np.zeros(3))
     pair_barrier(params, three, three, three, three, np.zeros(3))
-    proximity_rows(np.zeros((2, 3)), np.zeros((2, 3)), 0, 1.0, np.zeros((1, PROXIMITY_COLUMNS)))
+    proximity_rows(np.zeros((2, 3)), np.zeros((2, 3)), 0, 1.0, np.zeros((1, PROXIMITY_COLUMNS)),
+                   np.zeros(1, dtype=np.int64))
+    proximity_lost(params, 1, 2)
+    degrade_proximity(np.zeros((1, PROXIMITY_COLUMNS)), 1, np.ones(1, dtype=np.int64), 2, 3, 4, 0.01, params)
     return time.perf_counter() - start
+
+
+# numba caches each kernel by this file only: empty the cache when the hash it calls changes
+_kernel_cache.refresh_cache(_kernel_cache.module_dispatchers(globals()), [_impairments.__file__])
 
 
 # run the ahead-of-time compiled kernels instead where this process asks for them (docs/performance.md#memory)

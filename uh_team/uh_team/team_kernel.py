@@ -43,7 +43,16 @@ from uh_controller_node import loop_kernels as _loop_kernels
 from uh_controller_node import safety_kernels as _safety_kernels
 from uh_controller_node.control_kernels import INPUT_SIZE, STATE_SIZE, STATUS, STATUS_SIZE, STEP_DONE, uh_control_step
 from uh_controller_node.impairments import add_noise, delivered_step, predict_state, prediction_age
-from uh_controller_node.safety_kernels import PROXIMITY_COLUMNS, SF_SENSING_RADIUS, proximity_rows
+from uh_controller_node.safety_kernels import (
+    PROXIMITY_COLUMNS,
+    SF_PROXIMITY_DELAY,
+    SF_PROXIMITY_NOISE_P,
+    SF_PROXIMITY_NOISE_V,
+    SF_SENSING_RADIUS,
+    degrade_proximity,
+    proximity_lost,
+    proximity_rows,
+)
 from uh_core import compiled_kernels as _compiled_kernels
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
@@ -286,6 +295,8 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
     safety = team.safety
     filtered = safety.shape[1] > 0
     proximity = np.empty((max(n - 1, 1), PROXIMITY_COLUMNS))
+    senders = np.empty(max(n - 1, 1), dtype=np.int64)
+    sender_ids = np.empty(max(n - 1, 1), dtype=np.int64)
     sensed = 0
     status = np.empty(STATUS_SIZE)
     own = np.empty(STATE_SIZE)
@@ -308,8 +319,7 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
                 for j in range(m):
                     nb[j] = x[hears[c, j]]
             if filtered:    # the plant side's sensing: the true states at t_k (docs/safety.md)
-                sensed = proximity_rows(x[:, X_P:X_P + 3], x[:, X_V:X_V + 3], c, safety[c, SF_SENSING_RADIUS],
-                                        proximity)
+                sensed = sense_proximity(k, c, dt, states, ids, safety[c], proximity, senders, sender_ids)
             done = uh_control_step(control_params[c], received, nb, nb_weights[c, :m], nb_offsets[c, :m],
                                    offsets[c], links[c], reference, dt, weights_p[c], weights_w[c],
                                    memory[c], commands[k, c], status, safety[c], proximity[:sensed])
@@ -321,6 +331,29 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
         advance_plants(k, last, dt, x, commands, team.plant_params, team.faults, team.disturbance, team.substeps,
                        record.fault_true_p, record.fault_true_w, u, out_p, out_w)
     return TEAM_DONE
+
+
+@njit(cache=True)
+def sense_proximity(k, c, dt, states, ids, params, proximity, senders, sender_ids):
+    """Write row ``c``'s proximity input of step ``k`` into ``proximity``; return its rows.
+
+    The report of the true states at the newest step ``s <= k - proximity_delay_steps`` that was
+    not lost (``states``: the recorded states, step k included), degraded and predicted to step k
+    with the kernels the controllers use (docs/safety.md#degraded-sensing); the true states at t_k
+    without degraded sensing.
+    """
+    s = k - int(params[SF_PROXIMITY_DELAY])
+    while s > 0 and proximity_lost(params, ids[c], s):
+        s -= 1
+    if s < 0:
+        return 0
+    xs = states[s]
+    sensed = proximity_rows(xs[:, X_P:X_P + 3], xs[:, X_V:X_V + 3], c, params[SF_SENSING_RADIUS], proximity, senders)
+    if s < k or params[SF_PROXIMITY_NOISE_P] > 0.0 or params[SF_PROXIMITY_NOISE_V] > 0.0:
+        for r in range(sensed):
+            sender_ids[r] = ids[senders[r]]
+        degrade_proximity(proximity, sensed, sender_ids, ids[c], s, k, dt, params)
+    return sensed
 
 
 # The parts of a step of run_team_steps. Inlined into it (numba's inline='always': the same

@@ -25,6 +25,7 @@ import numpy as np
 from uh_controller_node.controller import UHController
 from uh_controller_node.gains import CASES, GainsError
 from uh_controller_node.impairments import ReceivedStates
+from uh_controller_node.proximity_input import ProximityInput
 from uh_controller_node.safety import proximity_input
 from uh_core.airframe import load_helicopter_params
 from uh_core.layout import R_P_SLICE, R_V_SLICE, R_YAW, REFERENCE_SIZE, X_P_SLICE
@@ -253,6 +254,7 @@ def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress,
                 if impairments is not None else None)
     hears = [tuple(col[j] for j in ctl.neighbours) for ctl in controllers]
     linked = [ctl.leader_link > 0.0 for ctl in controllers]
+    sensing = [ProximityInput(i, ctl.safety_parameters, dt) for i, ctl in zip(ids, controllers, strict=True)]
     states, commands = out['states'], out['commands']
     for k in range(K + 1):
         t = k * dt
@@ -264,7 +266,8 @@ def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress,
         positions, velocities = states[k, :, X_P_SLICE], states[k, :, 3:6]
         for c, ctl in enumerate(controllers):
             if ctl.safety_enabled:    # the plant side's sensing: the true states at t_k (docs/safety.md)
-                ctl.set_proximity(proximity_input(positions, velocities, c, ctl.sensing_radius))
+                rows, senders = proximity_input(positions, velocities, c, ctl.sensing_radius)
+                sensing[c].use(ctl, (k, tuple(ids[j] for j in senders), rows), k)
             own, nb = xs[c], {ids[j]: xs[j] for j in hears[c]}
             if received is not None:
                 own, nb = received[c].receive(k, own, nb)

@@ -48,6 +48,8 @@ class SafetySpec:
         m; None: the default, ``2 rotor_radius + SEPARATION_MARGIN`` of the airframe.
     sensing_radius, barrier_gain, brake_accel, slack_weight, sidestep_accel : float
         m, 1/s, m/s^2, -, m/s^2.
+    proximity_delay_steps, proximity_loss, proximity_noise_position, proximity_noise_velocity, proximity_seed
+        What degrades the proximity input: control steps, probability, m, m/s, seed.
     """
 
     # the defaults are those the keys declare (uh_topology.scenario_keys.SAFETY_KEYS), read once here
@@ -58,6 +60,11 @@ class SafetySpec:
     brake_accel: float = _default('brake_accel')
     slack_weight: float = _default('slack_weight')
     sidestep_accel: float = _default('sidestep_accel')
+    proximity_delay_steps: int = _default('proximity_delay_steps')
+    proximity_loss: float = _default('proximity_loss')
+    proximity_noise_position: float = _default('proximity_noise_position')
+    proximity_noise_velocity: float = _default('proximity_noise_velocity')
+    proximity_seed: int = _default('proximity_seed')
 
     def separation(self, rotor_radius: float) -> float:
         """Return the minimum separation in force for an airframe of ``rotor_radius`` m."""

@@ -177,6 +177,18 @@ SAFETY_KEYS = (
                 default=1.0e4, unit='-', kind='number', lo=0.0, lo_open=True),
     ScenarioKey('sidestep_accel', 'the head-on rule: a UH pushed straight at another steps right by this, >= 0',
                 default=0.5, unit='m/s^2', kind='number', lo=0.0),
+    # what degrades the proximity input, as the links' impairments degrade the states (docs/safety.md)
+    ScenarioKey('proximity_delay_steps', 'integer >= 0: the proximity input arrives this many steps late (the '
+                'filter predicts the positions it reports to the current step from their velocities)', default=0,
+                unit='control steps', kind='integer', lo=0, what='a whole number of steps >= 0'),
+    ScenarioKey('proximity_loss', "probability in [0, 1) that a step's proximity input is lost (the filter keeps "
+                'the newest it has, predicted)', default=0.0, kind='number', lo=0.0, hi=1.0, hi_open=True),
+    ScenarioKey('proximity_noise_position', 'standard deviation of the noise on each reported position, >= 0',
+                default=0.0, unit='m', kind='number', lo=0.0),
+    ScenarioKey('proximity_noise_velocity', 'standard deviation of the noise on each reported velocity, >= 0',
+                default=0.0, unit='m/s', kind='number', lo=0.0),
+    ScenarioKey('proximity_seed', 'integer >= 0: seeds the losses and the noise of the proximity input', default=0,
+                kind='integer', lo=0, what='an integer seed >= 0'),
 )
 
 

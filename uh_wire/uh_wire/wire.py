@@ -118,8 +118,8 @@ def proximity_to_msg(report, dt: float, sensing_radius: float):
                        sensing_radius=float(sensing_radius), states=states)
 
 
-def msg_to_proximity(msg, expected_id: int) -> tuple[tuple, np.ndarray]:
-    """Return ``(ids, rows)`` of a ``Proximity`` for UH ``expected_id``: the UHs reported and their ``[p, v]`` (m, 6).
+def msg_to_proximity(msg, expected_id: int) -> tuple[int, tuple, np.ndarray]:
+    """Return ``(step, ids, rows)`` of a ``Proximity`` for UH ``expected_id``: its step, the UHs, their ``[p, v]``.
 
     Rows in the message's order (ascending id), inertial frame, m and m/s: the safety filter's
     input (:meth:`uh_controller_node.controller.UHController.set_proximity`). Raises
@@ -134,7 +134,7 @@ def msg_to_proximity(msg, expected_id: int) -> tuple[tuple, np.ndarray]:
                         f'never uh{expected_id} itself')
     values = [c for s in msg.states for c in _values(s.position, s.velocity)]
     _check_finite(values, f'proximity of uh{expected_id} at step {msg.step}')
-    return ids, np.array(values, dtype=float).reshape(len(ids), 6)
+    return int(msg.step), ids, np.array(values, dtype=float).reshape(len(ids), 6)
 
 
 def msg_to_state(msg, expected_id: int | None = None) -> np.ndarray:
