@@ -62,6 +62,11 @@ def test_the_safety_keys_are_read(tmp_path):
     ('{min_separation: 1.5}', 'safety.min_separation', 'allowed: >= 1.6 m'),
     ('{enabled: 1}', 'safety.enabled', 'expected true or false'),
     ('{brake: 2.0}', 'safety.brake', "unknown key 'brake'"),
+    ('{proximity_loss: 1.0}', 'safety.proximity_loss', 'allowed: [0.0, 1.0)'),
+    ('{proximity_delay_steps: -1}', 'safety.proximity_delay_steps', 'out of range; allowed: >= 0'),
+    ('{proximity_delay_steps: 2.5}', 'safety.proximity_delay_steps', 'a whole number of steps >= 0'),
+    ('{proximity_noise_position: -0.1}', 'safety.proximity_noise_position', 'allowed: >= 0.0 (m)'),
+    ('{proximity_seed: -3}', 'safety.proximity_seed', 'out of range; allowed: >= 0'),
 ])
 def test_bad_safety_input_is_one_line_naming_the_file_line_and_key(tmp_path, safety, key, allowed):
     path = _paper(tmp_path, f'safety: {safety}\n')
