@@ -202,7 +202,7 @@ def test_reference_campaign_stores_every_run_and_its_metadata(reference):
     assert len(runs['draw']) == 60 and set(runs['status']) == {'ok'}
     assert np.all(np.isfinite(runs['formation_rms_m'])) and np.all(np.isfinite(runs['fault_error_w']))
     assert set(runs['success']) <= {0, 1}
-    ok = (runs['formation_rms_m'] <= 0.05) & (runs['containment_rms_m'] <= 0.02)
+    ok = (runs['formation_rms_m'] <= 0.05) & (runs['containment_rms_m'] <= 0.02) & (runs['separation_violation_s'] <= 0)
     assert np.array_equal(runs['success'] == 1, ok)
     # the draws differ from each other, the cases of one draw too
     proposed = runs['case_name'] == 'proposed'
@@ -213,7 +213,8 @@ def test_reference_campaign_stores_every_run_and_its_metadata(reference):
     assert meta['name'] == 'mc_test' and meta['spec'] == REFERENCE_SPEC and meta['spec_path'] == str(spec_path)
     assert meta['cases'] == '["proposed", "case1", "case2"]' and meta['sweep_parameter'] == 'model_mismatch'
     assert meta['sweep_values'] == '[0.9, 1.0]' and meta['runs'] == '10' and meta['seed'] == '42'
-    assert meta['success'] == '{"formation_rms_m": 0.05, "containment_rms_m": 0.02, "rotor_overlap_s": 0.0}'
+    assert meta['success'] == ('{"formation_rms_m": 0.05, "containment_rms_m": 0.02, '
+                               '"separation_violation_s": 0.0}')
     assert len(meta['spec_digest']) == 64 and '"numba"' in meta['versions']
     assert sorted(p.name for p in (out / 'scenarios').iterdir())[:3] == [
         'draw_000000_s00.yaml', 'draw_000000_s01.yaml', 'draw_000001_s00.yaml']

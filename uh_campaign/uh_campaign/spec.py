@@ -54,7 +54,8 @@ Top-level keys
     Mapping ``metric: threshold``: a run succeeds when it ended ``ok`` and every named metric is
     ``<=`` its threshold (a metric without a value counts as not met). Metrics: the columns of
     :data:`uh_team.campaign_store.METRIC_COLUMNS`. Default ``{formation_rms_m: 0.05,
-    containment_rms_m: 0.02, rotor_overlap_s: 0.0}`` (m, m, s: no two rotor disks ever overlap); a
+    containment_rms_m: 0.02, separation_violation_s: 0.0}`` (m, m, s: no pair ever closer than the
+    minimum separation, docs/safety.md); a
     given mapping replaces the default (``{}``: every ``ok`` run succeeds).
 ``impairments``
     Optional mapping, the scenario key ``impairments`` (docs/scenario.md): delays, jitter, losses,
@@ -214,7 +215,7 @@ __all__ = ['CampaignSpec', 'Draws', 'FaultDraws', 'GeneratorSpec', 'Sweep', 'loa
 BUNDLED_PREFIX = 'campaign_'
 
 #: Default success thresholds: metric -> largest value that still succeeds (m).
-DEFAULT_SUCCESS = {'formation_rms_m': 0.05, 'containment_rms_m': 0.02, 'rotor_overlap_s': 0.0}
+DEFAULT_SUCCESS = {'formation_rms_m': 0.05, 'containment_rms_m': 0.02, 'separation_violation_s': 0.0}
 
 _TOP_REQUIRED = ('name', 'runs')
 _TOP_OPTIONAL = ('description', 'scenario', 'generator', 'seed', 'duration', 'settle_time', 'cases',
