@@ -122,3 +122,18 @@ def test_compare_runs_the_filter_in_process(tmp_path):
     for case in ('proposed', 'case1', 'case2'):
         metrics = json.loads((tmp_path / 'sim' / case / 'metrics.json').read_text())
         assert metrics['safety_active_s'] > 0 and metrics['rotor_overlap_s'] == 0.0
+
+
+def test_a_uh_whose_samples_are_missing_leaves_its_pairs_out_of_the_separation():
+    # a real-time run whose UH3 simulator died: its states are NaN from sample 2 on (not recorded)
+    time = np.arange(4) * 0.01
+    positions = np.array([[[0.0, 0, 0], [5.0, 0, 0], [0.5, 0, 0]],
+                          [[0.0, 0, 0], [4.0, 0, 0], [0.6, 0, 0]],
+                          [[0.0, 0, 0], [3.0, 0, 0], [np.nan] * 3],
+                          [[0.0, 0, 0], [2.0, 0, 0], [np.nan] * 3]])
+    closest = closest_approach(time, positions, (1, 2, 3))
+    assert closest == {'distance_m': 0.5, 'pair': 'UH1-UH3', 'time_s': 0.0}
+    series = closest_pair_series(positions)
+    assert np.allclose(series, [0.5, 0.6, 3.0, 2.0])        # UH1-UH2 only, once UH3 is missing
+    assert closest_approach(time, np.full((4, 2, 3), np.nan), (1, 2))['distance_m'] is None
+    assert np.isnan(closest_pair_series(np.full((4, 2, 3), np.nan))).all()

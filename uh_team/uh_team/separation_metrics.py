@@ -2,7 +2,8 @@
 
 Hub-to-hub distances, 3-D, of every pair at every sample: the smallest, the pair it belongs to and
 when, and how long any pair spent under a limit (the scenario's minimum separation, or two rotor
-radii: rotor disks overlapping).
+radii: rotor disks overlapping). A sample at which a UH's state is missing (NaN: a real-time run
+did not record it, or the UH's simulator had died) leaves that UH's pairs out of that sample.
 """
 from __future__ import annotations
 
@@ -24,21 +25,35 @@ def pair_distances(positions: np.ndarray) -> tuple:
     return distances, list(zip(first.tolist(), second.tolist(), strict=True))
 
 
+def _known(distances: np.ndarray) -> np.ndarray:
+    """``distances`` with the pairs of missing samples (NaN) as ``inf``: never the closest."""
+    return np.where(np.isnan(distances), np.inf, distances)
+
+
 def closest_pair_series(positions: np.ndarray) -> np.ndarray:
-    """Return the smallest pair distance at each sample (K+1,), m (``inf`` with fewer than two UHs)."""
+    """Return the smallest pair distance at each sample (K+1,), m.
+
+    ``inf`` with fewer than two UHs, NaN at a sample where no pair is known.
+    """
     distances, _ = pair_distances(positions)
-    return distances.min(axis=1) if distances.shape[1] else np.full(positions.shape[0], np.inf)
+    if not distances.shape[1]:
+        return np.full(positions.shape[0], np.inf)
+    closest = _known(distances).min(axis=1)
+    closest[np.isnan(distances).all(axis=1)] = np.nan
+    return closest
 
 
 def closest_approach(time: np.ndarray, positions: np.ndarray, ids: tuple) -> dict:
     """``{'distance_m', 'pair', 'time_s'}`` of the closest approach of any two UHs over the run.
 
-    ``pair`` is ``'UH4-UH5'`` (ids of the pair, ascending); all None with fewer than two UHs.
+    ``pair`` is ``'UH4-UH5'`` (ids of the pair, ascending); all None with fewer than two UHs or no
+    sample of any pair.
     """
     distances, pairs = pair_distances(positions)
-    if not pairs:
+    known = _known(distances)
+    if not pairs or not np.isfinite(known).any():
         return {'distance_m': None, 'pair': None, 'time_s': None}
-    sample, pair = np.unravel_index(int(np.argmin(distances)), distances.shape)
+    sample, pair = np.unravel_index(int(np.argmin(known)), distances.shape)
     a, b = sorted((ids[pairs[pair][0]], ids[pairs[pair][1]]))
     return {'distance_m': float(distances[sample, pair]), 'pair': f'UH{a}-UH{b}', 'time_s': float(time[sample])}
 
