@@ -137,3 +137,17 @@ def test_a_uh_whose_samples_are_missing_leaves_its_pairs_out_of_the_separation()
     assert np.allclose(series, [0.5, 0.6, 3.0, 2.0])        # UH1-UH2 only, once UH3 is missing
     assert closest_approach(time, np.full((4, 2, 3), np.nan), (1, 2))['distance_m'] is None
     assert np.isnan(closest_pair_series(np.full((4, 2, 3), np.nan))).all()
+
+
+def test_after_settle_metrics_with_nothing_recorded_are_none_without_numpy_warnings():
+    import types
+    import warnings
+
+    from uh_team import metric_registry
+    values = types.SimpleNamespace(after=np.array([False, True, True]))
+    errors = np.array([[0.1, 0.2], [np.nan, np.nan], [np.nan, np.nan]])
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')              # "Mean of empty slice" would fail the test
+        assert metric_registry._after_settle_rms(errors, values) is None
+        errors[2, 0] = 0.3
+        assert metric_registry._after_settle_rms(errors, values) == pytest.approx(0.3)

@@ -218,14 +218,17 @@ class RunValues:
 def _after_settle_rms(errors, values: RunValues):
     if errors is None or not values.after.any():
         return None
-    return none_if_nan(np.sqrt(np.nanmean(errors[values.after] ** 2)))
+    selected = errors[values.after]
+    if not np.isfinite(selected).any():     # nothing recorded after settling (e.g. a UH's simulator died)
+        return None
+    return none_if_nan(np.sqrt(np.nanmean(selected ** 2)))
 
 
 def _hull_distance_max(v: RunValues):
     if not v.followers or not v.after.any():
         return None
     hull = hull_distance(v.follower_positions[v.after], v.leader_positions[v.after][:, None, :, :])
-    return none_if_nan(np.nanmax(hull))
+    return none_if_nan(np.nanmax(hull)) if np.isfinite(hull).any() else None
 
 
 def _cpi(v: RunValues):
