@@ -58,11 +58,16 @@ def test_the_default_arguments_are_the_documented_ones(tmp_path, monkeypatch):
     ('rate', '-1', 'allowed a number > 0'),
     ('duration', 'long', 'allowed a number > 0'),
     ('startup_timeout', 'inf', 'allowed a number > 0'),
+    ('safety', 'maybe', "allowed: on, off or empty (the scenario's)"),
 ])
 def test_a_bad_argument_is_one_line_naming_it_and_what_is_allowed(tmp_path, name, value, allowed):
     with pytest.raises(ValueError) as exc:
         check_arguments(_values(tmp_path, **{name: value}))
     assert str(exc.value) == f'launch argument {name}:={value!r}; {allowed}'
+
+
+def test_safety_on_off_or_the_scenarios_reaches_the_options(tmp_path):
+    assert [check_arguments(_values(tmp_path, safety=v)).safety for v in ('on', 'off', '')] == [True, False, None]
 
 
 def test_an_out_that_cannot_be_written_is_refused(tmp_path):
