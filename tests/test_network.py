@@ -166,3 +166,14 @@ def test_every_local_configuration_repeats_discovery_every_second():
     for config in (loopback_config(), default_cyclonedds_uri({'ROS_STATIC_PEERS': '10.0.0.2'})):
         discovery = config.split('<Discovery>')[1].split('</Discovery>')[0]
         assert SPDP_INTERVAL_XML in discovery and '<Peer address="127.0.0.1"/>' in discovery, config
+
+
+def test_reserved_domain_ids_keep_every_port_of_every_participant_index_in_16_bits():
+    # ROS 2's port mapping: 7400 + 250 d + 10 + 2 i (discovery), + 11 (data), i up to MAX_PARTICIPANTS
+    def highest_port(domain):
+        return 7400 + 250 * domain + 11 + 2 * network.MAX_PARTICIPANTS
+    top = network.MAX_RESERVED_DOMAIN_ID
+    assert highest_port(top) <= 65535 < highest_port(top + 1)
+    assert top < network.MAX_DOMAIN_ID          # 232 is valid for ROS 2 but not with 120 indices on loopback
+    import inspect
+    assert inspect.signature(reserve_domain_id).parameters['last'].default == top   # what is handed out by default

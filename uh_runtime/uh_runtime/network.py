@@ -16,13 +16,20 @@ import tempfile
 
 __all__ = ['loopback_config', 'loopback_environment', 'environment_script', 'default_cyclonedds_uri',
            'apply_network_default', 'DISCOVERY_RANGES', 'reserve_domain_id', 'release_domain_id',
-           'MAX_PARTICIPANTS', 'MAX_DOMAIN_ID', 'SPDP_INTERVAL_XML']
+           'MAX_PARTICIPANTS', 'MAX_DOMAIN_ID', 'MAX_RESERVED_DOMAIN_ID', 'SPDP_INTERVAL_XML']
 
 #: Largest DDS domain id ROS 2 allows (Cyclone's default port mapping ends there).
 MAX_DOMAIN_ID = 232
 
 #: Participants one domain can hold on loopback (unicast discovery probes this many port indices).
 MAX_PARTICIPANTS = 120
+
+#: Largest domain id :func:`reserve_domain_id` hands out: the highest whose every port fits in 16 bits
+#: for :data:`MAX_PARTICIPANTS` participant indices. ROS 2's port mapping puts participant i of domain d
+#: on 7400 + 250 d + 10 + 2 i (discovery) and + 11 (data); for domain 232 the indices above 62 would
+#: be ports above 65535, to which Cyclone DDS's unicast discovery then fails to send, and says so on
+#: stderr (measured: a test's one-line error came with those lines).
+MAX_RESERVED_DOMAIN_ID = (65535 - 7400 - 11 - 2 * MAX_PARTICIPANTS) // 250
 
 #: Cyclone DDS setting: a participant announces itself (SPDP) to every peer port index once a second.
 #: A Fast DDS process started later (rclpy on ROS 2 Jazzy's default RMW, in a second terminal)
@@ -152,12 +159,13 @@ def _lock_path(domain_id: int) -> str:
     return os.path.join(tempfile.gettempdir(), f'uh-dds-domain-{domain_id}.lock')
 
 
-def reserve_domain_id(first: int = 1, last: int = MAX_DOMAIN_ID) -> int:
+def reserve_domain_id(first: int = 1, last: int = MAX_RESERVED_DOMAIN_ID) -> int:
     """Claim a DDS domain id in ``first .. last`` that no other process on this machine holds.
 
     The claim is an exclusive ``flock`` on ``<tmp>/uh-dds-domain-<id>.lock``, kept until
     :func:`release_domain_id` or the end of this process (the kernel drops it then, also after a
-    crash). The search starts at an offset drawn from the process id, so concurrent processes
+    crash). The default range ends at :data:`MAX_RESERVED_DOMAIN_ID` (231), whose ports all fit.
+    The search starts at an offset drawn from the process id, so concurrent processes
     rarely even try the same id. Only processes that reserve take part: an explicit
     ``--domain-id`` or ``ROS_DOMAIN_ID`` is used as given.
 
