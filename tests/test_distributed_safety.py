@@ -39,6 +39,19 @@ PAPER_READS_WITH_FILTER = {
 }
 
 
+def _lockstep_run(tmp_path, *args) -> tuple:
+    """Run the team in lockstep for DURATION s with ``args``, to its end; return (output directory, output)."""
+    out = tmp_path / 'run'
+    proc = start_run(out, reserve_domain_id(), '--clock', 'lockstep', '--duration', str(DURATION), '--no-report',
+                     *args)
+    try:
+        output, _ = proc.communicate(timeout=300)
+    finally:
+        kill_session(proc)
+    assert proc.returncode == 0, output
+    return out, output
+
+
 def test_a_lockstep_run_with_degraded_sensing_equals_the_in_process_run_bit_for_bit(tmp_path):
     # the proximity input late, lossy and noisy (docs/safety.md#degraded-sensing): the controller nodes
     # degrade what the sensing node sends with the kernels the in-process loop degrades the true states with
@@ -47,14 +60,7 @@ def test_a_lockstep_run_with_degraded_sensing_equals_the_in_process_run_bit_for_
     path = tmp_path / 'degraded.yaml'
     path.write_text(paper.read_text() + DEGRADED)
     scenario = load_scenario(path)
-    out = tmp_path / 'run'
-    proc = start_run(out, reserve_domain_id(), '--scenario', str(path), '--clock', 'lockstep', '--duration',
-                     str(DURATION), '--no-report')
-    try:
-        output, _ = proc.communicate(timeout=300)
-    finally:
-        kill_session(proc)
-    assert proc.returncode == 0, output
+    out, _ = _lockstep_run(tmp_path, '--scenario', str(path))
     reference = run_team_simulation(scenario, 'proposed', duration=DURATION)
     assert reference.safety_active.sum() > 100          # the filter works in this window: a real test
     exact = run_team_simulation(load_scenario('paper'), 'proposed', duration=DURATION)
@@ -72,14 +78,7 @@ def test_a_lockstep_run_with_degraded_sensing_equals_the_in_process_run_bit_for_
 
 
 def test_with_safety_off_the_nodes_fly_the_papers_law_bit_for_bit(tmp_path):
-    out = tmp_path / 'run'
-    proc = start_run(out, reserve_domain_id(), '--clock', 'lockstep', '--safety', 'off', '--duration',
-                     str(DURATION), '--no-report')
-    try:
-        output, _ = proc.communicate(timeout=300)
-    finally:
-        kill_session(proc)
-    assert proc.returncode == 0, output
+    out, output = _lockstep_run(tmp_path, '--safety', 'off')
     law = load_scenario('paper', safety=False)
     reference = run_team_simulation(law, 'proposed', duration=DURATION)
     bag = read_team_bag(out / 'bag', law)
