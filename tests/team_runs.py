@@ -78,9 +78,22 @@ def assert_lockstep_run_equals_in_process(tmp_path, scenario, scenario_text: str
     assert proc.returncode == 0, output
     reference = run_team_simulation(scenario, 'proposed', duration=duration)
     bag = read_team_bag(out / 'bag', scenario)
-    assert np.array_equal(bag['states'], reference.states)
-    assert np.array_equal(bag['commands'], reference.commands)
+    for name, expected in (('states', reference.states), ('commands', reference.commands)):
+        assert np.array_equal(bag[name], expected), first_difference(name, bag[name], expected, scenario.ids)
     return out, reference
+
+
+def first_difference(name: str, got, expected, ids) -> str:
+    """Describe where two (steps, UHs, values) arrays first differ: step, UH, both rows, missing or not."""
+    import numpy as np
+    if got.shape != expected.shape:
+        return f'{name}: shape {got.shape} != {expected.shape}'
+    differs = ~((got == expected) | (np.isnan(got) & np.isnan(expected)))
+    steps, cols = np.nonzero(differs.any(axis=2))
+    k, c = int(steps[0]), int(cols[0])
+    missing = 'missing from the bag' if np.isnan(got[k, c]).all() else 'a different value'
+    return (f'{name} differ at {len(steps)} (step, UH) pairs; first step {k}, UH {ids[c]}: {missing}; '
+            f'bag {got[k, c].tolist()} expected {expected[k, c].tolist()}')
 
 
 def controller_reads(domain: int, uh_ids, timeout: float = 30.0) -> dict:
