@@ -99,7 +99,7 @@ def test_control_parameters_hold_every_model_constant_and_gain(paper):
         rbf = dataclasses.replace(loop.rbf, low=-3.0 - n, high=2.0 + n, width=0.7 + n)
         loops[name] = dataclasses.replace(loop, rbf=rbf, **values)
     gains = dataclasses.replace(mapping, beta=2.5, tilt_limit=0.4, min_vertical_accel=1.5, learning_phase=4.5,
-                                **loops)
+                                feedforward_weight=0.75, **loops)
     params = ck.control_parameters(gains, ctl.model)
     assert params.shape == (ck.CONTROL_PARAMS_SIZE,) and params.dtype == np.float64
     m = ctl.model
@@ -108,7 +108,8 @@ def test_control_parameters_hold_every_model_constant_and_gain(paper):
                 ck.CP_K_BETA: m.K_beta, ck.CP_H_M: m.h_M, ck.CP_B_LAT: m.B_lat, ck.CP_A_LON: m.A_lon,
                 ck.CP_TAU_F: m.tau_f,
                 ck.CP_K_TR: m.K_tr, ck.CP_D_R: m.D_r, ck.CP_C_Q: m.c_Q, ck.CP_D_V: m.D_v,
-                ck.CP_BETA: 2.5, ck.CP_TILT_LIMIT: 0.4, ck.CP_MIN_VERTICAL_ACCEL: 1.5, ck.CP_LEARNING_PHASE: 4.5}
+                ck.CP_BETA: 2.5, ck.CP_TILT_LIMIT: 0.4, ck.CP_MIN_VERTICAL_ACCEL: 1.5, ck.CP_LEARNING_PHASE: 4.5,
+                ck.CP_FEEDFORWARD_WEIGHT: 0.75}
     for c in range(ck.INPUT_SIZE):
         expected[ck.CP_LOWER + c] = m.input_lower[c]
         expected[ck.CP_UPPER + c] = m.input_upper[c]

@@ -87,7 +87,11 @@ def _bounds_cases():
     for g in G.GAINS:
         path = (g.key,) if g.scope == G.TOP else ('inner', g.key)
         shown = '' if g.scope == G.TOP else 'inner: '
-        if g.minimum is not None and not g.integer:
+        if g.at_most is not None:       # a closed range, said whole: (0, 1]
+            allowed = f'{"(" if g.strict else "["}{g.minimum}, {g.at_most}]'
+            for bad in (float(g.minimum) - (0.0 if g.strict else 1.0), float(g.at_most) + 0.5):
+                yield path, bad, f'{shown}{g.key} must be {allowed}, got {bad!r}'
+        elif g.minimum is not None and not g.integer:
             relation = '>' if g.strict else '>='
             bad = float(g.minimum) - (0.0 if g.strict else 1.0)
             yield path, bad, f'{shown}{g.key} must be {relation} {g.minimum}, got {bad!r}'

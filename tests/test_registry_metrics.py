@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / 'docs' / 'metrics.md'
 
 #: The layouts every reader had before the registry: a reader that moves is a change of its output.
-JSON_KEYS = ('case', 'sim_time_s', 'wall_time_s', 'settle_time_s', 'formation_rms_m', 'containment_rms_m',
+JSON_KEYS = ('case', 'departures', 'sim_time_s', 'wall_time_s', 'settle_time_s', 'formation_rms_m', 'containment_rms_m',
              'hull_distance_max_m', 'mse_formation', 'mse_containment', 'cpi', 'fault_estimation',
              'false_fault_estimate', 'fault_nrmse', 'saturation_fraction', 'fault_isolation', 'faults',
              # docs/safety.md: the separation metrics, added at the end

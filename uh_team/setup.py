@@ -20,6 +20,7 @@ setup(
     entry_points={
         'console_scripts': [
             'uh-simulate = uh_team.simulate_cli:main',
+            'uh-analyze = uh_team.analyze_cli:main',
         ],
         # python -m of this module builds the compiled kernels (uh_core.compiled_kernels)
         'uh_kernel_builder': [

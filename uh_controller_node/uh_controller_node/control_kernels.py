@@ -281,14 +281,17 @@ _WORK_ROWS = 14
 
 @njit(cache=True)
 def consensus_errors(own_state, offset, nb_states, nb_weights, nb_offsets, leader_link, reference,
-                     z1, feedforward):
+                     feedforward_weight, z1, feedforward):
     """Consensus position error, velocity feed-forward, degree and yaw target of one UH.
 
     With ``h`` the formation offsets (leaders) or zero (followers)::
 
         leader i:    z1 = sum_{j in N_i} a_ij [(p_i - h_i) - (p_j - h_j)] + a_i0 [(p_i - h_i) - p_0]
         follower k:  z1 = sum_{j in N_k} a_kj (p_k - p_j)
-        d = sum_j a_ij + a_i0 ,   feed-forward velocity f = sum_j a_ij v_j + a_i0 v_0
+        d = sum_j a_ij + a_i0 ,   feed-forward velocity f = w_f sum_j a_ij v_j + a_i0 v_0
+
+    ``w_f`` (``feedforward_weight``) is 1 in the paper; below 1 it is the delay remedy of
+    docs/delay.md#remedies (``w_f v_j`` is ``v_j`` to the bit when ``w_f`` is 1).
 
     Yaw: a UH that hears the virtual leader (``leader_link > 0``) tracks ``psi_0``; every other UH
     tracks the a-weighted mean of its neighbours' yaw, ``psi_i + sum_j a_ij wrap(psi_j - psi_i) /
@@ -309,6 +312,8 @@ def consensus_errors(own_state, offset, nb_states, nb_weights, nb_offsets, leade
         a_i0 (0: the reference is not read).
     reference : ndarray (7,)
         ``[p_0, v_0, psi_0]``.
+    feedforward_weight : float
+        w_f, in (0, 1].
     z1, feedforward : ndarray (3,)
         Outputs: z1 m, f m/s.
 
@@ -331,7 +336,7 @@ def consensus_errors(own_state, offset, nb_states, nb_weights, nb_offsets, leade
         for a in range(3):
             rel = own_state[X_P + a] - offset[a]
             z1[a] += w * (rel - (nb_states[n, X_P + a] - nb_offsets[n, a]))
-            feedforward[a] += w * nb_states[n, X_V + a]
+            feedforward[a] += w * (feedforward_weight * nb_states[n, X_V + a])
         yaw_sum += w * wrap_angle(nb_states[n, X_THETA + YAW] - psi)
     degree += leader_link
     if leader_link > 0.0:
@@ -459,7 +464,7 @@ def uh_control_step(params, own_state, nb_states, nb_weights, nb_offsets, offset
     status[STATUS.fault_estimate_attitude:STATUS.fault_estimate_attitude + 3] = memory[M_F_HAT_W]
 
     degree, psi_d = consensus_errors(own_state, offset, nb_states, nb_weights, nb_offsets, leader_link,
-                                     reference, z1, work[_W_FEEDFORWARD])
+                                     reference, params[PARAM.feedforward_weight], z1, work[_W_FEEDFORWARD])
     outer_law(params, degree, z1, work[_W_FEEDFORWARD], v, started, memory, weights_p, act_p,
               work[_W_ALPHA_V], work[_W_ALPHA_V_RATE], work[_W_NET_P], work[_W_DRIFT_P], z2, zn_p, u_p)
     applied = filtered_acceleration(safety, own_state, u_p, proximity, status)

@@ -82,8 +82,9 @@ class Gain:
     unit, symbol : str or (str, str)
         Unit (``'-'``: none) and symbol of docs/control_law.md (empty: none); a pair
         ``(outer, inner)`` for a loop gain whose loops differ.
-    minimum, strict, below : float or None, bool, float or None
-        Allowed values: above ``minimum`` (``strict``) or at it, and under ``below``; None: no bound.
+    minimum, strict, below, at_most : float or None, bool, float or None, float or None
+        Allowed values: above ``minimum`` (``strict``) or at it, and under ``below`` or at most
+        ``at_most``; None: no bound.
     integer : bool
         An integer (a count), not a float.
     field : str
@@ -108,6 +109,7 @@ class Gain:
     minimum: float | None = 0
     strict: bool = True
     below: float | None = None
+    at_most: float | None = None
     integer: bool = False
     field: str = ''
     default: float | str | None = None
@@ -131,8 +133,9 @@ class Gain:
 
     def allowed(self) -> str:
         """Say the values allowed as the docs table does (``'> 0'``, ``'integer >= 1'``, ``'(0, 90)'``)."""
-        bounds = (range_text(self.minimum, self.below, self.strict, True)
-                  if self.minimum is not None or self.below is not None else 'any number')
+        upper = self.below if self.at_most is None else self.at_most
+        bounds = (range_text(self.minimum, upper, self.strict, self.at_most is None)
+                  if self.minimum is not None or upper is not None else 'any number')
         text = ('integer ' if self.integer else '') + bounds
         if self.note:
             text += f'; {self.note}'
@@ -169,6 +172,9 @@ GAINS = (
     Gain('min_vertical_accel', TOP, 'smallest vertical specific thrust commanded', unit='m/s^2'),
     Gain('learning_phase', TOP, 'time after the first step in which the networks learn and the fault '
          'observers hold zero', unit='s', strict=False, default=0.0),
+    Gain('feedforward_weight', TOP, "weight of the neighbours' velocities in the feed-forward f (the paper: 1); "
+         'below 1 is a departure, a delay remedy (docs/delay.md#remedies)',
+         symbol='w_f', at_most=1, default=1.0),
     Gain('k', BOTH, 'first-error gain', symbol=('k1', 'k3'), unit='1/s'),
     Gain('r', BOTH, 'inverse-optimal input weight', symbol=('r_p', 'r_w'), unit='s'),
     Gain('tau_command', BOTH, 'command filter time constant', symbol=('tau_1', 'tau_2'), unit='s'),
@@ -437,6 +443,8 @@ class _GainsReader:
             raise self.error(keys, f'{key} must be {_bound_text(gain)}, got {value!r}', at)
         if gain.below is not None and not value < gain.below:
             raise self.error(keys, f'{key} must be < {gain.below:g}, got {value!r}', at)
+        if gain.at_most is not None and not value <= gain.at_most:
+            raise self.error(keys, f'{key} must be {_bound_text(gain)}, got {value!r}', at)
         return gain.convert(value) if gain.convert else value
 
 
@@ -446,7 +454,12 @@ def _within(gain: Gain, value) -> bool:
 
 
 def _bound_text(gain: Gain, below=None) -> str:
-    """Say the bounds as errors do: ``'> 0'``, ``'>= 1'`` (``below``: with that upper bound, ``'[1, 5)'``)."""
+    """Say the bounds as errors do: ``'> 0'``, ``'>= 1'`` (``below``: with that upper bound, ``'[1, 5)'``).
+
+    A gain with ``at_most`` says its whole range: ``'(0, 1]'``.
+    """
+    if gain.at_most is not None:
+        return range_text(gain.minimum, gain.at_most, gain.strict, False)
     return range_text(gain.minimum, below, gain.strict, True)
 
 

@@ -27,13 +27,15 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from uh_controller_node.gains import scenario_gains
+from uh_core.airframe import load_helicopter_params
+from uh_topology.impairments import COMPENSATIONS
+
 __all__ = ['LoopModel', 'loop_model', 'team_matrix', 'ModeReport', 'DelayMargin', 'delay_margin',
-           'MOST_STEPS', 'COMPENSATIONS']
+           'MOST_STEPS', 'scenario_margin', 'scenario_link_age', 'WEIGHT_GRID', 'covering_feedforward_weight']
 
 #: The delay scan stops here (steps): beyond it the margin is reported as none found (``None``).
 MOST_STEPS = 50
-#: The two ways a controller uses a delayed state (docs/delay.md#the-prediction).
-COMPENSATIONS = ('predict', 'none')
 #: A UH is named as carrying a mode when its share of the mode's position amplitude is at least this
 #: fraction of the largest UH's (a mode living on the ring shows its three leaders, not the followers).
 MODE_SHARE = 0.3
@@ -158,7 +160,7 @@ def _unit(size: int, index: int) -> np.ndarray:
 
 
 def _plant(model: LoopModel, dt: float):
-    """The plant sampled with the command held over a step: ``(A_d, B_d)`` by the matrix exponential.
+    """Sample the plant with the command held over a step: ``(A_d, B_d)`` by the matrix exponential.
 
     Horizontal: ``p' = v, v' = g theta, theta' = omega, omega' = command``; vertical:
     ``p' = v, v' = command``.
@@ -211,9 +213,9 @@ class DelayMargin:
 
     ``margin_steps[c]``: the largest uniform delay D (steps) such that every delay 0..D is stable with
     compensation ``c`` (``'predict'``, ``'none'``); None when no delay up to ``most`` destabilises it.
-    ``first_unstable[c]``: the first unstable delay (``margin + 1``), or None; ``onset_mode[c]``: the
-    mode that goes unstable there (:class:`ModeReport`), or None. ``slowest_mode``: the slowest mode
-    at zero delay (what limits settling). ``unstable_at_zero``: the team is unstable without delay.
+    ``first_unstable[c]``: the first unstable delay (``margin + 1``; a margin of -1: unstable without
+    delay), or None; ``onset_mode[c]``: the mode that goes unstable there (:class:`ModeReport`), or
+    None. ``slowest_mode``: the slowest mode at zero delay (what limits settling).
     """
 
     dt: float
@@ -224,12 +226,12 @@ class DelayMargin:
     slowest_mode: ModeReport
 
     def margin_ms(self, compensation: str) -> float | None:
-        """The margin in milliseconds (None when none was found)."""
+        """Give the margin in milliseconds (None when none was found)."""
         steps = self.margin_steps[compensation]
         return None if steps is None else steps * self.dt * 1000.0
 
     def as_json(self) -> dict:
-        """The margin as one JSON object (what ``uh-analyze --json`` prints)."""
+        """Give the margin as one JSON object (what ``uh-analyze --json`` prints)."""
         def mode(m):
             return None if m is None else {'frequency_hz': m.frequency_hz, 'modulus': m.modulus,
                                            'time_constant_s': m.time_constant_s, 'uhs': list(m.uhs),
@@ -268,3 +270,40 @@ def delay_margin(adjacency: np.ndarray, ids, gains, gravity: float, dt: float, f
             for axis, model in models.items()]
     slowest = max(slow, key=lambda m: m.time_constant_s if m.modulus < 1 else -1.0)
     return DelayMargin(dt, most, margins, first, onset, slowest)
+
+
+# -- a scenario's margin ---------------------------------------
+
+def scenario_margin(scenario, case: str = 'proposed', most: int = MOST_STEPS, feedforward_weight=None) -> DelayMargin:
+    """Give the :class:`DelayMargin` of a loaded scenario and case (its gains, graph, airframe and ``dt``).
+
+    ``feedforward_weight`` replaces the gains file's (None: the file's).
+    """
+    gains = scenario_gains(scenario, case)
+    weight = gains.feedforward_weight if feedforward_weight is None else feedforward_weight
+    return delay_margin(np.asarray(scenario.adjacency), scenario.ids, gains,
+                        load_helicopter_params(scenario.helicopter).gravity, scenario.dt, weight, most)
+
+
+def scenario_link_age(scenario) -> int:
+    """Give the oldest a neighbour state gets on the scenario's links, in steps: the largest ``delay + jitter``."""
+    imp = scenario.impairments
+    if imp is None:
+        return 0
+    return max((imp.delays[link] + imp.jitters[link] for link in imp.delays), default=0)
+
+
+#: The feed-forward weights :func:`covering_feedforward_weight` tries, largest first.
+WEIGHT_GRID = tuple(round(1.0 - 0.05 * k, 2) for k in range(20))
+
+
+def covering_feedforward_weight(scenario, case: str, steps: int, compensation: str = 'predict') -> float | None:
+    """Give the largest weight of :data:`WEIGHT_GRID` whose margin (``compensation``) is at least ``steps``, or None.
+
+    What the remedy ``feedforward_weight`` should be for a team whose links are ``steps`` old.
+    """
+    for weight in WEIGHT_GRID:
+        margin = scenario_margin(scenario, case, most=steps, feedforward_weight=weight)
+        if margin.first_unstable[compensation] is None:
+            return weight
+    return None

@@ -27,6 +27,7 @@ from typing import Callable
 
 import numpy as np
 
+from .departures import scenario_departures
 from .error_metrics import containment_errors, formation_errors
 from .fault_metrics import LUMPED_FAULTS, LumpedFault, false_fault_estimate, fault_estimation, fault_list, none_if_nan
 from .hull_geometry import hull_distance
@@ -294,12 +295,21 @@ def _fault_error_max(fault: LumpedFault) -> Metric:
                   read=read, stored=True)
 
 
+def _departures(values) -> dict:
+    """Give the run's departures from the paper (:func:`~uh_team.delay_margin.scenario_departures`), {} without one."""
+    return {} if values.scenario is None else scenario_departures(values.scenario, values.case)
+
+
 _P, _W = LUMPED_FAULTS
 
 #: Every metric, in the order of ``metrics.json``'s keys and of the results file's columns.
 METRICS = (
     Metric('case', '', 'controller case', label='controller case', report_row=10, json_type='string',
            doc='controller case: `proposed`, `case1`, `case2`', compute=lambda v: str(v.case)),
+    Metric('departures', json_type='object',
+           doc="departures from the paper's graph and gains the run made (the delay remedies of "
+               '[delay.md](delay.md#remedies)): `reference_links`, `feedforward_weight`; `{}`: none',
+           compute=lambda v: _departures(v)),
     Metric('sim_time_s', 's', 'simulated time span', label='simulated time', report_row=20, json_type='number',
            doc='simulated time span `t_K - t_0`, s', compute=lambda v: float(v.time[-1] - v.time[0])),
     Metric('wall_time_s', 's', 'wall-clock duration of the run', label='wall time of the run', report_row=170,

@@ -19,7 +19,8 @@ from . import scenario_keys
 from .scenario_keys import IMPAIRMENT_KEYS, key_named, key_names, read_key
 from .schema import ConfigContext, read_only_array, type_name
 
-__all__ = ['ImpairmentSpec', 'NO_DROPOUT', 'COMPENSATIONS', 'DEFAULT_COMPENSATION', 'read_impairments']
+__all__ = ['ImpairmentSpec', 'NO_DROPOUT', 'COMPENSATIONS', 'DEFAULT_COMPENSATION', 'read_impairments',
+           'uniform_impairments']
 
 #: The values of ``impairments.delay_compensation``: states used as received, or predicted to the current step.
 COMPENSATIONS = key_named(IMPAIRMENT_KEYS, 'delay_compensation').choices
@@ -103,6 +104,18 @@ def read_impairments(ctx: ConfigContext, raw, adjacency: np.ndarray, known: set,
                           losses=MappingProxyType(per_link['loss']), noise=read_only_array(noise),
                           dropouts=MappingProxyType(dropouts), jitters=MappingProxyType(per_link['jitter_steps']),
                           compensation=scalars['delay_compensation'])
+
+
+def uniform_impairments(adjacency: np.ndarray, delay_steps: int, compensation: str) -> ImpairmentSpec:
+    """Give the impairments of ``delay_steps`` on every link of ``adjacency`` and nothing else (the delay margin's).
+
+    ``compensation`` is ``'none'`` or ``'predict'``; seed 0, no jitter, loss, noise or dropout.
+    """
+    edges = [(int(i), int(j) + 1) for i, j in zip(*np.nonzero(adjacency[:, 1:] > 0.0), strict=True)]
+    return ImpairmentSpec(seed=0, delays=MappingProxyType(dict.fromkeys(edges, int(delay_steps))),
+                          losses=MappingProxyType(dict.fromkeys(edges, 0.0)), noise=read_only_array(np.zeros(12)),
+                          dropouts=MappingProxyType({}), jitters=MappingProxyType(dict.fromkeys(edges, 0)),
+                          compensation=compensation)
 
 
 def _read_links(ctx: ConfigContext, links, link_keys: list, per_link: dict, edges: set, known: set) -> None:

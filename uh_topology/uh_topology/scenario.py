@@ -143,6 +143,9 @@ class Scenario:
         scenario has none or all of them are zero.
     safety : SafetySpec
         The collision-avoidance layer's settings (docs/safety.md).
+    reference_links_rule : str or None
+        ``'all_leaders'`` when ``reference_links`` named that rule (a departure from the paper's graph,
+        docs/delay.md#remedies); None for a list.
     separation_warnings : tuple of SeparationIssue
         Formation targets or initial positions closer than ``min_separation`` (but not than two
         rotor radii, which is an error): the run says so at start (docs/safety.md#design-time-check).
@@ -171,6 +174,7 @@ class Scenario:
     impairments: ImpairmentSpec | None = None
     safety: SafetySpec = SafetySpec()
     separation_warnings: tuple = ()
+    reference_links_rule: str | None = None
 
     # -- roles and graph ----------------------------------------------------------------------
     @property
@@ -333,7 +337,7 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
     team = read_team(ctx, top['uhs'])
     adjacency = np.zeros((len(team.roles) + 1, len(team.roles) + 1))
     read_edges(ctx, top['edges'], team, adjacency)
-    read_reference_links(ctx, top['reference_links'], team, adjacency)
+    reference_rule = read_reference_links(ctx, top['reference_links'], team, adjacency)
     l1, l2, weights = check_assumptions(ctx, adjacency, team)
     reference = _reference(ctx, top['reference'])
     disturbance = _disturbance(ctx, top.get('disturbance') or {})
@@ -357,7 +361,7 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         reference=reference, disturbance=disturbance,
         laplacian_blocks=(read_only_array(l1), read_only_array(l2)),
         containment_weights=read_only_array(weights), gains_source=gains_source, impairments=impairments,
-        safety=safety, separation_warnings=warnings,
+        safety=safety, separation_warnings=warnings, reference_links_rule=reference_rule,
     )
 
 

@@ -22,7 +22,7 @@ from .graph import (
 )
 from .schema import ConfigContext, read_only_array, type_name
 
-__all__ = ['Team', 'read_team', 'read_edges', 'read_reference_links', 'check_assumptions']
+__all__ = ['Team', 'read_team', 'read_edges', 'read_reference_links', 'check_assumptions', 'REFERENCE_LINK_RULES']
 
 _UH_REQUIRED = ('id', 'role', 'initial_state')
 _UH_OPTIONAL = ('offset',)
@@ -129,14 +129,35 @@ def read_edges(ctx: ConfigContext, edges, team: Team, adjacency: np.ndarray) -> 
         adjacency[i, j] = w
 
 
-def read_reference_links(ctx: ConfigContext, links, team: Team, adjacency: np.ndarray) -> None:
-    """Read the ``reference_links`` list into ``adjacency[i, 0] = a_i0`` (UH i hears the virtual leader)."""
+#: The rules ``reference_links`` may name instead of a list: a departure from the paper's graph
+#: (docs/delay.md#remedies), recorded in run.json and metrics.json.
+REFERENCE_LINK_RULES = ('all_leaders',)
+
+
+def read_reference_links(ctx: ConfigContext, links, team: Team, adjacency: np.ndarray) -> str | None:
+    """Read ``reference_links`` into ``adjacency[i, 0] = a_i0`` (UH i hears the virtual leader).
+
+    A list of links, or the rule ``all_leaders``: every leader hears the virtual leader with weight 1
+    (the delay remedy of docs/delay.md#remedies). Returns the rule, or None for a list.
+    """
     roles, known = team.roles, set(team.roles)
     if links is None:
         links = []
+    if isinstance(links, str):
+        if links not in REFERENCE_LINK_RULES:
+            raise ctx.error(E.InvalidValueError, ('reference_links',),
+                            f'{links!r} is not a rule; allowed: a list of links {{uh, weight}} or '
+                            + ', '.join(REFERENCE_LINK_RULES))
+        if not team.leaders:
+            raise ctx.error(E.InvalidValueError, ('reference_links',),
+                            f'{links} needs leaders, and the team has none; allowed: a list of links')
+        for i in team.leaders:
+            adjacency[i, 0] = 1.0
+        return links
     if not isinstance(links, list):
         raise ctx.error(E.WrongTypeError, ('reference_links',),
-                        f'expected a list of links {{uh, weight}}, got {type_name(links)}')
+                        f'expected a list of links {{uh, weight}} or {", ".join(REFERENCE_LINK_RULES)}, '
+                        f'got {type_name(links)}')
     link_at = {}
     for idx, link in enumerate(links):
         path = ('reference_links', idx)
@@ -156,6 +177,7 @@ def read_reference_links(ctx: ConfigContext, links, team: Team, adjacency: np.nd
                             f'are contained by the leaders)')
         link_at[i] = idx
         adjacency[i, 0] = w
+    return None
 
 
 def check_assumptions(ctx: ConfigContext, adjacency: np.ndarray, team: Team) -> tuple:

@@ -1,0 +1,165 @@
+"""The delay margin of a team and the delay remedies (docs/delay.md#delay-margin, docs/delay.md#remedies).
+
+The linearised team model against the measured onset of the oscillation, the remedies
+``reference_links: all_leaders`` and ``feedforward_weight``, their bad values, ``uh-analyze`` and the
+departures a run records.
+"""
+import json
+import re
+
+import numpy as np
+import pytest
+import yaml
+from scenario_texts import CONFIG, paper_yaml
+from test_delay_compensation import _first_unstable_delay
+
+from uh_team import analyze_cli
+from uh_team.delay_margin import covering_feedforward_weight, scenario_link_age, scenario_margin
+from uh_team.delay_measure import OSCILLATION_RATE, measured_oscillation
+from uh_team.departures import scenario_departures
+from uh_team.metrics import metrics_from_arrays
+from uh_team.team_simulation import run_team_simulation
+from uh_topology import errors as E
+from uh_topology.scenario import load_scenario, parse_scenario
+
+LINKS = re.compile(r'reference_links:\n(  - .*\n)+')
+
+
+def _all_leaders(extra: str = '') -> str:
+    text = LINKS.sub('reference_links: all_leaders\n', paper_yaml())
+    assert 'all_leaders' in text
+    return text + ('\n' + extra if extra else '')
+
+
+def _weighted(weight, extra: str = '') -> str:
+    """Give the paper scenario with its gains inline and ``feedforward_weight: weight``."""
+    gains = yaml.safe_load((CONFIG / 'paper_gains.yaml').read_text())['/**']['ros__parameters']
+    gains['feedforward_weight'] = weight
+    inline = yaml.safe_dump(gains, default_flow_style=True, width=10 ** 6).strip()
+    return re.sub(r'gains: \S+', lambda _m: f'gains: {inline}', paper_yaml(extra))
+
+
+@pytest.fixture(scope='module')
+def paper():
+    return load_scenario('paper')
+
+
+@pytest.fixture(scope='module')
+def paper_margin(paper):
+    return scenario_margin(paper, 'proposed')
+
+
+# -- the model against the measurement -------------------------------------------------------------
+
+def test_the_paper_team_goes_unstable_at_5_steps_with_prediction_and_7_without(paper_margin):
+    assert paper_margin.first_unstable == {'predict': 5, 'none': 7}
+    assert paper_margin.margin_steps == {'predict': 4, 'none': 6}
+    assert paper_margin.margin_ms('predict') == pytest.approx(40.0)
+    mode = paper_margin.onset_mode['predict']
+    # the ring's mode: about 2 Hz, horizontal, carried by the three leaders (the followers follow it)
+    assert 1.5 < mode.frequency_hz < 2.5 and mode.axis == 'horizontal' and {1, 2, 3} <= set(mode.uhs)
+    # the continuous-time ring model of docs/delay.md#why-the-ring-oscillates-from-ten-steps-on gives 6 / 9:
+    # the sampled model of the whole team agrees with it within two steps
+    assert abs(paper_margin.first_unstable['predict'] - _first_unstable_delay(predict=True)) <= 2
+    assert abs(paper_margin.first_unstable['none'] - _first_unstable_delay(predict=False)) <= 2
+
+
+@pytest.mark.parametrize('compensation, quiet, oscillating', [('predict', 5, 6), ('none', 6, 7)])
+def test_the_measured_onset_is_within_two_steps_of_the_model(paper, paper_margin, compensation, quiet, oscillating):
+    """Fly the paper team at the last quiet and the first oscillating delay (measured: 6 and 7)."""
+    assert measured_oscillation(paper, 'proposed', quiet, compensation) < OSCILLATION_RATE
+    # an oscillating run swings its roll and pitch rates by 2-3 rad/s, a settled one by 0.001-0.02
+    assert measured_oscillation(paper, 'proposed', oscillating, compensation) > 10 * OSCILLATION_RATE
+    assert abs(paper_margin.first_unstable[compensation] - oscillating) <= 2
+
+
+def test_every_leader_hearing_the_reference_lifts_the_margin_past_twenty_steps():
+    scenario = parse_scenario(_all_leaders(), source='all.yaml')
+    assert scenario.reference_links_rule == 'all_leaders'
+    assert list(scenario.adjacency[1:4, 0]) == [1.0, 1.0, 1.0]
+    margin = scenario_margin(scenario, 'proposed')
+    assert margin.margin_steps['predict'] >= 20 and margin.margin_steps['none'] is None
+    assert measured_oscillation(scenario, 'proposed', 20, 'predict') < OSCILLATION_RATE   # measured: holds at 20
+
+
+def test_a_lower_feedforward_weight_widens_the_margin_and_the_covering_weight_covers(paper):
+    margins = [scenario_margin(parse_scenario(_weighted(w), source='w.yaml'), 'proposed').margin_steps['predict']
+               for w in (1.0, 0.9, 0.8, 0.7)]
+    assert margins[0] == 4 and all(b > a for a, b in zip(margins, margins[1:], strict=False)), margins
+    weight = covering_feedforward_weight(paper, 'proposed', 20)
+    assert weight is not None and weight < 1.0
+    assert scenario_margin(paper, 'proposed', feedforward_weight=weight).margin_steps['predict'] >= 20
+    assert scenario_margin(paper, 'proposed', most=20, feedforward_weight=weight + 0.05).first_unstable['predict'] \
+        is not None   # the largest such weight on the grid
+
+
+# -- the remedies in the law and the runs ----------------------------------------------------------
+
+def test_feedforward_weight_one_is_the_paper_law_bit_for_bit_and_below_one_changes_it():
+    plain = run_team_simulation(parse_scenario(paper_yaml(), source='p'), 'proposed', duration=2.0)
+    one = run_team_simulation(parse_scenario(_weighted(1.0), source='p'), 'proposed', duration=2.0)
+    less = run_team_simulation(parse_scenario(_weighted(0.8), source='p'), 'proposed', duration=2.0)
+    assert np.array_equal(plain.commands, one.commands) and np.array_equal(plain.states, one.states)
+    assert not np.array_equal(plain.commands, less.commands)
+
+
+def test_a_run_records_its_departures_in_metrics_json():
+    for text, expected in ((paper_yaml(), {}), (_all_leaders(), {'reference_links': 'all_leaders'}),
+                           (_weighted(0.7), {'feedforward_weight': 0.7})):
+        scenario = parse_scenario(text, source='d')
+        run = run_team_simulation(scenario, 'case1', duration=1.0)
+        assert metrics_from_arrays(run.arrays(), scenario, 'case1')['departures'] == expected
+        assert scenario_departures(scenario, 'case1') == expected
+
+
+def test_the_link_age_is_the_largest_delay_plus_jitter():
+    assert scenario_link_age(parse_scenario(paper_yaml(), source='p')) == 0
+    text = paper_yaml('impairments:\n  delay_steps: 3\n  jitter_steps: 2\n  links:\n'
+                      '    - {uh: 4, hears: 1, delay_steps: 7, jitter_steps: 4}')
+    assert scenario_link_age(parse_scenario(text, source='p')) == 11
+
+
+BAD = [
+    (lambda: _weighted(0.0), r"gains of scenario 'paper': feedforward_weight must be \(0, 1\], got 0\.0"),
+    (lambda: _weighted(1.5), r"gains of scenario 'paper': feedforward_weight must be \(0, 1\], got 1\.5"),
+    (lambda: LINKS.sub('reference_links: every_leader\n', paper_yaml()),
+     r"^bad\.yaml:\d+: reference_links: 'every_leader' is not a rule; allowed: a list of links \{uh, weight\} "
+     'or all_leaders$'),
+]
+
+
+@pytest.mark.parametrize('make, pattern', BAD)
+def test_a_bad_remedy_is_refused_with_file_line_and_key(make, pattern):
+    with pytest.raises(E.ScenarioError) as info:
+        scenario = parse_scenario(make(), source='bad.yaml')
+        scenario_margin(scenario)       # the gains are read when used
+    assert re.search(pattern, str(info.value)), str(info.value)
+
+
+# -- uh-analyze ------------------------------------------------------------------------------------
+
+def test_uh_analyze_prints_the_margin_as_json(capsys):
+    assert analyze_cli.main(['paper', '--json']) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result['margin_steps'] == {'none': 6, 'predict': 4}
+    assert result['first_unstable_steps'] == {'none': 7, 'predict': 5}
+    assert 0.5 < result['slowest_mode_s'] < 2.0          # every error mode decays at about k1 = 1 1/s
+    assert result['links'] == {'oldest_state_steps': 0, 'compensation': 'predict', 'within_margin': True}
+    assert result['departures'] == {} and result['covering_feedforward_weight'] == 1.0
+
+
+def test_uh_analyze_says_when_the_links_exceed_the_margin(tmp_path, capsys):
+    scenario = tmp_path / 'slow.yaml'
+    scenario.write_text(paper_yaml('impairments: {delay_steps: 8}'))
+    assert analyze_cli.main([str(scenario)]) == 0
+    out = capsys.readouterr().out
+    assert 'states up to 8 steps old (predict): BEYOND the margin' in out
+    assert re.search(r'feed-forward weight\s+0\.\d+ covers', out), out
+
+
+def test_uh_analyze_on_a_refused_scenario_gives_the_loaders_message(tmp_path, capsys):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text(LINKS.sub('reference_links: 7\n', paper_yaml()))
+    assert analyze_cli.main([str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and re.search(r'bad\.yaml:\d+: reference_links: expected a list', err), err
