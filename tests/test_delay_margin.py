@@ -163,3 +163,30 @@ def test_uh_analyze_on_a_refused_scenario_gives_the_loaders_message(tmp_path, ca
     assert analyze_cli.main([str(bad)]) == 2
     err = capsys.readouterr().err
     assert err.count('\n') == 1 and re.search(r'bad\.yaml:\d+: reference_links: expected a list', err), err
+
+
+# -- what a run says at start ----------------------------------------------------------------------
+
+def test_uh_simulate_warns_in_one_line_when_the_links_exceed_the_margin(tmp_path, capsys):
+    from uh_team import simulate_cli
+    scenario = tmp_path / 'slow.yaml'
+    scenario.write_text(paper_yaml('impairments: {delay_steps: 8}\nsafety: {enabled: false}'))
+    assert simulate_cli.main(['--scenario', str(scenario), '--out', str(tmp_path / 'out'), '--duration', '1']) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith('uh-simulate: delay margin (predict): 4 steps (40 ms); the links deliver states up to 8 ')
+    warnings = [line for line in err if 'warning' in line]
+    assert warnings == ['uh-simulate: warning: the links deliver states up to 8 steps old, beyond the delay margin '
+                        'of 4 steps (predict): expect the team to oscillate (docs/delay.md#remedies)']
+
+
+def test_run_formation_says_the_margin_at_start_and_stays_quiet_without_delay(tmp_path, capsys):
+    from uh_bringup import run_formation
+    from uh_bringup.run_checks import check_run
+    within = tmp_path / 'within.yaml'
+    within.write_text(paper_yaml('impairments: {delay_steps: 3}'))
+    for name, expected in (('paper', []), (str(within), ['[run] delay margin (predict): at least 4 steps; the links '
+                                                         'deliver states up to 3 steps (30 ms) old (uh-analyze; '
+                                                         'docs/delay.md#delay-margin)'])):
+        args = run_formation.build_parser().parse_args(['--scenario', name, '--out', str(tmp_path / 'run'), '--force'])
+        check_run(args)
+        assert [line for line in capsys.readouterr().err.splitlines() if 'margin' in line] == expected

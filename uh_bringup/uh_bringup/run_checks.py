@@ -21,6 +21,7 @@ from uh_runtime.network import MAX_DOMAIN_ID, default_cyclonedds_uri
 from uh_sim_node.faults import FaultError
 from uh_sim_node.helicopter import plant_from_scenario
 from uh_sim_node.reference import ReferenceParameterError, VirtualLeaderReference
+from uh_team.delay_margin import margin_lines
 from uh_topology.errors import ScenarioError
 from uh_topology.safety import safety_override
 from uh_topology.scenario import bundled_scenarios, duration_steps, load_scenario
@@ -148,6 +149,8 @@ def check_run(args) -> tuple:
     validate_team(scenario, args.case)
     for issue in scenario.separation_warnings:
         print(f'[run] warning: {issue.text()}: closer than the minimum separation (docs/safety.md)', file=sys.stderr)
+    for line in margin_lines(scenario, args.case):
+        print(f'[run] {line}', file=sys.stderr)
     # the nodes load the scenario themselves: a bundled name as it is, a file by its absolute path
     bundled = args.scenario in bundled_scenarios() and not Path(args.scenario).exists()
     scenario_arg = args.scenario if bundled else str(Path(args.scenario).resolve())

@@ -32,7 +32,8 @@ from uh_core.airframe import load_helicopter_params
 from uh_topology.impairments import COMPENSATIONS
 
 __all__ = ['LoopModel', 'loop_model', 'team_matrix', 'ModeReport', 'DelayMargin', 'delay_margin',
-           'MOST_STEPS', 'scenario_margin', 'scenario_link_age', 'WEIGHT_GRID', 'covering_feedforward_weight']
+           'MOST_STEPS', 'scenario_margin', 'scenario_link_age', 'WEIGHT_GRID', 'covering_feedforward_weight',
+           'margin_notice', 'margin_lines']
 
 #: The delay scan stops here (steps): beyond it the margin is reported as none found (``None``).
 MOST_STEPS = 50
@@ -307,3 +308,32 @@ def covering_feedforward_weight(scenario, case: str, steps: int, compensation: s
         if margin.first_unstable[compensation] is None:
             return weight
     return None
+
+
+def margin_notice(scenario, case: str = 'proposed') -> tuple:
+    """Give ``(info, warning)``: what a run says at start about its links and the delay margin.
+
+    Both None for a scenario whose links are not delayed (no ``delay_steps`` or ``jitter_steps``).
+    Otherwise ``info`` gives the margin of the scenario's compensation and the oldest state its links
+    deliver; ``warning`` (or None) says the links are beyond it. Scans only as far as it must.
+    """
+    age = scenario_link_age(scenario)
+    if age == 0:
+        return None, None
+    compensation = scenario.impairments.compensation
+    margin = scenario_margin(scenario, case, most=age + 1)
+    steps = margin.margin_steps[compensation]
+    dt_ms = scenario.dt * 1000.0
+    said = f'at least {age + 1} steps' if steps is None else f'{steps} steps ({steps * dt_ms:g} ms)'
+    info = (f'delay margin ({compensation}): {said}; the links deliver states up to {age} steps '
+            f'({age * dt_ms:g} ms) old (uh-analyze; docs/delay.md#delay-margin)')
+    if steps is None or age <= steps:
+        return info, None
+    return info, (f'the links deliver states up to {age} steps old, beyond the delay margin of {steps} steps '
+                  f'({compensation}): expect the team to oscillate (docs/delay.md#remedies)')
+
+
+def margin_lines(scenario, case: str = 'proposed') -> list:
+    """Give the lines :func:`margin_notice` makes, the warning prefixed ``warning:`` (none without delay)."""
+    info, warning = margin_notice(scenario, case)
+    return [line for line in (info, warning and f'warning: {warning}') if line]

@@ -26,6 +26,7 @@ from uh_topology.errors import ScenarioError
 from uh_topology.safety import add_safety_argument, overlap_line, safety_override
 from uh_topology.scenario import duration_steps, load_scenario
 
+from .delay_margin import margin_lines
 from .metric_registry import summary_keys
 from .metrics import LUMPED_FAULTS, NOT_MEANINGFUL_MARK, metrics_from_arrays, nrmse_below_floor
 from .team_simulation import SimulationError, run_team_simulation
@@ -149,6 +150,8 @@ def _main(argv) -> int:
         return _fail(problem)
     for issue in scenario.separation_warnings:
         print(f'{PROG}: warning: {issue.text()}: closer than the minimum separation (docs/safety.md)', file=sys.stderr)
+    for line in margin_lines(scenario, args.case):
+        print(f'{PROG}: {line}', file=sys.stderr)
     progress = _Progress(sys.stderr, f'{scenario.name}/{args.case}') if sys.stderr.isatty() else None
     try:
         run = run_team_simulation(scenario, args.case, duration=args.duration, progress=progress)
