@@ -306,9 +306,9 @@ def small_bag(tmp_path_factory):
     """Write a complete team bag with the project's bag writer: 40 steps of reference and states."""
     import numpy as np
 
+    from uh_core.reference import VirtualLeaderReference
     from uh_runtime import messages as m
     from uh_runtime.dds.cdr import codec
-    from uh_sim_node.reference import VirtualLeaderReference
     from uh_wire.wire import reference_to_msg, state_to_msg
 
     paper = load_scenario('paper')
@@ -405,9 +405,9 @@ def test_invalid_messages_in_a_bag_are_left_out_and_counted(tmp_path):
     """
     import numpy as np
 
+    from uh_core.reference import VirtualLeaderReference
     from uh_runtime import messages as m
     from uh_runtime.dds.cdr import codec
-    from uh_sim_node.reference import VirtualLeaderReference
     from uh_wire.wire import reference_to_msg, state_to_msg
 
     paper = load_scenario('paper')

@@ -14,7 +14,7 @@ from uh_controller_node import control_kernels as ck
 from uh_controller_node.controller import ControllerError, ControllerStatusData, UHController
 from uh_controller_node.fault_isolation import IsolationStatus
 from uh_core.layout import STATUS_FIELDS, STATUS_FLAG, STATUS_VECTOR3
-from uh_sim_node.reference import VirtualLeaderReference
+from uh_core.reference import VirtualLeaderReference
 from uh_topology.scenario import load_scenario
 
 

@@ -13,8 +13,8 @@ import yaml
 from scenario_texts import CONFIG, paper_yaml
 from test_delay_compensation import _first_unstable_delay
 
+from uh_controller_node.delay_margin import covering_feedforward_weight, scenario_link_age, scenario_margin
 from uh_team import analyze_cli
-from uh_team.delay_margin import covering_feedforward_weight, scenario_link_age, scenario_margin
 from uh_team.delay_measure import OSCILLATION_RATE, measured_oscillation
 from uh_team.departures import scenario_departures
 from uh_team.metrics import metrics_from_arrays
@@ -190,3 +190,75 @@ def test_run_formation_says_the_margin_at_start_and_stays_quiet_without_delay(tm
         args = run_formation.build_parser().parse_args(['--scenario', name, '--out', str(tmp_path / 'run'), '--force'])
         check_run(args)
         assert [line for line in capsys.readouterr().err.splitlines() if 'margin' in line] == expected
+
+
+# -- delay_compensation: reference_motion ----------------------------------------------------------
+
+def test_reference_motion_makes_the_prediction_exact_for_a_uh_flying_the_reference():
+    """A UH at a fixed offset from the virtual leader: its delayed state, predicted, is its state now."""
+    from uh_controller_node.impairments import add_reference_motion, predict_state
+    from uh_core.reference import VirtualLeaderReference
+    reference = VirtualLeaderReference(load_scenario('paper').reference)
+    offset, dt, s, age = np.array([2.0, -1.0, 0.5]), 0.01, 3000, 25
+
+    def state(step):
+        x = np.zeros(12)
+        x[0:3] = reference.at(step * dt).position + offset
+        x[3:6] = reference.at(step * dt).velocity
+        return x
+    predicted = np.empty(12)
+    predict_state(state(s), age, dt, predicted)
+    lag = np.abs(predicted[:6] - state(s + age)[:6]).max()
+    add_reference_motion(reference.row(s * dt), reference.row((s + age) * dt), age * dt, predicted)
+    # exact in real numbers; a few roundings of numbers up to 30 m leave ~1e-14 m, the lag removed is ~3e-3 m
+    assert np.abs(predicted[:6] - state(s + age)[:6]).max() < 1e-12 < 1e-3 < lag
+
+
+def test_reference_motion_is_the_same_in_the_kernel_and_the_object_loop_and_recorded_as_a_departure():
+    text = _all_leaders('impairments: {delay_steps: 12, jitter_steps: 4, loss: 0.2, '
+                        'delay_compensation: reference_motion}')
+    scenario = parse_scenario(text, source='rm.yaml')
+    kernel = run_team_simulation(scenario, 'proposed', duration=2.0)
+    objects = run_team_simulation(scenario, 'proposed', duration=2.0, engine='objects')
+    for key in kernel.ARRAY_KEYS:
+        assert np.array_equal(getattr(kernel, key), getattr(objects, key), equal_nan=True), key
+    predicted = run_team_simulation(parse_scenario(text.replace('reference_motion', 'predict'), source='p'),
+                                    'proposed', duration=2.0)
+    assert not np.array_equal(kernel.commands, predicted.commands)   # it acts
+    assert scenario_departures(scenario) == {'reference_links': 'all_leaders', 'delay_compensation': 'reference_motion'}
+    # its terms come from the known trajectory and close no loop: the model gives it predict's margin
+    assert analyze_cli.analysis(scenario, 'proposed', 35, False)['links']['within_margin'] is True
+
+
+@pytest.mark.dds
+@pytest.mark.slow
+def test_a_lockstep_distributed_run_with_reference_motion_equals_the_in_process_run(tmp_path):
+    from team_runs import assert_lockstep_run_equals_in_process
+    text = _all_leaders('impairments: {delay_steps: 6, jitter_steps: 3, delay_compensation: reference_motion}')
+    assert_lockstep_run_equals_in_process(tmp_path, parse_scenario(text, source='rm.yaml'), text, duration=2.0)
+
+
+# -- /diagnostics in real time ---------------------------------------------------------------------
+
+def test_a_realtime_controller_checks_ages_against_the_margin_of_the_compensation_it_applies(paper):
+    from uh_controller_node.delay_margin import MarginWatch
+    # without impairments a realtime controller uses states as they arrive: the margin without prediction
+    watch = MarginWatch(paper, 'proposed')
+    assert np.isnan(watch.margin_s(0.02)) and watch.stable_to == 2      # scanned only as far as the ages
+    assert np.isnan(watch.margin_s(0.06)) and watch.margin_s(0.07) == pytest.approx(0.06)
+    assert watch.first_unstable == 7 and watch.margin_s(0.3) == pytest.approx(0.06)
+    predicted = MarginWatch(parse_scenario(paper_yaml('impairments: {delay_steps: 1}'), source='p'), 'proposed')
+    assert predicted.margin_s(0.05) == pytest.approx(0.04)
+    assert np.isnan(MarginWatch(parse_scenario(_all_leaders(), source='a'), 'proposed').margin_s(0.1))
+
+
+def test_diagnostics_go_warn_when_a_neighbours_age_exceeds_the_delay_margin():
+    from uh_core import diagnostics as D
+    ages = (('uh1', 0.03, 0.05), ('uh3', 0.05, 0.09))
+    beyond = D.controller_diagnostic(2, D.ControllerWindow(neighbour_ages=ages, delay_margin_s=0.06))
+    assert beyond.level == D.WARN
+    assert beyond.message == 'uh3 state up to 90 ms old, beyond the delay margin of 60 ms (docs/delay.md#delay-margin)'
+    assert beyond.values['delay margin (s)'] == '0.06'
+    within = D.controller_diagnostic(2, D.ControllerWindow(neighbour_ages=ages, delay_margin_s=0.1))
+    unchecked = D.controller_diagnostic(2, D.ControllerWindow(neighbour_ages=ages))   # lockstep: NaN
+    assert within.level == unchecked.level == D.OK and 'delay margin (s)' not in unchecked.values

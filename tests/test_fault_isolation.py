@@ -458,7 +458,7 @@ def test_each_controller_publishes_what_isolate_run_computes_over_the_same_run()
     the message unchanged.
     """
     from uh_controller_node.controller import UHController
-    from uh_sim_node.reference import VirtualLeaderReference
+    from uh_core.reference import VirtualLeaderReference
     from uh_team.team_simulation import run_team_simulation
     from uh_topology.scenario import load_scenario
     from uh_wire.wire import status_to_msg

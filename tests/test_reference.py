@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from uh_core.records import Reference
-from uh_sim_node.reference import ReferenceParameterError, VirtualLeaderReference
+from uh_core.reference import ReferenceParameterError, VirtualLeaderReference
 from uh_topology.scenario import load_scenario
 
 PAPER = VirtualLeaderReference(load_scenario('paper').reference)

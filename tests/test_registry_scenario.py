@@ -58,7 +58,7 @@ def test_the_docs_key_tables_are_those_of_the_registry(heading):
 def test_the_documented_default_of_delay_compensation_is_the_codes():
     row = next(line for line in _doc_table('### `impairments`').splitlines() if line.startswith('| `delay_comp'))
     assert row.split('|')[2].strip() == f'`{DEFAULT_COMPENSATION}`' == '`predict`'
-    assert COMPENSATIONS == ('none', 'predict')
+    assert COMPENSATIONS == ('none', 'predict', 'reference_motion')
 
 
 # -- the loader and the campaign spec read it ---------------------------------------------------------

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from uh_controller_node.controller import ControllerError, UHController
-from uh_sim_node.reference import VirtualLeaderReference
+from uh_core.reference import VirtualLeaderReference
 from uh_topology.scenario import load_scenario
 
 

@@ -41,8 +41,8 @@ def component_costs(scenario, steps: int = 1000, case: str = 'proposed', safety:
     from uh_controller_node.controller import UHController
     from uh_controller_node.safety import proximity_input
     from uh_core.airframe import load_helicopter_params
+    from uh_core.reference import VirtualLeaderReference
     from uh_sim_node.helicopter import plant_from_scenario
-    from uh_sim_node.reference import VirtualLeaderReference
     from uh_topology.scenario import load_scenario
 
     sc = load_scenario(scenario, safety=safety)

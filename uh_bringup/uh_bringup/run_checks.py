@@ -13,15 +13,15 @@ from pathlib import Path
 
 from uh_bringup import netns
 from uh_controller_node.controller import ControllerError, UHController
+from uh_controller_node.delay_margin import margin_lines
 from uh_controller_node.gains import scenario_gains
 from uh_core.airframe import HelicopterParamsError, load_helicopter_params
+from uh_core.reference import ReferenceParameterError, VirtualLeaderReference
 from uh_runtime import scheduling
 from uh_runtime.bags import live_view
 from uh_runtime.network import MAX_DOMAIN_ID, default_cyclonedds_uri
 from uh_sim_node.faults import FaultError
 from uh_sim_node.helicopter import plant_from_scenario
-from uh_sim_node.reference import ReferenceParameterError, VirtualLeaderReference
-from uh_team.delay_margin import margin_lines
 from uh_topology.errors import ScenarioError
 from uh_topology.safety import safety_override
 from uh_topology.scenario import bundled_scenarios, duration_steps, load_scenario

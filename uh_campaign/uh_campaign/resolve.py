@@ -100,7 +100,22 @@ def resolve_scenario(spec, draw: int, sweep_index: int = 0) -> dict:
     if spec.safety_override is not None:
         given = data.get('safety')
         data['safety'] = {**(given if isinstance(given, dict) else {}), 'enabled': spec.safety_override}
+    _apply_remedies(data, spec.remedies or {})
     return data
+
+
+def _apply_remedies(data: dict, remedies: dict) -> None:
+    """Write the spec's ``remedies`` into a resolved scenario: its ``reference_links``, its gains' weight."""
+    if 'reference_links' in remedies:
+        data['reference_links'] = remedies['reference_links']
+    if 'feedforward_weight' in remedies:
+        gains = data['gains']
+        if isinstance(gains, str):      # a generated team names its gains file: inline it
+            gains, _ = parse_yaml(read_text_file(gains), gains)
+        gains = copy.deepcopy(gains)
+        target = gains['/**']['ros__parameters'] if '/**' in gains else gains
+        target['feedforward_weight'] = remedies['feedforward_weight']
+        data['gains'] = gains
 
 
 def _apply_draws(data: dict, draws: Draws, rng: dict) -> None:

@@ -69,6 +69,11 @@ Top-level keys
     filter's ``enabled`` and parameters, merged into every resolved scenario over the base
     scenario's. ``{enabled: false}`` pins the paper's law alone (the studies of the law itself);
     ``uh-campaign --safety on|off`` overrides ``enabled`` again.
+``remedies``
+    Optional mapping, the delay remedies of docs/delay.md#remedies, departures from the paper applied
+    to every resolved scenario and every case alike: ``reference_links: all_leaders`` (replaces the
+    scenario's ``reference_links``) and ``feedforward_weight: w`` in (0, 1] (replaces the gain).
+    Recorded in each run's ``departures``; checked when draw 0's scenario is loaded.
 ``sweep``
     Optional mapping ``{parameter, values}``: every draw is run once per value, with the value
     written at ``parameter`` of the resolved scenario. ``parameter`` is a key path into the
@@ -219,7 +224,9 @@ DEFAULT_SUCCESS = {'formation_rms_m': 0.05, 'containment_rms_m': 0.02, 'separati
 
 _TOP_REQUIRED = ('name', 'runs')
 _TOP_OPTIONAL = ('description', 'scenario', 'generator', 'seed', 'duration', 'settle_time', 'cases',
-                 'success', 'impairments', 'safety', 'sweep', 'draws')
+                 'success', 'impairments', 'safety', 'remedies', 'sweep', 'draws')
+#: The keys of ``remedies`` (docs/delay.md#remedies).
+REMEDY_KEYS = ('reference_links', 'feedforward_weight')
 _KEY_PATH = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*|\[\d+\])*\Z')
 
 
@@ -287,6 +294,7 @@ class CampaignSpec:
     draws: Draws
     runs_override: int | None = None
     safety_override: bool | None = None
+    remedies: dict | None = None
     lines: dict = field(default_factory=dict, repr=False)
     base_mapping: dict | None = field(default=None, repr=False)   # the self-contained base scenario
 
@@ -429,6 +437,10 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
         safety = dict(ctx.mapping(top['safety'], ('safety',), (), [k.name for k in scenario_keys.SAFETY_KEYS],
                                   what='a safety mapping (docs/safety.md)'))
 
+    remedies = None
+    if top.get('remedies') is not None:   # their values are checked when draw 0's scenario is loaded
+        remedies = dict(ctx.mapping(top['remedies'], ('remedies',), (), REMEDY_KEYS,
+                                    what='a remedies mapping (docs/delay.md#remedies)'))
     n_uhs = (generator.leaders + generator.followers if generator is not None else len(base_mapping['uhs']))
     draws = read_draws(ctx, top.get('draws') or {}, n_uhs)
     tilt = max((abs(float(a)) for uh in (base_mapping or {}).get('uhs', [])
@@ -443,7 +455,7 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
         name=name, description=description, source=source, text=text, base_dir=base, scenario=scenario_file,
         generator=generator, runs=runs, seed=seed, duration=float(duration), settle_time=float(settle_time),
         cases=cases, success=success, impairments=impairments, safety=safety, sweep=sweep, draws=draws, lines=lines,
-        base_mapping=base_mapping)
+        base_mapping=base_mapping, remedies=remedies)
     check_draw_zero(spec)
     return spec
 

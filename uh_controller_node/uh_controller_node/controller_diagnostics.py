@@ -93,10 +93,13 @@ class ControllerDiagnostics:
         The step within each period at which the report is made.
     safety : bool
         The controller runs the safety filter: the reports say how often it acted and name the closest UH.
+    margin : MarginWatch or None
+        The team's delay margin (:class:`~uh_controller_node.delay_margin.MarginWatch`): a report whose
+        neighbour ages exceed it goes WARN. None: not checked (lockstep).
     """
 
-    def __init__(self, uh_id: int, every: int, phase: int, safety: bool = False):
-        self.uh_id, self.every, self.phase, self.safety = uh_id, every, phase, bool(safety)
+    def __init__(self, uh_id: int, every: int, phase: int, safety: bool = False, margin=None):
+        self.uh_id, self.every, self.phase, self.safety, self.margin = uh_id, every, phase, bool(safety), margin
         self.window = diagnostics.ControllerWindow(safety=self.safety)
         self._rejected_reported = 0
 
@@ -135,5 +138,7 @@ class ControllerDiagnostics:
         w.rejected_inputs, self._rejected_reported = rejected - self._rejected_reported, rejected
         if ages is not None:
             w.neighbour_ages = tuple(zip((f'uh{j}' for j in ages.neighbours), *ages.summary(), strict=True))
+            if self.margin is not None:
+                w.delay_margin_s = self.margin.margin_s(max((m for *_, m in w.neighbour_ages if m == m), default=0.0))
         self.window = diagnostics.ControllerWindow(safety=self.safety)
         return diagnostics.controller_diagnostic(self.uh_id, w)

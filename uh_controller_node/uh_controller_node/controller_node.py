@@ -11,32 +11,32 @@ decided by :class:`uh_controller_node.input_sync.InputSynchroniser`, whose docst
 both clock modes (docs/reliability.md section 2): in ``lockstep`` step k waits for every input of step k,
 so the run reproduces the in-process reference simulation exactly; in ``realtime`` each own state k starts
 step k, computed when the same step's inputs are in or after ``sync_wait`` wall seconds with the latest
-values. A one-shot timer is armed when the own state arrives and the step cannot be computed yet, so an
-idle controller wakes only for messages and a slow check every ``SLOW_POLL_S``. The short wait matters:
-the sims publish step k at the same tick, and mixing step-k and step-(k-1) neighbour data makes the
-consensus error jitter by v dt, which the command filters' derivatives amplify into chattering commands.
+values. A one-shot timer is armed when the own state arrives and the step cannot be computed yet (an idle
+controller wakes for messages and a check every ``SLOW_POLL_S``). The short wait matters: mixing step-k and
+step-(k-1) neighbour data makes z1 jitter by v dt, which the filters' derivatives turn into chattering.
 
 Impairments (docs/campaigns.md#impairments; in real time docs/runtime.md#impairments-in-real-time):
 the controller uses what :mod:`~uh_controller_node.realtime_received` makes of its inputs (delay,
 jitter, loss, dropout, noise, prediction; the functions of the in-process run) and publishes them as
-delivered on ``received``. Status and ``/diagnostics`` carry each neighbour's age (:class:`NeighbourAges`).
+delivered on ``received``. Status and ``/diagnostics`` carry each neighbour's age (:class:`NeighbourAges`);
+in real time an age beyond the team's delay margin (docs/delay.md#delay-margin) makes the report WARN.
 
 Received messages carrying NaN/inf (or another UH's id) are rejected: the node logs the reason
 (at most once a second per input, with a count) and keeps its last valid input, which then ages
 like a silent neighbour. A stale input (realtime: more than ``stale_timeout`` simulated seconds
 behind, or never heard ``startup_grace`` wall seconds after the first own state) is listed in
 ``ControllerStatus.stale_neighbours`` (``uhJ`` or ``reference``) and left out of the control law
-(:meth:`UHController.step_degraded`): the UH follows the remaining neighbours while they still give
-it a path from the virtual leader (Assumption 1, docs/graph.md; :meth:`UHController.reachable_without`)
-and holds its position and yaw otherwise; both transitions are logged, and the UH rejoins when the
-data comes back. A controller restarted in a running team joins at the current step instead of
-replaying the last ``STEP_DEPTH`` steps of transient-local history.
+(:meth:`UHController.step_degraded`): the UH follows the remaining neighbours while they still give it a
+path from the virtual leader (Assumption 1, docs/graph.md; :meth:`UHController.reachable_without`) and
+holds its position and yaw otherwise; both transitions are logged, and the UH rejoins when the data comes
+back. A controller restarted in a running team joins at the current step, not replaying ``STEP_DEPTH`` steps.
 """
 from __future__ import annotations
 
 import uh_runtime as rt
 from uh_controller_node.controller import ControllerError, UHController, load_controller_kernels
 from uh_controller_node.controller_diagnostics import ControllerDiagnostics, NeighbourAges
+from uh_controller_node.delay_margin import MarginWatch
 from uh_controller_node.input_sync import OWN, PROXIMITY, REFERENCE, InputSynchroniser
 from uh_controller_node.node_parameters import GainParameters, declare_controller_parameters
 from uh_controller_node.proximity_input import ProximityInput
@@ -88,9 +88,9 @@ class ControllerNode(rt.Node):
         if self.received is not None:
             self.received_pub = self.create_publisher(m.ReceivedStates, topics.RECEIVED.name, qos)
         self.views = declare_view_parameters(self, self.dt)
-        self.diagnostics = ControllerDiagnostics(
-            self.uh_id, self.views.diagnostics_every,
-            self.views.diagnostics_phase(scenario.ids, self.uh_id, controller=True), safety=sensed)
+        margin = MarginWatch(scenario, case) if run.clock_mode == 'realtime' else None
+        self.diagnostics = ControllerDiagnostics(self.uh_id, self.views.diagnostics_every, self.views.diagnostics_phase(
+            scenario.ids, self.uh_id, controller=True), safety=sensed, margin=margin)
         if self.views.enabled:
             self.diag_pub = view_publisher(self, topics.DIAGNOSTICS)
         self._subscribe(m.UHState, topics.STATE.name, qos, OWN, 'own state', wire.msg_to_state, self.uh_id)

@@ -33,10 +33,11 @@ from uh_core import compiled_kernels as _compiled_kernels
 from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
 from uh_core.compiled_kernels import njit
-from uh_core.layout import STATE_SIZE, X_P, X_V
+from uh_core.layout import R_P, R_V, STATE_SIZE, X_P, X_V
 
 __all__ = ['Link', 'LOSS_STREAM', 'JITTER_STREAM', 'PREDICTION_MARGIN', 'hash_uniform', 'arrival_extra',
-           'newest_delivered', 'delivered_step', 'prediction_age', 'add_noise', 'predict_state', 'ReceivedStates',
+           'newest_delivered', 'delivered_step', 'prediction_age', 'add_noise', 'predict_state', 'add_reference_motion',
+           'ReceivedStates',
            'reference_hash', 'compile_impairment_kernels']
 
 #: Stream of the loss draws; the noise of state component c uses streams 1 + 2c and 2 + 2c.
@@ -194,6 +195,21 @@ def predict_state(state, age, dt, out):
         out[X_P + c] = state[X_P + c] + state[X_V + c] * tau
 
 
+@njit(cache=True)
+def add_reference_motion(ref_sent, ref_now, tau, out):
+    """Add the virtual leader's own motion over ``tau`` s to a predicted state ``out`` (docs/delay.md#remedies).
+
+    ``delay_compensation: reference_motion``. ``ref_sent``, ``ref_now`` (7,) are ``[p_0, v_0, psi_0]``
+    at the step the state was sent and at that step plus the age predicted over. The position gains
+    what the prediction ``p + v tau`` misses of the reference, ``p_0(now) - p_0(sent) - v_0(sent) tau``;
+    the velocity gains ``v_0(now) - v_0(sent)``. The terms come from the known trajectory, not from
+    any neighbour, so they close no loop: the team's delay margin is that of ``predict``.
+    """
+    for c in range(3):
+        out[X_P + c] += ref_now[R_P + c] - ref_sent[R_P + c] - ref_sent[R_V + c] * tau
+        out[X_V + c] += ref_now[R_V + c] - ref_sent[R_V + c]
+
+
 class Link(NamedTuple):
     """The impairment of the link that brings ``sender``'s states to ``receiver``.
 
@@ -223,12 +239,15 @@ class ReceivedStates:
     impairments : ImpairmentSpec
     dt : float
         Control period, s (for the dropout times and the prediction).
+    reference : VirtualLeaderReference or None
+        The virtual leader's trajectory (``uh_core.reference``); needed with ``delay_compensation:
+        reference_motion`` (:func:`add_reference_motion`), not read otherwise.
 
     :meth:`receive` is called once per step, in step order, with the states *sent* at that step
     (lockstep); it keeps only the states a later step may still deliver.
     """
 
-    def __init__(self, uh_id: int, neighbours, impairments, dt: float):
+    def __init__(self, uh_id: int, neighbours, impairments, dt: float, reference=None):
         self.uh_id = int(uh_id)
         self.neighbours = tuple(int(j) for j in neighbours)
         self.seed = int(impairments.seed)
@@ -238,7 +257,10 @@ class ReceivedStates:
         self.loss = {j: float(impairments.losses[(self.uh_id, j)]) for j in self.neighbours}
         self.drop = {j: impairments.drop_step(j, dt) for j in self.neighbours}
         self.sigma = np.ascontiguousarray(impairments.noise, dtype=float)
-        self.predict = impairments.compensation == 'predict'
+        self.predict = impairments.compensation in ('predict', 'reference_motion')
+        self.reference = reference if impairments.compensation == 'reference_motion' else None
+        if impairments.compensation == 'reference_motion' and reference is None:
+            raise ValueError('delay_compensation reference_motion needs the virtual leader\'s trajectory')
         self.history = {j: {} for j in self.neighbours}
         self.sample_steps = {}
         self.delivered = {}
@@ -280,7 +302,11 @@ class ReceivedStates:
         used = state
         if self.predict and s < k:
             used = np.empty(STATE_SIZE)
-            predict_state(state, prediction_age(k, s, link.delay, link.jitter, self.dt), self.dt, used)
+            age = prediction_age(k, s, link.delay, link.jitter, self.dt)
+            predict_state(state, age, self.dt, used)
+            if self.reference is not None:
+                add_reference_motion(self.reference.row(s * self.dt), self.reference.row((s + age) * self.dt),
+                                     age * self.dt, used)
         self.sample_steps[j] = s
         for old in [step for step in history if step < s]:
             del history[old]
@@ -296,6 +322,7 @@ def compile_impairment_kernels() -> float:
     newest_delivered(5, 4, 1, 2, 0.5, 3, 1, 2, 3)   # also called from Python (realtime_received)
     add_noise(np.zeros(STATE_SIZE), np.ones(STATE_SIZE), 1, 2, 3, 4, np.empty(STATE_SIZE))
     predict_state(np.zeros(STATE_SIZE), prediction_age(5, 3, 1, 2, 0.01), 0.01, np.empty(STATE_SIZE))
+    add_reference_motion(np.zeros(7), np.zeros(7), 0.01, np.zeros(STATE_SIZE))
     return time.perf_counter() - start
 
 

@@ -26,6 +26,7 @@ import numpy as np
 
 from uh_controller_node.impairments import Link, ReceivedStates, add_noise, compile_impairment_kernels, newest_delivered
 from uh_core.layout import STATE_SIZE
+from uh_core.reference import VirtualLeaderReference
 
 __all__ = ['newest_arrived', 'RealtimeReceivedStates', 'received_states_for']
 
@@ -107,6 +108,6 @@ def received_states_for(uh_id: int, neighbours, scenario, dt: float, clock_mode:
     if scenario.impairments is None:
         return None
     kind = ReceivedStates if clock_mode == 'lockstep' else RealtimeReceivedStates
-    received = kind(uh_id, neighbours, scenario.impairments, dt)
+    received = kind(uh_id, neighbours, scenario.impairments, dt, VirtualLeaderReference(scenario.reference))
     compile_impairment_kernels()
     return received

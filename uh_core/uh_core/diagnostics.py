@@ -65,6 +65,8 @@ class ControllerWindow:
     safety_active_steps: int = 0
     closest_uh: int = 0
     closest_distance: float = math.nan
+    #: the team's delay margin, s (docs/delay.md#delay-margin), when the window's ages reach beyond it; else NaN
+    delay_margin_s: float = math.nan
 
 
 @dataclass
@@ -123,6 +125,13 @@ def controller_diagnostic(uh_id: int, w: ControllerWindow) -> Diagnostic:
     for label, mean, worst in w.neighbour_ages:
         values[f'age of {label}, mean over 1 s (s)'] = f'{mean:.4g}'
         values[f'age of {label}, max over 1 s (s)'] = f'{worst:.4g}'
+    if math.isfinite(w.delay_margin_s):
+        values['delay margin (s)'] = f'{w.delay_margin_s:.4g}'
+        beyond = [(worst, label) for label, _, worst in w.neighbour_ages if worst > w.delay_margin_s + 1e-9]
+        if beyond:
+            worst, label = max(beyond)
+            warnings.append(f'{label} state up to {worst * 1000:.0f} ms old, beyond the delay margin of '
+                            f'{w.delay_margin_s * 1000:.0f} ms (docs/delay.md#delay-margin)')
     return _report(f'uh{uh_id}/controller', f'uh{uh_id}', errors, warnings, values)
 
 

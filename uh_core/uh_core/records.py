@@ -1,7 +1,7 @@
 """Plain records that cross package boundaries: a virtual-leader sample and an actuator fault.
 
 :class:`Reference` is what the virtual leader publishes and a controller reads
-(``uh_sim_node.reference`` makes it, ``uh_wire.wire`` carries it); :class:`FaultSpec` is what a
+(``uh_core.reference`` makes it, ``uh_wire.wire`` carries it); :class:`FaultSpec` is what a
 scenario lists (``uh_topology.scenario``) and the simulator acts on (``uh_sim_node.faults``).
 """
 from __future__ import annotations

@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import uh_runtime as rt
 from uh_core import frames
+from uh_core.reference import VirtualLeaderReference
 from uh_runtime import messages as m
-from uh_sim_node.reference import VirtualLeaderReference
 from uh_wire import topics
 from uh_wire.published import PublishedCounts
 from uh_wire.run_config import declare_run_parameters, declare_view_parameters

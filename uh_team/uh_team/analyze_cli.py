@@ -15,12 +15,19 @@ from __future__ import annotations
 import json
 import sys
 
+from uh_controller_node.delay_margin import (
+    MODELLED,
+    MOST_STEPS,
+    covering_feedforward_weight,
+    modelled,
+    scenario_link_age,
+    scenario_margin,
+)
 from uh_controller_node.gains import CASES
 from uh_runtime.command_line import ArgumentParser
 from uh_topology.errors import ScenarioError
 from uh_topology.scenario import load_scenario
 
-from .delay_margin import COMPENSATIONS, MOST_STEPS, covering_feedforward_weight, scenario_link_age, scenario_margin
 from .delay_measure import measured_onset
 from .departures import scenario_departures
 
@@ -47,13 +54,13 @@ def analysis(scenario, case: str, most: int, measure: bool) -> dict:
            'departures': scenario_departures(scenario, case)}
     age = scenario_link_age(scenario)
     compensation = scenario.impairments.compensation if scenario.impairments is not None else 'predict'
-    limit = margin.margin_steps[compensation]
+    limit = margin.margin_steps[modelled(compensation)]
     out['links'] = {'oldest_state_steps': age, 'compensation': compensation,
                     'within_margin': limit is None or age <= limit}
     out['covering_feedforward_weight'] = covering_feedforward_weight(scenario, case, max(age, 0), compensation)
     if measure:
         out['measured_onset_steps'] = {}
-        for c in COMPENSATIONS:
+        for c in MODELLED:
             first = margin.first_unstable[c]
             top = (first if first is not None else most) + 3
             out['measured_onset_steps'][c] = measured_onset(scenario, case, c, range(max(0, top - 6), top + 1))
@@ -65,7 +72,7 @@ def text_lines(result: dict) -> list:
     dt_ms = result['dt_s'] * 1000.0
     lines = [f"{result['scenario']} / {result['case']}: delay margin (the same delay on every link; "
              'docs/delay.md#delay-margin)']
-    for c in COMPENSATIONS:
+    for c in MODELLED:
         steps, mode = result['margin_steps'][c], result['onset_mode'][c]
         if steps is None:
             text = f"no delay up to {result['most_steps']} steps destabilises it"

@@ -1,7 +1,7 @@
 """The measured onset of a team's delay oscillation, to check the delay margin against (docs/delay.md#delay-margin).
 
 Flies the team in process with the same delay on every link and tells whether it still oscillates
-at the end of the run; :mod:`uh_team.delay_margin` predicts where that starts.
+at the end of the run; :mod:`uh_controller_node.delay_margin` predicts where that starts.
 """
 from __future__ import annotations
 

@@ -14,12 +14,15 @@ __all__ = ['scenario_departures']
 def scenario_departures(scenario, case: str = 'proposed') -> dict:
     """Give the departures from the paper's graph and gains that the delay remedies make (docs/delay.md#remedies).
 
-    ``{'reference_links': 'all_leaders'}`` and/or ``{'feedforward_weight': w}`` (w < 1); empty: none.
+    Any of ``{'reference_links': 'all_leaders'}``, ``{'delay_compensation': 'reference_motion'}`` and
+    ``{'feedforward_weight': w}`` (w < 1); empty: none.
     Recorded in ``run.json`` and ``metrics.json``.
     """
     out = {}
     if scenario.reference_links_rule is not None:
         out['reference_links'] = scenario.reference_links_rule
+    if scenario.impairments is not None and scenario.impairments.compensation == 'reference_motion':
+        out['delay_compensation'] = 'reference_motion'
     weight = scenario_gains(scenario, case).feedforward_weight
     if weight != 1.0:
         out['feedforward_weight'] = weight

@@ -296,7 +296,7 @@ def _fault_error_max(fault: LumpedFault) -> Metric:
 
 
 def _departures(values) -> dict:
-    """Give the run's departures from the paper (:func:`~uh_team.delay_margin.scenario_departures`), {} without one."""
+    """Give the run's departures from the paper (:func:`~uh_team.departures.scenario_departures`), {} without one."""
     return {} if values.scenario is None else scenario_departures(values.scenario, values.case)
 
 

@@ -20,13 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from uh_controller_node.delay_margin import margin_lines
 from uh_controller_node.gains import CASES, scenario_gains
 from uh_runtime.command_line import ArgumentParser, directory_argument, unwritable_reason
 from uh_topology.errors import ScenarioError
 from uh_topology.safety import add_safety_argument, overlap_line, safety_override
 from uh_topology.scenario import duration_steps, load_scenario
 
-from .delay_margin import margin_lines
 from .metric_registry import summary_keys
 from .metrics import LUMPED_FAULTS, NOT_MEANINGFUL_MARK, metrics_from_arrays, nrmse_below_floor
 from .team_simulation import SimulationError, run_team_simulation

@@ -42,7 +42,13 @@ from uh_controller_node import learning_kernels as _learning_kernels
 from uh_controller_node import loop_kernels as _loop_kernels
 from uh_controller_node import safety_kernels as _safety_kernels
 from uh_controller_node.control_kernels import INPUT_SIZE, STATE_SIZE, STATUS, STATUS_SIZE, STEP_DONE, uh_control_step
-from uh_controller_node.impairments import add_noise, delivered_step, predict_state, prediction_age
+from uh_controller_node.impairments import (
+    add_noise,
+    add_reference_motion,
+    delivered_step,
+    predict_state,
+    prediction_age,
+)
 from uh_controller_node.safety_kernels import (
     PROXIMITY_COLUMNS,
     SF_PROXIMITY_DELAY,
@@ -130,6 +136,9 @@ class TeamImpairments(NamedTuple):
         Standard deviation of the noise on every received state, per component.
     predict : bool
         Whether the controllers predict each received state to the current step (docs/delay.md).
+    reference_motion : bool
+        Whether they also add the virtual leader's motion over the age (``delay_compensation:
+        reference_motion``, docs/delay.md#remedies).
     """
 
     impaired: bool
@@ -140,6 +149,7 @@ class TeamImpairments(NamedTuple):
     noise: np.ndarray
     jitter: np.ndarray
     predict: bool
+    reference_motion: bool
 
 
 class TeamState(NamedTuple):
@@ -241,7 +251,7 @@ def _team_impairments(ids, controllers, impairments, dt, max_nb) -> TeamImpairme
     drop_step = np.zeros(n, dtype=np.int64)
     noise = np.zeros(STATE_SIZE)
     if impairments is None:
-        return TeamImpairments(False, 0, delay, loss, drop_step, noise, jitter, False)
+        return TeamImpairments(False, 0, delay, loss, drop_step, noise, jitter, False, False)
     if dt is None:
         raise ValueError('team kernel: impairments need the control period dt (for the dropout steps)')
     for c, controller in enumerate(controllers):
@@ -253,7 +263,8 @@ def _team_impairments(ids, controllers, impairments, dt, max_nb) -> TeamImpairme
             loss[c, slot] = impairments.losses[(i, int(j))]
     noise[:] = impairments.noise
     return TeamImpairments(True, int(impairments.seed), delay, loss, drop_step, noise, jitter,
-                           impairments.compensation == 'predict')
+                           impairments.compensation in ('predict', 'reference_motion'),
+                           impairments.compensation == 'reference_motion')
 
 
 @njit(cache=True)
@@ -314,7 +325,8 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
             nb = np.empty((m, STATE_SIZE))
             received = x[c]   # the own state as the controller receives it
             if links_impaired.impaired:
-                received = impaired_states(k, c, dt, x, states, hears[c], ids, links_impaired, own, sent, nb)
+                received = impaired_states(k, c, dt, x, states, hears[c], ids, links_impaired, own, sent, nb,
+                                           references)
             else:
                 for j in range(m):
                     nb[j] = x[hears[c, j]]
@@ -377,7 +389,7 @@ def record_states(k, x, states):
 
 
 @njit(cache=True, inline='always')
-def impaired_states(k, c, dt, x, states, hears, ids, links_impaired, own, sent, nb):
+def impaired_states(k, c, dt, x, states, hears, ids, links_impaired, own, sent, nb, references):
     """Return the own state row ``c``'s controller receives at step ``k`` through impaired links; write its neighbours'.
 
     As :mod:`uh_controller_node.impairments` defines: the own state and each neighbour's state
@@ -399,6 +411,8 @@ def impaired_states(k, c, dt, x, states, hears, ids, links_impaired, own, sent, 
         Scratch: the noisy own state (returned), a neighbour's state before its prediction.
     nb : ndarray (n_nb, 12)
         Output: the neighbours' states received, in the order of ``hears``.
+    references : ndarray (K+1, 7)
+        The virtual leader's ``[p_0, v_0, psi_0]`` per step (read with ``reference_motion``).
     """
     seed, noise = links_impaired.seed, links_impaired.noise
     add_noise(x[c], noise, seed, ids[c], ids[c], k, own)
@@ -409,7 +423,10 @@ def impaired_states(k, c, dt, x, states, hears, ids, links_impaired, own, sent, 
                            ids[c], ids[r])
         if links_impaired.predict and s < k:   # the state sent at s, predicted to k
             add_noise(states[s, r], noise, seed, ids[c], ids[r], s, sent)
-            predict_state(sent, prediction_age(k, s, delay, jitter, dt), dt, nb[j])
+            age = prediction_age(k, s, delay, jitter, dt)
+            predict_state(sent, age, dt, nb[j])
+            if links_impaired.reference_motion:
+                add_reference_motion(references[s], references[s + age], age * dt, nb[j])
         else:
             add_noise(states[s, r], noise, seed, ids[c], ids[r], s, nb[j])
     return own
@@ -490,7 +507,7 @@ def compile_team_kernel() -> float:
         safety=np.zeros((n, 0)))
     links_impaired = TeamImpairments(False, 0, np.zeros((n, max_nb), dtype=np.int64), np.zeros((n, max_nb)),
                                      np.zeros(n, dtype=np.int64), np.zeros(STATE_SIZE),
-                                     np.zeros((n, max_nb), dtype=np.int64), False)
+                                     np.zeros((n, max_nb), dtype=np.int64), False, False)
     live = TeamState(np.zeros((n, STATE_SIZE)), np.zeros((n, 3, 3)), np.zeros((n, 3, 3)),
                      np.zeros((n, _ctl.MEMORY_ROWS, 3)))
     run_team_steps(0, 0, 0, 0.01, np.zeros((steps, _ctl.REFERENCE_SIZE)), team, links_impaired, live,

@@ -29,8 +29,8 @@ from uh_controller_node.proximity_input import ProximityInput
 from uh_controller_node.safety import proximity_input
 from uh_core.airframe import load_helicopter_params
 from uh_core.layout import R_P_SLICE, R_V_SLICE, R_YAW, REFERENCE_SIZE, X_P_SLICE
+from uh_core.reference import VirtualLeaderReference
 from uh_sim_node.helicopter import plant_from_scenario
-from uh_sim_node.reference import VirtualLeaderReference
 from uh_topology.errors import GainsFileError
 from uh_topology.scenario import duration_steps
 
@@ -211,7 +211,8 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         references[:, R_YAW] = [r.yaw for r in samples]
         _run_kernel(K, dt, ids, arrays, references, out, every, progress)
     else:
-        _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, scenario.impairments)
+        _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, scenario.impairments,
+                     reference)
     wall = _time.perf_counter() - start
 
     return TeamRun(
@@ -243,14 +244,16 @@ def _run_kernel(K, dt, ids, a, references, out, every, progress, load_only=False
             progress(k1 - 1, K)
 
 
-def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, impairments=None):
+def _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, impairments=None, reference=None):
     """Run the step loop in Python over the per-UH objects (what the distributed nodes run).
 
     ``samples`` are the virtual leader's references of every step; with ``impairments`` every
-    controller receives through a :class:`~uh_controller_node.impairments.ReceivedStates`, as a node does.
+    controller receives through a :class:`~uh_controller_node.impairments.ReceivedStates`, as a node does
+    (``reference``, the virtual leader's trajectory, for ``delay_compensation: reference_motion``).
     """
     col = {i: c for c, i in enumerate(ids)}
-    received = ([ReceivedStates(i, ctl.neighbours, impairments, dt) for i, ctl in zip(ids, controllers, strict=False)]
+    received = ([ReceivedStates(i, ctl.neighbours, impairments, dt, reference)
+                 for i, ctl in zip(ids, controllers, strict=False)]
                 if impairments is not None else None)
     hears = [tuple(col[j] for j in ctl.neighbours) for ctl in controllers]
     linked = [ctl.leader_link > 0.0 for ctl in controllers]

@@ -67,7 +67,7 @@ __all__ = [
 
 @dataclass(frozen=True, eq=False)
 class ReferenceSpec:
-    """Virtual-leader trajectory parameters (``uh_sim_node.reference.VirtualLeaderReference``).
+    """Virtual-leader trajectory parameters (``uh_core.reference.VirtualLeaderReference``).
 
     ``p0(t) = center + [radius sin(w t), -radius cos(w t), climb_rate t]``, ``w = angular_rate``
     rad/s; ``psi0(t) = initial_yaw + yaw_rate t``. Units m, rad/s, m, m/s, rad/s, rad.

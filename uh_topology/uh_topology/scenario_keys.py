@@ -150,8 +150,10 @@ IMPAIRMENT_KEYS = (
     ScenarioKey('dropouts', "`{uh, time}`: from `time` on no other UH receives the UH's state; one per UH, `time` "
                 'in [0, duration]', unit='s'),
     ScenarioKey('delay_compensation', "`none`: a controller uses each neighbour's state as received; `predict`: it "
-                'predicts it from the step it was sent at to the current step ([delay.md](delay.md))',
-                default='predict', kind='string', choices=('none', 'predict')),
+                'predicts it from the step it was sent at to the current step ([delay.md](delay.md)); '
+                "`reference_motion`: predicts it and adds the virtual leader's own motion over the age, a "
+                'departure ([delay.md](delay.md#remedies))',
+                default='predict', kind='string', choices=('none', 'predict', 'reference_motion')),
 )
 
 

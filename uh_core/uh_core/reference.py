@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from uh_core.layout import R_P_SLICE, R_V_SLICE, R_YAW, REFERENCE_SIZE
 from uh_core.records import Reference
 
 __all__ = ['ReferenceParameterError', 'VirtualLeaderReference']
@@ -80,6 +81,13 @@ class VirtualLeaderReference:
         r = self.radius
         return np.array([self.cx + r * math.sin(wt), self.cy - r * math.cos(wt),
                          self.cz + self.climb_rate * t])
+
+    def row(self, t: float) -> np.ndarray:
+        """Give ``[p_0, v_0, psi_0]`` at time ``t`` s in the controllers' layout (``uh_core.layout.R_*``)."""
+        r = self.at(t)
+        out = np.empty(REFERENCE_SIZE)
+        out[R_P_SLICE], out[R_V_SLICE], out[R_YAW] = r.position, r.velocity, r.yaw
+        return out
 
     def at(self, t: float) -> Reference:
         """Position, velocity, acceleration, yaw and yaw rate at time ``t`` s (analytic)."""

@@ -27,14 +27,18 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from uh_controller_node.gains import scenario_gains
 from uh_core.airframe import load_helicopter_params
-from uh_topology.impairments import COMPENSATIONS
+
+from .gains import scenario_gains
 
 __all__ = ['LoopModel', 'loop_model', 'team_matrix', 'ModeReport', 'DelayMargin', 'delay_margin',
-           'MOST_STEPS', 'scenario_margin', 'scenario_link_age', 'WEIGHT_GRID', 'covering_feedforward_weight',
-           'margin_notice', 'margin_lines']
+           'MOST_STEPS', 'MODELLED', 'modelled', 'scenario_margin', 'scenario_link_age', 'WEIGHT_GRID',
+           'covering_feedforward_weight', 'margin_notice', 'margin_lines', 'axis_models',
+           'unstable_axis', 'MarginWatch']
 
+#: The compensations the model tells apart. ``reference_motion`` adds to ``predict`` only terms of the
+#: known trajectory, which close no loop, so the model gives it ``predict``'s margin (:func:`modelled`).
+MODELLED = ('predict', 'none')
 #: The delay scan stops here (steps): beyond it the margin is reported as none found (``None``).
 MOST_STEPS = 50
 #: A UH is named as carrying a mode when its share of the mode's position amplitude is at least this
@@ -81,6 +85,11 @@ def loop_model(gains, gravity: float, horizontal: bool, feedforward_weight: floa
         return LoopModel(outer.k, kz2, outer.tau_command, None, None, None, None, gravity, feedforward_weight)
     return LoopModel(outer.k, kz2, outer.tau_command, inner.k, gains.beta / (2 * inner.r), inner.tau_command,
                      inner.tau_rate, gravity, feedforward_weight)
+
+
+def modelled(compensation: str) -> str:
+    """Give the compensation of :data:`MODELLED` whose margin a scenario's ``delay_compensation`` has."""
+    return 'predict' if compensation == 'reference_motion' else compensation
 
 
 # position of each state in a UH's block
@@ -244,24 +253,35 @@ class DelayMargin:
                 'slowest_mode_s': self.slowest_mode.time_constant_s, 'slowest_mode': mode(self.slowest_mode)}
 
 
+def axis_models(gains, gravity: float, feedforward_weight: float = 1.0) -> dict:
+    """Give the :class:`LoopModel` of each axis, ``{'horizontal': ..., 'vertical': ...}``."""
+    return {axis: loop_model(gains, gravity, axis == 'horizontal', feedforward_weight)
+            for axis in ('horizontal', 'vertical')}
+
+
+def unstable_axis(models: dict, adjacency: np.ndarray, dt: float, delay: int, predict: bool):
+    """Give ``(spectral radius, axis, A, states per UH)`` of the most unstable axis at ``delay``, or None if stable."""
+    worst = None
+    for axis, model in models.items():
+        A = team_matrix(model, adjacency, dt, delay, predict)
+        rho = float(np.max(np.abs(scipy.linalg.eigvals(A))))
+        if rho >= 1.0 and (worst is None or rho > worst[0]):
+            worst = (rho, axis, A, model.size)
+    return worst
+
+
 def delay_margin(adjacency: np.ndarray, ids, gains, gravity: float, dt: float, feedforward_weight: float = 1.0,
-                 most: int = MOST_STEPS, compensations=COMPENSATIONS) -> DelayMargin:
+                 most: int = MOST_STEPS, compensations=MODELLED) -> DelayMargin:
     """Scan the uniform delay 0..``most`` steps on both axes; return the :class:`DelayMargin`.
 
     ``gains``: ``ControllerGains`` of the case; ``adjacency`` (n+1, n+1) with the reference column.
     """
-    models = {axis: loop_model(gains, gravity, axis == 'horizontal', feedforward_weight)
-              for axis in ('horizontal', 'vertical')}
+    models = axis_models(gains, gravity, feedforward_weight)
     margins, first, onset = {}, {}, {}
     for compensation in compensations:
         margins[compensation], first[compensation], onset[compensation] = None, None, None
         for delay in range(most + 1):
-            worst = None
-            for axis, model in models.items():
-                A = team_matrix(model, adjacency, dt, delay, compensation == 'predict')
-                rho = float(np.max(np.abs(scipy.linalg.eigvals(A))))
-                if rho >= 1.0 and (worst is None or rho > worst[0]):
-                    worst = (rho, axis, A, model.size)
+            worst = unstable_axis(models, adjacency, dt, delay, compensation == 'predict')
             if worst is not None:
                 first[compensation] = delay
                 margins[compensation] = delay - 1 if delay > 0 else -1
@@ -275,15 +295,16 @@ def delay_margin(adjacency: np.ndarray, ids, gains, gravity: float, dt: float, f
 
 # -- a scenario's margin ---------------------------------------
 
-def scenario_margin(scenario, case: str = 'proposed', most: int = MOST_STEPS, feedforward_weight=None) -> DelayMargin:
+def scenario_margin(scenario, case: str = 'proposed', most: int = MOST_STEPS, feedforward_weight=None,
+                    compensations=MODELLED) -> DelayMargin:
     """Give the :class:`DelayMargin` of a loaded scenario and case (its gains, graph, airframe and ``dt``).
 
-    ``feedforward_weight`` replaces the gains file's (None: the file's).
+    ``feedforward_weight`` replaces the gains file's (None: the file's); ``compensations``: those scanned.
     """
     gains = scenario_gains(scenario, case)
     weight = gains.feedforward_weight if feedforward_weight is None else feedforward_weight
     return delay_margin(np.asarray(scenario.adjacency), scenario.ids, gains,
-                        load_helicopter_params(scenario.helicopter).gravity, scenario.dt, weight, most)
+                        load_helicopter_params(scenario.helicopter).gravity, scenario.dt, weight, most, compensations)
 
 
 def scenario_link_age(scenario) -> int:
@@ -304,8 +325,9 @@ def covering_feedforward_weight(scenario, case: str, steps: int, compensation: s
     What the remedy ``feedforward_weight`` should be for a team whose links are ``steps`` old.
     """
     for weight in WEIGHT_GRID:
-        margin = scenario_margin(scenario, case, most=steps, feedforward_weight=weight)
-        if margin.first_unstable[compensation] is None:
+        margin = scenario_margin(scenario, case, most=steps, feedforward_weight=weight,
+                                 compensations=(modelled(compensation),))
+        if margin.first_unstable[modelled(compensation)] is None:
             return weight
     return None
 
@@ -321,8 +343,8 @@ def margin_notice(scenario, case: str = 'proposed') -> tuple:
     if age == 0:
         return None, None
     compensation = scenario.impairments.compensation
-    margin = scenario_margin(scenario, case, most=age + 1)
-    steps = margin.margin_steps[compensation]
+    margin = scenario_margin(scenario, case, most=age + 1, compensations=(modelled(compensation),))
+    steps = margin.margin_steps[modelled(compensation)]
     dt_ms = scenario.dt * 1000.0
     said = f'at least {age + 1} steps' if steps is None else f'{steps} steps ({steps * dt_ms:g} ms)'
     info = (f'delay margin ({compensation}): {said}; the links deliver states up to {age} steps '
@@ -337,3 +359,34 @@ def margin_lines(scenario, case: str = 'proposed') -> list:
     """Give the lines :func:`margin_notice` makes, the warning prefixed ``warning:`` (none without delay)."""
     info, warning = margin_notice(scenario, case)
     return [line for line in (info, warning and f'warning: {warning}') if line]
+
+
+class MarginWatch:
+    """The delay margin a realtime controller checks its neighbours' measured ages against, found lazily.
+
+    The margin of the compensation the controller applies: the scenario's ``delay_compensation`` with
+    impairments; ``none`` without them (a realtime controller then uses states as they arrive). The
+    delays are scanned only as far as the ages reported so far reach (a few steps on a healthy
+    network), so a node pays nothing at start and little at a report.
+    """
+
+    def __init__(self, scenario, case: str):
+        gains = scenario_gains(scenario, case)
+        self.models = axis_models(gains, load_helicopter_params(scenario.helicopter).gravity, gains.feedforward_weight)
+        self.adjacency, self.dt = np.asarray(scenario.adjacency), scenario.dt
+        compensation = scenario.impairments.compensation if scenario.impairments is not None else 'none'
+        self.predict = modelled(compensation) == 'predict'
+        self.stable_to = -1            # every delay 0..stable_to is stable
+        self.first_unstable = None
+
+    def margin_s(self, age_s: float) -> float:
+        """Give the margin (s) when ``age_s`` is beyond it, else NaN (the team is stable up to that age)."""
+        steps = int(math.ceil(age_s / self.dt - 1e-9)) if math.isfinite(age_s) else -1
+        while self.first_unstable is None and self.stable_to < steps:
+            if unstable_axis(self.models, self.adjacency, self.dt, self.stable_to + 1, self.predict) is None:
+                self.stable_to += 1
+            else:
+                self.first_unstable = self.stable_to + 1
+        if self.first_unstable is not None and steps >= self.first_unstable:
+            return max(self.first_unstable - 1, 0) * self.dt
+        return math.nan
