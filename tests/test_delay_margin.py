@@ -77,20 +77,21 @@ def test_every_leader_hearing_the_reference_lifts_the_margin_past_twenty_steps()
     scenario = parse_scenario(_all_leaders(), source='all.yaml')
     assert scenario.reference_links_rule == 'all_leaders'
     assert list(scenario.adjacency[1:4, 0]) == [1.0, 1.0, 1.0]
-    margin = scenario_margin(scenario, 'proposed')
-    assert margin.margin_steps['predict'] >= 20 and margin.margin_steps['none'] is None
+    margin = scenario_margin(scenario, 'proposed', most=30)
+    assert margin.margin_steps == {'predict': 29, 'none': None}     # none: stable to 30 steps at least
     assert measured_oscillation(scenario, 'proposed', 20, 'predict') < OSCILLATION_RATE   # measured: holds at 20
 
 
 def test_a_lower_feedforward_weight_widens_the_margin_and_the_covering_weight_covers(paper):
-    margins = [scenario_margin(parse_scenario(_weighted(w), source='w.yaml'), 'proposed').margin_steps['predict']
-               for w in (1.0, 0.9, 0.8, 0.7)]
+    margins = [scenario_margin(parse_scenario(_weighted(w), source='w.yaml'), 'proposed', most=25,
+                               compensations=('predict',)).margin_steps['predict'] for w in (1.0, 0.9, 0.8, 0.7)]
     assert margins[0] == 4 and all(b > a for a, b in zip(margins, margins[1:], strict=False)), margins
     weight = covering_feedforward_weight(paper, 'proposed', 20)
     assert weight is not None and weight < 1.0
-    assert scenario_margin(paper, 'proposed', feedforward_weight=weight).margin_steps['predict'] >= 20
-    assert scenario_margin(paper, 'proposed', most=20, feedforward_weight=weight + 0.05).first_unstable['predict'] \
-        is not None   # the largest such weight on the grid
+    assert scenario_margin(paper, 'proposed', most=20, feedforward_weight=weight,
+                           compensations=('predict',)).first_unstable['predict'] is None
+    assert scenario_margin(paper, 'proposed', most=20, feedforward_weight=weight + 0.05,
+                           compensations=('predict',)).first_unstable['predict'] is not None   # the largest on the grid
 
 
 # -- the remedies in the law and the runs ----------------------------------------------------------

@@ -27,7 +27,7 @@ DOCS = ROOT / 'docs' / 'metrics.md'
 
 #: The layouts every reader had before the registry: a reader that moves is a change of its output.
 JSON_KEYS = ('case', 'departures', 'sim_time_s', 'wall_time_s', 'settle_time_s', 'formation_rms_m', 'containment_rms_m',
-             'hull_distance_max_m', 'mse_formation', 'mse_containment', 'cpi', 'fault_estimation',
+             'hull_distance_max_m', 'mse_formation', 'mse_containment', 'cpi', 'slowest_mode_s', 'fault_estimation',
              'false_fault_estimate', 'fault_nrmse', 'saturation_fraction', 'fault_isolation', 'faults',
              # docs/safety.md: the separation metrics, added at the end
              'min_separation_m', 'min_separation_pair', 'separation_violation_s', 'rotor_overlap_s', 'safety_active_s',
@@ -39,6 +39,7 @@ STORE_COLUMNS = {
     'mse_formation': 'mean squared formation error from t = 0, m^2',
     'mse_containment': 'mean squared containment error from t = 0, m^2',
     'cpi': 'cost performance index, integral of |z1|^2 + |u_p|^2',
+    'slowest_mode_s': "time constant of the team's slowest linear mode without delay, s",
     'saturation_fraction': 'fraction of (step, UH) samples with an input limit active',
     'false_fault_p': 'largest RMS |Fhat_p| where no fault acts, m/s^2',
     'false_fault_w': 'largest RMS |Fhat_w| where no fault acts, rad/s^2',

@@ -42,7 +42,7 @@ MODELLED = ('predict', 'none')
 #: The delay scan stops here (steps): beyond it the margin is reported as none found (``None``).
 MOST_STEPS = 50
 #: A UH is named as carrying a mode when its share of the mode's position amplitude is at least this
-#: fraction of the largest UH's (a mode living on the ring shows its three leaders, not the followers).
+#: fraction of the largest UH's (UHs that barely move in it are left out).
 MODE_SHARE = 0.3
 
 
@@ -204,7 +204,7 @@ class ModeReport:
     axis: str
 
 
-def dominant_mode(A: np.ndarray, dt: float, ids, size: int, axis: str, slowest_stable: bool = False) -> ModeReport:
+def dominant_mode(A: np.ndarray, dt: float, ids, size: int, axis: str) -> ModeReport:
     """Return the eigenvalue of ``A`` of largest modulus as a :class:`ModeReport`."""
     values, vectors = scipy.linalg.eig(A)
     k = int(np.argmax(np.abs(values)))

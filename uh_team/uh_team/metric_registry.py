@@ -27,6 +27,8 @@ from typing import Callable
 
 import numpy as np
 
+from uh_controller_node.delay_margin import scenario_margin
+
 from .departures import scenario_departures
 from .error_metrics import containment_errors, formation_errors
 from .fault_metrics import LUMPED_FAULTS, LumpedFault, false_fault_estimate, fault_estimation, fault_list, none_if_nan
@@ -295,6 +297,13 @@ def _fault_error_max(fault: LumpedFault) -> Metric:
                   read=read, stored=True)
 
 
+def _slowest_mode(values) -> float | None:
+    """Give the time constant of the team's slowest linear mode (:mod:`uh_controller_node.delay_margin`), s."""
+    if values.scenario is None:
+        return None
+    return float(scenario_margin(values.scenario, values.case, most=0, compensations=()).slowest_mode.time_constant_s)
+
+
 def _departures(values) -> dict:
     """Give the run's departures from the paper (:func:`~uh_team.departures.scenario_departures`), {} without one."""
     return {} if values.scenario is None else scenario_departures(values.scenario, values.case)
@@ -338,6 +347,11 @@ METRICS = (
     Metric('cpi', '-', 'cost performance index, integral of |z1|^2 + |u_p|^2', 'lower',
            label='CPI = ∫ Σ (‖z1‖² + ‖u_p‖²) dt', report_row=30, json_type='number or null', doc='[CPI](#cpi)',
            compute=_cpi, stored=True, summary=True),
+    Metric('slowest_mode_s', 's', "time constant of the team's slowest linear mode without delay, s", 'lower',
+           json_type='number or null',
+           doc="[the linearised team's](delay.md#delay-margin) slowest mode without delay, its time constant, s; "
+               'null without a scenario',
+           compute=lambda v: _slowest_mode(v), stored=True),
     Metric('fault_estimation', report_row=120, json_type='object',
            doc='[per faulted UH and vector](#fault-estimation-error-and-nrmse), below',
            compute=lambda v: v.estimation),
