@@ -107,6 +107,10 @@ GOOD_HEAD = 'name: bad\nscenario: paper\nruns: 2\nduration: 4.0\n'       # lines
     ('sweep:\n  parameter: model_mismatch\n  values: [0.9, 0.9]\n', E.InvalidValueError, 7, 'sweep.values[1]'),
     ('success: {formation_rms: 0.05}\n', E.UnknownKeyError, 5, 'success.formation_rms'),
     ('settle_time: 4.0\n', E.InvalidValueError, 5, 'settle_time'),
+    # the delay remedies (docs/delay.md#remedies)
+    ('remedies:\n  weight: 0.9\n', E.UnknownKeyError, 6, 'remedies.weight'),
+    ('remedies:\n  feedforward_weight: 1.5\n', E.GainsFileError, 6, 'remedies.feedforward_weight'),
+    ('remedies:\n  reference_links: every\n', E.InvalidValueError, 6, 'remedies.reference_links'),
 ])
 def test_bad_specs_are_refused_with_file_line_and_key(tmp_path, tail, error, line, key):
     spec = _write(tmp_path, GOOD_HEAD + tail)
@@ -497,3 +501,15 @@ def test_a_run_that_kills_its_worker_is_recorded_as_failed_and_the_campaign_goes
             assert status == 'failed' and 'a worker process died' in reason and 'while running it' in reason
         else:
             assert status == 'ok', reason
+
+
+def test_a_specs_remedies_reach_every_resolved_scenario(tmp_path):
+    """``remedies`` write the rule and the gain into each draw's scenario (docs/delay.md#remedies)."""
+    from uh_campaign.resolve import resolve_scenario
+    remedies = 'remedies: {reference_links: all_leaders, feedforward_weight: 0.9}\n'
+    spec = load_spec(_write(tmp_path, GOOD_HEAD + remedies))
+    data = resolve_scenario(spec, 1)
+    gains = data['gains']['/**']['ros__parameters'] if '/**' in data['gains'] else data['gains']
+    assert data['reference_links'] == 'all_leaders' and gains['feedforward_weight'] == 0.9
+    plain = resolve_scenario(load_spec(_write(tmp_path, GOOD_HEAD)), 1)
+    assert isinstance(plain['reference_links'], list) and 'feedforward_weight' not in str(plain['gains'])

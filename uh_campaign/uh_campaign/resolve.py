@@ -278,6 +278,10 @@ def check_draw_zero(spec) -> None:
         for case in spec.cases:
             ControllerGains.from_mapping(scenario.gains, case)
     except (GainsError, ValueError) as exc:
+        if isinstance(exc, GainsError) and exc.keys == ('feedforward_weight',) and 'feedforward_weight' in (
+                spec.remedies or {}):
+            raise E.GainsFileError(str(exc.message), path='remedies.feedforward_weight', source=spec.source,
+                                   line=spec.line('remedies', 'feedforward_weight')) from None
         key = 'scenario' if spec.scenario is not None else 'generator'
         raise E.GainsFileError(f'the base scenario\'s gains or airframe cannot be used: {exc}', path=key,
                            source=spec.source, line=spec.line(key)) from None
@@ -293,6 +297,8 @@ def _at_spec_key(spec, exc: E.ScenarioError, sweep_index: int) -> E.ScenarioErro
         key = ('sweep', 'parameter') if isinstance(exc, E.UnknownKeyError) else ('sweep', 'values', sweep_index)
     elif tokens[:1] == ('impairments',) and spec.impairments is not None:
         key = tokens
+    elif tokens[:1] == ('reference_links',) and 'reference_links' in (spec.remedies or {}):
+        key = ('remedies', 'reference_links')
     elif tokens[:1] in (('duration',), ('settle_time',)) and tokens[:1] in spec.lines:
         key = tokens[:1]
     elif tokens[:1] == ('faults',) and spec.draws.faults is not None:
