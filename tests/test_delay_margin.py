@@ -263,3 +263,26 @@ def test_diagnostics_go_warn_when_a_neighbours_age_exceeds_the_delay_margin():
     within = D.controller_diagnostic(2, D.ControllerWindow(neighbour_ages=ages, delay_margin_s=0.1))
     unchecked = D.controller_diagnostic(2, D.ControllerWindow(neighbour_ages=ages))   # lockstep: NaN
     assert within.level == unchecked.level == D.OK and 'delay margin (s)' not in unchecked.values
+
+
+# -- the report ------------------------------------------------------------------------------------
+
+def test_the_report_gives_the_margin_and_flags_ages_beyond_it(tmp_path):
+    import dataclasses
+
+    from uh_report.delay_section import delay_section
+    from uh_report.run_data import run_of_arrays
+    delayed = parse_scenario(paper_yaml('impairments: {delay_steps: 3}'), source='d')
+    run = run_of_arrays(tmp_path, delayed, 'proposed', {'neighbour_ages': {1: (0.031, 0.04), 4: (0.035, 0.06)}}, {})
+    sentence, rows = delay_section(run)
+    assert sentence.startswith('Delay margin of the team (predict; uh-analyze, docs/delay.md#delay-margin): 4 steps '
+                               '(40 ms). The scenario\'s links deliver states up to 3 steps (30 ms) old.')
+    assert rows == [['uh1', '31.0', '40.0', 'yes'], ['uh4', '35.0', '60.0', 'NO']]
+    # a realtime run without impairments: the controllers predict nothing, so the margin is that of none
+    plain = dataclasses.replace(run_of_arrays(tmp_path, load_scenario('paper'), 'proposed',
+                                              {'neighbour_ages': {2: (0.004, 0.07)}}, {}), clock='realtime')
+    assert delay_section(plain) == ('Delay margin of the team (none; uh-analyze, docs/delay.md#delay-margin): '
+                                    '6 steps (60 ms). The scenario\'s links deliver states up to 0 steps (0 ms) old.',
+                                    [['uh2', '4.0', '70.0', 'NO']])
+    quiet = run_of_arrays(tmp_path, load_scenario('paper'), 'proposed', {'neighbour_ages': {2: (0.0, 0.01)}}, {})
+    assert delay_section(quiet) is None      # no delayed link, nothing older than a step: no section

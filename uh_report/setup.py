@@ -11,7 +11,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ],
-    install_requires=['numpy', 'scipy', 'matplotlib', 'rosbags', 'uh_core', 'uh_runtime', 'uh_topology', 'uh_wire', 'uh_team'],
+    install_requires=['numpy', 'scipy', 'matplotlib', 'rosbags', 'uh_core', 'uh_runtime', 'uh_topology', 'uh_wire', 'uh_controller_node', 'uh_team'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',

@@ -11,7 +11,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
     ],
-    install_requires=['numpy', 'numba', 'PyYAML', 'uh_runtime', 'uh_core', 'uh_topology', 'uh_sim_node', 'uh_controller_node'],
+    install_requires=['numpy', 'scipy', 'numba', 'PyYAML', 'uh_runtime', 'uh_core', 'uh_topology', 'uh_sim_node', 'uh_controller_node'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',

@@ -196,11 +196,12 @@ def _fill_status(out: dict, bag: _Bag, uh: int, c: int, last_step: int) -> None:
     """Write UH ``uh``'s fault estimates, ``u_p``, saturation and safety filter activity into column ``c`` of ``out``.
 
     The fault isolation of its last status (the highest step; the later message of equal steps) goes to
-    ``out['isolation'][uh]``.
+    ``out['isolation'][uh]``; the mean and largest age of the neighbour states it used, s, go to
+    ``out['neighbour_ages'][uh]`` (absent when it used none).
     """
     name = topics.uh_topic(uh, topics.STATUS)
     cols = bag.columns(name, topics.STATUS.type, _STATUS_P + _STATUS_W + _xyz('u_p') + SATURATION_FLAGS
-                       + ('safety_active',))
+                       + ('safety_active', 'neighbour_age_mean', 'neighbour_age_max'))
     if cols is None:
         return
     ok = (cols['step'] <= last_step) & (cols['uh_id'] == uh)
@@ -213,6 +214,9 @@ def _fill_status(out: dict, bag: _Bag, uh: int, c: int, last_step: int) -> None:
     out['u_p'][steps, c] = _stack(cols, _xyz('u_p'))[take]
     out['saturated'][steps, c] = _stack(cols, SATURATION_FLAGS)[take].any(axis=1)
     out['safety_active'][steps, c] = cols['safety_active'][take] != 0
+    means, maxes = cols['neighbour_age_mean'][take], cols['neighbour_age_max'][take]
+    if np.isfinite(means).any():   # the ages of the neighbour states it used, s (docs/topics.md#neighbour-ages)
+        out['neighbour_ages'][uh] = (float(np.nanmean(means)), float(np.nanmax(maxes)))
     index = np.flatnonzero(ok)
     last = index[len(index) - 1 - np.argmax(cols['step'][index][::-1])]
     out['isolation'][uh] = _isolation_of(bag.decode(name, int(last)))
@@ -246,7 +250,8 @@ def read_team_bag(bag_dir, scenario) -> dict:
     ``reference`` (K+1, 5) = (x0, y0, z0, psi0, psi0'), ``fault_true_p``/``fault_true_w`` and
     ``fault_est_p``/``fault_est_w`` (K+1, n, 3), ``u_p`` (K+1, n, 3), ``saturated`` (K+1, n) (any
     saturation flag), ``isolation`` (the last fault isolation each controller published,
-    :func:`_isolation_of`; ``{}`` when no status carried one), ``counts`` ({topic: messages}),
+    :func:`_isolation_of`; ``{}`` when no status carried one), ``neighbour_ages`` (``{uh: (mean s, max s)}``
+    of the neighbour states each controller used, from its status), ``counts`` ({topic: messages}),
     ``fault_injections`` (every message on ``/uhN/fault``, :func:`_fault_injections`).
     Steps missing from a topic are NaN (the arrays of :func:`uh_team.run_arrays.new_run_arrays`).
     The numeric fields are read as columns (:mod:`uh_report.cdr_columns`).
@@ -259,6 +264,7 @@ def read_team_bag(bag_dir, scenario) -> dict:
         raise BagContentError(f'bag {bag_dir} has no {topics.REFERENCE.name} messages: not a team run')
     K = int(reference['step'].max())
     out = {'time': np.arange(K + 1) * scenario.dt, **new_run_arrays(K + 1, len(ids)), 'isolation': {},
+           'neighbour_ages': {},
            'counts': bag.counts, 'rejected': bag.rejected, 'fault_injections': _fault_injections(bag, ids)}
     _fill_reference(out, bag, reference)
     for c, i in enumerate(ids):

@@ -57,6 +57,7 @@ from uh_team.metrics import (
 
 from . import report_figures as F
 from .campaign_report import CampaignReportError, is_campaign_dir, write_campaign_report
+from .delay_section import DELAY_HEAD, delay_section
 from .document import CSS_NUMBERS, NumberCell, csv_text, html_figure, html_page, make_writable_dir
 from .document import html_table as html_grid
 from .document import markdown_table as markdown_grid
@@ -237,6 +238,15 @@ def _isolation_section(run, grid, paragraph) -> str:
     return grid(ISOLATION_HEAD, rows) if rows else paragraph('No faulted or isolated channel.')
 
 
+def _delay_parts(run, grid, paragraph) -> list:
+    """Render the run's communication-delay section (:mod:`.delay_section`): [] when it has none."""
+    section = delay_section(run)
+    if section is None:
+        return []
+    sentence, rows = section
+    return [paragraph(sentence)] + ([grid(DELAY_HEAD, rows)] if rows else [])
+
+
 def _table_value(metrics: dict, key: str):
     """Return the value of ``key`` as the tables show it.
 
@@ -330,6 +340,7 @@ _FIGURE_TEXT = {
 }
 
 
+_DELAY_TEXT = 'Communication delay: the team\'s delay margin and the neighbour ages each controller measured'
 _ISOLATION_TEXT = 'Fault isolation: delay after the onset, ρ and b identified vs truth, or why not'
 
 
@@ -413,6 +424,8 @@ def _markdown_report(runs, figures: dict, rel, hint: str | None = None) -> str:
         md += [f'## {run.label} (`{run.directory.name}`)', '', f'### {_FAULTS_TEXT}', '',
                _faults_section(run, _markdown_text, str), '', f'### {_ISOLATION_TEXT}', '',
                _isolation_section(run, _markdown_text, str), '']
+        delay = _delay_parts(run, _markdown_text, str)
+        md += [f'### {_DELAY_TEXT}', '', *[f'{part}\n' for part in delay]] if delay else []
         for key, path in run.figures.items():
             md += [f'### {_figure_text(key)}', '', f'![{run.name} {key}]({rel(path)})', '']
     return '\n'.join(md)
@@ -432,6 +445,9 @@ def _html_report(runs, figures: dict, rel, hint: str | None = None) -> str:
         parts.append(f'<h2>{html.escape(run.label)} <small><code>{html.escape(str(run.directory))}</code></small></h2>')
         parts.append(f'<h3>{html.escape(_FAULTS_TEXT)}</h3>\n{_faults_section(run, _html_grid, _html_paragraph)}')
         parts.append(f'<h3>{html.escape(_ISOLATION_TEXT)}</h3>\n{_isolation_section(run, _html_grid, _html_paragraph)}')
+        delay = _delay_parts(run, _html_grid, _html_paragraph)
+        if delay:
+            parts.append(f'<h3>{html.escape(_DELAY_TEXT)}</h3>\n' + '\n'.join(delay))
         for key, path in run.figures.items():
             parts.append(html_figure(rel(path), _figure_text(key), alt=run.name + ' ' + key))
     return html_page(_title(runs), '\n'.join(parts), css=(CSS_NUMBERS,))

@@ -55,6 +55,8 @@ class RunData:
         Content of ``metrics.json`` (or computed, see ``metrics_source``).
     metrics_source : str
         ``'metrics.json'`` or ``'computed'``.
+    clock : str
+        ``'lockstep'`` or ``'realtime'`` (``run.json``'s), ``''`` for an in-process run.
     """
 
     directory: Path
@@ -67,6 +69,7 @@ class RunData:
     metrics: dict
     metrics_source: str = 'metrics.json'
     figures: dict = field(default_factory=dict)
+    clock: str = ''
 
 
 def _read_json(path: Path) -> dict:
@@ -154,7 +157,8 @@ def load_run(run_dir, scenario_name: str = 'paper', check_chunks: bool = True) -
             raise ReportError(f'{run_dir}: no metrics.json and the metrics cannot be computed: {exc}') from None
         metrics_source = 'computed'
     return RunData(directory=run_dir, name=run_dir.name, label=CASE_LABELS.get(case, case), source=source,
-                   case=case, scenario=scenario, arrays=arrays, metrics=metrics, metrics_source=metrics_source)
+                   case=case, scenario=scenario, arrays=arrays, metrics=metrics, metrics_source=metrics_source,
+                   clock=str(run_json.get('clock') or ''))
 
 
 def _load_timeseries(path: Path, scenario) -> dict:
