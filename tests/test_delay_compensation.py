@@ -230,13 +230,18 @@ def test_a_lockstep_distributed_run_with_jitter_and_prediction_equals_the_in_pro
 
     Each controller node predicts with the functions the kernel calls, so the bag equals the
     in-process run to the bit; /uh4/received holds the states as delivered, each with its sent step.
+    The prediction is ``reference_motion`` with ``reference_links: all_leaders`` (docs/delay.md#remedies):
+    ``predict`` and the virtual leader's motion, which each node evaluates itself; ``predict`` alone is
+    checked by tests/test_impairments.py's lockstep run.
     """
     from rosbags.rosbag2 import Reader
     from team_runs import assert_lockstep_run_equals_in_process
 
     from uh_runtime.messages import typestore
 
-    text = paper_yaml(_jittered('predict'))
+    text = re.sub(r'reference_links:\n(  - .*\n)+', 'reference_links: all_leaders\n',
+                  paper_yaml(_jittered('reference_motion')))
+    assert 'all_leaders' in text
     scenario = parse_scenario(text, source='jittered')
     out, reference = assert_lockstep_run_equals_in_process(tmp_path, scenario, text)
     store, imp, col = typestore(), scenario.impairments, {i: c for c, i in enumerate(scenario.ids)}

@@ -231,14 +231,6 @@ def test_reference_motion_is_the_same_in_the_kernel_and_the_object_loop_and_reco
     assert analyze_cli.analysis(scenario, 'proposed', 35, False)['links']['within_margin'] is True
 
 
-@pytest.mark.dds
-@pytest.mark.slow
-def test_a_lockstep_distributed_run_with_reference_motion_equals_the_in_process_run(tmp_path):
-    from team_runs import assert_lockstep_run_equals_in_process
-    text = _all_leaders('impairments: {delay_steps: 6, jitter_steps: 3, delay_compensation: reference_motion}')
-    assert_lockstep_run_equals_in_process(tmp_path, parse_scenario(text, source='rm.yaml'), text, duration=2.0)
-
-
 # -- /diagnostics in real time ---------------------------------------------------------------------
 
 def test_a_realtime_controller_checks_ages_against_the_margin_of_the_compensation_it_applies(paper):
