@@ -34,6 +34,7 @@ from uh_core import kernel_cache as _kernel_cache
 from uh_core import layout as _layout
 from uh_core.compiled_kernels import njit
 from uh_core.layout import R_P, R_V, STATE_SIZE, X_P, X_V
+from uh_topology.impairments import PREDICTING
 
 __all__ = ['Link', 'LOSS_STREAM', 'JITTER_STREAM', 'PREDICTION_MARGIN', 'hash_uniform', 'arrival_extra',
            'newest_delivered', 'delivered_step', 'prediction_age', 'add_noise', 'predict_state', 'add_reference_motion',
@@ -257,7 +258,7 @@ class ReceivedStates:
         self.loss = {j: float(impairments.losses[(self.uh_id, j)]) for j in self.neighbours}
         self.drop = {j: impairments.drop_step(j, dt) for j in self.neighbours}
         self.sigma = np.ascontiguousarray(impairments.noise, dtype=float)
-        self.predict = impairments.compensation in ('predict', 'reference_motion')
+        self.predict = impairments.compensation in PREDICTING
         self.reference = reference if impairments.compensation == 'reference_motion' else None
         if impairments.compensation == 'reference_motion' and reference is None:
             raise ValueError('delay_compensation reference_motion needs the virtual leader\'s trajectory')

@@ -66,6 +66,7 @@ from uh_core.layout import X_P, X_V
 from uh_sim_node import faults as _faults
 from uh_sim_node import plant_kernels as _plant
 from uh_sim_node.plant_kernels import lumped_faults, plant_step
+from uh_topology.impairments import PREDICTING
 
 # this loop calls the kernels from numba code: a process running them compiled cannot import it
 _compiled_kernels.require_numba('uh_team.team_kernel')
@@ -263,7 +264,7 @@ def _team_impairments(ids, controllers, impairments, dt, max_nb) -> TeamImpairme
             loss[c, slot] = impairments.losses[(i, int(j))]
     noise[:] = impairments.noise
     return TeamImpairments(True, int(impairments.seed), delay, loss, drop_step, noise, jitter,
-                           impairments.compensation in ('predict', 'reference_motion'),
+                           impairments.compensation in PREDICTING,
                            impairments.compensation == 'reference_motion')
 
 

@@ -19,11 +19,14 @@ from . import scenario_keys
 from .scenario_keys import IMPAIRMENT_KEYS, key_named, key_names, read_key
 from .schema import ConfigContext, read_only_array, type_name
 
-__all__ = ['ImpairmentSpec', 'NO_DROPOUT', 'COMPENSATIONS', 'DEFAULT_COMPENSATION', 'read_impairments',
+__all__ = ['ImpairmentSpec', 'NO_DROPOUT', 'COMPENSATIONS', 'PREDICTING', 'DEFAULT_COMPENSATION', 'read_impairments',
            'uniform_impairments']
 
-#: The values of ``impairments.delay_compensation``: states used as received, or predicted to the current step.
+#: The values of ``impairments.delay_compensation``: states used as received, predicted to the current
+#: step, or predicted with the virtual leader's own motion added (docs/delay.md#remedies).
 COMPENSATIONS = key_named(IMPAIRMENT_KEYS, 'delay_compensation').choices
+#: The compensations that predict each received state to the current step (``p + v tau``).
+PREDICTING = ('predict', 'reference_motion')
 #: ``impairments.delay_compensation`` when the key is absent (docs/delay.md says why).
 DEFAULT_COMPENSATION = key_named(IMPAIRMENT_KEYS, 'delay_compensation').default
 
