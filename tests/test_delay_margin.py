@@ -278,3 +278,19 @@ def test_the_report_gives_the_margin_and_flags_ages_beyond_it(tmp_path):
                                     [['uh2', '4.0', '70.0', 'NO']])
     quiet = run_of_arrays(tmp_path, load_scenario('paper'), 'proposed', {'neighbour_ages': {2: (0.0, 0.01)}}, {})
     assert delay_section(quiet) is None      # no delayed link, nothing older than a step: no section
+
+
+def test_run_json_records_the_departures_of_a_run_and_of_a_launch(tmp_path):
+    import json
+
+    from uh_bringup import launch_run, run_formation
+    from uh_bringup.run_outcome import run_info
+    args = run_formation.build_parser().parse_args(['--scenario', 'paper'])
+    scenario = parse_scenario(_all_leaders(), source='a')
+    assert run_info(args, 60.0, 42, 0, True, scenario_departures(scenario))['departures'] == {
+        'reference_links': 'all_leaders'}
+    assert run_info(args, 60.0, 42, 0, True)['departures'] == {}
+    options = launch_run.check_arguments({name: default for name, default, _ in launch_run.ARGUMENTS}
+                                         | {'out': str(tmp_path / 'launch')})
+    launch_run.write_launch_record(options, 60.0, True, environ={}, departures={'feedforward_weight': 0.8})
+    assert json.loads((tmp_path / 'launch' / 'run.json').read_text())['departures'] == {'feedforward_weight': 0.8}

@@ -38,6 +38,7 @@ from launch_ros.actions import Node
 from uh_bringup.launch_run import ARGUMENTS, LaunchRun, check_arguments, compile_command, write_launch_record
 from uh_bringup.team_nodes import NODES, backend_environment, node_specs
 from uh_runtime.network import apply_network_default
+from uh_team.departures import scenario_departures
 from uh_topology.scenario import load_scenario
 
 
@@ -49,7 +50,7 @@ def _team(context):
                        visualization=options.visualization, standard_views=options.standard_views,
                        realtime_priority=options.realtime_priority)
     write_launch_record(options, options.duration if options.duration is not None else scenario.duration,
-                        scenario.safety.enabled)
+                        scenario.safety.enabled, departures=scenario_departures(scenario, options.case))
     run = LaunchRun(options, sys.executable)
     # the runs' discovery settings (uh_runtime.network.apply_network_default), which rclpy on Fast DDS
     # and the Cyclone DDS nodes meet on whatever the user has or has not set

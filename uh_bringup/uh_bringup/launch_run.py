@@ -177,16 +177,18 @@ def after_run_command(python: str, options: LaunchOptions, wall_time: float) -> 
         ([] if options.report else ['--no-report'])
 
 
-def write_launch_record(options: LaunchOptions, duration: float, safety: bool, environ=None) -> None:
+def write_launch_record(options: LaunchOptions, duration: float, safety: bool, environ=None,
+                        departures: dict | None = None) -> None:
     """Write ``OUT/run.json`` at the start of the launch: what was run, ``exit_status`` None until the end.
 
     Its ``scenario``, ``case`` and ``safety`` (whether the safety filter ran, ``'on'``/``'off'``) are
-    what ``uh-report OUT`` reads, as for a run of ``run_formation.sh``.
+    what ``uh-report OUT`` reads, as for a run of ``run_formation.sh``; ``departures`` are the
+    scenario's departures from the paper (docs/delay.md#remedies).
     """
     environ = os.environ if environ is None else environ
     write_run_json(options.out, {
         'command': sys.argv, 'launch': True, 'scenario': options.scenario, 'case': options.case,
-        'safety': 'on' if safety else 'off',
+        'safety': 'on' if safety else 'off', 'departures': dict(departures or {}),
         'clock': options.clock_mode, 'rate': options.rate, 'processes': 'per-node', 'backend': options.backend,
         'visualization': options.visualization, 'standard_views': options.standard_views, 'duration_s': duration,
         'domain_id': int(environ.get('ROS_DOMAIN_ID') or 0), 'realtime_priority': options.realtime_priority,

@@ -83,6 +83,7 @@ from uh_runtime import scheduling
 from uh_runtime.bags import live_view
 from uh_runtime.command_line import ArgumentParser
 from uh_runtime.network import MAX_DOMAIN_ID
+from uh_team.departures import scenario_departures
 from uh_topology.safety import add_safety_argument
 from uh_wire.run_defaults import CLOCK_MODES, DEFAULT_STALE_TIMEOUT, DEFAULT_STARTUP_TIMEOUT
 
@@ -188,7 +189,8 @@ def run(args) -> int:
     specs = team_specs(args, scenario, scenario_arg, out, priority)
     write_environment_script(out, env, run_node_names(specs))
     sup = Supervisor(out / 'logs', env, respawn_priority=priority)
-    record = RunRecord(out, run_info(args, duration, domain, priority, scenario.safety.enabled), sup)
+    record = RunRecord(out, run_info(args, duration, domain, priority, scenario.safety.enabled,
+                                     scenario_departures(scenario, args.case)), sup)
     started = time.monotonic()
     interrupted, codes, dropped = _supervise(args, scenario, specs, out, env, sup, record)
     wall = time.monotonic() - started

@@ -27,18 +27,19 @@ EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DEGRADED, EXIT_INTERRUPTED = 0, 1, 2, 3, 
 RUN_REPORT_FIGURES = ('errors', 'xy_snapshots')
 
 
-def run_info(args, duration: float, domain: int, priority: int, safety: bool) -> dict:
+def run_info(args, duration: float, domain: int, priority: int, safety: bool, departures: dict | None = None) -> dict:
     """Return what was run, as ``run.json`` starts it (``exit_status`` None until the end).
 
     ``safety``: whether the safety filter ran (the scenario's ``safety.enabled`` or ``--safety``),
-    recorded as ``'on'``/``'off'``.
+    recorded as ``'on'``/``'off'``; ``departures``: the departures from the paper the scenario makes
+    (``uh_team.departures.scenario_departures``; docs/delay.md#remedies).
     """
     return {'command': sys.argv, 'scenario': args.scenario, 'case': args.case, 'clock': args.clock,
             'rate': args.rate, 'processes': args.processes, 'visualization': not args.no_visualization,
             'standard_views': not args.no_standard_views, 'duration_s': duration, 'domain_id': domain,
             'foxglove': None if args.foxglove is None else f'ws://{args.foxglove_host}:{args.foxglove}',
             'hosts': args.hosts, 'loss_pct': args.loss, 'respawn': args.respawn, 'realtime_priority': priority,
-            'safety': 'on' if safety else 'off', 'exit_status': None}
+            'safety': 'on' if safety else 'off', 'departures': dict(departures or {}), 'exit_status': None}
 
 
 def write_run_json(out: Path, info: dict) -> None:
