@@ -18,6 +18,13 @@ if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+@pytest.fixture(scope='module')
+def paper():
+    """Load the bundled paper scenario, once per test module."""
+    from uh_topology.scenario import load_scenario
+    return load_scenario('paper')
+
+
 @pytest.fixture
 def domain_id(monkeypatch):
     """Reserve a DDS domain id no other test, pytest session, benchmark or run on this machine holds.

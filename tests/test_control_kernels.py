@@ -15,12 +15,6 @@ from uh_controller_node.controller import ControllerError, ControllerStatusData,
 from uh_controller_node.fault_isolation import IsolationStatus
 from uh_core.layout import STATUS_FIELDS, STATUS_FLAG, STATUS_VECTOR3
 from uh_core.reference import VirtualLeaderReference
-from uh_topology.scenario import load_scenario
-
-
-@pytest.fixture(scope='module')
-def paper():
-    return load_scenario('paper')
 
 
 def _inputs(paper, k):

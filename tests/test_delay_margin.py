@@ -40,11 +40,6 @@ def _weighted(weight, extra: str = '') -> str:
 
 
 @pytest.fixture(scope='module')
-def paper():
-    return load_scenario('paper')
-
-
-@pytest.fixture(scope='module')
 def paper_margin(paper):
     return scenario_margin(paper, 'proposed')
 

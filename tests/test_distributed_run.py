@@ -19,7 +19,6 @@ from team_runs import controller_reads, kill_session, start_run, wait_for_log
 from uh_report.bag_metrics import read_team_bag
 from uh_runtime.network import reserve_domain_id
 from uh_team.team_simulation import run_team_simulation
-from uh_topology.scenario import load_scenario
 from uh_wire import topics
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -64,11 +63,6 @@ def lockstep_run(tmp_path_factory):
             proc.wait(timeout=60)
     assert proc.returncode == 0, output
     return out, reads, output
-
-
-@pytest.fixture(scope='module')
-def paper():
-    return load_scenario('paper')
 
 
 @pytest.fixture(scope='module')

@@ -14,17 +14,11 @@ from fake_wall import FakeClock, RecordingLogger
 
 from uh_controller_node.input_sync import OWN, REFERENCE, InputSynchroniser, input_label
 from uh_topology.graph import reachable_from
-from uh_topology.scenario import load_scenario
 
 DT = 0.01
 STALE_STEPS = 25          # 0.25 s simulated
 SYNC_WAIT = 2.0 ** -8     # wall s (about the default 0.004; a power of two keeps the fake clock exact)
 GRACE = 1.0               # wall s
-
-
-@pytest.fixture(scope='module')
-def paper():
-    return load_scenario('paper')
 
 
 def make(paper, uh, mode='realtime', last_step=6000, **kwargs):

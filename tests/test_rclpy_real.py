@@ -30,7 +30,6 @@ from uh_bringup.run_processes import entry_command  # noqa: E402
 from uh_report.bag_metrics import read_team_bag  # noqa: E402
 from uh_runtime.network import reserve_domain_id  # noqa: E402
 from uh_team.team_simulation import run_team_simulation  # noqa: E402
-from uh_topology.scenario import load_scenario  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 pytestmark = [pytest.mark.rclpy_real, pytest.mark.dds, pytest.mark.slow]
@@ -67,11 +66,6 @@ def _start(out: Path, env: dict, *args) -> subprocess.Popen:
                              '--domain-id', str(reserve_domain_id()), '--no-standard-views', '--no-report', *args],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
-
-
-@pytest.fixture(scope='module')
-def paper():
-    return load_scenario('paper')
 
 
 @pytest.mark.parametrize('dds_processes', ['', MIXED_LOCKSTEP], ids=['rclpy', 'mixed'])

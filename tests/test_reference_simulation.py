@@ -22,11 +22,6 @@ GAINS_FILE = Path(__file__).resolve().parents[1] / 'uh_topology' / 'uh_topology'
 
 
 @pytest.fixture(scope='module')
-def paper():
-    return load_scenario('paper')
-
-
-@pytest.fixture(scope='module')
 def full_run(paper):
     run = run_team_simulation(paper, 'proposed')
     return run, metrics_from_arrays(run.arrays(), paper, 'proposed', wall_time_s=run.wall_time)

@@ -7,12 +7,6 @@ import pytest
 
 from uh_controller_node.controller import ControllerError, UHController
 from uh_core.reference import VirtualLeaderReference
-from uh_topology.scenario import load_scenario
-
-
-@pytest.fixture(scope='module')
-def paper():
-    return load_scenario('paper')
 
 
 class Subgraph:

@@ -12,16 +12,10 @@ import yaml
 
 from uh_bringup import views
 from uh_core import frames
-from uh_topology.scenario import load_scenario
 from uh_wire import topics
 
 ROOT = Path(__file__).resolve().parents[1]
 pytest.importorskip('foxglove', reason='the Foxglove layout is built with foxglove-sdk')
-
-
-@pytest.fixture(scope='module')
-def paper():
-    return load_scenario('paper')
 
 
 def _team_topics(scenario):
