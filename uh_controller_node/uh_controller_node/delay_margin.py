@@ -28,11 +28,13 @@ import numpy as np
 import scipy.linalg
 
 from uh_core.airframe import load_helicopter_params
+from uh_topology.impairments import DEFAULT_COMPENSATION
 
 from .gains import scenario_gains
 
 __all__ = ['LoopModel', 'loop_model', 'team_matrix', 'ModeReport', 'DelayMargin', 'delay_margin',
-           'MOST_STEPS', 'MODELLED', 'modelled', 'scenario_margin', 'scenario_link_age', 'WEIGHT_GRID',
+           'MOST_STEPS', 'MODELLED', 'modelled', 'applied_compensation', 'margin_steps_for', 'scenario_margin',
+           'scenario_link_age', 'WEIGHT_GRID',
            'covering_feedforward_weight', 'margin_notice', 'margin_lines', 'axis_models',
            'unstable_axis', 'MarginWatch']
 
@@ -90,6 +92,17 @@ def loop_model(gains, gravity: float, horizontal: bool, feedforward_weight: floa
 def modelled(compensation: str) -> str:
     """Give the compensation of :data:`MODELLED` whose margin a scenario's ``delay_compensation`` has."""
     return 'predict' if compensation == 'reference_motion' else compensation
+
+
+def applied_compensation(scenario, realtime: bool) -> str:
+    """Give the compensation a scenario's controllers apply to the states they receive.
+
+    Its ``delay_compensation`` with impairments; without them a realtime controller uses states as
+    they arrive (``none``), and lockstep or in-process ones have no delay to compensate (the default).
+    """
+    if scenario.impairments is not None:
+        return scenario.impairments.compensation
+    return 'none' if realtime else DEFAULT_COMPENSATION
 
 
 # position of each state in a UH's block
@@ -307,6 +320,12 @@ def scenario_margin(scenario, case: str = 'proposed', most: int = MOST_STEPS, fe
                         load_helicopter_params(scenario.helicopter).gravity, scenario.dt, weight, most, compensations)
 
 
+def margin_steps_for(scenario, case: str, compensation: str, most: int, feedforward_weight=None) -> int | None:
+    """Give the margin (steps) of ``compensation`` (a ``delay_compensation``) scanned to ``most``; None: none found."""
+    c = modelled(compensation)
+    return scenario_margin(scenario, case, most, feedforward_weight, compensations=(c,)).margin_steps[c]
+
+
 def scenario_link_age(scenario) -> int:
     """Give the oldest a neighbour state gets on the scenario's links, in steps: the largest ``delay + jitter``."""
     imp = scenario.impairments
@@ -325,9 +344,7 @@ def covering_feedforward_weight(scenario, case: str, steps: int, compensation: s
     What the remedy ``feedforward_weight`` should be for a team whose links are ``steps`` old.
     """
     for weight in WEIGHT_GRID:
-        margin = scenario_margin(scenario, case, most=steps, feedforward_weight=weight,
-                                 compensations=(modelled(compensation),))
-        if margin.first_unstable[modelled(compensation)] is None:
+        if margin_steps_for(scenario, case, compensation, steps, weight) is None:
             return weight
     return None
 
@@ -342,9 +359,8 @@ def margin_notice(scenario, case: str = 'proposed') -> tuple:
     age = scenario_link_age(scenario)
     if age == 0:
         return None, None
-    compensation = scenario.impairments.compensation
-    margin = scenario_margin(scenario, case, most=age + 1, compensations=(modelled(compensation),))
-    steps = margin.margin_steps[modelled(compensation)]
+    compensation = applied_compensation(scenario, realtime=False)
+    steps = margin_steps_for(scenario, case, compensation, age + 1)
     dt_ms = scenario.dt * 1000.0
     said = f'at least {age + 1} steps' if steps is None else f'{steps} steps ({steps * dt_ms:g} ms)'
     info = (f'delay margin ({compensation}): {said}; the links deliver states up to {age} steps '
@@ -374,8 +390,7 @@ class MarginWatch:
         gains = scenario_gains(scenario, case)
         self.models = axis_models(gains, load_helicopter_params(scenario.helicopter).gravity, gains.feedforward_weight)
         self.adjacency, self.dt = np.asarray(scenario.adjacency), scenario.dt
-        compensation = scenario.impairments.compensation if scenario.impairments is not None else 'none'
-        self.predict = modelled(compensation) == 'predict'
+        self.predict = modelled(applied_compensation(scenario, realtime=True)) == 'predict'
         self.stable_to = -1            # every delay 0..stable_to is stable
         self.first_unstable = None
 

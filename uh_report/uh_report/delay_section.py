@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from uh_controller_node.delay_margin import modelled, scenario_link_age, scenario_margin
+from uh_controller_node.delay_margin import applied_compensation, margin_steps_for, scenario_link_age
 
 __all__ = ['DELAY_HEAD', 'delay_section']
 
@@ -26,11 +26,9 @@ def delay_section(run) -> tuple[str, list] | None:
     oldest = max((worst for _, worst in ages.values()), default=0.0)
     if link_age == 0 and oldest <= dt + 1e-9:
         return None
-    imp = scenario.impairments
-    compensation = imp.compensation if imp is not None else ('none' if run.clock == 'realtime' else 'predict')
+    compensation = applied_compensation(scenario, realtime=run.clock == 'realtime')
     most = max(link_age, int(math.ceil(oldest / dt - 1e-9))) + 1
-    steps = scenario_margin(scenario, run.case, most=most, compensations=(modelled(compensation),)).margin_steps[
-        modelled(compensation)]
+    steps = margin_steps_for(scenario, run.case, compensation, most)
     margin = f'{steps} steps ({steps * dt * 1000:g} ms)' if steps is not None else f'at least {most} steps'
     sentence = (f'Delay margin of the team ({compensation}; uh-analyze, docs/delay.md#delay-margin): {margin}. '
                 f'The scenario\'s links deliver states up to {link_age} steps ({link_age * dt * 1000:g} ms) old.')

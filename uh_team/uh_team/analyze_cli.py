@@ -18,6 +18,7 @@ import sys
 from uh_controller_node.delay_margin import (
     MODELLED,
     MOST_STEPS,
+    applied_compensation,
     covering_feedforward_weight,
     modelled,
     scenario_link_age,
@@ -53,7 +54,7 @@ def analysis(scenario, case: str, most: int, measure: bool) -> dict:
     out = {'scenario': scenario.name, 'case': case, **margin.as_json(),
            'departures': scenario_departures(scenario, case)}
     age = scenario_link_age(scenario)
-    compensation = scenario.impairments.compensation if scenario.impairments is not None else 'predict'
+    compensation = applied_compensation(scenario, realtime=False)
     limit = margin.margin_steps[modelled(compensation)]
     out['links'] = {'oldest_state_steps': age, 'compensation': compensation,
                     'within_margin': limit is None or age <= limit}
