@@ -31,7 +31,9 @@ JSON_KEYS = ('case', 'departures', 'sim_time_s', 'wall_time_s', 'settle_time_s',
              'false_fault_estimate', 'fault_nrmse', 'saturation_fraction', 'fault_isolation', 'faults',
              # docs/safety.md: the separation metrics, added at the end
              'min_separation_m', 'min_separation_pair', 'separation_violation_s', 'rotor_overlap_s', 'safety_active_s',
-             'separation')
+             'separation',
+             # docs/resilience.md: the losses of a run with events
+             'reconfiguration')
 STORE_COLUMNS = {
     'formation_rms_m': 'RMS formation error of the leaders after settle, m',
     'containment_rms_m': 'RMS containment error of the followers after settle, m',

@@ -28,7 +28,8 @@ CONFIG = ROOT / 'uh_topology' / 'uh_topology' / 'config'
 DOC = ROOT / 'docs' / 'scenario.md'
 #: docs/scenario.md's headings above the tables of the registry, and how each table is written.
 DOC_TABLES = {'## Top-level keys': ('SCENARIO_KEYS', True), '### `impairments`': ('IMPAIRMENT_KEYS', False),
-              '### `safety`': ('SAFETY_KEYS', False)}
+              '### `safety`': ('SAFETY_KEYS', False), '### `events`': ('EVENT_KEYS', False),
+              '### `resilience`': ('RESILIENCE_KEYS', False)}
 
 
 def _doc_table(heading: str) -> str:

@@ -15,7 +15,7 @@ setup(
         ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
     ],
     package_data={package_name: ['config/*.yaml']},
-    install_requires=['numpy', 'PyYAML', 'uh_core'],
+    install_requires=['numpy', 'PyYAML', 'scipy', 'uh_core'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',

@@ -14,8 +14,10 @@ __all__ = ['scenario_departures']
 def scenario_departures(scenario, case: str = 'proposed') -> dict:
     """Give the departures from the paper's graph and gains that the delay remedies make (docs/delay.md#remedies).
 
-    Any of ``{'reference_links': 'all_leaders'}``, ``{'delay_compensation': 'reference_motion'}`` and
-    ``{'feedforward_weight': w}`` (w < 1); empty: none.
+    Any of ``{'reference_links': 'all_leaders'}``, ``{'delay_compensation': 'reference_motion'}``,
+    ``{'feedforward_weight': w}`` (w < 1) and, for a scenario with ``events``, ``{'on_loss': 'reform'}``
+    (the team re-forms after a loss, docs/resilience.md; ``hold`` is what the law does without this
+    layer and is no departure); empty: none.
     Recorded in ``run.json`` and ``metrics.json``.
     """
     out = {}
@@ -23,6 +25,8 @@ def scenario_departures(scenario, case: str = 'proposed') -> dict:
         out['reference_links'] = scenario.reference_links_rule
     if scenario.impairments is not None and scenario.impairments.compensation == 'reference_motion':
         out['delay_compensation'] = 'reference_motion'
+    if scenario.events and scenario.resilience.on_loss == 'reform':
+        out['on_loss'] = 'reform'
     weight = scenario_gains(scenario, case).feedforward_weight
     if weight != 1.0:
         out['feedforward_weight'] = weight

@@ -34,6 +34,7 @@ from .error_metrics import containment_errors, formation_errors
 from .fault_metrics import LUMPED_FAULTS, LumpedFault, false_fault_estimate, fault_estimation, fault_list, none_if_nan
 from .hull_geometry import hull_distance
 from .isolation_metrics import fault_isolation_metrics
+from .reconfiguration import reconfiguration
 from .separation_metrics import closest_approach, separation_limits, time_below
 
 __all__ = ['Metric', 'RunValues', 'METRICS', 'BETTER', 'json_metrics', 'json_keys', 'report_metrics',
@@ -317,7 +318,8 @@ METRICS = (
            doc='controller case: `proposed`, `case1`, `case2`', compute=lambda v: str(v.case)),
     Metric('departures', json_type='object',
            doc="departures from the paper's graph and gains the run made (the delay remedies of "
-               '[delay.md](delay.md#remedies)): `reference_links`, `feedforward_weight`; `{}`: none',
+               '[delay.md](delay.md#remedies)): `reference_links`, `delay_compensation`, `feedforward_weight`; '
+               'with events `on_loss: reform` ([resilience.md](resilience.md)); `{}`: none',
            compute=lambda v: _departures(v)),
     Metric('sim_time_s', 's', 'simulated time span', label='simulated time', report_row=20, json_type='number',
            doc='simulated time span `t_K - t_0`, s', compute=lambda v: float(v.time[-1] - v.time[0])),
@@ -406,6 +408,17 @@ METRICS = (
            doc='`limit_m` (the minimum separation), `rotor_overlap_m` (two rotor radii), `closest_time_s` and '
                "`design_warnings` (the scenario's formation targets or initial positions closer than the limit)",
            compute=_separation),
+    # docs/resilience.md: a run with events
+    Metric('reconfiguration', json_type='array or null',
+           doc='per loss event (`events`, [resilience.md](resilience.md)): `uh`, `time_s`, `on_loss`, '
+               '`detected_at_s` (the first declaration), `agreed_at_s` (every UH knows), `reformed_at_s` (errors '
+               'under 0.05 m / 0.02 m against the new targets from then on), `formation_error_after_m` and '
+               '`containment_error_after_m` (largest after re-forming), `formation_error_last_10s_m` and '
+               '`containment_error_last_10s_m` (largest over the last 10 s before the next event or the end), '
+               '`min_separation_m` (from the event to re-forming), the new `leaders`, `followers`, `promoted` '
+               '(slot: UH) and `holding` (UH: why); null without events',
+           compute=lambda v: None if v.scenario is None else reconfiguration(v.time, v.positions,
+                                                                             v.reference_positions, v.scenario)),
 )
 
 

@@ -118,6 +118,22 @@ def _fault_lines(metrics: dict) -> list[str]:
     return lines
 
 
+def _reconfiguration_lines(metrics: dict) -> list:
+    """Give one line per loss event of ``metrics['reconfiguration']`` (docs/resilience.md)."""
+    events = metrics.get('reconfiguration') or ()
+    lines = ['  (the metrics above score the scenario\'s team, lost UHs included; each loss is scored against '
+             'its new team in metrics.json\'s reconfiguration)'] if events else []
+    for event in events:
+        times = ', '.join(f'{what} {_number(event[key], ".2f")} s' for what, key in (
+            ('detected', 'detected_at_s'), ('agreed', 'agreed_at_s'), ('re-formed', 'reformed_at_s')))
+        promoted = ''.join(f', UH{uh} promoted to slot {slot}' for slot, uh in event['promoted'].items())
+        holding = ''.join(f', UH{uh} holds ({why})' for uh, why in event['holding'].items())
+        lines.append(f'  UH{event["uh"]} lost at {event["time_s"]:g} s ({event["on_loss"]}): {times}; leaders '
+                     f'{event["leaders"]}, followers {event["followers"]}{promoted}{holding}; closest approach '
+                     f'{_number(event["min_separation_m"], ".2f")} m')
+    return lines
+
+
 def main(argv=None) -> int:
     """Entry point of ``uh-simulate``; returns the exit status (see module docstring)."""
     try:
@@ -184,6 +200,8 @@ def _main(argv) -> int:
     for key in summary_keys():
         print(f'  {key:22s} {_number(metrics[key])}')
     for line in _fault_lines(metrics):
+        print(line)
+    for line in _reconfiguration_lines(metrics):
         print(line)
     isolation = metrics['fault_isolation']
     if isolation is not None:

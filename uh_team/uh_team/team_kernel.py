@@ -73,6 +73,7 @@ _compiled_kernels.require_numba('uh_team.team_kernel')
 
 __all__ = ['TeamConfig', 'TeamImpairments', 'TeamState', 'TeamRecord', 'TeamArrays', 'team_arrays',
            'empty_record', 'run_team_steps', 'record_states', 'impaired_states', 'record_status', 'advance_plants',
+           'freeze_row',
            'refresh_cache', 'compile_team_kernel', 'TEAM_DONE']
 
 #: :func:`run_team_steps` returns this when every step ran; otherwise the step at which a state
@@ -104,6 +105,13 @@ class TeamConfig(NamedTuple):
         UH ids of the rows.
     safety : ndarray (n, SAFETY_PARAMS_SIZE) or (n, 0)
         The safety filter's parameters per UH (docs/safety.md); no columns: the filter is off.
+    frozen : ndarray (n,) bool
+        A lost UH (docs/resilience.md): its controller does not run (its last command is repeated in
+        the record) and its plant is not integrated: it hovers where it was lost.
+    holding : ndarray (n,) bool
+        The UH holds a position: its controller follows ``hold`` instead of the virtual leader.
+    hold : ndarray (n, REFERENCE_SIZE)
+        ``[p_hold - h_i, 0, yaw]`` per UH (read where ``holding``): the pseudo virtual leader of a hold.
     """
 
     hears: np.ndarray
@@ -119,6 +127,9 @@ class TeamConfig(NamedTuple):
     substeps: int
     ids: np.ndarray
     safety: np.ndarray
+    frozen: np.ndarray
+    holding: np.ndarray
+    hold: np.ndarray
 
 
 class TeamImpairments(NamedTuple):
@@ -237,7 +248,8 @@ def team_arrays(ids, controllers, plants, impairments=None, dt: float | None = N
         nb_weights=nb_weights, nb_offsets=nb_offsets, plant_params=np.stack([p.params for p in plant]),
         faults=np.stack([p.faults for p in plant]), disturbance=np.stack([p.disturbance for p in plant]),
         substeps=substeps.pop(), ids=np.array([int(i) for i in ids], dtype=np.int64),
-        safety=np.stack([a.safety for a in ctl]))
+        safety=np.stack([a.safety for a in ctl]), frozen=np.zeros(n, dtype=np.bool_),
+        holding=np.zeros(n, dtype=np.bool_), hold=np.zeros((n, _ctl.REFERENCE_SIZE)))
     state = TeamState(x=np.stack([p.x for p in plants]), weights_p=np.stack([a.weights_p for a in ctl]),
                       weights_w=np.stack([a.weights_w for a in ctl]), memory=np.stack([a.memory for a in ctl]))
     return TeamArrays(config, _team_impairments(ids, controllers, impairments, dt, max_nb), state)
@@ -316,12 +328,17 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
     u = np.empty(INPUT_SIZE)
     out_p = np.empty(3)
     out_w = np.empty(3)
+    frozen, holding = team.frozen, team.holding
     for k in range(k0, k1):
         if not record_states(k, x, states):
             return k
-        reference = references[k]
         # 1. every controller on the states at t_k (its own and its neighbours', ascending id)
         for c in range(n):
+            if frozen[c]:   # lost: nothing runs (docs/resilience.md)
+                freeze_row(k, c, commands, record.fault_est_p, record.fault_est_w, record.u_p, record.z1,
+                           record.saturated, record.safety_active)
+                continue
+            reference = team.hold[c] if holding[c] else references[k]
             m = count[c]
             nb = np.empty((m, STATE_SIZE))
             received = x[c]   # the own state as the controller receives it
@@ -342,7 +359,7 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
                           record.saturated, record.safety_active)
         # 2. the true lumped faults for that command; 3. every plant holds it over [t_k, t_k+1)
         advance_plants(k, last, dt, x, commands, team.plant_params, team.faults, team.disturbance, team.substeps,
-                       record.fault_true_p, record.fault_true_w, u, out_p, out_w)
+                       record.fault_true_p, record.fault_true_w, u, out_p, out_w, frozen)
     return TEAM_DONE
 
 
@@ -447,16 +464,36 @@ def record_status(k, c, status, fault_est_p, fault_est_w, u_p, z1, saturated, sa
 
 
 @njit(cache=True, inline='always')
+def freeze_row(k, c, commands, fault_est_p, fault_est_w, u_p, z1, saturated, safety_active):
+    """Write row ``c`` of step ``k`` for a lost UH: its previous command (zero at step 0), zero estimates, no flags."""
+    for i in range(commands.shape[2]):
+        commands[k, c, i] = commands[k - 1, c, i] if k > 0 else 0.0
+    for i in range(3):
+        fault_est_p[k, c, i] = 0.0
+        fault_est_w[k, c, i] = 0.0
+        u_p[k, c, i] = 0.0
+        z1[k, c, i] = 0.0
+    saturated[k, c] = False
+    safety_active[k, c] = False
+
+
+@njit(cache=True, inline='always')
 def advance_plants(k, last, dt, x, commands, plant_params, faults, disturbance, substeps, fault_true_p, fault_true_w,
-                   u, out_p, out_w):
+                   u, out_p, out_w, frozen):
     """Record the true lumped faults of step ``k``'s commands and, unless ``k == last``, integrate every plant.
 
     Each plant holds its command ``commands[k, c]`` over [t_k, t_k+1) (RK4, ``substeps`` substeps;
     ``plant_params``, ``faults``, ``disturbance`` per row as in :class:`TeamConfig`). ``u`` (4,),
-    ``out_p``, ``out_w`` (3,): scratch for the command and the faults' parts.
+    ``out_p``, ``out_w`` (3,): scratch for the command and the faults' parts. A ``frozen`` row (lost)
+    is not integrated and its true faults are zero.
     """
     t = k * dt
     for c in range(x.shape[0]):
+        if frozen[c]:
+            for i in range(3):
+                fault_true_p[k, c, i] = 0.0
+                fault_true_w[k, c, i] = 0.0
+            continue
         for i in range(4):
             u[i] = commands[k, c, i]
         lumped_faults(x[c], u, t, plant_params[c], faults[c], out_p, out_w)
@@ -505,7 +542,8 @@ def compile_team_kernel() -> float:
         nb_offsets=np.zeros((n, max_nb, 3)), plant_params=np.ones((n, _plant.PARAMS_SIZE)),
         faults=np.zeros((n, _plant.NUM_CHANNELS, _plant.FAULT_FIELDS)),
         disturbance=np.zeros((n, 3, _plant.DISTURBANCE_FIELDS)), substeps=1, ids=np.ones(n, dtype=np.int64),
-        safety=np.zeros((n, 0)))
+        safety=np.zeros((n, 0)), frozen=np.zeros(n, dtype=np.bool_), holding=np.zeros(n, dtype=np.bool_),
+        hold=np.zeros((n, _ctl.REFERENCE_SIZE)))
     links_impaired = TeamImpairments(False, 0, np.zeros((n, max_nb), dtype=np.int64), np.zeros((n, max_nb)),
                                      np.zeros(n, dtype=np.int64), np.zeros(STATE_SIZE),
                                      np.zeros((n, max_nb), dtype=np.int64), False, False)

@@ -35,6 +35,7 @@ from uh_topology.errors import GainsFileError
 from uh_topology.scenario import duration_steps
 
 from .metrics import containment_errors, formation_errors
+from .reconfiguration import errors_in_force
 from .run_arrays import RUN_REF_POSITION, new_run_arrays
 
 __all__ = ['SimulationError', 'TeamRun', 'run_team_simulation', 'ENGINES']
@@ -79,11 +80,15 @@ class TeamRun:
         The safety filter changed the UH's ``u_p`` (docs/safety.md; all False with the filter off).
     errors : ndarray (K+1, n)
         Formation error ``|p_i - h_i - p_0|`` (leaders) or containment error
-        ``|p_k - sum_j w_kj p_j|`` (followers), m.
+        ``|p_k - sum_j w_kj p_j|`` (followers), m; with events against the team in force (NaN for a UH
+        outside it, docs/resilience.md).
     wall_time : float
         Wall-clock time of the stepping loop, s.
     stuck_uhs : tuple of int
         UHs with a stuck actuator (rho = 0) during the run: outside what the controller compensates.
+    events : dict or None
+        With the scenario's ``events``: ``schedule`` (:class:`~uh_team.team_events.LossSchedule`),
+        ``holds`` ({uh: (first step, reason)}) and ``teams`` (the reformed teams flown, by lost set).
     """
 
     scenario_name: str
@@ -105,6 +110,7 @@ class TeamRun:
     errors: np.ndarray
     wall_time: float
     stuck_uhs: tuple = field(default_factory=tuple)
+    events: dict | None = None
 
     ARRAY_KEYS = ('time', 'states', 'commands', 'reference', 'fault_true_p', 'fault_true_w',
                   'fault_est_p', 'fault_est_w', 'u_p', 'z1', 'saturated', 'safety_active', 'errors')
@@ -116,13 +122,19 @@ class TeamRun:
         return out
 
     def all_finite(self) -> bool:
-        """Tell whether no array holds NaN or infinity."""
+        """Tell whether no array holds NaN or infinity (``errors`` aside: NaN for a UH outside the team in force)."""
         return all(np.isfinite(getattr(self, k)).all() for k in self.ARRAY_KEYS
-                   if k not in ('saturated', 'safety_active'))
+                   if k not in ('saturated', 'safety_active', 'errors'))
 
 
-def _errors(states, reference, scenario):
-    """Compute the formation errors of the leaders, then the containment errors of the followers (K+1, n), m."""
+def _errors(states, reference, scenario, happened=None):
+    """Compute the formation errors of the leaders, then the containment errors of the followers (K+1, n), m.
+
+    With ``happened`` (a run with events) against the team in force at each step, NaN for a UH outside it
+    (:func:`uh_team.reconfiguration.errors_in_force`).
+    """
+    if happened is not None:
+        return errors_in_force(states, reference[:, RUN_REF_POSITION], scenario, happened['schedule'])
     n_lead = len(tuple(scenario.leaders))
     pos = states[:, :, X_P_SLICE]
     out = np.empty(states.shape[:2])
@@ -184,7 +196,7 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     except (GainsError, GainsFileError) as exc:
         raise SimulationError(str(exc)) from None
     reference = VirtualLeaderReference(scenario.reference)
-    arrays = None
+    arrays, happened = None, None
     if engine == 'kernel':
         # imported here: the object loop also runs where the kernels are compiled ahead of time,
         # without numba, and the team loop is numba code (uh_core.compiled_kernels)
@@ -196,6 +208,8 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     stuck = {ids[c] for c, plant in enumerate(plants) if plant.stuck(K * dt)}  # rho = 0 from an onset on
     every = max(1, K // 100)
 
+    if scenario.events and engine != 'kernel':
+        raise SimulationError('a scenario with events runs on the kernel engine only (docs/resilience.md)')
     if arrays is not None:
         # load (or compile) the kernel before the clock starts: that is start-up, like imports
         _run_kernel(K, dt, ids, arrays, np.empty((1, REFERENCE_SIZE)), out, every, None, load_only=True)
@@ -209,7 +223,12 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         references[:, R_P_SLICE] = [r.position for r in samples]
         references[:, R_V_SLICE] = [r.velocity for r in samples]
         references[:, R_YAW] = [r.yaw for r in samples]
-        _run_kernel(K, dt, ids, arrays, references, out, every, progress)
+        if scenario.events:
+            from .event_run import run_with_events
+            happened = run_with_events(scenario, K, dt, ids, arrays, references, out, every, progress,
+                                       lambda k: _non_finite(K, dt, ids, out['states'], k))
+        else:
+            _run_kernel(K, dt, ids, arrays, references, out, every, progress)
     else:
         _run_objects(K, dt, ids, controllers, plants, samples, out, every, progress, scenario.impairments,
                      reference)
@@ -217,8 +236,8 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
 
     return TeamRun(
         scenario_name=str(scenario.name), case=case, ids=ids, dt=dt, time=np.arange(K + 1) * dt,
-        reference=ref, errors=_errors(out['states'], ref, scenario), wall_time=wall,
-        stuck_uhs=tuple(sorted(stuck)), **out)
+        reference=ref, errors=_errors(out['states'], ref, scenario, happened), wall_time=wall,
+        stuck_uhs=tuple(sorted(stuck)), events=happened, **out)
 
 
 def _non_finite(K, dt, ids, states, k):

@@ -44,8 +44,10 @@ from uh_core.records import FaultSpec
 
 from . import errors as E
 from . import scenario_keys
+from .events import ResilienceSpec, read_events, read_resilience
 from .graph import laplacian, leader_tracking_matrix
 from .impairments import COMPENSATIONS, DEFAULT_COMPENSATION, NO_DROPOUT, ImpairmentSpec, read_impairments
+from .reform import ReformedTeam, bypass_standby_edges, declared_edges, reformed_team
 from .safety import SafetySpec, close_pairs, formation_points, read_safety
 from .scenario_keys import SCENARIO_KEYS, key_named, key_names, read_key
 from .scenario_team import Team, check_assumptions, read_edges, read_reference_links, read_team
@@ -149,6 +151,11 @@ class Scenario:
     separation_warnings : tuple of SeparationIssue
         Formation targets or initial positions closer than ``min_separation`` (but not than two
         rotor radii, which is an error): the run says so at start (docs/safety.md#design-time-check).
+    events : tuple of LossEvent
+        What happens to the team during the run, by time (docs/resilience.md); empty: nothing.
+    resilience : ResilienceSpec or None
+        How the team answers a loss, as the file gives it (None: not given; :attr:`loss_answer`
+        gives the defaults then).
     """
 
     name: str
@@ -175,6 +182,8 @@ class Scenario:
     safety: SafetySpec = SafetySpec()
     separation_warnings: tuple = ()
     reference_links_rule: str | None = None
+    events: tuple = ()
+    resilience: ResilienceSpec | None = None
 
     # -- roles and graph ----------------------------------------------------------------------
     @property
@@ -239,6 +248,24 @@ class Scenario:
         """``{follower id: {leader id: weight}}`` of ``-L1^-1 L2``."""
         return {k: {j: float(self.containment_weights[r, c]) for c, j in enumerate(self.leaders)}
                 for r, k in enumerate(self.followers)}
+
+    # -- losses (docs/resilience.md) -----------------------------------------------------------
+    def standby_edges(self) -> tuple:
+        """Give the standby edges ``(uh, hears)`` (``hears = 0``: the virtual leader), sorted."""
+        spec = self.resilience
+        if spec is None or spec.standby == 'none':
+            return ()
+        if spec.standby == 'bypass':
+            return bypass_standby_edges(self)
+        return tuple(spec.standby)
+
+    def receivable_edges(self) -> set:
+        """Every edge ``(uh, hears)`` a UH can receive: the declared ones and the standby ones."""
+        return declared_edges(self) | set(self.standby_edges())
+
+    def reformed(self, lost) -> ReformedTeam:
+        """Give the team every UH computes without the UHs ``lost`` (:func:`uh_topology.reform.reformed_team`)."""
+        return reformed_team(self, lost, self.receivable_edges())
 
     # -- gains ----------------------------------------------------------------------------------
     @property
@@ -348,6 +375,12 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         impairments = None   # all zero: the run without impairments (any clock, no /uhN/received)
     safety = read_safety(ctx, top.get('safety'))
     warnings = _separable(ctx, helicopter, safety, team, weights)
+    events = read_events(ctx, top.get('events'), set(team.roles), timing.dt, timing.duration)
+    link_age = (max((impairments.delays[e] + impairments.jitters[e] for e in impairments.delays), default=0)
+                * timing.dt if impairments is not None else 0.0)
+    resilience = read_resilience(ctx, top.get('resilience'), adjacency, set(team.roles), link_age)
+    if resilience is None and events:
+        resilience = read_resilience(ctx, {}, adjacency, set(team.roles), link_age)   # the defaults, checked
 
     adjacency.setflags(write=False)
     return Scenario(
@@ -361,7 +394,8 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
         reference=reference, disturbance=disturbance,
         laplacian_blocks=(read_only_array(l1), read_only_array(l2)),
         containment_weights=read_only_array(weights), gains_source=gains_source, impairments=impairments,
-        safety=safety, separation_warnings=warnings, reference_links_rule=reference_rule,
+        safety=safety, separation_warnings=warnings, reference_links_rule=reference_rule, events=events,
+        resilience=resilience,
     )
 
 

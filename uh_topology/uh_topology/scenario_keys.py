@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 __all__ = ['ScenarioKey', 'SCENARIO_KEYS', 'IMPAIRMENT_KEYS', 'NOISE_KEYS', 'SAFETY_KEYS', 'SEPARATION_MARGIN',
+           'EVENT_KINDS', 'EVENT_KEYS', 'ON_LOSS', 'RESILIENCE_KEYS', 'STALE_TIMEOUT',
            'key_named', 'key_names',
            'read_key', 'default_cell', 'markdown_table']
 
@@ -118,6 +119,43 @@ SCENARIO_KEYS = (
     ScenarioKey('impairments', 'what the controllers receive: per-link delay and jitter in steps, loss, measurement '
                 'noise, dropouts, and whether a controller predicts delayed states; in process, lockstep and '
                 'realtime ([below](#impairments); in real time: [runtime.md](runtime.md#impairments-in-real-time))'),
+    ScenarioKey('events', 'what happens to the team during the run: `{time, uh, kind: lost}`, a helicopter lost '
+                '([below](#events); [resilience.md](resilience.md))'),
+    ScenarioKey('resilience', 'how the team answers a loss: re-form or hold, standby edges, the timeout that declares '
+                'a UH lost ([below](#resilience); [resilience.md](resilience.md))'),
+)
+
+#: The kinds of event (docs/resilience.md): ``lost``, the helicopter stops publishing and hovers where it is.
+EVENT_KINDS = ('lost',)
+
+#: The keys of one entry of ``events`` (docs/scenario.md#events).
+EVENT_KEYS = (
+    ScenarioKey('time', 'when it happens, in (0, `duration`)', required=True, unit='s', kind='number'),
+    ScenarioKey('uh', 'the UH it happens to; one `lost` event per UH', required=True, kind='integer'),
+    ScenarioKey('kind', '`lost`: from `time` on the UH publishes nothing (as if its processes died or its radio '
+                'failed) and hovers where it is, an obstacle to the others', required=True, kind='string',
+                choices=EVENT_KINDS),
+)
+
+#: A neighbour's state this old (s) is stale: the controller leaves it out of the law (docs/reliability.md); the
+#: default of the nodes' ``stale_timeout`` and the floor of ``resilience.lost_timeout``.
+STALE_TIMEOUT = 0.25
+
+#: The answers of a team to a loss (docs/resilience.md).
+ON_LOSS = ('reform', 'hold')
+
+#: The keys of ``resilience`` (docs/scenario.md#resilience, docs/resilience.md).
+RESILIENCE_KEYS = (
+    ScenarioKey('on_loss', '`reform`: every UH computes the same new team from the scenario and the agreed lost set '
+                '(promotion, repaired graph) and flies it; `hold`: a UH drops the lost neighbour and holds its '
+                'position when it has no path from the virtual leader left, as without this layer',
+                default='reform', kind='string', choices=ON_LOSS),
+    ScenarioKey('standby_edges', '`bypass`: the edges the repair of any single loss needs, derived from the graph; '
+                '`none`; or a list `{uh, hears}` (`hears: 0` is the virtual leader). A UH subscribes to its standby '
+                'neighbours from the start and uses them only in a re-formed team', default='bypass'),
+    ScenarioKey('lost_timeout', 'a neighbour whose newest state is this old is declared lost: > the stale timeout '
+                f'({STALE_TIMEOUT:g} s) and > the largest age a link gives (`(delay_steps + jitter_steps) dt`)',
+                default=0.5, unit='s', kind='number', lo=STALE_TIMEOUT, lo_open=True),
 )
 
 #: The keys of ``impairments.noise``: the standard deviation of the noise on each part of a received state.

@@ -16,6 +16,7 @@ import uh_runtime as rt
 from uh_runtime import scheduling
 from uh_topology.safety import SAFETY_CHOICES, safety_override
 from uh_topology.scenario import load_scenario
+from uh_topology.scenario_keys import STALE_TIMEOUT
 
 __all__ = ['RunConfig', 'RunConfigError', 'ViewConfig', 'declare_run_parameters', 'declare_view_parameters',
            'declare_standard_views', 'declare_float_parameter', 'CLOCK_MODES', 'DEFAULT_STALE_TIMEOUT']
@@ -24,7 +25,7 @@ CLOCK_MODES = ('lockstep', 'realtime')
 #: realtime: simulated seconds a neighbour's state, the reference or a simulator's command may lag
 #: before it is stale (parameter ``stale_timeout`` of the controllers and simulators,
 #: ``--stale-timeout`` of the run, launch argument ``stale_timeout``; docs/reliability.md).
-DEFAULT_STALE_TIMEOUT = 0.25
+DEFAULT_STALE_TIMEOUT = STALE_TIMEOUT
 
 
 class RunConfigError(ValueError):

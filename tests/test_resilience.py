@@ -1,0 +1,198 @@
+"""Losing a helicopter (docs/resilience.md): events and resilience keys, the repair rule, agreement, the runs."""
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scenario_texts import paper_yaml
+
+from uh_team.metrics import metrics_from_arrays
+from uh_team.reconfiguration import REFORMED_CONTAINMENT_M, REFORMED_FORMATION_M
+from uh_team.separation_metrics import separation_limits
+from uh_team.team_events import NEVER, loss_schedule
+from uh_team.team_simulation import SimulationError, run_team_simulation
+from uh_topology import errors as E
+from uh_topology.reform import bypass_standby_edges, declared_edges, reformed_team
+from uh_topology.scenario import parse_scenario
+from uh_topology.scenario_keys import STALE_TIMEOUT
+from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
+
+ROOT = Path(__file__).resolve().parents[1]
+EVENT_STEP = 3000     # t = 30 s at dt = 0.01 s
+
+
+def lost(uh: int, extra: str = '', time: float = 30.0):
+    """Give the paper scenario with UH ``uh`` lost at ``time`` and ``extra`` keys."""
+    return parse_scenario(paper_yaml(f'events:\n  - {{time: {time}, uh: {uh}, kind: lost}}\n{extra}'),
+                          source='lost.yaml')
+
+
+# -- bad input: one line naming the file, line and key ------------------------------------------------------
+@pytest.mark.parametrize('text, error, where', [
+    ('events:\n  - {time: 30.0, uh: 9, kind: lost}\n', E.UnknownIdError, 'events[0].uh'),
+    ('events:\n  - {time: 60.0, uh: 2, kind: lost}\n', E.InvalidValueError, 'events[0].time'),
+    ('events:\n  - {time: 0.0, uh: 2, kind: lost}\n', E.InvalidValueError, 'events[0].time'),
+    ('events:\n  - {time: 3.0, uh: 2, kind: vanished}\n', E.InvalidValueError, 'events[0].kind'),
+    ('events:\n  - {time: 3.0, uh: 2}\n', E.MissingFieldError, 'events[0]'),
+    ('events:\n  - {time: 3.0, uh: 2, kind: lost}\n  - {time: 4.0, uh: 2, kind: lost}\n', E.InvalidValueError,
+     'events[1].uh'),
+    ('events: {time: 3.0}\n', E.WrongTypeError, 'events'),
+    ('resilience: {standby_edges: [{uh: 1, hears: 7}]}\n', E.UnknownIdError, 'resilience.standby_edges[0].hears'),
+    ('resilience: {standby_edges: [{uh: 1, hears: 3}]}\n', E.InvalidValueError, 'resilience.standby_edges[0]'),
+    ('resilience: {standby_edges: [{uh: 4, hears: 0}, {uh: 4, hears: 0}]}\n', E.InvalidValueError,
+     'resilience.standby_edges[1]'),
+    ('resilience: {standby_edges: [{uh: 4, hears: 4}]}\n', E.InvalidValueError, 'resilience.standby_edges[0].hears'),
+    ('resilience: {standby_edges: all}\n', E.InvalidValueError, 'resilience.standby_edges'),
+    ('resilience: {on_loss: pray}\n', E.InvalidValueError, 'resilience.on_loss'),
+    ('resilience: {lost_timeout: 0.2}\n', E.InvalidValueError, 'resilience.lost_timeout'),
+    ('impairments: {delay_steps: 60}\nresilience: {lost_timeout: 0.5}\n', E.InvalidValueError,
+     'resilience.lost_timeout'),
+])
+def test_bad_events_and_resilience_are_one_line_naming_file_line_and_key(text, error, where):
+    with pytest.raises(error) as info:
+        parse_scenario(paper_yaml(text), source='team.yaml')
+    message = str(info.value)
+    assert message.startswith('team.yaml:') and f': {where}: ' in message and '\n' not in message, message
+
+
+def test_the_lost_timeout_floor_is_the_stale_timeout_of_the_nodes():
+    assert STALE_TIMEOUT == DEFAULT_STALE_TIMEOUT
+
+
+def test_no_events_no_resilience_and_no_standby_edges(paper):
+    assert paper.events == () and paper.resilience is None and paper.standby_edges() == ()
+
+
+# -- the repair rule -------------------------------------------------------------------------------------------
+def test_bypass_standby_edges_of_the_paper_graph(paper):
+    # worked out by hand from docs/resilience.md#the-rule: e.g. UH4 takes the slot of UH1 (nearest follower
+    # place), so it must hear UH1's in-neighbour UH3 and the virtual leader, and UH2 (which heard UH1) hears UH4
+    assert bypass_standby_edges(paper) == ((1, 5), (2, 4), (3, 4), (4, 0), (4, 3), (5, 1), (5, 2))
+
+
+@pytest.mark.parametrize('uh, promoted, leaders, followers', [
+    (1, {1: 4}, (2, 3, 4), (5,)), (2, {2: 4}, (1, 3, 4), (5,)), (3, {3: 5}, (1, 2, 5), (4,)),
+    (4, {}, (1, 2, 3), (5,)), (5, {}, (1, 2, 3), (4,))])
+def test_every_single_loss_of_the_paper_team_is_repaired(uh, promoted, leaders, followers):
+    scenario = lost(uh)
+    team = scenario.reformed({uh})
+    assert (team.promoted, team.leaders, team.followers, team.holding) == (promoted, leaders, followers, {})
+    assert set(team.edges) <= scenario.receivable_edges()
+    # Lemma 1 again: the followers' targets are convex combinations of the leaders
+    assert np.all(team.containment_weights >= 0.0)
+    assert np.allclose(team.containment_weights.sum(axis=1), 1.0)
+    for i in team.leaders:     # leaders hear only leaders and the virtual leader
+        assert all(j == 0 or j in team.leaders for (r, j) in team.edges if r == i)
+
+
+def test_without_standby_edges_the_loss_of_the_only_reference_link_leaves_no_team(paper):
+    team = reformed_team(paper, {1}, declared_edges(paper))
+    assert team.leaders == () and team.followers == ()
+    assert set(team.holding) == {2, 3, 4, 5}
+    assert team.holding[5] == 'no leader left with a path'
+
+
+def test_the_rule_holds_the_uhs_it_cannot_place_and_flies_the_others(paper):
+    # UH2 lost, declared edges only: UH4 takes slot 2 and hears UH1 (slot 2's in-neighbour, an edge it has as a
+    # follower); UH3 heard slot 2 and cannot hear UH4 without a standby edge: it holds
+    team = reformed_team(paper, {2}, declared_edges(paper))
+    assert team.holding == {3: 'no path from the virtual leader through leaders'}
+    assert team.leaders == (1, 4) and team.followers == (5,)
+
+
+def test_every_uh_computes_the_same_team_whatever_order_it_lists_the_lost(paper):
+    a = reformed_team(paper, [3, 1])
+    b = reformed_team(paper, {1, 3})
+    assert (a.leaders, a.followers, a.edges, a.promoted) == (b.leaders, b.followers, b.edges, b.promoted)
+
+
+# -- detection and agreement -------------------------------------------------------------------------------------
+def test_agreement_follows_the_graph_one_step_per_hop():
+    scenario = lost(2)
+    lost_steps = scenario.resilience.lost_steps(scenario.dt)
+    schedule = loss_schedule(scenario, 6000)
+    # UH2's last state was sent at step 2999; its receivers declare it lost when that is lost_steps old
+    hearers = {i for (i, j) in scenario.receivable_edges() if j == 2}
+    assert {i for (i, j), s in schedule.declared.items() if j == 2} == hearers
+    assert all(schedule.declared[(i, 2)] == EVENT_STEP - 1 + lost_steps for i in hearers)
+    # the others learn from the first state sent by a neighbour that knew: one step per hop
+    for i in set(scenario.ids) - hearers - {2}:
+        sources = [m for (r, m) in scenario.receivable_edges() if r == i and m not in (0, 2)]
+        assert schedule.known[(i, 2)] == min(schedule.known[(m, 2)] for m in sources) + 1
+    agreed = schedule.agreed_at(2, [1, 3, 4, 5])
+    assert agreed - EVENT_STEP <= round(1.0 / scenario.dt)          # goal: agreed within 1 s
+
+
+def test_delayed_links_delay_the_agreement_by_their_delay_per_hop():
+    plain = loss_schedule(lost(2), 6000)
+    delayed = loss_schedule(lost(2, 'impairments: {delay_steps: 10}\n'), 6000)
+    assert delayed.agreed_at(2, [1, 3, 4, 5]) > plain.agreed_at(2, [1, 3, 4, 5])
+    assert delayed.agreed_at(2, [1, 3, 4, 5]) - EVENT_STEP <= 100
+
+
+def test_hold_declares_nothing_and_leaves_the_silent_neighbour_out_when_stale():
+    schedule = loss_schedule(lost(2, 'resilience: {on_loss: hold}\n'), 6000)
+    assert schedule.view(3, 5999)[1] == frozenset()
+    assert schedule.stale[(3, 2)] == EVENT_STEP - 1 + round(STALE_TIMEOUT / 0.01)
+
+
+# -- the runs ------------------------------------------------------------------------------------------------------
+@pytest.fixture(scope='module')
+def paper_run(paper):
+    return run_team_simulation(paper)
+
+
+@pytest.mark.parametrize('uh', [1, 2, 3, 4, 5])
+def test_each_single_loss_of_the_paper_team_reforms_within_the_goals(uh, paper_run):
+    scenario = lost(uh)
+    run = run_team_simulation(scenario)
+    c = list(scenario.ids).index(uh)
+    # nothing differs before the event ...
+    assert np.array_equal(run.states[:EVENT_STEP], paper_run.states[:EVENT_STEP])
+    # ... then the lost UH hovers where it was
+    assert np.all(run.states[EVENT_STEP:, c, :3] == run.states[EVENT_STEP, c, :3])
+    assert np.all(run.states[EVENT_STEP:, c, 3:6] == 0.0)
+    metrics = metrics_from_arrays(run.arrays(), scenario, 'proposed')
+    assert metrics['departures'] == {'on_loss': 'reform'}
+    (event,) = metrics['reconfiguration']
+    assert event['agreed_at_s'] - 30.0 <= 1.0
+    assert event['reformed_at_s'] is not None and event['reformed_at_s'] - 30.0 <= 10.0
+    assert event['formation_error_after_m'] <= REFORMED_FORMATION_M
+    assert event['containment_error_after_m'] <= REFORMED_CONTAINMENT_M
+    assert metrics['min_separation_m'] >= separation_limits(scenario)['rotor_overlap_m']
+    assert event['holding'] == {}
+
+
+def test_holding_after_a_loss_leaves_the_formation_broken_where_reforming_restores_it():
+    hold = run_team_simulation(lost(2, 'resilience: {on_loss: hold}\n'))
+    metrics = metrics_from_arrays(hold.arrays(), lost(2, 'resilience: {on_loss: hold}\n'), 'proposed')
+    (event,) = metrics['reconfiguration']
+    assert metrics['departures'] == {}
+    assert event['reformed_at_s'] is None and event['holding'] == {
+        '3': 'no path from the virtual leader without the silent UHs [2]'}
+    assert event['formation_error_last_10s_m'] > 1.0     # UH3 held back while the team flew on
+
+
+def test_a_scenario_without_events_has_no_reconfiguration(paper, paper_run):
+    assert metrics_from_arrays(paper_run.arrays(), paper, 'proposed')['reconfiguration'] is None
+
+
+def test_events_run_only_on_the_kernel_engine():
+    with pytest.raises(SimulationError, match='kernel engine only'):
+        run_team_simulation(lost(2), duration=0.1, engine='objects')
+
+
+def test_a_distributed_run_refuses_events_before_starting_anything(tmp_path):
+    (tmp_path / 'lost.yaml').write_text(paper_yaml('events:\n  - {time: 30.0, uh: 2, kind: lost}\n'))
+    out = tmp_path / 'run'
+    proc = subprocess.run([sys.executable, '-P', '-m', 'uh_bringup.run_formation', '--scenario',
+                           str(tmp_path / 'lost.yaml'), '--out', str(out)], capture_output=True, text=True,
+                          cwd=ROOT, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.strip().count('\n') == 0 and 'flown in process only' in proc.stderr
+    assert not out.exists()
+
+
+def test_never_is_beyond_any_run():
+    assert NEVER > 10 ** 12

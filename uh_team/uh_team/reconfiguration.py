@@ -1,0 +1,125 @@
+"""How a team came through its losses: per event, when it was detected, agreed and re-formed (docs/resilience.md).
+
+:func:`team_errors` scores positions against a :class:`~uh_topology.reform.ReformedTeam`'s targets
+(formation error of its leaders, containment error of its followers; NaN for a UH outside it).
+:func:`errors_in_force` gives every step the errors against the team the whole team flies then:
+the scenario's until every surviving UH knows of a loss, the re-formed one from then on.
+:func:`reconfiguration` gives the ``reconfiguration`` section of ``metrics.json``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from uh_core.layout import X_P_SLICE
+from uh_topology.reform import reformed_team
+
+from .separation_metrics import closest_pair_series
+from .team_events import NEVER, holds, loss_schedule
+
+__all__ = ['team_errors', 'errors_in_force', 'reconfiguration', 'REFORMED_FORMATION_M', 'REFORMED_CONTAINMENT_M']
+
+#: A team is re-formed once every leader is this close to its new formation target, m, and stays so.
+REFORMED_FORMATION_M = 0.05
+#: ... and every follower this close to its new containment target, m (the campaigns' success thresholds).
+REFORMED_CONTAINMENT_M = 0.02
+
+
+def team_errors(positions: np.ndarray, p0: np.ndarray, team, ids) -> np.ndarray:
+    """Give the errors (K+1, n) of ``positions`` (K+1, n, 3) against ``team`` (``p0`` (K+1, 3)), m.
+
+    A leader's ``|p_i - h_i - p_0|``, a follower's ``|p_k - sum_j w_kj p_j|``; NaN for a UH outside the team.
+    """
+    col = {i: c for c, i in enumerate(ids)}
+    out = np.full(positions.shape[:2], np.nan)
+    for i in team.leaders:
+        out[:, col[i]] = np.linalg.norm(positions[:, col[i]] - team.offsets[i] - p0, axis=-1)
+    lead = positions[:, [col[j] for j in team.leaders]] if team.leaders else None
+    for r, k in enumerate(team.followers):
+        target = np.einsum('j,tjx->tx', team.containment_weights[r], lead)
+        out[:, col[k]] = np.linalg.norm(positions[:, col[k]] - target, axis=-1)
+    return out
+
+
+def _agreed(schedule, scenario) -> list:
+    """``[(step, lost set)]``: from each step on, every surviving UH knows of the losses in the set."""
+    out, lost = [], set()
+    for j, e in sorted(schedule.lost_at.items(), key=lambda item: item[1]):
+        alive = [i for i in scenario.ids if schedule.lost_at.get(i, NEVER) > e]
+        step = schedule.agreed_at(j, alive) if schedule.reform else NEVER
+        lost.add(j)
+        out.append((e, step, j, frozenset(lost)))
+    return out
+
+
+def errors_in_force(states: np.ndarray, reference_p0: np.ndarray, scenario, schedule) -> np.ndarray:
+    """Give the errors (K+1, n) against the team in force at each step (see the module docstring), m."""
+    positions = states[:, :, X_P_SLICE]
+    out = team_errors(positions, reference_p0, scenario.reformed(()), scenario.ids)
+    for e, _, j, _ in _agreed(schedule, scenario):
+        out[e:, list(scenario.ids).index(j)] = np.nan
+    for _, step, _, lost in _agreed(schedule, scenario):
+        if step < NEVER and step < len(out):
+            out[step:] = team_errors(positions[step:], reference_p0[step:], scenario.reformed(lost), scenario.ids)
+    return out
+
+
+def _settled_from(errors: np.ndarray, team, ids, k0: int, k1: int) -> int | None:
+    """Give the first step in ``k0..k1-1`` from which ``team``'s errors stay under the thresholds to ``k1``."""
+    col = [list(ids).index(i) for i in team.leaders], [list(ids).index(i) for i in team.followers]
+    ok = np.ones(k1 - k0, dtype=bool)
+    if col[0]:
+        ok &= (errors[k0:k1, col[0]] <= REFORMED_FORMATION_M).all(axis=1)
+    if col[1]:
+        ok &= (errors[k0:k1, col[1]] <= REFORMED_CONTAINMENT_M).all(axis=1)
+    if not ok.any() or not ok[-1]:
+        return None
+    bad = np.nonzero(~ok)[0]
+    return k0 + (int(bad[-1]) + 1 if bad.size else 0)
+
+
+def reconfiguration(time: np.ndarray, positions: np.ndarray, reference_p0: np.ndarray, scenario) -> list | None:
+    """Give one entry per loss event, metrics.json's ``reconfiguration`` (docs/metrics.md); None without events.
+
+    ``time`` (K+1,) s, ``positions`` (K+1, n, 3) m in ``scenario.ids`` order, ``reference_p0`` (K+1, 3) m.
+    """
+    if not scenario.events:
+        return None
+    dt, last = float(scenario.dt), len(time)
+    schedule = loss_schedule(scenario, last - 1)
+    held = holds(scenario, schedule)
+    agreed = _agreed(schedule, scenario)
+    out = []
+    for n, (e, step, j, lost) in enumerate(agreed):
+        end = agreed[n + 1][0] if n + 1 < len(agreed) else last
+        # a hold is scored against the scenario's team without the lost UHs, nothing promoted
+        team = scenario.reformed(lost) if schedule.reform else reformed_team(scenario, lost, promote=False)
+        errors = team_errors(positions, reference_p0, team, scenario.ids)
+        errors[:, [list(scenario.ids).index(i) for i in lost]] = np.nan
+        start = min(step, end) if step < NEVER else e
+        flying = [i for i in team.ids if i not in lost and i not in held]
+        settled = _settled_from(errors, team, scenario.ids, start, end) if flying and schedule.reform else None
+        window = slice(e, settled if settled is not None else end)
+        tail = slice(max(e, end - round(10.0 / dt)), end)      # the last 10 s before the next event or the end
+
+        def worst(uhs, rows, errors=errors, lost=lost):
+            cols = [list(scenario.ids).index(i) for i in uhs if i not in lost]
+            values = errors[rows][:, cols]
+            return float(np.nanmax(values)) if cols and values.size and not np.isnan(values).all() else None
+
+        declared = [s for (i, jj), s in schedule.declared.items() if jj == j and s < NEVER]
+        after = slice(settled, end) if settled is not None else slice(0, 0)
+        out.append({
+            'uh': j, 'kind': 'lost', 'time_s': e * dt, 'on_loss': 'reform' if schedule.reform else 'hold',
+            'detected_at_s': min(declared) * dt if declared and schedule.reform else None,
+            'agreed_at_s': step * dt if step < NEVER else None,
+            'reformed_at_s': settled * dt if settled is not None else None,
+            'formation_error_after_m': worst(team.leaders, after),
+            'containment_error_after_m': worst(team.followers, after),
+            'formation_error_last_10s_m': worst(team.leaders, tail),
+            'containment_error_last_10s_m': worst(team.followers, tail),
+            'min_separation_m': float(np.min(closest_pair_series(positions[window]))) if window.stop > e else None,
+            'leaders': list(team.leaders), 'followers': list(team.followers),
+            'promoted': {str(k): v for k, v in team.promoted.items()},
+            'holding': {str(i): reason for i, (_, reason) in sorted(held.items())},
+        })
+    return out

@@ -1,0 +1,120 @@
+"""Read a scenario's ``events`` and ``resilience`` (docs/scenario.md#events, docs/resilience.md).
+
+``events`` says what happens to the team during a run (a helicopter ``lost`` at a time);
+``resilience`` how the team answers: re-form (:mod:`uh_topology.reform`) or hold, through which
+standby edges, after which timeout a silent neighbour is declared lost. The keys, their defaults and
+ranges are :data:`~uh_topology.scenario_keys.EVENT_KEYS` and
+:data:`~uh_topology.scenario_keys.RESILIENCE_KEYS`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from . import errors as E
+from .scenario_keys import EVENT_KEYS, RESILIENCE_KEYS, key_named, key_names, read_key
+from .schema import ConfigContext, type_name
+
+__all__ = ['LossEvent', 'ResilienceSpec', 'read_events', 'read_resilience', 'STANDBY_RULES']
+
+#: The rules ``standby_edges`` may name instead of a list.
+STANDBY_RULES = ('bypass', 'none')
+
+
+@dataclass(frozen=True)
+class LossEvent:
+    """A helicopter lost at ``time`` (s): from step ``step = round(time / dt)`` on it publishes nothing."""
+
+    time: float
+    uh: int
+    kind: str
+    step: int
+
+
+@dataclass(frozen=True)
+class ResilienceSpec:
+    """How the team answers a loss (docs/resilience.md).
+
+    Attributes
+    ----------
+    on_loss : str
+        ``reform`` or ``hold``.
+    standby : str or tuple of (int, int)
+        ``'bypass'``, ``'none'`` or the listed standby edges ``(uh, hears)`` (``hears = 0``: the
+        virtual leader).
+    lost_timeout : float
+        s: a neighbour whose newest state is this old is declared lost.
+    """
+
+    on_loss: str = key_named(RESILIENCE_KEYS, 'on_loss').default
+    standby: str | tuple = key_named(RESILIENCE_KEYS, 'standby_edges').default
+    lost_timeout: float = key_named(RESILIENCE_KEYS, 'lost_timeout').default
+
+    def lost_steps(self, dt: float) -> int:
+        """Give the timeout in whole control steps (rounded up)."""
+        return int(-(-round(self.lost_timeout / dt, 9) // 1))
+
+
+def read_events(ctx: ConfigContext, raw, known: set, dt: float, duration: float) -> tuple:
+    """Read ``events`` as a tuple of :class:`LossEvent` sorted by time, then UH."""
+    path = ('events',)
+    if raw is None:
+        return ()
+    if not isinstance(raw, list):
+        raise ctx.error(E.WrongTypeError, path, f'expected a list of events {{time, uh, kind}}, got {type_name(raw)}')
+    events, lost = [], set()
+    for idx, entry in enumerate(raw):
+        ep = path + (idx,)
+        ctx.mapping(entry, ep, key_names(EVENT_KEYS, required=True), key_names(EVENT_KEYS, required=False),
+                    what='an event mapping {time, uh, kind}')
+        uh = ctx.uh_id(entry['uh'], ep + ('uh',), known)
+        time = read_key(ctx, key_named(EVENT_KEYS, 'time'), entry, ep, lo=0.0, hi=duration, lo_open=True,
+                        hi_open=True)
+        kind = read_key(ctx, key_named(EVENT_KEYS, 'kind'), entry, ep)
+        if uh in lost:
+            raise ctx.error(E.InvalidValueError, ep + ('uh',), f'UH {uh} is already lost by an earlier event; '
+                            'one lost event per UH')
+        lost.add(uh)
+        events.append(LossEvent(time=time, uh=uh, kind=kind, step=int(round(time / dt))))
+    return tuple(sorted(events, key=lambda e: (e.time, e.uh)))
+
+
+def read_resilience(ctx: ConfigContext, raw, adjacency, known: set, link_age: float) -> ResilienceSpec | None:
+    """Read ``resilience`` (None when absent); ``link_age``: the largest age a live link gives, s."""
+    if raw is None:
+        return None
+    path = ('resilience',)
+    ctx.mapping(raw, path, (), key_names(RESILIENCE_KEYS), what='a resilience mapping')
+    on_loss = read_key(ctx, key_named(RESILIENCE_KEYS, 'on_loss'), raw, path)
+    timeout = read_key(ctx, key_named(RESILIENCE_KEYS, 'lost_timeout'), raw, path)
+    if timeout <= link_age:
+        raise ctx.error(E.InvalidValueError, path + ('lost_timeout',), f'value {timeout!r} s is not beyond the '
+                        f'largest age the links give ({link_age:g} s: delay and jitter); allowed: > {link_age:g} s')
+    standby = _standby(ctx, raw.get('standby_edges', key_named(RESILIENCE_KEYS, 'standby_edges').default),
+                       path + ('standby_edges',), adjacency, known)
+    return ResilienceSpec(on_loss=on_loss, standby=standby, lost_timeout=timeout)
+
+
+def _standby(ctx: ConfigContext, raw, path, adjacency, known: set):
+    """Read ``standby_edges``: a rule of :data:`STANDBY_RULES` or a list ``{uh, hears}``."""
+    if isinstance(raw, str):
+        return ctx.string(raw, path, choices=STANDBY_RULES)
+    if not isinstance(raw, list):
+        raise ctx.error(E.WrongTypeError, path, f'expected {" or ".join(STANDBY_RULES)} or a list of {{uh, hears}}, '
+                        f'got {type_name(raw)}')
+    edges = []
+    for idx, entry in enumerate(raw):
+        ep = path + (idx,)
+        ctx.mapping(entry, ep, ('uh', 'hears'), (), what='a standby edge {uh, hears}')
+        i = ctx.uh_id(entry['uh'], ep + ('uh',), known)
+        j = entry['hears']
+        if not (type(j) is int and j == 0):
+            j = ctx.uh_id(j, ep + ('hears',), known, what='UH id (or 0, the virtual leader)')
+        if i == j:
+            raise ctx.error(E.InvalidValueError, ep + ('hears',), f'UH {i} cannot hear itself')
+        if adjacency[i, j] > 0.0:
+            raise ctx.error(E.InvalidValueError, ep, f'UH {i} already hears {j} (a declared edge); a standby edge '
+                            'is one the graph does not declare')
+        if (i, j) in edges:
+            raise ctx.error(E.InvalidValueError, ep, f'standby edge {i} hears {j} is listed twice')
+        edges.append((i, j))
+    return tuple(sorted(edges))
