@@ -37,7 +37,8 @@ def _state(store, k):
                                                                              nanosec=(k % 100) * 10_000_000),
                                       frame_id='world')
     return T['uh_msgs/msg/UHState'](header=header, uh_id=np.uint32(2), step=np.uint64(k), position=v(1.0 * k, 2.0, 3.0),
-                                    velocity=v(0.5, -0.5, 0.0), euler=v(0.0, 0.1, 0.2), body_rates=v(0.0, 0.0, 0.01))
+                                    velocity=v(0.5, -0.5, 0.0), euler=v(0.0, 0.1, 0.2), body_rates=v(0.0, 0.0, 0.01),
+                                    lost_uhs=np.array([3], dtype=np.uint32), lost_steps=np.array([k], dtype=np.uint64))
 
 
 def test_qos_yaml_matches_what_jazzy_writes():

@@ -7,15 +7,19 @@ import numpy as np
 import pytest
 from scenario_texts import paper_yaml
 
+from uh_controller_node.impairments import delivered_step
+from uh_controller_node.loss_tracker import LossTracker
 from uh_team.metrics import metrics_from_arrays
 from uh_team.reconfiguration import REFORMED_CONTAINMENT_M, REFORMED_FORMATION_M
 from uh_team.separation_metrics import separation_limits
 from uh_team.team_events import NEVER, loss_schedule
 from uh_team.team_simulation import SimulationError, run_team_simulation
 from uh_topology import errors as E
+from uh_topology.losses import loss_impairments
 from uh_topology.reform import bypass_standby_edges, declared_edges, reformed_team
 from uh_topology.scenario import parse_scenario
 from uh_topology.scenario_keys import STALE_TIMEOUT
+from uh_wire import wire
 from uh_wire.run_config import DEFAULT_STALE_TIMEOUT
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -131,10 +135,13 @@ def test_delayed_links_delay_the_agreement_by_their_delay_per_hop():
     assert delayed.agreed_at(2, [1, 3, 4, 5]) - EVENT_STEP <= 100
 
 
-def test_hold_declares_nothing_and_leaves_the_silent_neighbour_out_when_stale():
-    schedule = loss_schedule(lost(2, 'resilience: {on_loss: hold}\n'), 6000)
-    assert schedule.view(3, 5999)[1] == frozenset()
-    assert schedule.stale[(3, 2)] == EVENT_STEP - 1 + round(STALE_TIMEOUT / 0.01)
+def test_hold_merges_nothing_and_leaves_the_silent_neighbour_out_from_its_own_declaration():
+    scenario = lost(2, 'resilience: {on_loss: hold}\n')
+    schedule = loss_schedule(scenario, 6000)
+    lost_steps = scenario.resilience.lost_steps(scenario.dt)
+    assert schedule.view(3, 5999) == (frozenset({2}), frozenset())     # UH3 hears UH2: it leaves it out
+    assert schedule.known[(3, 2)] == EVENT_STEP - 1 + lost_steps
+    assert schedule.known[(1, 2)] == NEVER                             # nothing travels
 
 
 # -- the runs ------------------------------------------------------------------------------------------------------
@@ -170,7 +177,7 @@ def test_holding_after_a_loss_leaves_the_formation_broken_where_reforming_restor
     (event,) = metrics['reconfiguration']
     assert metrics['departures'] == {}
     assert event['reformed_at_s'] is None and event['holding'] == {
-        '3': 'no path from the virtual leader without the silent UHs [2]'}
+        '3': 'no path from the virtual leader without UH(s) [2]'}
     assert event['formation_error_last_10s_m'] > 1.0     # UH3 held back while the team flew on
 
 
@@ -183,15 +190,90 @@ def test_events_run_only_on_the_kernel_engine():
         run_team_simulation(lost(2), duration=0.1, engine='objects')
 
 
-def test_a_distributed_run_refuses_events_before_starting_anything(tmp_path):
+def test_a_realtime_run_refuses_events_before_starting_anything(tmp_path):
     (tmp_path / 'lost.yaml').write_text(paper_yaml('events:\n  - {time: 30.0, uh: 2, kind: lost}\n'))
     out = tmp_path / 'run'
     proc = subprocess.run([sys.executable, '-P', '-m', 'uh_bringup.run_formation', '--scenario',
-                           str(tmp_path / 'lost.yaml'), '--out', str(out)], capture_output=True, text=True,
-                          cwd=ROOT, timeout=120)
+                           str(tmp_path / 'lost.yaml'), '--clock', 'realtime', '--out', str(out)],
+                          capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert proc.returncode == 2, proc.stderr
-    assert proc.stderr.strip().count('\n') == 0 and 'flown in process only' in proc.stderr
+    assert proc.stderr.strip().count('\n') == 0 and 'in real time kill a node instead' in proc.stderr
     assert not out.exists()
+
+
+# -- the nodes: the tracker each controller runs, the lost set on the wire, a lockstep run ----------------------------
+@pytest.mark.parametrize('extra', [
+    '', 'impairments: {seed: 3, delay_steps: 3, jitter_steps: 2, loss: 0.1}\n',
+    'resilience: {on_loss: hold}\n', 'impairments: {seed: 1, delay_steps: 10, loss: 0.2}\n'])
+@pytest.mark.parametrize('uh', [1, 4])
+def test_the_trackers_of_the_nodes_learn_what_the_in_process_schedule_says(uh, extra):
+    """Pass the lost sets between LossTrackers as the states carry them, step by step, and compare."""
+    scenario = lost(uh, extra, time=1.0)
+    steps = 300
+    schedule = loss_schedule(scenario, steps)
+    links = loss_impairments(scenario)
+    spec = scenario.resilience
+    alive = [i for i in scenario.ids if i != uh]
+    receives = {i: sorted(j for (r, j) in links.delays if r == i) for i in alive}
+    trackers = {i: LossTracker(i, receives[i], spec.lost_steps(scenario.dt), spec.on_loss == 'reform')
+                for i in alive}
+    carried = {i: {0: {}} for i in scenario.ids}      # {sender: {sent step: the lost set its state carried}}
+    learnt = {}
+    for k in range(steps + 1):
+        for i in alive:
+            newest = {j: delivered_step(k, links.delays[(i, j)], links.jitters[(i, j)], links.losses[(i, j)],
+                                        links.drop_step(j, scenario.dt), links.seed, i, j) for j in receives[i]}
+            for j, s in newest.items():
+                trackers[i].heard(j, s, carried[j].get(s, {}))
+            trackers[i].update(k, newest)
+            for j in trackers[i].known:
+                learnt.setdefault((i, j), k)
+        for i in scenario.ids:      # the state sent at k + 1 carries what its UH knew after step k
+            carried[i][k + 1] = trackers[i].carried() if i in trackers else {}
+    expected = {(i, j): s for (i, j), s in schedule.known.items() if s <= steps}
+    assert learnt == expected
+    assert learnt, 'nobody learnt of the loss'
+
+
+def test_the_lost_set_travels_in_states_and_commands_and_a_malformed_one_is_refused():
+    state = wire.state_to_msg(3, 150, 1.5, np.zeros(12), {2: 149, 1: 160})
+    assert list(state.lost_uhs) == [1, 2] and wire.msg_lost(state) == {1: 160, 2: 149}
+    command = wire.command_to_msg(3, 150, 1.5, np.zeros(4), {2: 149})
+    assert wire.msg_lost(command) == {2: 149}
+    assert wire.msg_lost(wire.state_to_msg(3, 0, 0.0, np.zeros(12))) == {}
+    state.lost_steps = [1]
+    with pytest.raises(wire.WireError, match='one step per UH'):
+        wire.msg_lost(state)
+
+
+@pytest.mark.dds
+@pytest.mark.slow
+def test_a_lockstep_distributed_run_with_a_loss_equals_the_in_process_run(tmp_path):
+    """UH1, the only leader hearing the virtual leader, lost at 1 s on delayed, jittery, lossy links.
+
+    Its followers' nodes declare it lost from the age of its last state, the lost set travels in the
+    commands and states, UH4 is promoted to its slot and every node flies the re-formed team: the
+    bag's states and commands equal the in-process run to the bit (which fails if any node detects,
+    merges or re-forms one step off), and the states show the lost set spreading.
+    """
+    from rosbags.rosbag2 import Reader
+    from team_runs import assert_lockstep_run_equals_in_process
+
+    from uh_runtime.messages import typestore
+    text = paper_yaml('events:\n  - {time: 1.0, uh: 1, kind: lost}\n'
+                      'impairments: {seed: 3, delay_steps: 3, jitter_steps: 2, loss: 0.1}\n')
+    scenario = parse_scenario(text, source='lost.yaml')
+    out, reference = assert_lockstep_run_equals_in_process(tmp_path, scenario, text, duration=3.0)
+    schedule = reference.events
+    store, first = typestore(), {}
+    with Reader(out / 'bag') as reader:
+        states = [c for c in reader.connections if c.topic.startswith('/uh') and c.topic.endswith('/state')]
+        for conn, _, raw in reader.messages(connections=states):
+            msg = store.deserialize_cdr(raw, conn.msgtype)
+            if 1 in msg.lost_uhs:
+                first.setdefault(int(msg.uh_id), int(msg.step))
+    # a UH's state carries the set from the step after its controller knew
+    assert first == {i: schedule.known[(i, 1)] + 1 for i in (2, 3, 4, 5)}
 
 
 def test_never_is_beyond_any_run():

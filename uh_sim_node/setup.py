@@ -15,7 +15,7 @@ setup(
         ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
     ],
     package_data={package_name: ['config/*.yaml']},
-    install_requires=['numpy', 'numba', 'PyYAML', 'uh_runtime', 'uh_core', 'uh_wire'],
+    install_requires=['numpy', 'numba', 'PyYAML', 'uh_runtime', 'uh_core', 'uh_wire', 'uh_topology'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',

@@ -146,9 +146,9 @@ def check_run(args) -> tuple:
             duration_steps(args.duration, scenario.dt)
         except ValueError as exc:
             raise UsageError(f'--duration {exc}') from None
-    if scenario.events:
-        raise UsageError(f'--scenario {args.scenario}: its events (a lost helicopter) are flown in process only '
-                         '(uh-simulate, campaigns); in a distributed run kill a node instead (docs/resilience.md)')
+    if scenario.events and args.clock != 'lockstep':
+        raise UsageError(f'--scenario {args.scenario}: its events (a lost helicopter) fly in lockstep or in process; '
+                         'in real time kill a node instead (docs/resilience.md)')
     validate_team(scenario, args.case)
     for issue in scenario.separation_warnings:
         print(f'[run] warning: {issue.text()}: closer than the minimum separation (docs/safety.md)', file=sys.stderr)

@@ -469,6 +469,31 @@ class UHController:
             self._load_reference(reference.position, reference.velocity, reference.yaw)
         return self._run(k, nb_states, self._nb_weights[present], self._nb_offsets[present], a0, dt, ids)
 
+    def step_row(self, k: int, own_state, neighbour_states: dict, reference, dt: float, row, hold=None):
+        """One control step in a re-formed team (docs/resilience.md): the law on ``row``'s graph.
+
+        ``row`` is a :class:`uh_topology.losses.RowTeam`: the neighbours (any UHs, ascending), their
+        weights and offsets, the own offset and ``a_i0``; ``neighbour_states`` must hold a state of
+        each of them, ``reference`` is read when ``a_i0 > 0``. With ``hold`` (the pseudo virtual
+        leader of :func:`uh_topology.losses.hold_reference`, (7,)) the UH holds that point instead:
+        no neighbour, ``a_i0 = 1``, own offset zero. The same arrays the team kernel gives the row.
+        """
+        dt = _check_dt(dt)
+        if hold is not None:
+            self._load_states(own_state, {}, (), self._nb_states[:0])
+            self._reference[:] = hold
+            return self._run(k, self._nb_states[:0], self._nb_weights[:0], self._nb_offsets[:0], 1.0, dt, (),
+                             offset=np.zeros(3))
+        ids = tuple(row.neighbours)
+        nb_states = np.empty((len(ids), STATE_SIZE))
+        self._load_states(own_state, neighbour_states, ids, nb_states)
+        if row.leader_link > 0.0:
+            self._load_reference(reference.position, reference.velocity, reference.yaw)
+        weights = np.array(row.weights, dtype=float).reshape(len(ids))
+        offsets = np.array(row.neighbour_offsets, dtype=float).reshape(len(ids), 3)
+        return self._run(k, nb_states, weights, offsets, float(row.leader_link), dt, ids,
+                         offset=np.array(row.offset, dtype=float))
+
     # ------------------------------------------------------------------------------------------
     def _load_states(self, own_state, neighbour_states, ids, nb_states):
         """Copy the own state and the states of ``ids`` (in that order) into the kernel's buffers.
@@ -502,15 +527,16 @@ class UHController:
         ref[R_V:R_V + 3] = velocity
         ref[R_YAW] = yaw
 
-    def _run(self, k, nb_states, nb_weights, nb_offsets, leader_link, dt, ids):
-        """One kernel call on the loaded inputs; the command and the status record."""
+    def _run(self, k, nb_states, nb_weights, nb_offsets, leader_link, dt, ids, offset=None):
+        """One kernel call on the loaded inputs (own offset ``offset``, default the UH's); command and status."""
         if self._memory[M_FLAGS, FLAG_STARTED] == 0.0:
             # the run's time at this controller's first step: a controller that joins a running team
             # (restarted) after the learning phase starts with its fault observers on
             self._memory[M_FLAGS, FLAG_TIME] = k * dt
         u = np.empty(INPUT_SIZE)
         status = np.empty(STATUS_SIZE)
-        done = uh_control_step(self._params, self._own, nb_states, nb_weights, nb_offsets, self._offset,
+        done = uh_control_step(self._params, self._own, nb_states, nb_weights, nb_offsets,
+                               self._offset if offset is None else offset,
                                leader_link, self._reference, dt, self._weights_p, self._weights_w,
                                self._memory, u, status, self._safety, self._proximity)
         if done != STEP_DONE:

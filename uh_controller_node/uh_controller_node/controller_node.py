@@ -1,35 +1,27 @@
 """Controller node of one helicopter: ``controller`` in namespace ``/uhN``.
 
-It subscribes to its own ``state``, to ``/uhj/state`` of exactly the UHs j with a_ij != 0 (its
-neighbours in the scenario's graph, :mod:`uh_topology`), and to ``/reference`` only if a_i0 != 0,
-runs :class:`uh_controller_node.controller.UHController` and publishes ``command`` and ``status``.
-With the safety filter on it also subscribes to its own ``proximity`` (the filter's input, never the law's).
-Its parameters besides the run's are in :mod:`uh_controller_node.node_parameters`.
+It subscribes to its own ``state``, to ``/uhj/state`` of exactly the UHs j with a_ij != 0 (its neighbours in the
+scenario's graph, :mod:`uh_topology`), to ``/reference`` only if a_i0 != 0 and, with the safety filter on, to its own
+``proximity`` (the filter's input, never the law's); it runs :class:`uh_controller_node.controller.UHController` and
+publishes ``command`` and ``status``. Its parameters besides the run's: :mod:`uh_controller_node.node_parameters`.
 
-The node converts messages (:mod:`uh_wire.wire`) and publishes; which inputs each step is computed from is
-decided by :class:`uh_controller_node.input_sync.InputSynchroniser`, whose docstring gives the rules of
-both clock modes (docs/reliability.md section 2): in ``lockstep`` step k waits for every input of step k,
-so the run reproduces the in-process reference simulation exactly; in ``realtime`` each own state k starts
-step k, computed when the same step's inputs are in or after ``sync_wait`` wall seconds with the latest
-values. A one-shot timer is armed when the own state arrives and the step cannot be computed yet (an idle
-controller wakes for messages and a check every ``SLOW_POLL_S``). The short wait matters: mixing step-k and
-step-(k-1) neighbour data makes z1 jitter by v dt, which the filters' derivatives turn into chattering.
+Which inputs each step is computed from is decided by :class:`uh_controller_node.input_sync.InputSynchroniser`
+(docs/reliability.md section 2): in ``lockstep`` step k waits for every input of step k (the run equals the
+in-process one); in ``realtime`` own state k starts step k, computed when the step's inputs are in or after
+``sync_wait`` wall s with the latest values (a one-shot timer; an idle controller checks every ``SLOW_POLL_S``).
+The short wait matters: mixing step-k and step-(k-1) neighbour data makes z1 jitter by v dt (chattering).
 
-Impairments (docs/campaigns.md#impairments; in real time docs/runtime.md#impairments-in-real-time):
-the controller uses what :mod:`~uh_controller_node.realtime_received` makes of its inputs (delay,
-jitter, loss, dropout, noise, prediction; the functions of the in-process run) and publishes them as
-delivered on ``received``. Status and ``/diagnostics`` carry each neighbour's age (:class:`NeighbourAges`);
-in real time an age beyond the team's delay margin (docs/delay.md#delay-margin) makes the report WARN.
+Impairments (docs/campaigns.md#impairments, docs/runtime.md#impairments-in-real-time): the controller uses what
+:mod:`~uh_controller_node.realtime_received` makes of its inputs and publishes them as delivered on ``received``.
+Status and ``/diagnostics`` carry each neighbour's age (:class:`NeighbourAges`); in real time an age beyond the
+team's delay margin (docs/delay.md#delay-margin) makes the report WARN. With ``events`` in the scenario
+(docs/resilience.md) it also hears its standby neighbours and :class:`~uh_controller_node.loss_handling.NodeLosses`
+detects, agrees on and answers losses.
 
-Received messages carrying NaN/inf (or another UH's id) are rejected: the node logs the reason
-(at most once a second per input, with a count) and keeps its last valid input, which then ages
-like a silent neighbour. A stale input (realtime: more than ``stale_timeout`` simulated seconds
-behind, or never heard ``startup_grace`` wall seconds after the first own state) is listed in
-``ControllerStatus.stale_neighbours`` (``uhJ`` or ``reference``) and left out of the control law
-(:meth:`UHController.step_degraded`): the UH follows the remaining neighbours while they still give it a
-path from the virtual leader (Assumption 1, docs/graph.md; :meth:`UHController.reachable_without`) and
-holds its position and yaw otherwise; both transitions are logged, and the UH rejoins when the data comes
-back. A controller restarted in a running team joins at the current step, not replaying ``STEP_DEPTH`` steps.
+Received messages carrying NaN/inf (or another UH's id) are rejected (logged, counted); the last valid one is kept
+and ages. A stale input (realtime: ``stale_timeout`` simulated s behind, or unheard ``startup_grace`` wall s) is in
+``ControllerStatus.stale_neighbours``, left out of the law (:meth:`UHController.step_degraded`): the UH follows the
+others while they give it a path from the virtual leader, else holds. A restarted controller joins at once.
 """
 from __future__ import annotations
 
@@ -38,6 +30,7 @@ from uh_controller_node.controller import ControllerError, UHController, load_co
 from uh_controller_node.controller_diagnostics import ControllerDiagnostics, NeighbourAges
 from uh_controller_node.delay_margin import MarginWatch
 from uh_controller_node.input_sync import OWN, PROXIMITY, REFERENCE, InputSynchroniser
+from uh_controller_node.loss_handling import NodeLosses
 from uh_controller_node.node_parameters import GainParameters, declare_controller_parameters
 from uh_controller_node.proximity_input import ProximityInput
 from uh_controller_node.realtime_received import received_states_for
@@ -68,10 +61,13 @@ class ControllerNode(rt.Node):
         self.add_post_set_parameters_callback(self._apply_gains)
         # load the law's and the fault isolator's numba kernels now, before the endpoints exist and the clock can start
         load_controller_kernels()
-        neighbours = tuple(scenario.neighbours(self.uh_id))
-        linked = scenario.leader_link(self.uh_id) > 0
+        # with events (docs/resilience.md) it also hears its standby neighbours, and tracks and answers losses
+        self.losses = NodeLosses.of(self.controller, scenario, self.uh_id, self.dt, run.clock_mode)
+        neighbours, linked = (self.losses.neighbours, self.losses.linked) if self.losses else (
+            tuple(scenario.neighbours(self.uh_id)), scenario.leader_link(self.uh_id) > 0)
         # what this UH receives under the scenario's impairments (None without them)
-        self.received = received_states_for(self.uh_id, neighbours, scenario, self.dt, run.clock_mode)
+        self.received = self.losses.received if self.losses else received_states_for(
+            self.uh_id, neighbours, scenario, self.dt, run.clock_mode)
         self._arrive = getattr(self.received, 'arrive', None)   # realtime: every valid neighbour state is kept
         self.ages = NeighbourAges(neighbours, self.dt)
         sensed = self.controller.safety_enabled   # the safety filter's own input (docs/safety.md)
@@ -129,6 +125,8 @@ class ControllerNode(rt.Node):
     def _offer(self, key, msg, what: str, convert, *expected_id) -> None:
         try:
             value = convert(msg, *expected_id)
+            if self.losses is not None and key not in (OWN, REFERENCE, PROXIMITY):
+                self.losses.heard(key, int(msg.step), wire.msg_lost(msg))
         except wire.WireError as exc:
             self.sync.reject(what, exc)
             return
@@ -156,7 +154,9 @@ class ControllerNode(rt.Node):
             self.ages.add(k, neighbours, self.received, self.sync.lag)
             self.proximity.use(self.controller, inputs.proximity, k)
             try:
-                if inputs.stale:
+                if self.losses is not None:
+                    u, status = self.losses.step(k, inputs.own, own, neighbours, inputs.reference)
+                elif inputs.stale:
                     u, status = self.controller.step_degraded(k, own, neighbours, inputs.reference,
                                                               self.dt, hold=inputs.hold)
                 else:
@@ -166,7 +166,7 @@ class ControllerNode(rt.Node):
                 self.diagnostics.not_computed()
                 continue
             t, closest = k * self.dt, self.proximity.closest(own)
-            self.command_pub.publish(wire.command_to_msg(self.uh_id, k, t, u))
+            self.command_pub.publish(wire.command_to_msg(self.uh_id, k, t, u, self.losses and self.losses.carried()))
             self.status_pub.publish(wire.status_to_msg(self.uh_id, k, t, status, inputs.stale_labels,
                                                        self.ages.overall(), closest))
             self.published.add(self.command_topic, self.status_topic)

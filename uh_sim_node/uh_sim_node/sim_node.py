@@ -1,28 +1,26 @@
 """Simulator node of one helicopter: ``sim`` in namespace ``/uhN``.
 
-Integrates the helicopter model (:mod:`uh_sim_node.helicopter`) from the commands it receives,
-applies the scenario's fault schedule and faults injected at run time on ``fault``, and publishes
-``state`` and ``fault_truth`` (topic registry: :mod:`uh_wire.topics`).
+Integrates the helicopter model (:mod:`uh_sim_node.helicopter`) from the commands it receives, applies the
+scenario's fault schedule and faults injected at run time on ``fault``, and publishes ``state`` and ``fault_truth``
+(topic registry: :mod:`uh_wire.topics`). Clock modes (docs/architecture.md#clock-modes):
 
-Clock modes (docs/architecture.md#clock-modes):
+- ``lockstep``: state 0 is published on ``/clock`` 0; every command k is integrated at once to state k+1 (the step's
+  only input), with the fault truth of step k (state k, command k): the run equals the in-process one bit for bit.
+- ``realtime``: on each ``/clock`` tick k the plant is integrated up to t_k with the latest command (zero-order
+  hold, latest-value semantics) and state k is published.
 
-- ``lockstep``: state 0 is published on ``/clock`` 0; every command k is integrated at once to
-  state k+1 (the step's only input), and the fault truth of step k (state k, command k) is
-  published with it. Nothing depends on arrival times, so the run equals the in-process reference
-  simulation bit for bit.
-- ``realtime``: on each ``/clock`` tick k the plant is integrated up to t_k with the latest command
-  (zero-order hold, latest-value semantics) and state k is published.
+Until its first command arrives the plant holds the hover trim. A UH lost by the scenario's ``events``
+(docs/resilience.md) hovers from its event step on: velocity and body rates zero, no integration, zero fault
+truth; each state carries the lost set of the command before it (the controller's, sent on to the team).
 
-Until its first command arrives the plant holds the hover trim.
-
-Bad input never stops the plant: a command carrying NaN/inf or another UH's id is rejected (logged, at most once a
-second, with a count) and the last valid command is kept; in realtime a command older than the one held is ignored
-(reordered, or the history a restarted controller replays), and a command older than ``stale_timeout`` is reported
-once (the plant holds it, zero-order hold) until commands come again. A fault injection with rho outside [0, 1], a
-non-finite value, an unknown channel or another UH's id is rejected with the reason in the log and the plant keeps
-its faults; rho = 0 (stuck actuator) is accepted with a warning that the controller cannot compensate it.
+Bad input never stops the plant: a command carrying NaN/inf or another UH's id is rejected (logged, counted) and the
+last valid one kept; in realtime an older command than the one held is ignored, and one older than ``stale_timeout``
+is reported once. A fault injection with rho outside [0, 1], a non-finite value, an unknown channel or another UH's
+id is rejected (logged); rho = 0 (stuck actuator) is accepted with a warning that the controller cannot compensate it.
 """
 from __future__ import annotations
+
+import numpy as np
 
 import uh_runtime as rt
 from uh_core import compiled_kernels, diagnostics, frames
@@ -31,10 +29,11 @@ from uh_sim_node.command_watch import CommandWatch
 from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
+from uh_topology.losses import NEVER, freeze
 from uh_wire import run_config, topics
 from uh_wire.published import PublishedCounts
 from uh_wire.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg, view_publisher
-from uh_wire.wire import WireError, clock_step, fault_truth_to_msg, msg_to_command, state_to_msg
+from uh_wire.wire import WireError, clock_step, fault_truth_to_msg, msg_lost, msg_to_command, state_to_msg
 
 __all__ = ['SimNode', 'main']
 
@@ -48,12 +47,11 @@ class SimNode(rt.Node):
         self.uh_id, self.scenario, self.mode = run.uh_id, run.scenario, run.clock_mode
         self.dt, self.last_step = run.dt, run.last_step
         self.plant = plant_from_scenario(self.scenario, self.uh_id)
-        # load the model's numba kernels now (0.2 s from the cache, seconds if they must be compiled),
-        # before the endpoints exist and the clock can start: a realtime run would lose those steps
-        compile_plant_kernels()
+        compile_plant_kernels()   # now, before the clock can start: a realtime run would lose those steps
         self.command = hover_trim(self.plant.params)
-        self.step = 0                 # index of the state the plant holds
-        self.published_step = -1      # last state index published
+        self.step, self.published_step = 0, -1    # the state the plant holds, the last one published
+        self.lost_step = next((e.step for e in self.scenario.events if e.uh == self.uh_id), NEVER)
+        self.lost = {}                # the lost set the last command carried
         stale_timeout = run_config.declare_float_parameter(
             self, 'stale_timeout', run_config.DEFAULT_STALE_TIMEOUT, 60.0,
             'realtime: simulated seconds after which a held command is reported stale')
@@ -97,7 +95,7 @@ class SimNode(rt.Node):
     def on_command(self, msg) -> None:
         """Take a command (invalid: rejected, the last valid kept); lockstep: integrate to k+1 and publish."""
         try:
-            u = msg_to_command(msg, expected_id=self.uh_id)
+            u, lost = msg_to_command(msg, expected_id=self.uh_id), msg_lost(msg)
         except WireError as exc:
             self.watch.rejected += 1
             self.get_logger().error(f'rejected command: {exc}; keeping the last valid command '
@@ -106,7 +104,7 @@ class SimNode(rt.Node):
         k = int(msg.step)
         if self.mode != 'lockstep' and k < self.watch.command_step:
             return  # older than the command held: reordered, or replayed history after a controller restart
-        self.command = u
+        self.command, self.lost = u, lost
         self.watch.taken(k, self.step)
         if self.mode != 'lockstep':
             if k == self.last_step == self.step:  # the final step's truth, as in lockstep
@@ -146,13 +144,17 @@ class SimNode(rt.Node):
     def _integrate_one_step(self) -> None:
         self.watch.integrating(self.step)
         self._publish_truth(self.step)
-        t = self.step * self.dt
-        self.plant.step(self.command, t, self.dt)
+        if self.step < self.lost_step:
+            self.plant.step(self.command, self.step * self.dt, self.dt)
         self.step += 1
+        if self.step == self.lost_step:   # lost: it hovers where it is (uh_topology.losses.freeze)
+            x = self.plant.x
+            freeze(x)
+            self.plant.reset(x)
 
     def _publish_truth(self, k: int) -> None:
         t = k * self.dt
-        f_p, f_w = self.plant.lumped_faults(self.command, t)
+        f_p, f_w = self.plant.lumped_faults(self.command, t) if k < self.lost_step else (np.zeros(3), np.zeros(3))
         u_actual = self.plant.actual_inputs(self.command, t)
         self.truth_pub.publish(fault_truth_to_msg(self.uh_id, k, t, f_p, f_w, u_actual,
                                                   self.plant.fault_active(t), self.plant.stuck(t)))
@@ -160,7 +162,7 @@ class SimNode(rt.Node):
 
     def _publish_state(self) -> None:
         t = self.step * self.dt
-        self.state_pub.publish(state_to_msg(self.uh_id, self.step, t, self.plant.x))
+        self.state_pub.publish(state_to_msg(self.uh_id, self.step, t, self.plant.x, self.lost))
         self.published_step = self.step
         self.published.add(self.state_topic)
         if self.views.enabled:

@@ -2,41 +2,35 @@
 
 :func:`run_with_events` runs :func:`~uh_team.team_kernel.run_team_steps` from one change step of the
 :class:`~uh_team.team_events.LossSchedule` to the next; before each segment every row gets the team
-its UH flies then (:func:`~uh_team.team_events.row_team`): neighbours, weights, offsets, reference
+its UH flies then (:func:`~uh_topology.losses.row_team`): neighbours, weights, offsets, reference
 link, or a hold at the position it had when it began to hold; a lost UH's row is frozen from its event
-step. The links always go through the impaired path, so that a lost UH's last state is the last its
-neighbours receive (its sends stop at the event step, as a dropout's).
+step. The links always go through the impaired path with :func:`~uh_topology.losses.loss_impairments`,
+so that a lost UH's last state is the last its neighbours receive.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .team_events import (
-    NEVER,
-    drop_steps,
-    freeze,
-    hold_reference,
-    link_impairments,
-    loss_schedule,
-    predicting,
-    row_team,
-)
+from uh_topology.losses import NEVER, freeze, hold_reference, loss_impairments, predicting, row_team
+
+from .team_events import loss_schedule
 from .team_kernel import TEAM_DONE, TeamArrays, TeamImpairments, TeamRecord, run_team_steps
 
 __all__ = ['run_with_events']
 
 
-def _impairments(scenario, ids, base: TeamImpairments, max_nb: int, drops: dict) -> TeamImpairments:
-    """Give the links' arrays for ``max_nb`` neighbour slots (filled per segment), with the events' drop steps."""
-    n = len(ids)
-    predict, motion = predicting(scenario)
-    return TeamImpairments(True, int(base.seed), np.zeros((n, max_nb), dtype=np.int64), np.zeros((n, max_nb)),
-                           np.array([drops[i] for i in ids], dtype=np.int64), base.noise.copy(),
-                           np.zeros((n, max_nb), dtype=np.int64), predict, motion)
+def _links(scenario, ids, max_nb: int) -> tuple:
+    """Give the links' arrays for ``max_nb`` neighbour slots (filled per segment) and the links' spec."""
+    n, spec = len(ids), loss_impairments(scenario)
+    predict, motion = predicting(spec)
+    links = TeamImpairments(True, int(spec.seed), np.zeros((n, max_nb), dtype=np.int64), np.zeros((n, max_nb)),
+                            np.array([spec.drop_step(i, scenario.dt) for i in ids], dtype=np.int64),
+                            np.array(spec.noise, dtype=float), np.zeros((n, max_nb), dtype=np.int64), predict, motion)
+    return links, spec
 
 
-def _segment(scenario, ids, schedule, k0, arrays, links, holds, teams):
-    """Give ``(config, links)`` of the segment from step ``k0``: every row's team as its UH sees it then."""
+def _segment(scenario, ids, schedule, k0, arrays, links, spec, holds, teams):
+    """Give the team configuration of the segment from step ``k0``: every row's team as its UH sees it then."""
     col = {i: c for c, i in enumerate(ids)}
     cfg, x = arrays.config, arrays.state.x
     n, max_nb = cfg.hears.shape
@@ -55,8 +49,8 @@ def _segment(scenario, ids, schedule, k0, arrays, links, holds, teams):
         if row.hold_reason is not None:
             holding[c] = True
             if i not in holds:
-                holds[i] = (k0, row.hold_reason, hold_reference(x[c]))
-            hold[c] = holds[i][2]
+                holds[i] = hold_reference(x[c])
+            hold[c] = holds[i]
             leader_links[c] = 1.0
             continue
         holds.pop(i, None)
@@ -67,19 +61,18 @@ def _segment(scenario, ids, schedule, k0, arrays, links, holds, teams):
         nb_offsets[c, :m] = np.reshape(row.neighbour_offsets, (m, 3))
         offsets[c], leader_links[c] = row.offset, row.leader_link
         for slot, j in enumerate(row.neighbours):
-            links.delay[c, slot], links.jitter[c, slot], links.loss[c, slot] = link_impairments(scenario, i, j)
-    config = cfg._replace(hears=hears, count=count, nb_weights=weights, nb_offsets=nb_offsets, offsets=offsets,
-                          links=leader_links, frozen=frozen, holding=holding, hold=hold)
-    return config, links
+            links.delay[c, slot], links.jitter[c, slot] = spec.delays[(i, j)], spec.jitters[(i, j)]
+            links.loss[c, slot] = spec.losses[(i, j)]
+    return cfg._replace(hears=hears, count=count, nb_weights=weights, nb_offsets=nb_offsets, offsets=offsets,
+                        links=leader_links, frozen=frozen, holding=holding, hold=hold)
 
 
 def run_with_events(scenario, K: int, dt: float, ids, arrays: TeamArrays, references, out: dict, every: int,
-                    progress, on_failure) -> dict:
-    """Run steps ``0..K`` of a scenario with ``events`` (see the module docstring); give what happened.
+                    progress, on_failure):
+    """Run steps ``0..K`` of a scenario with ``events`` (see the module docstring); give its :class:`LossSchedule`.
 
     ``out`` holds the run's arrays (:func:`~uh_team.run_arrays.new_run_arrays`); ``on_failure(step)``
-    raises for a non-finite state. Returns ``{'schedule': LossSchedule, 'holds': {uh: (step, reason)}}``
-    (every hold begun during the run, with its first step and reason).
+    raises for a non-finite state.
     """
     n = len(ids)
     max_nb = max(n - 1, 1)
@@ -88,13 +81,11 @@ def run_with_events(scenario, K: int, dt: float, ids, arrays: TeamArrays, refere
     arrays = TeamArrays(cfg, arrays.impairments, arrays.state)
     schedule = loss_schedule(scenario, K)
     record = TeamRecord(**{name: out[name] for name in TeamRecord._fields})
-    links = _impairments(scenario, ids, arrays.impairments, max_nb, drop_steps(scenario))
+    links, spec = _links(scenario, ids, max_nb)
     bounds = sorted({0, K + 1} | {s for s in schedule.change_steps() if 0 < s <= K})
-    holds, began, teams = {}, {}, {}
+    holds, teams = {}, {}
     for k0, k1 in zip(bounds[:-1], bounds[1:], strict=True):
-        config, links = _segment(scenario, ids, schedule, k0, arrays, links, holds, teams)
-        for i, (step, reason, _) in holds.items():
-            began.setdefault(i, (step, reason))
+        config = _segment(scenario, ids, schedule, k0, arrays, links, spec, holds, teams)
         for a in range(k0, k1, every):
             b = min(k1, a + every)
             failed = run_team_steps(a, b, K, dt, references, config, links, arrays.state, record)
@@ -102,4 +93,4 @@ def run_with_events(scenario, K: int, dt: float, ids, arrays: TeamArrays, refere
                 on_failure(failed)
             if progress is not None:
                 progress(b - 1, K)
-    return {'schedule': schedule, 'holds': began, 'teams': teams}
+    return schedule

@@ -86,7 +86,7 @@ def reconfiguration(time: np.ndarray, positions: np.ndarray, reference_p0: np.nd
         return None
     dt, last = float(scenario.dt), len(time)
     schedule = loss_schedule(scenario, last - 1)
-    held = holds(scenario, schedule)
+    held = holds(scenario, schedule, last - 1)
     agreed = _agreed(schedule, scenario)
     out = []
     for n, (e, step, j, lost) in enumerate(agreed):

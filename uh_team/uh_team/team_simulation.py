@@ -86,9 +86,8 @@ class TeamRun:
         Wall-clock time of the stepping loop, s.
     stuck_uhs : tuple of int
         UHs with a stuck actuator (rho = 0) during the run: outside what the controller compensates.
-    events : dict or None
-        With the scenario's ``events``: ``schedule`` (:class:`~uh_team.team_events.LossSchedule`),
-        ``holds`` ({uh: (first step, reason)}) and ``teams`` (the reformed teams flown, by lost set).
+    events : LossSchedule or None
+        With the scenario's ``events``: when each UH learnt of each loss (:class:`~uh_team.team_events.LossSchedule`).
     """
 
     scenario_name: str
@@ -110,7 +109,7 @@ class TeamRun:
     errors: np.ndarray
     wall_time: float
     stuck_uhs: tuple = field(default_factory=tuple)
-    events: dict | None = None
+    events: object = None
 
     ARRAY_KEYS = ('time', 'states', 'commands', 'reference', 'fault_true_p', 'fault_true_w',
                   'fault_est_p', 'fault_est_w', 'u_p', 'z1', 'saturated', 'safety_active', 'errors')
@@ -130,11 +129,12 @@ class TeamRun:
 def _errors(states, reference, scenario, happened=None):
     """Compute the formation errors of the leaders, then the containment errors of the followers (K+1, n), m.
 
-    With ``happened`` (a run with events) against the team in force at each step, NaN for a UH outside it
+    With ``happened`` (a run with events: its :class:`~uh_team.team_events.LossSchedule`) against the team in
+    force at each step, NaN for a UH outside it
     (:func:`uh_team.reconfiguration.errors_in_force`).
     """
     if happened is not None:
-        return errors_in_force(states, reference[:, RUN_REF_POSITION], scenario, happened['schedule'])
+        return errors_in_force(states, reference[:, RUN_REF_POSITION], scenario, happened)
     n_lead = len(tuple(scenario.leaders))
     pos = states[:, :, X_P_SLICE]
     out = np.empty(states.shape[:2])

@@ -147,8 +147,13 @@ def team_topics(uh_ids, impaired: bool = False, safety: bool = False) -> list[tu
 
 
 def scenario_flags(scenario) -> dict:
-    """Return the keyword arguments of :func:`team_topics` for ``scenario``: ``{'impaired': ..., 'safety': ...}``."""
-    return {'impaired': scenario.impairments is not None, 'safety': bool(scenario.safety.enabled)}
+    """Return the keyword arguments of :func:`team_topics` for ``scenario``: ``{'impaired': ..., 'safety': ...}``.
+
+    A scenario with ``events`` counts as impaired: its controllers receive through the links' rule
+    (a lost UH dropped, docs/resilience.md) and publish what they used on ``received``.
+    """
+    impaired = scenario.impairments is not None or bool(getattr(scenario, 'events', ()))
+    return {'impaired': impaired, 'safety': bool(scenario.safety.enabled)}
 
 
 def run_topics(uh_ids, impaired: bool = False, views: bool = True,

@@ -19,7 +19,7 @@ __all__ = [
     'WireError', 'stamp', 'stamp_seconds', 'state_to_msg', 'msg_to_state', 'received_states_to_msg',
     'proximity_to_msg', 'msg_to_proximity',
     'command_to_msg', 'msg_to_command', 'reference_to_msg', 'msg_to_reference', 'fault_truth_to_msg',
-    'status_to_msg', 'vector3', 'clock_msg', 'clock_step',
+    'status_to_msg', 'vector3', 'clock_msg', 'clock_step', 'set_lost', 'msg_lost',
 ]
 
 FRAME_ID = 'world'
@@ -83,13 +83,35 @@ def _check_finite(values, what: str) -> None:
         raise WireError(f'{what} carries a non-finite value (NaN or inf): {np.ravel(values).tolist()}')
 
 
-def state_to_msg(uh_id: int, k: int, t: float, x: np.ndarray):
-    """``UHState`` of UH ``uh_id`` at step ``k`` (time ``t``) from state vector ``x`` (12,)."""
+def state_to_msg(uh_id: int, k: int, t: float, x: np.ndarray, lost=None):
+    """``UHState`` of UH ``uh_id`` at step ``k`` (time ``t``) from state vector ``x`` (12,).
+
+    ``lost``: ``{uh: step declared}``, the lost set it carries (docs/resilience.md); None or empty: none.
+    """
     v = _floats(x)
     vec = m.Vector3
-    return m.UHState(header=_header(t), uh_id=int(uh_id), step=int(k),
-                     position=vec(x=v[0], y=v[1], z=v[2]), velocity=vec(x=v[3], y=v[4], z=v[5]),
-                     euler=vec(x=v[6], y=v[7], z=v[8]), body_rates=vec(x=v[9], y=v[10], z=v[11]))
+    msg = m.UHState(header=_header(t), uh_id=int(uh_id), step=int(k),
+                    position=vec(x=v[0], y=v[1], z=v[2]), velocity=vec(x=v[3], y=v[4], z=v[5]),
+                    euler=vec(x=v[6], y=v[7], z=v[8]), body_rates=vec(x=v[9], y=v[10], z=v[11]))
+    if lost:
+        set_lost(msg, lost)
+    return msg
+
+
+def set_lost(msg, lost: dict) -> None:
+    """Write the lost set ``{uh: step declared}`` into a ``UHState`` or ``ActuatorCommand`` (ascending ids)."""
+    ids = sorted(lost)
+    msg.lost_uhs = [int(j) for j in ids]
+    msg.lost_steps = [int(lost[j]) for j in ids]
+
+
+def msg_lost(msg) -> dict:
+    """Give the lost set ``{uh: step declared}`` a ``UHState`` or ``ActuatorCommand`` carries; raise if malformed."""
+    ids, steps = list(msg.lost_uhs), list(msg.lost_steps)
+    if len(ids) != len(steps) or len(set(ids)) != len(ids):
+        raise WireError(f'uh{msg.uh_id} step {msg.step}: lost set {ids} with steps {steps}: one step per UH, each '
+                        'UH once')
+    return {int(j): int(s) for j, s in zip(ids, steps, strict=True)}
 
 
 def received_states_to_msg(uh_id: int, k: int, dt: float, own, neighbours: dict, sample_steps: dict):
@@ -146,11 +168,17 @@ def msg_to_state(msg, expected_id: int | None = None) -> np.ndarray:
     return np.array(values)
 
 
-def command_to_msg(uh_id: int, k: int, t: float, u: np.ndarray):
-    """``ActuatorCommand`` (theta_col, theta_tr, delta_lat, delta_lon) = ``u`` for step ``k``."""
+def command_to_msg(uh_id: int, k: int, t: float, u: np.ndarray, lost=None):
+    """``ActuatorCommand`` (theta_col, theta_tr, delta_lat, delta_lon) = ``u`` for step ``k``.
+
+    ``lost``: as in :func:`state_to_msg`.
+    """
     col, tr, lat, lon = _floats(u)
-    return m.ActuatorCommand(header=_header(t), uh_id=int(uh_id), step=int(k), theta_col=col, theta_tr=tr,
-                             delta_lat=lat, delta_lon=lon)
+    msg = m.ActuatorCommand(header=_header(t), uh_id=int(uh_id), step=int(k), theta_col=col, theta_tr=tr,
+                            delta_lat=lat, delta_lon=lon)
+    if lost:
+        set_lost(msg, lost)
+    return msg
 
 
 def msg_to_command(msg, expected_id: int | None = None) -> np.ndarray:

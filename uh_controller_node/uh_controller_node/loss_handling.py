@@ -1,0 +1,88 @@
+"""A controller node's part in a team that loses helicopters (docs/resilience.md), without ROS.
+
+:class:`NodeLosses` is built by the controller node when its scenario has ``events``. It says what
+the node subscribes to (its declared and standby neighbours, the reference if it has or may get a
+reference link), how its inputs are received (:func:`~uh_topology.losses.loss_impairments`: a lost
+UH dropped from its event step on), and runs each step:
+
+* a lost UH (from its event step on) repeats its last command with a zero status: its helicopter
+  hovers, its simulator ignores the command; its messages keep the lockstep clock and the recorder
+  going, and no other UH receives its state;
+* any other UH updates its :class:`~uh_controller_node.loss_tracker.LossTracker` with the newest
+  states it has, flies the row :func:`~uh_topology.losses.row_team` gives for what it knows
+  (:meth:`~uh_controller_node.controller.UHController.step_row`), or holds where it was when it began
+  to hold, and carries its lost set on its command (its simulator sends it on with the next state).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from uh_core.layout import STATUS_SIZE
+from uh_core.reference import VirtualLeaderReference
+from uh_topology.losses import NEVER, hold_reference, loss_impairments, row_team
+
+from .controller_status import status_record
+from .impairments import ReceivedStates
+from .loss_tracker import LossTracker
+from .realtime_received import RealtimeReceivedStates
+
+__all__ = ['NodeLosses']
+
+
+class NodeLosses:
+    """Loss detection, agreement and re-forming for the controller of UH ``uh_id`` (see the module docstring)."""
+
+    def __init__(self, controller, scenario, uh_id: int, dt: float, clock_mode: str):
+        self.controller, self.scenario, self.uh_id, self.dt = controller, scenario, int(uh_id), float(dt)
+        edges = scenario.receivable_edges()
+        self.neighbours = tuple(sorted(j for (i, j) in edges if i == self.uh_id and j != 0))
+        self.linked = (self.uh_id, 0) in edges
+        self.lost_step = next((e.step for e in scenario.events if e.uh == self.uh_id), NEVER)
+        spec = scenario.resilience
+        self.tracker = LossTracker(self.uh_id, self.neighbours, spec.lost_steps(self.dt), spec.on_loss == 'reform')
+        kind = ReceivedStates if clock_mode == 'lockstep' else RealtimeReceivedStates
+        self.received = kind(self.uh_id, self.neighbours, loss_impairments(scenario), self.dt,
+                             VirtualLeaderReference(scenario.reference))
+        self.teams, self.holding, self.last_command = {}, None, None
+        self.row = None
+
+    @classmethod
+    def of(cls, controller, scenario, uh_id: int, dt: float, clock_mode: str):
+        """Give the :class:`NodeLosses` of a scenario with events, None for one without."""
+        return cls(controller, scenario, uh_id, dt, clock_mode) if scenario.events else None
+
+    def heard(self, j: int, sent_step: int, lost: dict) -> None:
+        """Keep the lost set a state of UH ``j`` carried (:meth:`LossTracker.heard`)."""
+        self.tracker.heard(j, sent_step, lost)
+
+    def step(self, k: int, own_raw, own, neighbours: dict, reference):
+        """Run step ``k`` on the received inputs; give ``(u, status)`` (``own_raw``: the own state as sent)."""
+        if k >= self.lost_step and self.last_command is not None:   # lost: the last command, a zero status
+            status = status_record(self.uh_id, k, k * self.dt, np.zeros(STATUS_SIZE))
+            status.isolation = self.controller.isolator.status()
+            return self.last_command, status
+        self.tracker.update(k, self.received.sample_steps)
+        row = row_team(self.scenario, self.uh_id, *self.tracker.view(), self.teams)
+        if row.hold_reason is None:
+            self.holding = None
+            u, status = self.controller.step_row(k, own, neighbours, reference, self.dt, row)
+        else:
+            if self.holding is None:
+                self.holding = hold_reference(np.asarray(own_raw, dtype=float))
+            u, status = self.controller.step_row(k, own, neighbours, reference, self.dt, row, hold=self.holding)
+        self.row, self.last_command = row, u
+        return u, status
+
+    def carried(self) -> dict:
+        """Give the lost set to send on with the command (``{uh: step declared}``)."""
+        return self.tracker.carried()
+
+    def role(self) -> str:
+        """Give this UH's role now: ``lost``, ``holding (why)``, ``leader`` or ``follower`` of the team it flies."""
+        if self.row is None:
+            return 'starting'
+        if self.row.hold_reason is not None:
+            return f'holding ({self.row.hold_reason})'
+        lost = self.tracker.view()[1]
+        team = self.teams.get(frozenset(lost))
+        return 'leader' if team is not None and self.uh_id in team.leaders else 'follower'
