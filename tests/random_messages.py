@@ -27,7 +27,7 @@ def random_value(rng, base: str):
 
 
 def random_message(rng, store, typename: str, strings: bool):
-    """Return a message of ``typename`` with random numbers (and random strings and sequence lengths if ``strings``)."""
+    """Return a message of ``typename`` with random numbers (and random strings and sequences if ``strings``)."""
     kwargs = {}
     for name, (nodetype, desc) in store.fielddefs[typename][1]:
         if nodetype == Nodetype.NAME:
@@ -42,6 +42,8 @@ def random_message(rng, store, typename: str, strings: bool):
                 kwargs[name] = [random_message(rng, store, element, strings) for _ in range(length)]
                 continue
             base = element[0]
-            values = [random_value(rng, base) if base != 'string' or strings else 'uh2' for _ in range(length)]
+            # without ``strings`` a numeric sequence is fixed too: its elements are layout bytes (uh_report.cdr_columns)
+            fixed = 'uh2' if base == 'string' else (0 if nodetype == Nodetype.SEQUENCE else None)
+            values = [random_value(rng, base) if strings or fixed is None else fixed for _ in range(length)]
             kwargs[name] = values if base == 'string' else np.array(values, dtype=NUMPY_TYPES[base])
     return store.types[typename](**kwargs)

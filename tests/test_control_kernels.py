@@ -205,8 +205,10 @@ def test_status_record_has_the_documented_types(paper):
             assert type(value) is int
         elif name in FLAGS:
             assert type(value) is bool, name
-        elif name == 'stale_neighbours':
+        elif name in ('stale_neighbours', 'lost_uhs'):   # filled by the node (docs/resilience.md)
             assert value == ()
+        elif name == 'role':
+            assert value == ''
         elif name == 'isolation':   # the fault isolator's per-channel tuples (4 entries each)
             assert isinstance(value, IsolationStatus) and all(len(v) == 4 for v in value), value
             assert value.isolated == (False,) * 4           # step 3: within the learning phase

@@ -208,7 +208,8 @@ def test_team_kernel_cache_is_emptied_when_the_kernels_it_calls_change():
 
     numba checks a cached kernel against its own file only; the team kernel's cache index is emptied when the law's
     kernel modules (control_kernels.py, loop_kernels.py, learning_kernels.py), control_layout.py, gains.py,
-    plant_kernels.py, faults.py, impairments.py, safety_kernels.py or uh_core/layout.py no longer match its digest.
+    plant_kernels.py, faults.py, impairments.py, safety_kernels.py, uh_topology/losses.py (the failsafe) or
+    uh_core/layout.py no longer match its digest.
     """
     from pathlib import Path
 
@@ -216,7 +217,7 @@ def test_team_kernel_cache_is_emptied_when_the_kernels_it_calls_change():
 
     assert sorted(p.name for p in team_kernel._DEPENDENCIES) == [
         'control_kernels.py', 'control_layout.py', 'faults.py', 'gains.py', 'impairments.py', 'layout.py',
-        'learning_kernels.py', 'loop_kernels.py', 'plant_kernels.py', 'safety_kernels.py']
+        'learning_kernels.py', 'loop_kernels.py', 'losses.py', 'plant_kernels.py', 'safety_kernels.py']
     marker = Path(team_kernel.run_team_steps._cache.cache_path) / 'team_kernel.dependencies.sha256'
     team_kernel.refresh_cache()
     assert marker.is_file() and not team_kernel.refresh_cache()   # up to date: left alone

@@ -53,6 +53,12 @@ STORE_COLUMNS = {
     'separation_violation_s': 'time some pair is closer than the minimum separation, s',
     'rotor_overlap_s': 'time some pair is closer than two rotor radii (rotor disks overlap), s',
     'safety_active_s': 'time the safety filter of some UH changed its u_p, s',
+    # docs/campaigns.md#losing-a-helicopter: a run's losses, from metrics.json's reconfiguration
+    'reform_time_s': 'largest time from a loss to the team re-formed, s (none if one was not)',
+    'agree_time_s': 'largest time from a loss to every surviving UH knowing of it, s (none if one was not)',
+    'loss_formation_last_10s_m': "largest leader error over a loss's last 10 s, against the team then in force, m",
+    'loss_containment_last_10s_m': "largest follower error over a loss's last 10 s, against the team then in force, m",
+    'loss_min_separation_m': 'smallest hub-to-hub distance from a loss to re-forming (or the end), m',
 }
 REPORT_ROWS = [
     ('case', 'controller case', '', None),
@@ -170,6 +176,25 @@ def test_the_store_row_is_read_from_metrics_json():
     assert row['false_isolations'] is None and row['missed_isolations'] is None   # no isolation without a scenario
     empty = campaign_store.metric_row({})
     assert set(empty.values()) == {None}
+
+
+def test_the_loss_columns_are_read_from_reconfiguration():
+    """Over a run's losses: the largest times and errors, the closest approach; none when a loss has none."""
+    first = {'time_s': 20.0, 'agreed_at_s': 20.5, 'reformed_at_s': 24.71, 'formation_error_last_10s_m': 0.01,
+             'containment_error_last_10s_m': 0.002, 'min_separation_m': 1.9}
+    second = {'time_s': 40.0, 'agreed_at_s': 40.6, 'reformed_at_s': 47.5, 'formation_error_last_10s_m': 0.03,
+              'containment_error_last_10s_m': 0.001, 'min_separation_m': 1.8}
+    row = campaign_store.metric_row({'reconfiguration': [first, second]})
+    assert (row['reform_time_s'], row['agree_time_s']) == (7.5, 0.6)
+    assert (row['loss_formation_last_10s_m'], row['loss_containment_last_10s_m']) == (0.03, 0.002)
+    assert row['loss_min_separation_m'] == 1.8
+    held = campaign_store.metric_row({'reconfiguration': [first, {**second, 'reformed_at_s': None,
+                                                                  'agreed_at_s': None}]})
+    assert (held['reform_time_s'], held['agree_time_s'], held['loss_formation_last_10s_m']) == (None, None, 0.03)
+    without = campaign_store.metric_row({'reconfiguration': None, 'formation_rms_m': 0.01})
+    losses = ('reform_time_s', 'agree_time_s', 'loss_formation_last_10s_m', 'loss_containment_last_10s_m',
+              'loss_min_separation_m')
+    assert [without[m] for m in losses] == [None] * 5 and without['formation_rms_m'] == 0.01
 
 
 #: One more metric, as a developer adds it: its computation and its declaration, at the end of the registry.

@@ -41,9 +41,9 @@ def test_the_record_s_fields_are_the_status_fields():
     fields = dataclasses.fields(ControllerStatusData)
     names = [f.name for f in fields]
     assert names == ['uh_id', 'step', 'stamp', *(f.name for f in layout.STATUS_FIELDS), 'stale_neighbours',
-                     'isolation']
+                     'isolation', 'lost_uhs', 'role']
     kinds = {layout.STATUS_VECTOR3: np.ndarray, layout.STATUS_FLOAT: float, layout.STATUS_FLAG: bool}
-    assert [f.type for f in fields[3:-2]] == [kinds[f.kind] for f in layout.STATUS_FIELDS]
+    assert [f.type for f in fields[3:-4]] == [kinds[f.kind] for f in layout.STATUS_FIELDS]
     assert all(f'{f.name} : ' in ControllerStatusData.__doc__ for f in layout.STATUS_FIELDS)
 
 

@@ -155,11 +155,16 @@ def test_each_single_loss_of_the_paper_team_reforms_within_the_goals(uh, paper_r
     scenario = lost(uh)
     run = run_team_simulation(scenario)
     c = list(scenario.ids).index(uh)
-    # nothing differs before the event ...
-    assert np.array_equal(run.states[:EVENT_STEP], paper_run.states[:EVENT_STEP])
-    # ... then the lost UH hovers where it was
-    assert np.all(run.states[EVENT_STEP:, c, :3] == run.states[EVENT_STEP, c, :3])
-    assert np.all(run.states[EVENT_STEP:, c, 3:6] == 0.0)
+    # nothing differs up to the event ...
+    assert np.array_equal(run.states[:EVENT_STEP + 1], paper_run.states[:EVENT_STEP + 1])
+    # ... then the lost UH brakes at brake_accel along its velocity (its failsafe) and hovers where it stops
+    speed = np.linalg.norm(run.states[EVENT_STEP:, c, 3:6], axis=1)
+    steps = np.arange(len(speed))
+    brake = scenario.safety.brake_accel * scenario.dt
+    assert np.allclose(speed, np.maximum(speed[0] - brake * steps, 0.0), atol=1e-9)   # rounding only
+    rest = EVENT_STEP + int(np.ceil(speed[0] / brake))
+    assert np.all(run.states[rest:, c, :6] == run.states[-1, c, :6]) and np.all(run.states[rest:, c, 3:6] == 0.0)
+    assert np.all(run.states[EVENT_STEP + 1:, c, 9:12] == 0.0)      # no body rates
     metrics = metrics_from_arrays(run.arrays(), scenario, 'proposed')
     assert metrics['departures'] == {'on_loss': 'reform'}
     (event,) = metrics['reconfiguration']
@@ -274,6 +279,78 @@ def test_a_lockstep_distributed_run_with_a_loss_equals_the_in_process_run(tmp_pa
                 first.setdefault(int(msg.uh_id), int(msg.step))
     # a UH's state carries the set from the step after its controller knew
     assert first == {i: schedule.known[(i, 1)] + 1 for i in (2, 3, 4, 5)}
+    # the controllers' status says the lost set and each UH's role at the end: UH4 promoted to leader
+    roles = {}
+    with Reader(out / 'bag') as reader:
+        statuses = [c for c in reader.connections if c.topic.startswith('/uh') and c.topic.endswith('/status')]
+        for conn, _, raw in reader.messages(connections=statuses):
+            msg = store.deserialize_cdr(raw, conn.msgtype)
+            roles[int(msg.uh_id)] = (msg.role, [int(j) for j in msg.lost_uhs])
+    assert roles == {1: ('lost', []), 2: ('leader', [1]), 3: ('leader', [1]), 4: ('leader', [1]),
+                     5: ('follower', [1])}
+
+
+def test_diagnostics_say_the_lost_set_and_the_role():
+    from uh_core.diagnostics import ControllerWindow, controller_diagnostic
+    report = controller_diagnostic(4, ControllerWindow(lost_uhs=(1,), role='leader'))
+    assert report.values['role'] == 'leader' and report.values['lost UHs'] == 'uh1'
+    assert report.message == 'team lost uh1; flying as leader'
+    held = controller_diagnostic(3, ControllerWindow(lost_uhs=(2,), role='holding (no path)'))
+    assert held.message.startswith('holding (no path)') and held.level > report.level
+    assert 'role' not in controller_diagnostic(3, ControllerWindow()).values
+
+
+@pytest.mark.dds
+@pytest.mark.slow
+def test_a_realtime_team_whose_simulator_is_killed_declares_agrees_and_reforms(tmp_path):
+    """SIGKILL UH2's simulator at 6 s of a realtime run of the paper team with ``resilience`` (no events).
+
+    Its neighbours declare it lost from the age of its last state, the lost set reaches every UH,
+    UH4 takes slot 2 and the team re-forms; metrics.json's reconfiguration says when, from the bag.
+    """
+    import json
+    import os
+    import signal
+    import time
+
+    from team_runs import kill_session, start_run
+
+    from uh_report.bag_metrics import read_team_bag
+    from uh_runtime.network import reserve_domain_id
+    from uh_team.reconfiguration import team_errors
+    text = paper_yaml('resilience: {}\n')
+    (tmp_path / 'team.yaml').write_text(text)
+    scenario = parse_scenario(text, source='team.yaml')
+    out = tmp_path / 'run'
+    proc = start_run(out, reserve_domain_id(), '--clock', 'realtime', '--rate', '2', '--duration', '20',
+                     '--scenario', str(tmp_path / 'team.yaml'), '--no-visualization', '--no-report')
+    try:
+        deadline, log = time.monotonic() + 120, out / 'logs' / 'clock.log'
+        while not (log.exists() and 'step 600/' in log.read_text()):
+            assert time.monotonic() < deadline and proc.poll() is None, 'step 600 not reached'
+            time.sleep(0.05)
+        os.kill(json.loads((out / 'run.json').read_text())['pids']['uh2_sim'], signal.SIGKILL)
+        output, _ = proc.communicate(timeout=300)
+    finally:
+        kill_session(proc)
+    assert proc.returncode == 3, output        # completed, with a node failure
+    bag = read_team_bag(out / 'bag', scenario)
+    last_uh2 = int(np.flatnonzero(~np.isnan(bag['states'][:, 1, 0]))[-1])
+    lost_steps = scenario.resilience.lost_steps(scenario.dt)
+    known = bag['losses']['known']
+    assert set(known) == {(1, 2), (3, 2), (4, 2), (5, 2)}
+    # declared from the age of the last state: not before lost_steps after it, and every UH knows within 1 s
+    # (the bag's last UH2 state may be a step older than a controller's, and a loaded realtime controller
+    # may skip a step or two: 3 steps of slack)
+    assert all(last_uh2 + lost_steps - 3 <= step <= last_uh2 + 100 for step in known.values()), (last_uh2, known)
+    metrics = json.loads((out / 'metrics.json').read_text())
+    (event,) = metrics['reconfiguration']
+    assert event['uh'] == 2 and event['promoted'] == {'2': 4} and event['agreed_at_s'] - event['time_s'] <= 1.0
+    assert event['reformed_at_s'] is not None and event['reformed_at_s'] - event['time_s'] <= 10.0
+    # the re-formed team's errors over the last 2 s: under the thresholds with room for a realtime run's jitter
+    errors = team_errors(bag['states'][:, :, :3], bag['reference'][:, :3], scenario.reformed({2}), scenario.ids)
+    assert np.nanmax(errors[-200:, [0, 2, 3]]) < 0.05 and np.nanmax(errors[-200:, 4]) < 0.02
+    assert metrics['rotor_overlap_s'] == 0.0
 
 
 def test_never_is_beyond_any_run():

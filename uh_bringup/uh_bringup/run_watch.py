@@ -105,6 +105,11 @@ class RunWatcher:
         if kind == 'visualization':
             return 'continue', 'the visualisation is not needed by the team; the run goes on without markers'
         uh = int(node.name[2:].split('_')[0])
+        if kind == 'sim' and self.scenario.resilience is not None:
+            spec = self.scenario.resilience
+            return 'continue', (f'UH{uh} is lost; the UHs that hear it declare it lost after {spec.lost_timeout:g} s '
+                                f'and the team {"re-forms" if spec.on_loss == "reform" else "holds"} '
+                                '(docs/resilience.md); the run goes on')
         if kind == 'sim':
             hearers = ', '.join(f'uh{i}' for i in neighbours_of(self.scenario, uh)) or 'no UH'
             return 'continue', (f'UH{uh} is lost; {hearers} hear it and report it stale after '

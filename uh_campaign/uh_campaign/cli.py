@@ -51,7 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('spec', metavar='SPEC',
                    help='campaign spec YAML file, or the name of a bundled spec (campaign_paper_faults, '
                         'campaign_delay_sweep, campaign_delay_sweep_none, campaign_delay_sweep_jitter, '
-                        'campaign_random_graphs)')
+                        'campaign_random_graphs, campaign_losses, campaign_losses_hold, ...)')
     p.add_argument('--out', required=True, type=directory_argument, metavar='DIR',
                    help='campaign directory: new or empty, or holding this same campaign (then it resumes)')
     p.add_argument('--runs', type=int, metavar='N',

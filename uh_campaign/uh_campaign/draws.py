@@ -14,10 +14,13 @@ from uh_core.layout import CHANNEL_NAMES
 from uh_topology import errors as E
 from uh_topology.schema import type_name, unit_suffix
 
-__all__ = ['FaultDraws', 'Draws', 'GeneratorSpec', 'GENERATOR_WEIGHTS', 'read_range', 'read_generator', 'read_draws']
+__all__ = ['FaultDraws', 'LossDraws', 'Draws', 'GeneratorSpec', 'GENERATOR_WEIGHTS', 'read_range', 'read_generator',
+           'read_draws', 'loss_step_range']
 
 _DRAW_KEYS = ('position_spread', 'min_initial_separation', 'attitude_spread', 'yaw_spread', 'model_mismatch',
-              'disturbance_amplitude', 'faults')
+              'disturbance_amplitude', 'faults', 'losses')
+_LOSS_REQUIRED = ('time',)
+_LOSS_OPTIONAL = ('uhs',)
 _FAULT_KEYS = ('faulted_uhs', 'candidates', 'channels', 'channels_per_uh', 'rho', 'bias_constant',
                'bias_amplitude', 'bias_frequency', 'onset_time')
 _GENERATOR_REQUIRED = ('leaders', 'followers')
@@ -47,6 +50,18 @@ class FaultDraws:
 
 
 @dataclass(frozen=True)
+class LossDraws:
+    """The drawn loss of ``draws.losses`` (the module docstring of :mod:`uh_campaign.spec`).
+
+    Every draw loses one UH of ``uhs`` (None: every UH) at a time drawn uniformly in ``time`` (s),
+    rounded to a control step.
+    """
+
+    time: tuple                          # s, (low, high) within (0, duration)
+    uhs: tuple | None = None
+
+
+@dataclass(frozen=True)
 class Draws:
     """The random draws of a campaign (the module docstring of :mod:`uh_campaign.spec`).
 
@@ -60,6 +75,7 @@ class Draws:
     model_mismatch: tuple | None = None
     disturbance_amplitude: tuple | None = None   # N
     faults: FaultDraws | None = None
+    losses: LossDraws | None = None
 
 
 @dataclass(frozen=True)
@@ -129,15 +145,17 @@ def read_generator(ctx, raw) -> GeneratorSpec:
                          follower_edge_probability=p_follower, attempts=attempts, weights=weights)
 
 
-def read_draws(ctx, raw, n_uhs: int) -> Draws:
+def read_draws(ctx, raw, n_uhs: int, *, duration: float, dt: float) -> Draws:
     """Read the ``draws`` mapping of a spec with ``ctx`` for a team of ``n_uhs`` UHs.
 
-    Spreads in m and rad, the disturbance amplitude in N; an absent key draws nothing. Raise the
-    configuration errors of ``ctx`` for a bad key or value.
+    Spreads in m and rad, the disturbance amplitude in N; an absent key draws nothing. ``duration``
+    and ``dt`` (s) are the runs': a drawn loss happens within (0, duration) on a control step. Raise
+    the configuration errors of ``ctx`` for a bad key or value.
     """
     path = ('draws',)
     ctx.mapping(raw, path, (), _DRAW_KEYS, what='a draws mapping')
     faults = _fault_draws(ctx, raw['faults'], n_uhs) if raw.get('faults') is not None else None
+    losses = _loss_draws(ctx, raw['losses'], n_uhs, duration, dt) if raw.get('losses') is not None else None
     return Draws(
         position_spread=ctx.number(raw.get('position_spread', 0.0), path + ('position_spread',), lo=0.0, unit='m'),
         min_initial_separation=ctx.number(raw.get('min_initial_separation', 0.0), path + ('min_initial_separation',),
@@ -150,7 +168,44 @@ def read_draws(ctx, raw, n_uhs: int) -> Draws:
         disturbance_amplitude=(read_range(ctx, raw['disturbance_amplitude'], path + ('disturbance_amplitude',),
                                       lo=0.0, unit='N')
                                if raw.get('disturbance_amplitude') is not None else None),
-        faults=faults)
+        faults=faults, losses=losses)
+
+
+def loss_step_range(time: tuple, duration: float, dt: float) -> tuple:
+    """Give the control steps ``(first, last)`` a loss drawn in ``time`` (s) may fall on.
+
+    The steps within the range (a bound within 1e-9 of a step counts as on it) and within the run,
+    after step 0 and before the last; ``first > last`` when there is none.
+    """
+    steps = int(round(duration / dt))
+    first = max(1, math.ceil(time[0] / dt - 1e-9))
+    last = min(steps - 1, math.floor(time[1] / dt + 1e-9))
+    return first, last
+
+
+def _loss_draws(ctx, raw, n_uhs: int, duration: float, dt: float) -> LossDraws:
+    """Read ``draws.losses``: ``time``, a range within (0, duration) holding a control step; ``uhs``, UH ids."""
+    path = ('draws', 'losses')
+    ctx.mapping(raw, path, _LOSS_REQUIRED, _LOSS_OPTIONAL, what='a losses mapping {uhs, time}')
+    time = read_range(ctx, raw['time'], path + ('time',), lo=0.0, hi=duration, lo_open=True, hi_open=True, unit='s')
+    first, last = loss_step_range(time, duration, dt)
+    if first > last:
+        raise ctx.error(E.InvalidValueError, path + ('time',), f'no control step (dt {dt:g} s) in [{time[0]:g}, '
+                        f'{time[1]:g}] s within the run; allowed: a range holding a multiple of {dt:g} s in '
+                        f'(0, {duration:g}) s')
+    uhs = None
+    if 'uhs' in raw:
+        given = raw['uhs']
+        if not isinstance(given, list) or not given:
+            raise ctx.error(E.WrongTypeError, path + ('uhs',),
+                            f'expected a non-empty list of UH ids, got {type_name(given)} {given!r}')
+        known = set(range(1, n_uhs + 1))
+        for i, uh in enumerate(given):
+            ctx.uh_id(uh, path + ('uhs', i), known)
+            if uh in given[:i]:
+                raise ctx.error(E.InvalidValueError, path + ('uhs', i), f'UH {uh} is listed twice')
+        uhs = tuple(given)
+    return LossDraws(time=time, uhs=uhs)
 
 
 def _fault_draws(ctx, raw, n_uhs: int) -> FaultDraws:

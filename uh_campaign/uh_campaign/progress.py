@@ -130,8 +130,20 @@ def summary_lines(directory, spec: CampaignSpec) -> list:
             bad = n - int(ok.sum())
             lines.append(f'{"  " if sweep else ""}{case:9s} {wins}/{n} succeeded ({rate}), '
                          f'median formation RMS {median("formation_rms_m")}, containment RMS '
-                         f'{median("containment_rms_m")}' + (f', {bad} not ok' if bad else ''))
+                         f'{median("containment_rms_m")}' + (f', {bad} not ok' if bad else '')
+                         + (_losses_text(runs, ok) if spec.draws.losses is not None else ''))
     return lines
+
+
+def _losses_text(runs: dict, ok) -> str:
+    """Say how the ``ok`` runs of a campaign with drawn losses came through them: re-formed, worst times, closest."""
+    reform, closest = runs['reform_time_s'][ok], runs['loss_min_separation_m'][ok]
+    reformed = reform[np.isfinite(reform)]
+    text = f'; re-formed {reformed.size}/{reform.size}'
+    if reformed.size:
+        text += f' (largest {np.max(reformed):.2f} s after the loss)'
+    closest = closest[np.isfinite(closest)]
+    return text + (f', closest approach after a loss {np.min(closest):.3f} m' if closest.size else '')
 
 
 def success_text(spec: CampaignSpec) -> str:

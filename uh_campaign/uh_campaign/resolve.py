@@ -24,7 +24,7 @@ from uh_topology.generate import GenerateError, team_mapping
 from uh_topology.scenario import scenario_from_mapping
 from uh_topology.schema import format_key_path, parse_yaml, read_text_file
 
-from .draws import Draws, FaultDraws
+from .draws import Draws, FaultDraws, LossDraws, loss_step_range
 
 #: Draws of the initial positions tried for ``draws.min_initial_separation`` before the draw is refused.
 POSITION_ATTEMPTS = 1000
@@ -35,7 +35,7 @@ __all__ = ['draw_generators', 'scenario_file_name', 'resolve_scenario', 'scenari
 # The independent random streams of a draw, in spawn order (adding a stream at the end keeps the
 # others' numbers): each kind of draw has its own, so e.g. a wider position spread leaves the
 # drawn faults unchanged.
-_STREAMS = ('graph', 'position', 'attitude', 'model_mismatch', 'disturbance', 'faults', 'impairments')
+_STREAMS = ('graph', 'position', 'attitude', 'model_mismatch', 'disturbance', 'faults', 'impairments', 'losses')
 
 
 _TOKEN = re.compile(r'([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]')
@@ -90,6 +90,8 @@ def resolve_scenario(spec, draw: int, sweep_index: int = 0) -> dict:
     _apply_draws(data, spec.draws, rng)
     if spec.impairments is not None:
         data['impairments'] = copy.deepcopy(spec.impairments)
+    if spec.resilience is not None:
+        data['resilience'] = copy.deepcopy(spec.resilience)
     if sweep:
         _set_path(data, spec.sweep.path, spec.sweep.values[sweep_index])
     if isinstance(data.get('impairments'), dict):
@@ -139,6 +141,8 @@ def _apply_draws(data: dict, draws: Draws, rng: dict) -> None:
         dist['amplitude'] = [float(v) for v in rng['disturbance'].uniform(*draws.disturbance_amplitude, size=3)]
     if draws.faults is not None:
         data['faults'] = _draw_faults(draws.faults, [int(uh['id']) for uh in uhs], rng['faults'])
+    if draws.losses is not None:
+        data['events'] = [_draw_loss(draws.losses, [int(uh['id']) for uh in uhs], data, rng['losses'])]
 
 
 def _position_draw(data: dict, draws: Draws, rng) -> np.ndarray:
@@ -173,6 +177,16 @@ def _draw_faults(fd: FaultDraws, ids: list, rng) -> list:
                         'bias_amplitude': float(rng.uniform(*fd.bias_amplitude)),
                         'bias_frequency': float(rng.uniform(*fd.bias_frequency)), 'onset_time': onset})
     return out
+
+
+def _draw_loss(ld: LossDraws, ids: list, data: dict, rng) -> dict:
+    """Draw the lost UH (uniformly among the candidates) and its time, rounded to the scenario's control step."""
+    candidates = list(ld.uhs) if ld.uhs is not None else sorted(ids)
+    uh = int(candidates[int(rng.integers(len(candidates)))])
+    dt, duration = float(data['dt']), float(data['duration'])
+    first, last = loss_step_range(ld.time, duration, dt)
+    step = min(max(int(round(float(rng.uniform(*ld.time)) / dt)), first), last)
+    return {'time': round(step * dt, 9), 'uh': uh, 'kind': 'lost'}
 
 
 def _generated_team(spec, draw: int, rng) -> dict:
@@ -303,6 +317,10 @@ def _at_spec_key(spec, exc: E.ScenarioError, sweep_index: int) -> E.ScenarioErro
         key = tokens[:1]
     elif tokens[:1] == ('faults',) and spec.draws.faults is not None:
         key = ('draws', 'faults')
+    elif tokens[:1] == ('events',) and spec.draws.losses is not None:
+        key = ('draws', 'losses')
+    elif tokens[:1] == ('resilience',) and spec.resilience is not None:
+        key = tokens
     elif tokens[:1] == ('model_mismatch',) and spec.draws.model_mismatch is not None:
         key = ('draws', 'model_mismatch')
     elif tokens[:1] == ('disturbance',) and spec.draws.disturbance_amplitude is not None:

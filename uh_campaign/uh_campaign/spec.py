@@ -3,7 +3,7 @@
 A campaign runs ``runs`` random *draws* of a team scenario, each for every controller case of
 ``cases`` and, with a ``sweep``, for every swept value: ``runs x len(sweep.values) x len(cases)``
 runs in all. A draw is a scenario: the base scenario (or a randomly generated team) with random
-initial states, actuator faults, model mismatch and disturbance drawn from the ranges below.
+initial states, actuator faults, model mismatch, disturbance and a lost UH drawn from the ranges below.
 
 Example (``uh_topology/uh_topology/config/campaign_paper_faults.yaml`` is a commented one)::
 
@@ -19,7 +19,9 @@ Example (``uh_topology/uh_topology/config/campaign_paper_faults.yaml`` is a comm
       position_spread: 2.0        # m
       attitude_spread: 0.1        # rad
       faults: {faulted_uhs: [1, 3], rho: [0.7, 0.95], onset_time: [10, 30]}
+      losses: {uhs: [1, 2, 3, 4, 5], time: [15, 45]}   # one UH lost per draw (docs/resilience.md)
     impairments: {loss: 0.05}     # optional, copied into every resolved scenario
+    resilience: {on_loss: hold}   # optional, copied into every resolved scenario
     sweep: {parameter: impairments.delay_steps, values: [0, 2, 5, 10, 20]}
 
 Top-level keys
@@ -64,6 +66,12 @@ Top-level keys
     each draw gets its own, drawn from the draw's generator, so loss and noise patterns differ
     between draws and repeat for the same draw (the seed of impairments that come from the base
     scenario or a sweep is replaced the same way).
+``resilience``
+    Optional mapping, the scenario key ``resilience`` (docs/resilience.md): how the team answers a
+    loss (``on_loss: reform|hold``, ``standby_edges``, ``lost_timeout``). Copied into every resolved
+    scenario (replacing any of the base scenario), its values checked when draw 0's scenario is
+    loaded; a list of ``standby_edges`` is refused with a generator (its graph changes per draw).
+    With ``draws.losses`` it flies the same draws with another answer (``{on_loss: hold}``).
 ``safety``
     Optional mapping, the scenario key ``safety`` (docs/safety.md): the collision-avoidance
     filter's ``enabled`` and parameters, merged into every resolved scenario over the base
@@ -79,12 +87,12 @@ Top-level keys
     written at ``parameter`` of the resolved scenario. ``parameter`` is a key path into the
     scenario mapping, dotted, with ``[i]`` for list items: ``impairments.delay_steps``,
     ``impairments.loss``, ``model_mismatch``, ``disturbance.amplitude[2]``,
-    ``uhs[0].initial_state.omega[0]``. Missing mappings on the way are created (a sweep of
-    ``impairments.loss`` needs no ``impairments`` key). ``values``: a non-empty list of numbers
-    without repeats. A parameter the draws set (``model_mismatch`` with ``draws.model_mismatch``,
-    ``faults...`` with ``draws.faults``, ``disturbance.amplitude`` with
-    ``draws.disturbance_amplitude``, initial positions or attitudes with a spread) or
-    ``impairments.seed`` cannot be swept.
+    ``uhs[0].initial_state.omega[0]``, ``resilience.lost_timeout``. Missing mappings on the way are
+    created (a sweep of ``impairments.loss`` needs no ``impairments`` key). ``values``: a non-empty
+    list of numbers without repeats. A parameter the draws set (``model_mismatch`` with
+    ``draws.model_mismatch``, ``faults...`` with ``draws.faults``, ``events...`` with
+    ``draws.losses``, ``disturbance.amplitude`` with ``draws.disturbance_amplitude``, initial
+    positions or attitudes with a spread) or ``impairments.seed`` cannot be swept.
 ``draws``
     Optional mapping of the random draws (below); without it every draw is the base scenario
     (only the impairments seed and a generated graph differ between draws).
@@ -140,6 +148,19 @@ are drawn uniformly in ``[low, high]``, integer ranges uniformly among ``low..hi
 Faulted UHs are chosen without repeats among the candidates, channels without repeats among
 ``channels``.
 
+``losses``
+    Mapping; when given, every draw loses one UH (docs/resilience.md): the resolved scenario's
+    ``events`` (replacing the base scenario's) is ``[{time, uh, kind: lost}]``. Keys:
+
+    ``time`` (required)
+        Range, s, within (0, duration): the time is drawn uniformly in it, then rounded to the
+        nearest control step (``dt``) within the range; the range must hold one.
+    ``uhs``
+        List of UH ids without repeats, default every UH: the lost UH is drawn uniformly among them.
+
+    The loss has a stream of its own, so adding ``losses`` to a spec leaves every other draw's
+    values as they were; ``resilience`` (above) says how the team answers.
+
 ``generator``
 -------------
 A random team per draw, satisfying Assumption 1 of the paper (docs/graph.md): offsets, initial
@@ -177,10 +198,11 @@ refused, as is one whose draw 0 finds no valid graph.
 The resolved scenarios
 ----------------------
 :func:`resolve_scenario` builds the scenario mapping of a (draw, sweep index): base (or generated)
-scenario, then duration and settle time, the draws, the impairments (with the draw's seed), then
-the sweep value. It names the scenario ``<name>_draw<i>[_s<j>]``, holds the gains inline and the
-helicopter as a bundled name or an absolute path, so the YAML written by :func:`scenario_yaml`
-loads on its own with :func:`uh_topology.scenario.load_scenario`.
+scenario, then duration and settle time, the draws (a drawn loss as ``events``), the impairments
+and the resilience, then the sweep value, the impairments' seed, ``safety`` and ``remedies``. It
+names the scenario ``<name>_draw<i>[_s<j>]``, holds the gains inline and the helicopter as a
+bundled name or an absolute path, so the YAML written by :func:`scenario_yaml` loads on its own
+with :func:`uh_topology.scenario.load_scenario`.
 
 Errors
 ------
@@ -205,14 +227,15 @@ from uh_controller_node.gains import CASES
 from uh_team.campaign_store import METRIC_COLUMNS
 from uh_topology import errors as E
 from uh_topology import scenario_keys
+from uh_topology.generate import team_mapping
 from uh_topology.scenario import bundled_scenarios, parse_scenario
 from uh_topology.scenario_keys import key_named
 from uh_topology.schema import CONFIG_DIR, ConfigContext, parse_yaml, read_config_file, type_name
 
-from .draws import GENERATOR_WEIGHTS, Draws, FaultDraws, GeneratorSpec, read_draws, read_generator
+from .draws import GENERATOR_WEIGHTS, Draws, FaultDraws, GeneratorSpec, LossDraws, read_draws, read_generator
 from .resolve import check_draw_zero, draw_generators, key_path, resolve_scenario, scenario_file_name, scenario_yaml
 
-__all__ = ['CampaignSpec', 'Draws', 'FaultDraws', 'GeneratorSpec', 'Sweep', 'load_spec', 'parse_spec',
+__all__ = ['CampaignSpec', 'Draws', 'FaultDraws', 'LossDraws', 'GeneratorSpec', 'Sweep', 'load_spec', 'parse_spec',
            'bundled_specs', 'resolve_scenario', 'scenario_yaml', 'scenario_file_name', 'draw_generators',
            'DEFAULT_SUCCESS', 'BUNDLED_PREFIX', 'GENERATOR_WEIGHTS']
 
@@ -224,7 +247,7 @@ DEFAULT_SUCCESS = {'formation_rms_m': 0.05, 'containment_rms_m': 0.02, 'separati
 
 _TOP_REQUIRED = ('name', 'runs')
 _TOP_OPTIONAL = ('description', 'scenario', 'generator', 'seed', 'duration', 'settle_time', 'cases',
-                 'success', 'impairments', 'safety', 'remedies', 'sweep', 'draws')
+                 'success', 'impairments', 'safety', 'remedies', 'sweep', 'draws', 'resilience')
 #: The keys of ``remedies`` (docs/delay.md#remedies).
 REMEDY_KEYS = ('reference_links', 'feedforward_weight')
 _KEY_PATH = re.compile(r'[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*|\[\d+\])*\Z')
@@ -271,6 +294,8 @@ class CampaignSpec:
         metric -> threshold.
     impairments : dict or None
         The fixed impairments mapping (without seed).
+    resilience : dict or None
+        The ``resilience`` mapping copied into every resolved scenario.
     sweep : Sweep or None
     draws : Draws
     """
@@ -295,6 +320,7 @@ class CampaignSpec:
     runs_override: int | None = None
     safety_override: bool | None = None
     remedies: dict | None = None
+    resilience: dict | None = None
     lines: dict = field(default_factory=dict, repr=False)
     base_mapping: dict | None = field(default=None, repr=False)   # the self-contained base scenario
 
@@ -441,8 +467,10 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
     if top.get('remedies') is not None:   # their values are checked when draw 0's scenario is loaded
         remedies = dict(ctx.mapping(top['remedies'], ('remedies',), (), REMEDY_KEYS,
                                     what='a remedies mapping (docs/delay.md#remedies)'))
+    resilience = _resilience(ctx, top['resilience'], generator) if top.get('resilience') is not None else None
     n_uhs = (generator.leaders + generator.followers if generator is not None else len(base_mapping['uhs']))
-    draws = read_draws(ctx, top.get('draws') or {}, n_uhs)
+    dt = float((base_mapping or team_mapping(1, 1, faults=False))['dt'])
+    draws = read_draws(ctx, top.get('draws') or {}, n_uhs, duration=float(duration), dt=dt)
     tilt = max((abs(float(a)) for uh in (base_mapping or {}).get('uhs', [])
                 for a in ((uh.get('initial_state') or {}).get('euler') or [0.0, 0.0])[:2]), default=0.0)
     if draws.attitude_spread > 0.0 and tilt + draws.attitude_spread >= math.pi / 2:
@@ -455,7 +483,7 @@ def parse_spec(text: str, *, source: str | None = None, base_dir=None) -> Campai
         name=name, description=description, source=source, text=text, base_dir=base, scenario=scenario_file,
         generator=generator, runs=runs, seed=seed, duration=float(duration), settle_time=float(settle_time),
         cases=cases, success=success, impairments=impairments, safety=safety, sweep=sweep, draws=draws, lines=lines,
-        base_mapping=base_mapping, remedies=remedies)
+        base_mapping=base_mapping, remedies=remedies, resilience=resilience)
     check_draw_zero(spec)
     return spec
 
@@ -479,6 +507,21 @@ def _impairments(ctx, raw, generator) -> dict:
         raise ctx.error(E.InvalidValueError, ('impairments', 'links'),
                         'per-link impairments need a fixed graph, and the generator draws a new one per '
                         'draw; use delay_steps and loss (every link) with a generator')
+    return copy.deepcopy(raw)
+
+
+def _resilience(ctx, raw, generator) -> dict:
+    """Check the ``resilience`` mapping a campaign copies into its scenarios; return a copy.
+
+    Its keys are the scenario's (:data:`uh_topology.scenario_keys.RESILIENCE_KEYS`); the values are
+    checked with the resolved scenario of draw 0.
+    """
+    ctx.mapping(raw, ('resilience',), (), [key.name for key in scenario_keys.RESILIENCE_KEYS],
+                what='a resilience mapping (docs/resilience.md)')
+    if generator is not None and isinstance(raw.get('standby_edges'), list):
+        raise ctx.error(E.InvalidValueError, ('resilience', 'standby_edges'),
+                        'a list of standby edges needs a fixed graph, and the generator draws a new one per '
+                        'draw; use bypass or none with a generator')
     return copy.deepcopy(raw)
 
 
@@ -552,6 +595,8 @@ def _drawn_by(tokens: tuple, draws: Draws) -> str | None:
         return 'draws.disturbance_amplitude'
     if tokens[:1] == ('faults',) and draws.faults is not None:
         return 'draws.faults'
+    if tokens[:1] == ('events',) and draws.losses is not None:
+        return 'draws.losses'
     if len(tokens) >= 4 and tokens[0] == 'uhs' and tokens[2] == 'initial_state':
         if tokens[3] == 'position' and draws.position_spread > 0.0:
             return 'draws.position_spread'

@@ -130,7 +130,8 @@ class ControllerDiagnostics:
         w.last_step = k
         w.closest_uh, w.closest_distance = int(closest_uh), float(status.closest_distance)
         w.stale_neighbours = tuple(inputs.stale_labels)
-        w.holding = inputs.hold is not None
+        w.lost_uhs, w.role = tuple(getattr(status, 'lost_uhs', ())), getattr(status, 'role', '')
+        w.holding = inputs.hold is not None and not w.role   # with resilience the role says whether it holds
         w.fault_isolated = tuple(status.isolation.isolated)
         w.fault_estimate_position = float(np.linalg.norm(status.fault_estimate_position))
         w.fault_estimate_attitude = float(np.linalg.norm(status.fault_estimate_attitude))

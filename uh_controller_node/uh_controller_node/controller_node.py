@@ -155,7 +155,7 @@ class ControllerNode(rt.Node):
             self.proximity.use(self.controller, inputs.proximity, k)
             try:
                 if self.losses is not None:
-                    u, status = self.losses.step(k, inputs.own, own, neighbours, inputs.reference)
+                    u, status = self.losses.step(k, inputs, own, neighbours)
                 elif inputs.stale:
                     u, status = self.controller.step_degraded(k, own, neighbours, inputs.reference,
                                                               self.dt, hold=inputs.hold)

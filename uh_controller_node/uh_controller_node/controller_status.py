@@ -105,12 +105,17 @@ _STATUS_DOC = f"""Internal signals of one UH controller for one step (fields of 
         The controller's fault isolation and identification after this step
         (:class:`~uh_controller_node.fault_isolation.FaultIsolator`,
         docs/faults.md#isolation-and-identification); None in a record not made by a controller.
+    lost_uhs : tuple of int
+        The UHs the controller knows to be lost (docs/resilience.md); empty without ``resilience``.
+    role : str
+        ``leader``, ``follower``, ``holding (why)`` or ``lost`` in the team it flies; empty without ``resilience``.
     """
 ControllerStatusData = dataclasses.make_dataclass(
     'ControllerStatusData',
     [('uh_id', int), ('step', int), ('stamp', float), *((f.name, _FIELD_TYPES[f.kind]) for f in STATUS_FIELDS),
      ('stale_neighbours', tuple, dataclasses.field(default_factory=tuple)),
-     ('isolation', IsolationStatus | None, dataclasses.field(default=None))],
+     ('isolation', IsolationStatus | None, dataclasses.field(default=None)),
+     ('lost_uhs', tuple, dataclasses.field(default_factory=tuple)), ('role', str, dataclasses.field(default=''))],
     bases=(_StatusMethods,), namespace={'__module__': __name__, '__doc__': _STATUS_DOC})
 #: :meth:`ControllerStatusData.from_vector`, bound once: the controller calls it every step.
 status_record = ControllerStatusData.from_vector

@@ -19,7 +19,7 @@ import numpy as np
 
 from uh_core.layout import STATUS_SIZE
 from uh_core.reference import VirtualLeaderReference
-from uh_topology.losses import NEVER, hold_reference, loss_impairments, row_team
+from uh_topology.losses import NEVER, RowTeam, hold_reference, loss_impairments, row_team
 
 from .controller_status import status_record
 from .impairments import ReceivedStates
@@ -45,24 +45,39 @@ class NodeLosses:
                              VirtualLeaderReference(scenario.reference))
         self.teams, self.holding, self.last_command = {}, None, None
         self.row = None
+        self.last_heard = {}      # {uh: newest sent step that arrived}: the age of a neighbour left out as stale
 
     @classmethod
     def of(cls, controller, scenario, uh_id: int, dt: float, clock_mode: str):
-        """Give the :class:`NodeLosses` of a scenario with events, None for one without."""
-        return cls(controller, scenario, uh_id, dt, clock_mode) if scenario.events else None
+        """Give the :class:`NodeLosses` of a scenario with ``events`` or ``resilience``, None for one without."""
+        if not scenario.events and scenario.resilience is None:
+            return None
+        return cls(controller, scenario, uh_id, dt, clock_mode)
 
     def heard(self, j: int, sent_step: int, lost: dict) -> None:
         """Keep the lost set a state of UH ``j`` carried (:meth:`LossTracker.heard`)."""
+        self.last_heard[j] = max(self.last_heard.get(j, -1), int(sent_step))
         self.tracker.heard(j, sent_step, lost)
 
-    def step(self, k: int, own_raw, own, neighbours: dict, reference):
-        """Run step ``k`` on the received inputs; give ``(u, status)`` (``own_raw``: the own state as sent)."""
+    def step(self, k: int, inputs, own, neighbours: dict):
+        """Run step ``k``; give ``(u, status)``.
+
+        ``inputs`` are the synchroniser's (the own state as sent, the reference, the stale inputs: in
+        real time a neighbour is left out as soon as it is stale, before it is declared lost); ``own``
+        and ``neighbours`` the states as received.
+        """
         if k >= self.lost_step and self.last_command is not None:   # lost: the last command, a zero status
             status = status_record(self.uh_id, k, k * self.dt, np.zeros(STATUS_SIZE))
-            status.isolation = self.controller.isolator.status()
+            status.isolation, status.role = self.controller.isolator.status(), 'lost'
             return self.last_command, status
-        self.tracker.update(k, self.received.sample_steps)
-        row = row_team(self.scenario, self.uh_id, *self.tracker.view(), self.teams)
+        self.tracker.update(k, {**self.last_heard, **self.received.sample_steps})
+        silent, lost = self.tracker.view()
+        silent = silent | {key for key in inputs.stale if key in self.neighbours}
+        row = row_team(self.scenario, self.uh_id, silent, lost, self.teams)
+        reference = inputs.reference
+        if row.hold_reason is None and row.leader_link > 0.0 and reference is None:   # the reference is stale
+            row = RowTeam((), (), (), np.zeros(3), 1.0, "the virtual leader's reference is stale")
+        own_raw = inputs.own
         if row.hold_reason is None:
             self.holding = None
             u, status = self.controller.step_row(k, own, neighbours, reference, self.dt, row)
@@ -71,6 +86,7 @@ class NodeLosses:
                 self.holding = hold_reference(np.asarray(own_raw, dtype=float))
             u, status = self.controller.step_row(k, own, neighbours, reference, self.dt, row, hold=self.holding)
         self.row, self.last_command = row, u
+        status.lost_uhs, status.role = tuple(sorted(self.tracker.known)), self.role()
         return u, status
 
     def carried(self) -> dict:

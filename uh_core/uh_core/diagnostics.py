@@ -67,6 +67,9 @@ class ControllerWindow:
     closest_distance: float = math.nan
     #: the team's delay margin, s (docs/delay.md#delay-margin), when the window's ages reach beyond it; else NaN
     delay_margin_s: float = math.nan
+    #: the UHs the controller knows to be lost and its role in the team it flies (docs/resilience.md; '' without)
+    lost_uhs: tuple = ()
+    role: str = ''
 
 
 @dataclass
@@ -125,6 +128,12 @@ def controller_diagnostic(uh_id: int, w: ControllerWindow) -> Diagnostic:
     for label, mean, worst in w.neighbour_ages:
         values[f'age of {label}, mean over 1 s (s)'] = f'{mean:.4g}'
         values[f'age of {label}, max over 1 s (s)'] = f'{worst:.4g}'
+    if w.role:
+        values.update({'role': w.role, 'lost UHs': ' '.join(f'uh{j}' for j in w.lost_uhs)})
+        if w.lost_uhs:
+            warnings.append(f'team lost {", ".join(f"uh{j}" for j in w.lost_uhs)}; flying as {w.role}')
+        if w.role.startswith('holding'):
+            errors.append(w.role)
     if math.isfinite(w.delay_margin_s):
         values['delay margin (s)'] = f'{w.delay_margin_s:.4g}'
         beyond = [(worst, label) for label, _, worst in w.neighbour_ages if worst > w.delay_margin_s + 1e-9]

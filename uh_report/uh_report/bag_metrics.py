@@ -243,6 +243,30 @@ def _fault_injections(bag: _Bag, ids) -> list:
     return records
 
 
+def _losses(bag: _Bag, ids, last_step: int) -> dict:
+    """Give what the states carried of the team's losses (docs/resilience.md).
+
+    ``{'known': {(i, j): step}, 'declared': {j: step}}``: UH ``i``'s controller knew ``j`` lost at
+    ``step`` (the state it sent next was the first to carry it), and the earliest step ``j`` was declared
+    lost by anyone. Empty dicts when no state carried a lost set.
+    """
+    known, declared = {}, {}
+    for i in ids:
+        name = topics.uh_topic(i, topics.STATE)
+        messages = bag.topics.get(name)
+        if messages is None or messages.msgtype != topics.STATE.type:
+            continue
+        for k in range(len(messages.log_times)):
+            msg = bag.decode(name, k)
+            if int(msg.uh_id) != i or int(msg.step) > last_step:
+                continue
+            for j, step in zip(msg.lost_uhs, msg.lost_steps, strict=False):
+                j, step = int(j), int(step)
+                known[(i, j)] = min(known.get((i, j), int(msg.step) - 1), int(msg.step) - 1)
+                declared[j] = min(declared.get(j, step), step)
+    return {'known': known, 'declared': declared}
+
+
 def read_team_bag(bag_dir, scenario) -> dict:
     """Read the per-step topics of a team bag into arrays.
 
@@ -252,9 +276,10 @@ def read_team_bag(bag_dir, scenario) -> dict:
     saturation flag), ``isolation`` (the last fault isolation each controller published,
     :func:`_isolation_of`; ``{}`` when no status carried one), ``neighbour_ages`` (``{uh: (mean s, max s)}``
     of the neighbour states each controller used, from its status), ``counts`` ({topic: messages}),
-    ``fault_injections`` (every message on ``/uhN/fault``, :func:`_fault_injections`).
-    Steps missing from a topic are NaN (the arrays of :func:`uh_team.run_arrays.new_run_arrays`).
-    The numeric fields are read as columns (:mod:`uh_report.cdr_columns`).
+    ``fault_injections`` (every message on ``/uhN/fault``, :func:`_fault_injections`) and, for a
+    scenario with ``events`` or ``resilience``, ``losses`` (:func:`_losses`). Steps missing from a topic
+    are NaN (the arrays of :func:`uh_team.run_arrays.new_run_arrays`). The numeric fields are read as
+    columns (:mod:`uh_report.cdr_columns`).
     """
     bag_dir = Path(bag_dir)
     ids = list(scenario.ids)
@@ -272,6 +297,8 @@ def read_team_bag(bag_dir, scenario) -> dict:
         _fill_rows(out, bag, topics.COMMAND, i, c, K, {'commands': _COMMAND})
         _fill_rows(out, bag, topics.FAULT_TRUTH, i, c, K, {'fault_true_p': _FAULT_P, 'fault_true_w': _FAULT_W})
         _fill_status(out, bag, i, c, K)
+    if scenario.events or scenario.resilience is not None:
+        out['losses'] = _losses(bag, ids, K)
     return out
 
 

@@ -10,7 +10,7 @@ scenario's fault schedule and faults injected at run time on ``fault``, and publ
   hold, latest-value semantics) and state k is published.
 
 Until its first command arrives the plant holds the hover trim. A UH lost by the scenario's ``events``
-(docs/resilience.md) hovers from its event step on: velocity and body rates zero, no integration, zero fault
+(docs/resilience.md) flies its failsafe from its event step on (it brakes to a hover), with zero fault
 truth; each state carries the lost set of the command before it (the controller's, sent on to the team).
 
 Bad input never stops the plant: a command carrying NaN/inf or another UH's id is rejected (logged, counted) and the
@@ -29,7 +29,7 @@ from uh_sim_node.command_watch import CommandWatch
 from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
-from uh_topology.losses import NEVER, freeze
+from uh_topology.losses import NEVER, failsafe_step
 from uh_wire import run_config, topics
 from uh_wire.published import PublishedCounts
 from uh_wire.standard_msgs import diagnostic_array_msg, odometry_msg, tf_msg, transform_msg, view_publisher
@@ -146,11 +146,11 @@ class SimNode(rt.Node):
         self._publish_truth(self.step)
         if self.step < self.lost_step:
             self.plant.step(self.command, self.step * self.dt, self.dt)
-        self.step += 1
-        if self.step == self.lost_step:   # lost: it hovers where it is (uh_topology.losses.freeze)
+        else:   # lost: the failsafe brakes it to a hover (uh_topology.losses.failsafe_step)
             x = self.plant.x
-            freeze(x)
+            failsafe_step(x, self.dt, self.scenario.safety.brake_accel)
             self.plant.reset(x)
+        self.step += 1
 
     def _publish_truth(self, k: int) -> None:
         t = k * self.dt

@@ -4,14 +4,15 @@
 :class:`~uh_team.team_events.LossSchedule` to the next; before each segment every row gets the team
 its UH flies then (:func:`~uh_topology.losses.row_team`): neighbours, weights, offsets, reference
 link, or a hold at the position it had when it began to hold; a lost UH's row is frozen from its event
-step. The links always go through the impaired path with :func:`~uh_topology.losses.loss_impairments`,
-so that a lost UH's last state is the last its neighbours receive.
+step (its failsafe, :func:`~uh_topology.losses.failsafe_step`). The links always go through the
+impaired path with :func:`~uh_topology.losses.loss_impairments`, so that a lost UH's last state is
+the last its neighbours receive.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from uh_topology.losses import NEVER, freeze, hold_reference, loss_impairments, predicting, row_team
+from uh_topology.losses import NEVER, hold_reference, loss_impairments, predicting, row_team
 
 from .team_events import loss_schedule
 from .team_kernel import TEAM_DONE, TeamArrays, TeamImpairments, TeamRecord, run_team_steps
@@ -40,9 +41,7 @@ def _segment(scenario, ids, schedule, k0, arrays, links, spec, holds, teams):
     offsets, leader_links = np.zeros((n, 3)), np.zeros(n)
     frozen, holding, hold = np.zeros(n, dtype=np.bool_), np.zeros(n, dtype=np.bool_), cfg.hold.copy()
     for c, i in enumerate(ids):
-        if schedule.lost_at.get(i, NEVER) <= k0:
-            if schedule.lost_at[i] == k0:
-                freeze(x[c])        # it hovers where it is from its event step on
+        if schedule.lost_at.get(i, NEVER) <= k0:   # lost: its failsafe from its event step on
             frozen[c] = True
             continue
         row = row_team(scenario, i, *schedule.view(i, k0), teams)
@@ -77,7 +76,7 @@ def run_with_events(scenario, K: int, dt: float, ids, arrays: TeamArrays, refere
     n = len(ids)
     max_nb = max(n - 1, 1)
     cfg = arrays.config._replace(hears=np.zeros((n, max_nb), dtype=np.int64), nb_weights=np.zeros((n, max_nb)),
-                                 nb_offsets=np.zeros((n, max_nb, 3)))
+                                 nb_offsets=np.zeros((n, max_nb, 3)), brake_accel=float(scenario.safety.brake_accel))
     arrays = TeamArrays(cfg, arrays.impairments, arrays.state)
     schedule = loss_schedule(scenario, K)
     record = TeamRecord(**{name: out[name] for name in TeamRecord._fields})

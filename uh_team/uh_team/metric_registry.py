@@ -310,6 +310,30 @@ def _departures(values) -> dict:
     return {} if values.scenario is None else scenario_departures(values.scenario, values.case)
 
 
+def _over_losses(metrics: dict, value, pick=max):
+    """Give ``pick`` of ``value(event)`` over the run's ``reconfiguration`` entries.
+
+    None without events, or when ``value`` has nothing for one of them (a loss never re-formed counts
+    as no time at all, not as the others' largest).
+    """
+    events = metrics.get('reconfiguration')
+    if not events:
+        return None
+    values = [value(event) for event in events]
+    return None if any(v is None for v in values) else pick(values)
+
+
+def _since_loss(key: str):
+    """Give the reader of the time from a loss to its event's ``key`` (``agreed_at_s``, ``reformed_at_s``), s."""
+    return lambda event: None if event.get(key) is None else round(event[key] - event['time_s'], 9)
+
+
+def _loss_metric(name: str, unit: str, description: str, better: str, value, pick=max) -> Metric:
+    """Declare a campaign column of a run's losses: ``pick`` of ``value(event)`` over its events."""
+    return Metric(name, unit, description, better, read=lambda metrics: _over_losses(metrics, value, pick),
+                  stored=True)
+
+
 _P, _W = LUMPED_FAULTS
 
 #: Every metric, in the order of ``metrics.json``'s keys and of the results file's columns.
@@ -410,15 +434,29 @@ METRICS = (
            compute=_separation),
     # docs/resilience.md: a run with events
     Metric('reconfiguration', json_type='array or null',
-           doc='per loss event (`events`, [resilience.md](resilience.md)): `uh`, `time_s`, `on_loss`, '
+           doc='per loss (the scenario\'s `events`; in a recorded run the losses its states carried, '
+               '[resilience.md](resilience.md)): `uh`, `time_s`, `on_loss`, '
                '`detected_at_s` (the first declaration), `agreed_at_s` (every UH knows), `reformed_at_s` (errors '
                'under 0.05 m / 0.02 m against the new targets from then on), `formation_error_after_m` and '
                '`containment_error_after_m` (largest after re-forming), `formation_error_last_10s_m` and '
                '`containment_error_last_10s_m` (largest over the last 10 s before the next event or the end), '
                '`min_separation_m` (from the event to re-forming), the new `leaders`, `followers`, `promoted` '
-               '(slot: UH) and `holding` (UH: why); null without events',
-           compute=lambda v: None if v.scenario is None else reconfiguration(v.time, v.positions,
-                                                                             v.reference_positions, v.scenario)),
+               '(slot: UH) and `holding` (UH: why); null without a loss',
+           compute=lambda v: None if v.scenario is None else reconfiguration(
+               v.time, v.positions, v.reference_positions, v.scenario, (v.arrays or {}).get('losses'))),
+    # ... and its campaign columns (docs/campaigns.md#losing-a-helicopter): over the run's losses, none without
+    _loss_metric('reform_time_s', 's', 'largest time from a loss to the team re-formed, s (none if one was not)',
+                 'lower', _since_loss('reformed_at_s')),
+    _loss_metric('agree_time_s', 's', 'largest time from a loss to every surviving UH knowing of it, s (none if one '
+                 'was not)', 'lower', _since_loss('agreed_at_s')),
+    _loss_metric('loss_formation_last_10s_m', 'm',
+                 "largest leader error over a loss's last 10 s, against the team then in force, m", 'lower',
+                 lambda event: event.get('formation_error_last_10s_m')),
+    _loss_metric('loss_containment_last_10s_m', 'm',
+                 "largest follower error over a loss's last 10 s, against the team then in force, m", 'lower',
+                 lambda event: event.get('containment_error_last_10s_m')),
+    _loss_metric('loss_min_separation_m', 'm', 'smallest hub-to-hub distance from a loss to re-forming (or the '
+                 'end), m', 'higher', lambda event: event.get('min_separation_m'), pick=min),
 )
 
 

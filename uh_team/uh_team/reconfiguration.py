@@ -14,7 +14,7 @@ from uh_core.layout import X_P_SLICE
 from uh_topology.reform import reformed_team
 
 from .separation_metrics import closest_pair_series
-from .team_events import NEVER, holds, loss_schedule
+from .team_events import NEVER, LossSchedule, holds, loss_schedule
 
 __all__ = ['team_errors', 'errors_in_force', 'reconfiguration', 'REFORMED_FORMATION_M', 'REFORMED_CONTAINMENT_M']
 
@@ -77,15 +77,36 @@ def _settled_from(errors: np.ndarray, team, ids, k0: int, k1: int) -> int | None
     return k0 + (int(bad[-1]) + 1 if bad.size else 0)
 
 
-def reconfiguration(time: np.ndarray, positions: np.ndarray, reference_p0: np.ndarray, scenario) -> list | None:
-    """Give one entry per loss event, metrics.json's ``reconfiguration`` (docs/metrics.md); None without events.
+def observed_schedule(scenario, losses: dict) -> LossSchedule | None:
+    """Give the :class:`LossSchedule` a recorded run shows (``losses`` of :func:`uh_report.bag_metrics.read_team_bag`).
+
+    Who knew of which loss when is what the states carried. A loss the scenario does not schedule (a
+    killed node in real time) is dated from its first declaration: the step after the last state the
+    declaring UH had, ``declared - lost_steps + 1``. None when no state carried a loss.
+    """
+    if not losses or not losses.get('declared'):
+        return None
+    events = {e.uh: e.step for e in scenario.events}
+    lost_steps = scenario.resilience.lost_steps(float(scenario.dt))
+    lost_at = {j: events.get(j, step - lost_steps + 1) for j, step in losses['declared'].items()}
+    return LossSchedule(lost_at=lost_at, declared={(0, j): s for j, s in losses['declared'].items()},
+                        known=dict(losses['known']), reform=scenario.resilience.on_loss == 'reform')
+
+
+def reconfiguration(time: np.ndarray, positions: np.ndarray, reference_p0: np.ndarray, scenario,
+                    losses: dict | None = None) -> list | None:
+    """Give one entry per loss, metrics.json's ``reconfiguration`` (docs/metrics.md); None without one.
 
     ``time`` (K+1,) s, ``positions`` (K+1, n, 3) m in ``scenario.ids`` order, ``reference_p0`` (K+1, 3) m.
+    The losses are the scenario's ``events`` as the in-process run works them out, or, with ``losses``
+    (a recorded run), what its states carried (:func:`observed_schedule`).
     """
-    if not scenario.events:
-        return None
     dt, last = float(scenario.dt), len(time)
-    schedule = loss_schedule(scenario, last - 1)
+    schedule = observed_schedule(scenario, losses) if losses is not None else None
+    if schedule is None:
+        if not scenario.events:
+            return None
+        schedule = loss_schedule(scenario, last - 1)
     held = holds(scenario, schedule, last - 1)
     agreed = _agreed(schedule, scenario)
     out = []

@@ -66,10 +66,14 @@ from uh_core.layout import X_P, X_V
 from uh_sim_node import faults as _faults
 from uh_sim_node import plant_kernels as _plant
 from uh_sim_node.plant_kernels import lumped_faults, plant_step
+from uh_topology import losses as _losses
 from uh_topology.impairments import PREDICTING
 
 # this loop calls the kernels from numba code: a process running them compiled cannot import it
 _compiled_kernels.require_numba('uh_team.team_kernel')
+
+#: :func:`uh_topology.losses.failsafe_step` compiled into the loop (one home for the simulator node and the kernel)
+failsafe_step = njit(cache=True, inline='always')(_losses.failsafe_step)
 
 __all__ = ['TeamConfig', 'TeamImpairments', 'TeamState', 'TeamRecord', 'TeamArrays', 'team_arrays',
            'empty_record', 'run_team_steps', 'record_states', 'impaired_states', 'record_status', 'advance_plants',
@@ -107,7 +111,10 @@ class TeamConfig(NamedTuple):
         The safety filter's parameters per UH (docs/safety.md); no columns: the filter is off.
     frozen : ndarray (n,) bool
         A lost UH (docs/resilience.md): its controller does not run (its last command is repeated in
-        the record) and its plant is not integrated: it hovers where it was lost.
+        the record) and its plant flies its failsafe instead of the dynamics: it brakes at
+        ``brake_accel`` to a hover (:func:`uh_topology.losses.failsafe_step`).
+    brake_accel : float
+        The failsafe's deceleration, m/s^2 (``safety.brake_accel``).
     holding : ndarray (n,) bool
         The UH holds a position: its controller follows ``hold`` instead of the virtual leader.
     hold : ndarray (n, REFERENCE_SIZE)
@@ -130,6 +137,7 @@ class TeamConfig(NamedTuple):
     frozen: np.ndarray
     holding: np.ndarray
     hold: np.ndarray
+    brake_accel: float
 
 
 class TeamImpairments(NamedTuple):
@@ -249,7 +257,7 @@ def team_arrays(ids, controllers, plants, impairments=None, dt: float | None = N
         faults=np.stack([p.faults for p in plant]), disturbance=np.stack([p.disturbance for p in plant]),
         substeps=substeps.pop(), ids=np.array([int(i) for i in ids], dtype=np.int64),
         safety=np.stack([a.safety for a in ctl]), frozen=np.zeros(n, dtype=np.bool_),
-        holding=np.zeros(n, dtype=np.bool_), hold=np.zeros((n, _ctl.REFERENCE_SIZE)))
+        holding=np.zeros(n, dtype=np.bool_), hold=np.zeros((n, _ctl.REFERENCE_SIZE)), brake_accel=0.0)
     state = TeamState(x=np.stack([p.x for p in plants]), weights_p=np.stack([a.weights_p for a in ctl]),
                       weights_w=np.stack([a.weights_w for a in ctl]), memory=np.stack([a.memory for a in ctl]))
     return TeamArrays(config, _team_impairments(ids, controllers, impairments, dt, max_nb), state)
@@ -359,7 +367,7 @@ def run_team_steps(k0, k1, last, dt, references, team, links_impaired, live, rec
                           record.saturated, record.safety_active)
         # 2. the true lumped faults for that command; 3. every plant holds it over [t_k, t_k+1)
         advance_plants(k, last, dt, x, commands, team.plant_params, team.faults, team.disturbance, team.substeps,
-                       record.fault_true_p, record.fault_true_w, u, out_p, out_w, frozen)
+                       record.fault_true_p, record.fault_true_w, u, out_p, out_w, frozen, team.brake_accel)
     return TEAM_DONE
 
 
@@ -479,13 +487,13 @@ def freeze_row(k, c, commands, fault_est_p, fault_est_w, u_p, z1, saturated, saf
 
 @njit(cache=True, inline='always')
 def advance_plants(k, last, dt, x, commands, plant_params, faults, disturbance, substeps, fault_true_p, fault_true_w,
-                   u, out_p, out_w, frozen):
+                   u, out_p, out_w, frozen, brake_accel):
     """Record the true lumped faults of step ``k``'s commands and, unless ``k == last``, integrate every plant.
 
     Each plant holds its command ``commands[k, c]`` over [t_k, t_k+1) (RK4, ``substeps`` substeps;
     ``plant_params``, ``faults``, ``disturbance`` per row as in :class:`TeamConfig`). ``u`` (4,),
     ``out_p``, ``out_w`` (3,): scratch for the command and the faults' parts. A ``frozen`` row (lost)
-    is not integrated and its true faults are zero.
+    flies its failsafe (:func:`failsafe_step`, ``brake_accel`` m/s^2) and its true faults are zero.
     """
     t = k * dt
     for c in range(x.shape[0]):
@@ -493,6 +501,8 @@ def advance_plants(k, last, dt, x, commands, plant_params, faults, disturbance, 
             for i in range(3):
                 fault_true_p[k, c, i] = 0.0
                 fault_true_w[k, c, i] = 0.0
+            if k < last:
+                failsafe_step(x[c], dt, brake_accel)
             continue
         for i in range(4):
             u[i] = commands[k, c, i]
@@ -507,7 +517,8 @@ def advance_plants(k, last, dt, x, commands, plant_params, faults, disturbance, 
 #: Files whose contents are compiled into :func:`run_team_steps` besides this one.
 _DEPENDENCIES = (Path(_ctl.__file__), Path(_loop_kernels.__file__), Path(_learning_kernels.__file__),
                  Path(_control_layout.__file__), Path(_gains.__file__), Path(_plant.__file__), Path(_faults.__file__),
-                 Path(_layout.__file__), Path(_impairments.__file__), Path(_safety_kernels.__file__))
+                 Path(_layout.__file__), Path(_impairments.__file__), Path(_safety_kernels.__file__),
+                 Path(_losses.__file__))
 
 
 def refresh_cache() -> bool:
@@ -516,7 +527,7 @@ def refresh_cache() -> bool:
     Those files are :data:`_DEPENDENCIES`: the law's kernel modules (``control_kernels.py``,
     ``loop_kernels.py``, ``learning_kernels.py``), ``control_layout.py`` and ``gains.py`` (the layout of
     its arrays, the gains' slots), ``plant_kernels.py``, ``faults.py``, ``uh_core/layout.py``,
-    ``impairments.py``, ``safety_kernels.py``; the digest is kept next to the cache in
+    ``impairments.py``, ``safety_kernels.py``, ``uh_topology/losses.py``; the digest is kept next to the cache in
     ``team_kernel.dependencies.sha256``. Returns True when the cache was emptied
     (:func:`uh_core.kernel_cache.refresh_cache`).
     """
@@ -543,7 +554,7 @@ def compile_team_kernel() -> float:
         faults=np.zeros((n, _plant.NUM_CHANNELS, _plant.FAULT_FIELDS)),
         disturbance=np.zeros((n, 3, _plant.DISTURBANCE_FIELDS)), substeps=1, ids=np.ones(n, dtype=np.int64),
         safety=np.zeros((n, 0)), frozen=np.zeros(n, dtype=np.bool_), holding=np.zeros(n, dtype=np.bool_),
-        hold=np.zeros((n, _ctl.REFERENCE_SIZE)))
+        hold=np.zeros((n, _ctl.REFERENCE_SIZE)), brake_accel=0.0)
     links_impaired = TeamImpairments(False, 0, np.zeros((n, max_nb), dtype=np.int64), np.zeros((n, max_nb)),
                                      np.zeros(n, dtype=np.int64), np.zeros(STATE_SIZE),
                                      np.zeros((n, max_nb), dtype=np.int64), False, False)

@@ -6,10 +6,12 @@
 * :func:`row_team`: the neighbours, weights, offsets and reference link a UH's controller uses when
   it sees the lost set ``lost`` (``on_loss: reform``) or the silent neighbours ``silent`` (``hold``),
   or the hold it flies instead.
-* :func:`freeze` and :func:`hold_reference`: a lost UH's hover, a holding UH's pseudo virtual leader.
+* :func:`failsafe_step` and :func:`hold_reference`: a lost UH's failsafe (it brakes to a hover), a holding
+  UH's pseudo virtual leader.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from types import MappingProxyType
 
@@ -21,7 +23,7 @@ from .graph import reachable_from
 from .impairments import DEFAULT_COMPENSATION, PREDICTING, ImpairmentSpec
 from .schema import read_only_array
 
-__all__ = ['RowTeam', 'row_team', 'loss_impairments', 'freeze', 'hold_reference', 'predicting', 'NEVER']
+__all__ = ['RowTeam', 'row_team', 'loss_impairments', 'failsafe_step', 'hold_reference', 'predicting', 'NEVER']
 
 #: A step that never comes.
 NEVER = 1 << 62
@@ -98,10 +100,26 @@ def predicting(spec: ImpairmentSpec) -> tuple:
     return spec.compensation in PREDICTING, spec.compensation == 'reference_motion'
 
 
-def freeze(x_row: np.ndarray) -> None:
-    """Make a lost UH's state a hover where it is: zero velocity and body rates (in place)."""
-    x_row[X_V:X_V + 3] = 0.0
-    x_row[X_OMEGA:X_OMEGA + 3] = 0.0
+def failsafe_step(x, dt, accel):
+    """Advance a lost UH's state ``x`` (12,) by one step ``dt`` (s) of its failsafe, in place.
+
+    The failsafe of an autopilot that loses its link: the helicopter brakes at ``accel`` (m/s^2, the
+    deceleration the safety filter assumes every UH of a pair gives, ``safety.brake_accel``) along its
+    velocity until it is at rest, then hovers there; attitude kept, body rates zero. Plain arithmetic
+    in a fixed order, so that the simulator node (Python) and the team kernel (numba) give the same bits.
+    """
+    vx, vy, vz = x[X_V], x[X_V + 1], x[X_V + 2]
+    speed = math.sqrt(vx * vx + vy * vy + vz * vz)
+    if speed > 0.0:
+        scale = max(speed - accel * dt, 0.0) / speed
+        nx, ny, nz = vx * scale, vy * scale, vz * scale
+        x[X_P] += 0.5 * (vx + nx) * dt
+        x[X_P + 1] += 0.5 * (vy + ny) * dt
+        x[X_P + 2] += 0.5 * (vz + nz) * dt
+        x[X_V], x[X_V + 1], x[X_V + 2] = nx, ny, nz
+    x[X_OMEGA] = 0.0
+    x[X_OMEGA + 1] = 0.0
+    x[X_OMEGA + 2] = 0.0
 
 
 def hold_reference(x_row: np.ndarray) -> np.ndarray:

@@ -149,10 +149,11 @@ def team_topics(uh_ids, impaired: bool = False, safety: bool = False) -> list[tu
 def scenario_flags(scenario) -> dict:
     """Return the keyword arguments of :func:`team_topics` for ``scenario``: ``{'impaired': ..., 'safety': ...}``.
 
-    A scenario with ``events`` counts as impaired: its controllers receive through the links' rule
-    (a lost UH dropped, docs/resilience.md) and publish what they used on ``received``.
+    A scenario with ``events`` or ``resilience`` counts as impaired: its controllers receive through the
+    links' rule (a lost UH dropped, docs/resilience.md) and publish what they used on ``received``.
     """
-    impaired = scenario.impairments is not None or bool(getattr(scenario, 'events', ()))
+    impaired = (scenario.impairments is not None or bool(getattr(scenario, 'events', ()))
+                or getattr(scenario, 'resilience', None) is not None)
     return {'impaired': impaired, 'safety': bool(scenario.safety.enabled)}
 
 

@@ -252,4 +252,5 @@ def status_to_msg(uh_id: int, k: int, t: float, status, stale_neighbours=(), age
     return m.ControllerStatus(header=_header(t), uh_id=int(uh_id), step=int(k),
                               stale_neighbours=[str(s) for s in stale_neighbours],
                               neighbour_age_mean=float(ages[0]), neighbour_age_max=float(ages[1]),
-                              closest_uh=int(closest_uh), **fields)
+                              closest_uh=int(closest_uh), lost_uhs=[int(j) for j in getattr(status, 'lost_uhs', ())],
+                              role=str(getattr(status, 'role', '')), **fields)
