@@ -288,6 +288,16 @@ def test_a_lockstep_distributed_run_with_a_loss_equals_the_in_process_run(tmp_pa
             roles[int(msg.uh_id)] = (msg.role, [int(j) for j in msg.lost_uhs])
     assert roles == {1: ('lost', []), 2: ('leader', [1]), 3: ('leader', [1]), 4: ('leader', [1]),
                      5: ('follower', [1])}
+    # the report: errors against the team in force (none for the lost UH), the graph before and after
+    from uh_report.report import write_figures
+    from uh_report.report_figures import uh_errors
+    from uh_report.run_data import load_run
+    run = load_run(out, 'paper')
+    errors = uh_errors(run)
+    assert np.isnan(errors[100:, 0]).all() and np.isfinite(errors[:100]).all()   # UH1 lost at step 100
+    assert np.isfinite(errors[-1, 1:]).all()                                    # the others against the new team
+    figures = write_figures([run], tmp_path / 'report', kinds={'topology', 'xy_snapshots'})
+    assert set(figures[run.name]) == {'topology', 'xy_snapshots'}
 
 
 def test_diagnostics_say_the_lost_set_and_the_role():
@@ -355,3 +365,22 @@ def test_a_realtime_team_whose_simulator_is_killed_declares_agrees_and_reforms(t
 
 def test_never_is_beyond_any_run():
     assert NEVER > 10 ** 12
+
+
+def test_a_bag_recorded_before_the_lost_set_fields_still_reads():
+    """The reader decodes a bag with the message definitions it recorded when they differ from today's."""
+    from random_messages import random_message
+    from rosbags.serde import SerdeError
+
+    from uh_report.bag_metrics import bag_typestore
+    from uh_runtime.messages import typestore
+    name = 'uh_msgs/msg/ControllerStatus'
+    text = (ROOT / 'uh_msgs' / 'msg' / 'ControllerStatus.msg').read_text()
+    old = '\n'.join(line for line in text.splitlines() if not line.startswith(('uint32[] lost_uhs', 'string role')))
+    assert bag_typestore({name: text}) is typestore()          # recorded as defined now: the project's store
+    store = bag_typestore({name: old})
+    assert [field for field, _ in store.fielddefs[name][1]][-1] == 'closest_uh'
+    payload = store.serialize_cdr(random_message(np.random.default_rng(0), store, name, strings=False), name)
+    assert int(store.deserialize_cdr(payload, name).uh_id) >= 0        # the bag's own definition reads it
+    with pytest.raises(SerdeError):                                   # today's does not: it expects two more fields
+        typestore().deserialize_cdr(payload, name)

@@ -21,6 +21,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from uh_core.layout import SATURATION_FLAGS
 from uh_runtime.bags.bag_reader import BagError, bag_file, find_bag_files, read_messages
@@ -76,8 +77,8 @@ class _Bag:
 
     def __init__(self, bag_dir: Path):
         self.bag_dir = bag_dir
-        self.store = typestore()
-        self.topics, self.counts = _read_raw(bag_dir)
+        self.topics, self.counts, schemas = _read_raw(bag_dir)
+        self.store = bag_typestore(schemas)
         self.rejected: dict = {}
 
     def columns(self, spec_name: str, expected_type: str, fields) -> dict | None:
@@ -125,8 +126,35 @@ def _last_per_step(steps: np.ndarray, take: np.ndarray) -> np.ndarray:
     return index[len(index) - 1 - first_from_end]
 
 
-def _read_raw(bag_dir: Path) -> tuple[dict, dict]:
-    """Return ``({topic: _TopicMessages}, {topic: message count})`` of the bag in ``bag_dir``."""
+def bag_typestore(schemas: dict):
+    """Give the type store to decode a bag whose ``uh_msgs`` schemas are ``{type: ros2msg text}``.
+
+    The project's store (:func:`uh_runtime.messages.typestore`) when every ``uh_msgs`` type the bag
+    recorded is defined as now; otherwise a store with the bag's own definitions of those types, so
+    that a bag recorded before a message gained a field (``UHState.lost_uhs``, docs/resilience.md)
+    still reads: a field it lacks is simply not there.
+    """
+    store = typestore()
+    older = {}
+    for name, text in sorted(schemas.items()):
+        if not name.startswith('uh_msgs/') or not text:
+            continue
+        try:
+            parsed = get_types_from_msg(text, name)
+        except Exception:    # rosbags raises several types for a definition it cannot parse: use ours
+            continue
+        if parsed[name] != store.fielddefs.get(name):
+            older.update((key, value) for key, value in parsed.items() if key.startswith('uh_msgs/'))
+    if not older:
+        return store
+    bag_store = get_typestore(Stores.EMPTY)
+    bag_store.register(older)
+    bag_store.register({key: value for key, value in store.fielddefs.items() if key not in older})
+    return bag_store
+
+
+def _read_raw(bag_dir: Path) -> tuple[dict, dict, dict]:
+    """Return ``({topic: _TopicMessages}, {topic: message count}, {type: schema text})`` of the bag in ``bag_dir``."""
     _check_bag_dir(bag_dir)
     try:
         _, files = find_bag_files(bag_dir)
@@ -135,6 +163,7 @@ def _read_raw(bag_dir: Path) -> tuple[dict, dict]:
     topics: dict = {}
     counts: dict = {}
     schema_of: dict = {}
+    texts: dict = {}
 
     def take(channel, message):
         messages = topics.get(channel.topic)
@@ -151,6 +180,8 @@ def _read_raw(bag_dir: Path) -> tuple[dict, dict]:
             raise BagContentError(f'cannot open bag {bag_dir}: {exc}') from None
         if not result.complete:
             raise BagContentError(f'cannot open bag {bag_dir}: it does not read to its end{_diagnose_mcap(bag_dir)}')
+        for schema in result.schemas.values():
+            texts.setdefault(schema.name, schema.data.decode(errors='replace'))
         for topic, schema_id in schema_of.items():
             schema = result.schemas.get(schema_id)
             if not topics[topic].msgtype and schema is not None:
@@ -162,7 +193,7 @@ def _read_raw(bag_dir: Path) -> tuple[dict, dict]:
             counts[topic] = counts.get(topic, 0) + n
     for messages in topics.values():
         messages.in_log_time_order()
-    return topics, counts
+    return topics, counts, texts
 
 
 def _fill_reference(out: dict, bag: _Bag, cols: dict) -> None:

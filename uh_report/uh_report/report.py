@@ -337,6 +337,7 @@ _FIGURE_TEXT = {
     'states': 'x, y, z and yaw of every UH with the virtual leader (paper Figures 4-7)',
     'trajectory_3d': '3-D trajectories and the three orthogonal planes (paper Figure 8)',
     'xy_snapshots': "XY plane with snapshots of the leaders' triangle and the followers (paper Figure 9)",
+    'topology': 'Communication graph before and after each loss: roles, promotions, repaired edges',
 }
 
 
@@ -357,8 +358,8 @@ def write_figures(runs, out: Path, kinds=None) -> dict:
     """Draw the figures ``kinds`` (every one when None); returns ``{'errors': path, ..., run.name: {kind: path}}``.
 
     The kinds: ``errors``, ``errors_per_uh`` (the runs overlaid); per run ``states``,
-    ``trajectory_3d``, ``xy_snapshots``, ``faults`` (one figure per faulted UH) and
-    ``false_fault_estimate``.
+    ``trajectory_3d``, ``xy_snapshots``, ``faults`` (one figure per faulted UH),
+    ``false_fault_estimate`` and, for a run that lost UHs, ``topology``.
     """
     wanted = (lambda kind: True) if kinds is None else (lambda kind: kind in kinds)  # noqa: E731
     written = {key: plot(runs, out / f'{key}.png')
@@ -373,6 +374,8 @@ def write_figures(runs, out: Path, kinds=None) -> dict:
         plots += [(f'faults_uh{uh}', lambda path, uh=uh, run=run: F.plot_faults(run, uh, path))
                   for uh in faulted_uhs(run.scenario, run.arrays) if wanted('faults')]
         plots.append(('false_fault_estimate', lambda path, run=run: F.plot_false_fault_estimate(run, path)))
+        if F.has_losses(run):
+            plots.append(('topology', lambda path, run=run: F.plot_topology(run, path)))
         run.figures = {key: plot(d / f'{key}.png') for key, plot in plots
                        if key.startswith('faults_uh') or wanted(key)}
         written[run.name] = dict(run.figures)

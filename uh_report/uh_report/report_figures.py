@@ -27,6 +27,7 @@ figure                    content (paper figure)
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -35,9 +36,12 @@ from uh_core.layout import X_P_SLICE
 from uh_team.metrics import FALSE_ESTIMATE_START, LUMPED_FAULTS, containment_errors, faulted_uhs, formation_errors
 from uh_team.run_arrays import RUN_REF_POSITION, RUN_REF_YAW
 
+from . import loss_figures
+from .loss_figures import errors_in_force, has_losses, mark_losses
+
 __all__ = ['DPI', 'FIGURE_SIZES', 'pixel_size', 'plot_states', 'plot_trajectory_3d', 'plot_xy_snapshots',
            'plot_faults', 'plot_false_fault_estimate', 'plot_errors', 'plot_errors_per_uh', 'uh_errors',
-           'snapshot_times']
+           'snapshot_times', 'plot_topology', 'has_losses']
 
 #: Dots per inch of every PNG.
 DPI = 100
@@ -51,6 +55,7 @@ FIGURE_SIZES = {
     'false_fault_estimate': (14.0, 10.0),
     'errors': (14.0, 8.0),
     'errors_per_uh': (14.0, 11.0),
+    'topology': (16.0, 7.0),
 }
 
 _STYLE = {
@@ -231,8 +236,7 @@ def plot_xy_snapshots(run, path: Path, count: int = 7) -> Path:
     states = run.arrays['states']
     ref = run.arrays['reference']
     ids = run.scenario.ids
-    leaders = [ids.index(i) for i in run.scenario.leaders]
-    followers = [ids.index(i) for i in run.scenario.followers]
+    schedule = loss_figures.loss_schedule_of(run)   # roles change when the team re-forms after a loss
     with _style():
         fig = _figure('xy_snapshots')
         ax = fig.add_subplot(1, 1, 1)
@@ -243,6 +247,11 @@ def plot_xy_snapshots(run, path: Path, count: int = 7) -> Path:
         centre = np.nanmean(ref[:, 0:2], axis=0)  # labels go outward from the middle of the path
         for ts in snapshot_times(float(t[-1]), count):
             k = int(np.argmin(np.abs(t - ts)))
+            leaders, followers, lost = ([ids.index(i) for i in group]
+                                        for group in loss_figures.roles_at(run, schedule, k))
+            for c in lost:
+                ax.plot(*states[k, c, 0:2], marker='X', color='0.55', markersize=10, markeredgecolor='black',
+                        markeredgewidth=0.6, zorder=5)
             lead = states[k, leaders, 0:2]
             if np.isfinite(lead).all() and len(leaders) >= 3:
                 hull = _convex_hull_2d(lead)
@@ -431,12 +440,22 @@ def plot_false_fault_estimate(run, path: Path) -> Path:
 # ----------------------------------------------------------------------------------------------
 # Figures 10-12: formation and containment errors, runs overlaid
 # ----------------------------------------------------------------------------------------------
+def plot_topology(run, path: Path) -> Path:
+    """Draw the communication graph before and after each loss (:func:`uh_report.loss_figures.plot_topology`)."""
+    with _style():
+        return loss_figures.plot_topology(run, path, _figure, _save, _title)
+
+
 def uh_errors(run) -> np.ndarray:
     """Return the (K+1, n) errors of each UH, m (docs/metrics.md), UH axis in ``scenario.ids`` order.
 
     The formation error ``|p_i - h_i - p_0|`` of each leader and the containment error
-    ``|p_k - sum_j w_kj p_j|`` of each follower.
+    ``|p_k - sum_j w_kj p_j|`` of each follower; in a run that lost UHs against the team in force
+    (:func:`uh_report.loss_figures.errors_in_force`: NaN for a lost or holding UH).
     """
+    in_force = errors_in_force(run)
+    if in_force is not None:
+        return in_force
     sc = run.scenario
     pos = np.asarray(run.arrays['states'], dtype=float)[..., X_P_SLICE]
     p0 = np.asarray(run.arrays['reference'], dtype=float)[:, RUN_REF_POSITION]
@@ -478,7 +497,9 @@ def plot_errors(runs, path: Path) -> Path:
             for ax, e, key in groups:
                 if e.shape[1] == 0:
                     continue
-                rms = np.sqrt(np.mean(e ** 2, axis=1))
+                with np.errstate(invalid='ignore'), warnings.catch_warnings():   # a step with every UH lost: NaN
+                    warnings.simplefilter('ignore', RuntimeWarning)
+                    rms = np.sqrt(np.nanmean(e ** 2, axis=1))
                 after = run.metrics.get(key)
                 label = run.label + (f' (RMS after settle: {after:.3g} m)' if isinstance(after, (int, float)) else '')
                 ax.semilogy(t, np.maximum(rms, 1e-6), color=colour, linestyle=dash, label=label)
@@ -490,6 +511,7 @@ def plot_errors(runs, path: Path) -> Path:
         for ax in axes:
             _settle_line(ax, runs)
             _mark_faults(ax, runs[0])
+            mark_losses(ax, runs[0], _vline)
             ax.legend(loc='upper right', framealpha=0.9)
         what = 'Formation and containment errors' + (' of ' + ', '.join(r.label for r in runs) if len(runs) > 1 else '')
         fig.suptitle(what + ' (log scale)',
@@ -519,10 +541,12 @@ def plot_errors_per_uh(runs, path: Path) -> Path:
         for c, i in enumerate(ids):
             ax = axes.flat[c]
             leader = i in sc.leaders
-            ax.set_title(f'UH{i}: {"formation" if leader else "containment"} error')
+            ax.set_title(f'UH{i}: {"formation" if leader else "containment"} error'
+                         + (' (against the team in force)' if has_losses(runs[0]) else ''))
             ax.set_ylabel((r'$\|p_i - h_i - p_0\|$' if leader else r'$\|p_k - \sum_j w_{kj} p_j\|$') + ' (m)')
             _settle_line(ax, runs)
             _mark_faults(ax, runs[0], i)
+            mark_losses(ax, runs[0], _vline)
         handles, labels = axes.flat[0].get_legend_handles_labels()
         spare = list(axes.flat[len(ids):])
         for ax in spare:
