@@ -52,6 +52,10 @@ def lost(uh: int, extra: str = '', time: float = 30.0):
     ('resilience: {lost_timeout: 0.2}\n', E.InvalidValueError, 'resilience.lost_timeout'),
     ('impairments: {delay_steps: 60}\nresilience: {lost_timeout: 0.5}\n', E.InvalidValueError,
      'resilience.lost_timeout'),
+    ('events:\n  - {time: 0.004, uh: 2, kind: lost}\n', E.InvalidValueError, 'events[0].time'),   # step 0
+    # 0.85^30 > 1e-12: a live link would be declared lost by a run of lost states
+    ('impairments: {loss: 0.85}\nresilience: {lost_timeout: 0.3}\n', E.InvalidValueError, 'resilience.lost_timeout'),
+    ('impairments: {dropouts: [{uh: 2, time: 3.0}]}\nresilience: {}\n', E.InvalidValueError, 'resilience'),
 ])
 def test_bad_events_and_resilience_are_one_line_naming_file_line_and_key(text, error, where):
     with pytest.raises(error) as info:
@@ -103,6 +107,16 @@ def test_the_rule_holds_the_uhs_it_cannot_place_and_flies_the_others(paper):
     team = reformed_team(paper, {2}, declared_edges(paper))
     assert team.holding == {3: 'no path from the virtual leader through leaders'}
     assert team.leaders == (1, 4) and team.followers == (5,)
+
+
+def test_a_promotion_the_edges_cannot_serve_gives_way_to_one_they_can():
+    # UH1 and UH2 lost: the cheapest promotion (UH4 to slot 1, UH5 to slot 2) leaves UH4, UH5 and UH3 without a
+    # path through the bypass standby edges; swapping them leaves only UH3 holding (it needs an edge no single
+    # loss needs)
+    scenario = lost(1, 'resilience: {}\n')
+    team = scenario.reformed({1, 2})
+    assert team.promoted == {1: 4, 2: 5} and team.leaders == (4, 5)
+    assert set(team.holding) == {3}
 
 
 def test_every_uh_computes_the_same_team_whatever_order_it_lists_the_lost(paper):
@@ -210,22 +224,29 @@ def test_a_realtime_run_refuses_events_before_starting_anything(tmp_path):
 @pytest.mark.parametrize('extra', [
     '', 'impairments: {seed: 3, delay_steps: 3, jitter_steps: 2, loss: 0.1}\n',
     'resilience: {on_loss: hold}\n', 'impairments: {seed: 1, delay_steps: 10, loss: 0.2}\n'])
-@pytest.mark.parametrize('uh', [1, 4])
-def test_the_trackers_of_the_nodes_learn_what_the_in_process_schedule_says(uh, extra):
-    """Pass the lost sets between LossTrackers as the states carry them, step by step, and compare."""
-    scenario = lost(uh, extra, time=1.0)
+@pytest.mark.parametrize('losses', [((1, 1.0),), ((4, 1.0),), ((2, 1.0), (3, 1.2))])
+def test_the_trackers_of_the_nodes_learn_what_the_in_process_schedule_says(losses, extra):
+    """Pass the lost sets between LossTrackers as the states carry them, step by step, and compare.
+
+    A lost UH's tracker stops at its event step, as its node does; the second case loses UH3 before
+    it knows of UH2's loss.
+    """
+    events = ''.join(f'  - {{time: {t}, uh: {uh}, kind: lost}}\n' for uh, t in losses)
+    scenario = parse_scenario(paper_yaml('events:\n' + events + extra), source='lost.yaml')
     steps = 300
     schedule = loss_schedule(scenario, steps)
     links = loss_impairments(scenario)
     spec = scenario.resilience
-    alive = [i for i in scenario.ids if i != uh]
-    receives = {i: sorted(j for (r, j) in links.delays if r == i) for i in alive}
+    lost_at = {e.uh: e.step for e in scenario.events}
+    receives = {i: sorted(j for (r, j) in links.delays if r == i) for i in scenario.ids}
     trackers = {i: LossTracker(i, receives[i], spec.lost_steps(scenario.dt), spec.on_loss == 'reform')
-                for i in alive}
+                for i in scenario.ids}
     carried = {i: {0: {}} for i in scenario.ids}      # {sender: {sent step: the lost set its state carried}}
     learnt = {}
     for k in range(steps + 1):
-        for i in alive:
+        for i in scenario.ids:
+            if k >= lost_at.get(i, steps + 1):          # lost: its controller runs no more
+                continue
             newest = {j: delivered_step(k, links.delays[(i, j)], links.jitters[(i, j)], links.losses[(i, j)],
                                         links.drop_step(j, scenario.dt), links.seed, i, j) for j in receives[i]}
             for j, s in newest.items():
@@ -234,10 +255,19 @@ def test_the_trackers_of_the_nodes_learn_what_the_in_process_schedule_says(uh, e
             for j in trackers[i].known:
                 learnt.setdefault((i, j), k)
         for i in scenario.ids:      # the state sent at k + 1 carries what its UH knew after step k
-            carried[i][k + 1] = trackers[i].carried() if i in trackers else {}
+            carried[i][k + 1] = trackers[i].carried()
     expected = {(i, j): s for (i, j), s in schedule.known.items() if s <= steps}
     assert learnt == expected
     assert learnt, 'nobody learnt of the loss'
+    if len(losses) == 2 and spec.on_loss == 'reform':   # UH3, lost before it knew of UH2, is not waited for
+        assert (3, 2) not in learnt and schedule.agreed_at(2, [1, 3, 4, 5]) < steps
+
+
+def test_a_uh_that_hears_itself_declared_lost_leaves():
+    tracker = LossTracker(3, (2,), lost_steps=50, reform=True)
+    tracker.heard(2, 10, {3: 9})
+    tracker.update(10, {2: 10})
+    assert tracker.excluded == 10 and 3 not in tracker.known
 
 
 def test_the_lost_set_travels_in_states_and_commands_and_a_malformed_one_is_refused():

@@ -1,6 +1,6 @@
 """A controller node's part in a team that loses helicopters (docs/resilience.md), without ROS.
 
-:class:`NodeLosses` is built by the controller node when its scenario has ``events``. It says what
+:class:`NodeLosses` is built by the controller node when its scenario has ``events`` or ``resilience``. It says what
 the node subscribes to (its declared and standby neighbours, the reference if it has or may get a
 reference link), how its inputs are received (:func:`~uh_topology.losses.loss_impairments`: a lost
 UH dropped from its event step on), and runs each step:
@@ -22,7 +22,7 @@ from uh_core.reference import VirtualLeaderReference
 from uh_topology.losses import NEVER, RowTeam, hold_reference, loss_impairments, row_team
 
 from .controller_status import status_record
-from .impairments import ReceivedStates
+from .impairments import ReceivedStates, compile_impairment_kernels
 from .loss_tracker import LossTracker
 from .realtime_received import RealtimeReceivedStates
 
@@ -43,6 +43,7 @@ class NodeLosses:
         kind = ReceivedStates if clock_mode == 'lockstep' else RealtimeReceivedStates
         self.received = kind(self.uh_id, self.neighbours, loss_impairments(scenario), self.dt,
                              VirtualLeaderReference(scenario.reference))
+        compile_impairment_kernels()   # now, before the node's endpoints exist and the clock can start
         self.teams, self.holding, self.last_command = {}, None, None
         self.row = None
         self.last_heard = {}      # {uh: newest sent step that arrived}: the age of a neighbour left out as stale
@@ -74,6 +75,8 @@ class NodeLosses:
         silent, lost = self.tracker.view()
         silent = silent | {key for key in inputs.stale if key in self.neighbours}
         row = row_team(self.scenario, self.uh_id, silent, lost, self.teams)
+        if self.tracker.excluded is not None:   # the team re-formed without this UH: it leaves, holding where it is
+            row = RowTeam((), (), (), np.zeros(3), 1.0, 'the team declared this UH lost')
         reference = inputs.reference
         if row.hold_reason is None and row.leader_link > 0.0 and reference is None:   # the reference is stale
             row = RowTeam((), (), (), np.zeros(3), 1.0, "the virtual leader's reference is stale")

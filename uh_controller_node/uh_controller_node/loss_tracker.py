@@ -9,8 +9,11 @@ edges) and the lost sets those states carried (:meth:`LossTracker.heard`); it
   at the step before it sent the state).
 
 :meth:`LossTracker.carried` is the set this UH sends on with its next state; :meth:`LossTracker.view`
-gives ``(silent, lost)`` for :func:`uh_topology.losses.row_team`. The in-process run works out the same
-steps in advance (:func:`uh_team.team_events.loss_schedule`); a lockstep run equals it bit for bit.
+gives ``(silent, lost)`` for :func:`uh_topology.losses.row_team`. A set that names this UH itself (in
+real time, a UH whose states stopped for ``lost_timeout`` and came back) sets
+:attr:`LossTracker.excluded`: the team has re-formed without it, so it leaves (holds where it is)
+rather than fly a slot another UH took. The in-process run works out the same steps in advance
+(:func:`uh_team.team_events.loss_schedule`); a lockstep run equals it bit for bit.
 """
 from __future__ import annotations
 
@@ -38,6 +41,7 @@ class LossTracker:
         self.reform = bool(reform)
         self.known = {}        # {uh: step declared}: what this UH knows
         self.declared = {}     # {uh: step}: its own declarations
+        self.excluded = None   # the step a received lost set first named this UH (real time: it was silent too long)
         self._sets = {j: {} for j in self.receivable}   # {sender: {sent step: lost set it carried}}
 
     def heard(self, j: int, sent_step: int, lost: dict) -> None:
@@ -64,6 +68,8 @@ class LossTracker:
                 for lost, step in (sets.get(s) or {}).items():
                     if lost != self.uh_id:
                         self.known.setdefault(lost, step)
+                    elif self.excluded is None:
+                        self.excluded = k
         return len(self.known) != before
 
     def view(self) -> tuple:

@@ -291,7 +291,7 @@ def _losses(bag: _Bag, ids, last_step: int) -> dict:
             msg = bag.decode(name, k)
             if int(msg.uh_id) != i or int(msg.step) > last_step:
                 continue
-            for j, step in zip(msg.lost_uhs, msg.lost_steps, strict=False):
+            for j, step in zip(getattr(msg, 'lost_uhs', ()), getattr(msg, 'lost_steps', ()), strict=False):
                 j, step = int(j), int(step)
                 known[(i, j)] = min(known.get((i, j), int(msg.step) - 1), int(msg.step) - 1)
                 declared[j] = min(declared.get(j, step), step)

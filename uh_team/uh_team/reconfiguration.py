@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from uh_core.layout import X_P_SLICE
-from uh_topology.reform import reformed_team
+from uh_topology.reform import held_team
 
 from .separation_metrics import closest_pair_series
 from .team_events import NEVER, LossSchedule, holds, loss_schedule
@@ -112,8 +112,7 @@ def reconfiguration(time: np.ndarray, positions: np.ndarray, reference_p0: np.nd
     out = []
     for n, (e, step, j, lost) in enumerate(agreed):
         end = agreed[n + 1][0] if n + 1 < len(agreed) else last
-        # a hold is scored against the scenario's team without the lost UHs, nothing promoted
-        team = scenario.reformed(lost) if schedule.reform else reformed_team(scenario, lost, promote=False)
+        team = scenario.reformed(lost) if schedule.reform else held_team(scenario, lost)
         errors = team_errors(positions, reference_p0, team, scenario.ids)
         errors[:, [list(scenario.ids).index(i) for i in lost]] = np.nan
         start = min(step, end) if step < NEVER else e

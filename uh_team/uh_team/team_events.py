@@ -57,8 +57,10 @@ class LossSchedule:
         return sorted(s for s in steps if s < NEVER)
 
     def agreed_at(self, j: int, alive) -> int:
-        """Give the step from which every UH of ``alive`` knows ``j`` is lost."""
-        return max((self.known.get((i, j), NEVER) for i in alive if i != j), default=NEVER)
+        """Give the step from which every UH of ``alive`` knows ``j`` is lost (one lost before it knew is not asked)."""
+        asked = [i for i in alive if i != j and (self.lost_at.get(i, NEVER) >= NEVER
+                                                 or self.known.get((i, j), NEVER) < self.lost_at[i])]
+        return max((self.known.get((i, j), NEVER) for i in asked), default=NEVER)
 
 
 def _first(k0: int, last: int, condition) -> int:
@@ -84,11 +86,14 @@ def loss_schedule(scenario, steps: int) -> LossSchedule:
     def alive(i, k):
         return lost_at.get(i, NEVER) > k
 
+    def last(i):   # a UH learns nothing from its own loss on (its controller stops)
+        return min(steps, lost_at.get(i, NEVER) - 1)
+
     declared, known = {}, {}
     for j, e in lost_at.items():
         for (i, src) in receivable:
             if src == j and alive(i, e):
-                declared[(i, j)] = _first(e, steps, lambda k, i=i, j=j: k - delivered(i, j, k) >= lost_steps)
+                declared[(i, j)] = _first(e, last(i), lambda k, i=i, j=j: k - delivered(i, j, k) >= lost_steps)
         known.update({(i, j): declared.get((i, j), NEVER) for i in scenario.ids if i != j})
         changed = spec.on_loss == 'reform'
         while changed:     # relaxation: i learns from m at the first state m sent after it knew
@@ -97,7 +102,7 @@ def loss_schedule(scenario, steps: int) -> LossSchedule:
                 km = known.get((m, j), NEVER)
                 if m == j or i == j or km >= NEVER or not alive(m, km + 1):
                     continue
-                k = _first(km + 1, min(steps, known[(i, j)] - 1),
+                k = _first(km + 1, min(last(i), known[(i, j)] - 1),
                            lambda k, i=i, m=m, km=km: delivered(i, m, k) > km)
                 if k < known[(i, j)]:
                     known[(i, j)] = k

@@ -118,7 +118,8 @@ class TeamConfig(NamedTuple):
     holding : ndarray (n,) bool
         The UH holds a position: its controller follows ``hold`` instead of the virtual leader.
     hold : ndarray (n, REFERENCE_SIZE)
-        ``[p_hold - h_i, 0, yaw]`` per UH (read where ``holding``): the pseudo virtual leader of a hold.
+        ``[p_hold, 0, yaw]`` per UH (read where ``holding``, whose row has offset zero): the pseudo virtual
+        leader of a hold (:func:`uh_topology.losses.hold_reference`).
     """
 
     hears: np.ndarray

@@ -69,6 +69,9 @@ def read_events(ctx: ConfigContext, raw, known: set, dt: float, duration: float)
         uh = ctx.uh_id(entry['uh'], ep + ('uh',), known)
         time = read_key(ctx, key_named(EVENT_KEYS, 'time'), entry, ep, lo=0.0, hi=duration, lo_open=True,
                         hi_open=True)
+        if round(time / dt) < 1:
+            raise ctx.error(E.InvalidValueError, ep + ('time',), f'value {time!r} s falls on step 0 (dt {dt:g} s); '
+                            f'allowed: a time on step 1 or later, >= {0.5 * dt:g} s')
         kind = read_key(ctx, key_named(EVENT_KEYS, 'kind'), entry, ep)
         if uh in lost:
             raise ctx.error(E.InvalidValueError, ep + ('uh',), f'UH {uh} is already lost by an earlier event; '
@@ -78,8 +81,18 @@ def read_events(ctx: ConfigContext, raw, known: set, dt: float, duration: float)
     return tuple(sorted(events, key=lambda e: (e.time, e.uh)))
 
 
-def read_resilience(ctx: ConfigContext, raw, adjacency, known: set, link_age: float) -> ResilienceSpec | None:
-    """Read ``resilience`` (None when absent); ``link_age``: the largest age a live link gives, s."""
+#: A live link may be declared lost only with a probability below this per state (a run of ``lost_steps`` lost).
+FALSE_LOSS_PROBABILITY = 1e-12
+
+
+def read_resilience(ctx: ConfigContext, raw, adjacency, known: set, link_age: float, *, dt: float = 1.0,
+                    worst_loss: float = 0.0, dropouts: bool = False) -> ResilienceSpec | None:
+    """Read ``resilience`` (None when absent).
+
+    ``link_age``: the largest age a live link gives, s; ``worst_loss`` the largest loss probability of a
+    link; ``dropouts``: the scenario has ``impairments.dropouts`` (refused: its receivers would declare the
+    dropped UH lost, which an in-process run does not model; an event of kind ``lost`` is that loss).
+    """
     if raw is None:
         return None
     path = ('resilience',)
@@ -89,6 +102,16 @@ def read_resilience(ctx: ConfigContext, raw, adjacency, known: set, link_age: fl
     if timeout <= link_age:
         raise ctx.error(E.InvalidValueError, path + ('lost_timeout',), f'value {timeout!r} s is not beyond the '
                         f'largest age the links give ({link_age:g} s: delay and jitter); allowed: > {link_age:g} s')
+    spec = ResilienceSpec(on_loss=on_loss, standby=None, lost_timeout=timeout)
+    run = spec.lost_steps(dt) - int(round(link_age / dt))    # states lost in a row that declare a live link lost
+    if worst_loss > 0.0 and worst_loss ** max(run, 1) > FALSE_LOSS_PROBABILITY:
+        raise ctx.error(E.InvalidValueError, path + ('lost_timeout',), f'value {timeout!r} s: a live link losing '
+                        f'{worst_loss:g} of its states is declared lost with probability {worst_loss:g}^{run} > '
+                        f'{FALSE_LOSS_PROBABILITY:g} per state; allowed: a longer timeout or less loss')
+    if dropouts:
+        raise ctx.error(E.InvalidValueError, path, 'a scenario with resilience or events cannot have '
+                        'impairments.dropouts (its receivers would declare the dropped UH lost); allowed: an event '
+                        '{time, uh, kind: lost} instead')
     standby = _standby(ctx, raw.get('standby_edges', key_named(RESILIENCE_KEYS, 'standby_edges').default),
                        path + ('standby_edges',), adjacency, known)
     return ResilienceSpec(on_loss=on_loss, standby=standby, lost_timeout=timeout)

@@ -8,7 +8,9 @@ link whoever occupies it.
 1. **Promotion.** Each lost leader's slot is given to a surviving follower: the assignment that
    minimises the total distance between the lost slots' offsets and the followers' places in the
    formation (:func:`~uh_topology.safety.formation_points`), by
-   ``scipy.optimize.linear_sum_assignment``. Without a follower left, the slot stays empty.
+   ``scipy.optimize.linear_sum_assignment``; when the available edges cannot serve it (someone would
+   hold), the next assignments in order of cost are tried and the first that leaves nobody holding
+   is kept (else the one that leaves fewest). Without a follower left, the slot stays empty.
 2. **Repair.** Every occupied slot keeps its in-edges, read through the occupants: an edge from an
    occupied slot becomes an edge from its occupant; an edge from an empty slot (lost, or left by a
    promoted follower) is *bypassed*: it becomes edges from that slot's own in-neighbours, as far as
@@ -25,6 +27,7 @@ link whoever occupies it.
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,7 +36,7 @@ from scipy.optimize import linear_sum_assignment
 from .graph import containment_weights, laplacian_blocks, reachable_from
 from .safety import formation_points
 
-__all__ = ['ReformedTeam', 'reformed_team', 'bypass_standby_edges', 'declared_edges']
+__all__ = ['ReformedTeam', 'reformed_team', 'held_team', 'bypass_standby_edges', 'declared_edges']
 
 
 @dataclass(frozen=True)
@@ -103,22 +106,39 @@ def declared_edges(scenario) -> set:
     return {(int(i), int(j)) for i, j in zip(*np.nonzero(a > 0.0), strict=True)}
 
 
-def _promotions(scenario, lost) -> dict:
-    """``{lost leader: follower}`` by the least total distance from the slots to the followers' places."""
+#: At most this many promotions are tried in order of cost for one that leaves nobody holding.
+PROMOTIONS_TRIED = 720
+
+
+def _promotions(scenario, lost) -> list:
+    """Give the promotions ``{lost leader: follower}`` to try, the least total distance first.
+
+    The first is ``linear_sum_assignment``'s (the least total distance from the lost slots' offsets
+    to the followers' places); the others follow in order of cost (ties by candidate order), at most
+    :data:`PROMOTIONS_TRIED`, so that a promotion the available edges cannot serve gives way to one they can.
+    """
     slots = [i for i in scenario.leaders if i in lost]
     candidates = [k for k in scenario.followers if k not in lost]
     if not slots or not candidates:
-        return {}
+        return [{}]
     places = formation_points(scenario.leaders, scenario.followers, scenario.offsets, scenario.containment_weights)
     cost = np.array([[np.linalg.norm(np.asarray(scenario.offsets[s]) - places[k]) for k in candidates]
                      for s in slots])
     rows, cols = linear_sum_assignment(cost)
-    return {slots[r]: candidates[c] for r, c in zip(rows, cols, strict=True)}
+    best = {slots[r]: candidates[c] for r, c in zip(rows, cols, strict=True)}
+    chosen = [r for r in range(len(slots)) if slots[r] in best]
+    others = []
+    for perm in itertools.islice(itertools.permutations(range(len(candidates)), len(chosen)), PROMOTIONS_TRIED):
+        total = sum(cost[r, c] for r, c in zip(chosen, perm, strict=True))
+        others.append((total, perm))
+    others.sort(key=lambda item: item[0])
+    tries = [best] + [{slots[r]: candidates[c] for r, c in zip(chosen, perm, strict=True)} for _, perm in others]
+    return [p for n, p in enumerate(tries) if p not in tries[:n]]
 
 
 def _sources(a, slot, occupant, start) -> dict:
     """``{occupant or 0: weight}`` an occupied ``slot`` hears through its in-edges, empty slots bypassed."""
-    out, seen = {}, {slot}
+    out, best = {}, {slot: np.inf}
     stack = [(int(j), float(a[slot, j])) for j in np.nonzero(a[slot] > 0.0)[0]]
     while stack:
         j, w = stack.pop()
@@ -126,8 +146,8 @@ def _sources(a, slot, occupant, start) -> dict:
             src = 0 if j == 0 else occupant[j]
             if src != start:
                 out[src] = max(out.get(src, 0.0), w)
-        elif j not in seen:     # an empty slot: hear whom it heard, with the bypassed edge's weight
-            seen.add(j)
+        elif w > best.get(j, 0.0):   # an empty slot: hear whom it heard, with the largest bypassed weight
+            best[j] = w
             stack += [(int(m), w) for m in np.nonzero(a[j] > 0.0)[0]]
     return out
 
@@ -152,8 +172,19 @@ def reformed_team(scenario, lost, available=None, promote: bool = True) -> Refor
     ReformedTeam
     """
     lost = frozenset(int(i) for i in lost)
+    team = None
+    for promoted in (_promotions(scenario, lost) if promote else [{}]):
+        candidate = _repaired(scenario, lost, available, promoted)
+        if team is None or len(candidate.holding) < len(team.holding):
+            team = candidate
+        if not team.holding:
+            break
+    return team
+
+
+def _repaired(scenario, lost, available, promoted) -> ReformedTeam:
+    """Give the team of steps 2 and 3 with the promotions ``promoted``."""
     a = np.asarray(scenario.adjacency)
-    promoted = _promotions(scenario, lost) if promote else {}
     vacated = set(promoted.values())
     occupant = {i: i for i in scenario.ids if i not in lost and i not in vacated}
     occupant.update(promoted)
@@ -196,6 +227,31 @@ def _checked(lost, leaders, followers, offsets, edges, promoted) -> ReformedTeam
         weights = containment_weights(l1, l2)
     return ReformedTeam(lost=lost, leaders=lead, followers=follow, offsets={i: offsets[i] for i in lead},
                         edges=kept, promoted=dict(sorted(promoted.items())), holding=holding,
+                        containment_weights=weights)
+
+
+def held_team(scenario, lost) -> ReformedTeam:
+    """Give the team a hold is scored against: the scenario's without the UHs ``lost``, nothing repaired.
+
+    Every surviving leader keeps its slot (one that holds included: its error is its distance from the
+    slot); a surviving follower is scored against the containment of the declared edges among the
+    survivors, which is what it flies (none when it has no path from a leader).
+    """
+    lost = frozenset(int(i) for i in lost)
+    leaders = tuple(i for i in scenario.leaders if i not in lost)
+    edges = {(i, j): float(scenario.adjacency[i, j]) for (i, j) in declared_edges(scenario)
+             if i not in lost and j not in lost}
+    size = max(scenario.ids) + 1
+    adjacency = np.zeros((size, size))
+    for (i, j), w in edges.items():
+        adjacency[i, j] = w
+    reached = reachable_from(adjacency, leaders, allowed={k for k in scenario.followers if k not in lost})
+    followers = tuple(k for k in scenario.followers if k not in lost and k in reached)
+    weights = np.zeros((len(followers), len(leaders)))
+    if followers and leaders:
+        weights = containment_weights(*laplacian_blocks(adjacency, leaders, followers))
+    return ReformedTeam(lost=lost, leaders=leaders, followers=followers,
+                        offsets={i: np.asarray(scenario.offsets[i], dtype=float) for i in leaders}, edges=edges,
                         containment_weights=weights)
 
 

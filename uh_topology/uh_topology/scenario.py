@@ -378,9 +378,11 @@ def scenario_from_mapping(data, *, source: str | None = None, base_dir=None,
     events = read_events(ctx, top.get('events'), set(team.roles), timing.dt, timing.duration)
     link_age = (max((impairments.delays[e] + impairments.jitters[e] for e in impairments.delays), default=0)
                 * timing.dt if impairments is not None else 0.0)
-    resilience = read_resilience(ctx, top.get('resilience'), adjacency, set(team.roles), link_age)
-    if resilience is None and events:
-        resilience = read_resilience(ctx, {}, adjacency, set(team.roles), link_age)   # the defaults, checked
+    checks = dict(dt=timing.dt, worst_loss=max(impairments.losses.values(), default=0.0) if impairments else 0.0,
+                  dropouts=bool(impairments.dropouts) if impairments else False)
+    resilience = read_resilience(ctx, top.get('resilience'), adjacency, set(team.roles), link_age, **checks)
+    if resilience is None and events:     # the defaults, checked
+        resilience = read_resilience(ctx, {}, adjacency, set(team.roles), link_age, **checks)
 
     adjacency.setflags(write=False)
     return Scenario(
