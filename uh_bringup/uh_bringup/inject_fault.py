@@ -61,6 +61,8 @@ NO_TEAM_S = 2.0
 DEFAULT_TIMEOUT_S = 10.0
 #: s between two looks at the discovered graph.
 POLL_S = 0.02
+#: Longest wait for this writer to match the readers the graph shows on the fault topic, s.
+MATCH_TIMEOUT_S = 5.0
 #: Longest wait for the simulator to acknowledge the fault (a reliable topic), s.
 ACK_TIMEOUT_S = 2.0
 
@@ -73,6 +75,19 @@ def _sim_listens(node, topic: str) -> bool:
     namespace = topic.rsplit('/', 1)[0]
     return any(info.node_name == 'sim' and info.node_namespace == namespace
                for info in node.get_subscriptions_info_by_topic(topic))
+
+
+def _wait_until_matched(node, pub, topic: str) -> None:
+    """Wait (at most :data:`MATCH_TIMEOUT_S`) until ``pub`` has matched every reader the graph shows on ``topic``.
+
+    The graph shows the simulator's reader as soon as discovery announces it; this writer matches it
+    a moment later, and a sample written before that would never reach it (the topic is volatile).
+    """
+    deadline = time.monotonic() + MATCH_TIMEOUT_S
+    while pub.get_subscription_count() < len(node.get_subscriptions_info_by_topic(topic)):
+        if time.monotonic() > deadline:
+            return
+        time.sleep(POLL_S)
 
 
 def _team_uhs(node) -> list:
@@ -183,6 +198,7 @@ def main(argv=None) -> int:
         status = _wait_for_simulator(node, topic, args, parser.prog)
         if status is not None:
             return status
+        _wait_until_matched(node, pub, topic)
         msg = m.ActuatorFault()
         msg.uh_id, msg.channel, msg.rho = args.uh, CHANNEL_ALIASES[args.channel], args.rho
         msg.bias_constant, msg.bias_amplitude = args.bias, args.amplitude
