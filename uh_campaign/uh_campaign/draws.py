@@ -193,36 +193,27 @@ def _loss_draws(ctx, raw, n_uhs: int, duration: float, dt: float) -> LossDraws:
         raise ctx.error(E.InvalidValueError, path + ('time',), f'no control step (dt {dt:g} s) in [{time[0]:g}, '
                         f'{time[1]:g}] s within the run; allowed: a range holding a multiple of {dt:g} s in '
                         f'(0, {duration:g}) s')
-    uhs = None
-    if 'uhs' in raw:
-        given = raw['uhs']
-        if not isinstance(given, list) or not given:
-            raise ctx.error(E.WrongTypeError, path + ('uhs',),
-                            f'expected a non-empty list of UH ids, got {type_name(given)} {given!r}')
-        known = set(range(1, n_uhs + 1))
-        for i, uh in enumerate(given):
-            ctx.uh_id(uh, path + ('uhs', i), known)
-            if uh in given[:i]:
-                raise ctx.error(E.InvalidValueError, path + ('uhs', i), f'UH {uh} is listed twice')
-        uhs = tuple(given)
+    uhs = _uh_list(ctx, raw['uhs'], path + ('uhs',), n_uhs) if 'uhs' in raw else None
     return LossDraws(time=time, uhs=uhs)
+
+
+def _uh_list(ctx, given, path: tuple, n_uhs: int) -> tuple:
+    """Read a non-empty list of distinct UH ids of a team of ``n_uhs`` at key path ``path``."""
+    if not isinstance(given, list) or not given:
+        raise ctx.error(E.WrongTypeError, path,
+                        f'expected a non-empty list of UH ids, got {type_name(given)} {given!r}')
+    known = set(range(1, n_uhs + 1))
+    for i, uh in enumerate(given):
+        ctx.uh_id(uh, path + (i,), known)
+        if uh in given[:i]:
+            raise ctx.error(E.InvalidValueError, path + (i,), f'UH {uh} is listed twice')
+    return tuple(given)
 
 
 def _fault_draws(ctx, raw, n_uhs: int) -> FaultDraws:
     path = ('draws', 'faults')
     ctx.mapping(raw, path, (), _FAULT_KEYS, what='a fault draws mapping')
-    candidates = None
-    if 'candidates' in raw:
-        cands = raw['candidates']
-        if not isinstance(cands, list) or not cands:
-            raise ctx.error(E.WrongTypeError, path + ('candidates',),
-                            f'expected a non-empty list of UH ids, got {type_name(cands)} {cands!r}')
-        known = set(range(1, n_uhs + 1))
-        for i, uh in enumerate(cands):
-            ctx.uh_id(uh, path + ('candidates', i), known)
-            if uh in cands[:i]:
-                raise ctx.error(E.InvalidValueError, path + ('candidates', i), f'UH {uh} is listed twice')
-        candidates = tuple(cands)
+    candidates = _uh_list(ctx, raw['candidates'], path + ('candidates',), n_uhs) if 'candidates' in raw else None
     n_candidates = len(candidates) if candidates is not None else n_uhs
     channels = (0, 1, 2, 3)
     if 'channels' in raw:

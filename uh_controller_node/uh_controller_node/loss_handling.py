@@ -44,7 +44,7 @@ class NodeLosses:
         self.received = kind(self.uh_id, self.neighbours, loss_impairments(scenario), self.dt,
                              VirtualLeaderReference(scenario.reference))
         compile_impairment_kernels()   # now, before the node's endpoints exist and the clock can start
-        self.teams, self.holding, self.last_command = {}, None, None
+        self.teams, self.rows, self.holding, self.last_command = {}, {}, None, None
         self.row = None
         self.last_heard = {}      # {uh: newest sent step that arrived}: the age of a neighbour left out as stale
 
@@ -74,7 +74,9 @@ class NodeLosses:
         self.tracker.update(k, {**self.last_heard, **self.received.sample_steps})
         silent, lost = self.tracker.view()
         silent = silent | {key for key in inputs.stale if key in self.neighbours}
-        row = row_team(self.scenario, self.uh_id, silent, lost, self.teams)
+        if (silent, lost) not in self.rows:   # a view changes only when a loss is learnt: not every step
+            self.rows[(silent, lost)] = row_team(self.scenario, self.uh_id, silent, lost, self.teams)
+        row = self.rows[(silent, lost)]
         if self.tracker.excluded is not None:   # the team re-formed without this UH: it leaves, holding where it is
             row = RowTeam((), (), (), np.zeros(3), 1.0, 'the team declared this UH lost')
         reference = inputs.reference

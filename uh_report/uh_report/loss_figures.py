@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from uh_team.reconfiguration import agreed_losses, observed_schedule
 from uh_team.reconfiguration import errors_in_force as _errors_in_force
-from uh_team.reconfiguration import observed_schedule
 from uh_team.run_arrays import RUN_REF_POSITION
 from uh_team.team_events import loss_schedule
 from uh_topology.reform import declared_edges, reformed_team
@@ -54,9 +54,11 @@ def roles_at(run, schedule, k: int) -> tuple:
     if schedule is None:
         return tuple(scenario.leaders), tuple(scenario.followers), ()
     lost = tuple(j for j, e in sorted(schedule.lost_at.items()) if e <= k)
-    agreed = {j for j in lost if schedule.reform and schedule.agreed_at(
-        j, [i for i in scenario.ids if schedule.lost_at.get(i, 1 << 62) > schedule.lost_at[j]]) <= k}
-    team = scenario.reformed(agreed)
+    in_force = frozenset()      # the lost set of the last loss every UH knew of by step k (errors_in_force's rule)
+    for _, step, _, known in agreed_losses(schedule, scenario):
+        if step <= k:
+            in_force = known
+    team = scenario.reformed(in_force)
     return (tuple(i for i in team.leaders if i not in lost), tuple(i for i in team.followers if i not in lost), lost)
 
 

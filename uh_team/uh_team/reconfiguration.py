@@ -16,7 +16,8 @@ from uh_topology.reform import held_team
 from .separation_metrics import closest_pair_series
 from .team_events import NEVER, LossSchedule, holds, loss_schedule
 
-__all__ = ['team_errors', 'errors_in_force', 'reconfiguration', 'REFORMED_FORMATION_M', 'REFORMED_CONTAINMENT_M']
+__all__ = ['team_errors', 'errors_in_force', 'reconfiguration', 'agreed_losses', 'REFORMED_FORMATION_M',
+           'REFORMED_CONTAINMENT_M']
 
 #: A team is re-formed once every leader is this close to its new formation target, m, and stays so.
 REFORMED_FORMATION_M = 0.05
@@ -40,8 +41,12 @@ def team_errors(positions: np.ndarray, p0: np.ndarray, team, ids) -> np.ndarray:
     return out
 
 
-def _agreed(schedule, scenario) -> list:
-    """``[(step, lost set)]``: from each step on, every surviving UH knows of the losses in the set."""
+def agreed_losses(schedule, scenario) -> list:
+    """Give ``[(event step, agreed step, lost UH, lost set)]`` by event step.
+
+    From the agreed step on (:data:`NEVER` with ``hold``) every surviving UH knows of the losses in
+    the lost set: the team in force is ``scenario.reformed(lost set)``.
+    """
     out, lost = [], set()
     for j, e in sorted(schedule.lost_at.items(), key=lambda item: item[1]):
         alive = [i for i in scenario.ids if schedule.lost_at.get(i, NEVER) > e]
@@ -55,9 +60,10 @@ def errors_in_force(states: np.ndarray, reference_p0: np.ndarray, scenario, sche
     """Give the errors (K+1, n) against the team in force at each step (see the module docstring), m."""
     positions = states[:, :, X_P_SLICE]
     out = team_errors(positions, reference_p0, scenario.reformed(()), scenario.ids)
-    for e, _, j, _ in _agreed(schedule, scenario):
+    agreed = agreed_losses(schedule, scenario)
+    for e, _, j, _ in agreed:
         out[e:, list(scenario.ids).index(j)] = np.nan
-    for _, step, _, lost in _agreed(schedule, scenario):
+    for _, step, _, lost in agreed:
         if step < NEVER and step < len(out):
             out[step:] = team_errors(positions[step:], reference_p0[step:], scenario.reformed(lost), scenario.ids)
     return out
@@ -108,7 +114,7 @@ def reconfiguration(time: np.ndarray, positions: np.ndarray, reference_p0: np.nd
             return None
         schedule = loss_schedule(scenario, last - 1)
     held = holds(scenario, schedule, last - 1)
-    agreed = _agreed(schedule, scenario)
+    agreed = agreed_losses(schedule, scenario)
     out = []
     for n, (e, step, j, lost) in enumerate(agreed):
         end = agreed[n + 1][0] if n + 1 < len(agreed) else last

@@ -20,13 +20,13 @@ import numpy as np
 from uh_core.layout import R_P, R_YAW, REFERENCE_SIZE, STATE_SIZE, X_OMEGA, X_P, X_THETA, X_V
 
 from .graph import reachable_from
-from .impairments import DEFAULT_COMPENSATION, PREDICTING, ImpairmentSpec
+from .impairments import DEFAULT_COMPENSATION, NO_DROPOUT, PREDICTING, ImpairmentSpec
 from .schema import read_only_array
 
 __all__ = ['RowTeam', 'row_team', 'loss_impairments', 'failsafe_step', 'hold_reference', 'predicting', 'NEVER']
 
-#: A step that never comes.
-NEVER = 1 << 62
+#: A step that never comes (the impairments' "no dropout" step).
+NEVER = NO_DROPOUT
 
 
 @dataclass(frozen=True)
