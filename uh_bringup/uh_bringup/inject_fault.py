@@ -42,6 +42,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--amplitude', type=float, default=0.0, help='sinusoidal bias amplitude, rad')
     p.add_argument('--frequency', type=float, default=0.0, help='sinusoidal bias frequency, rad/s')
     p.add_argument('--onset', type=float, default=0.0, help='simulation time from which the fault acts, s')
+    p.add_argument('--stuck', action='store_true',
+                   help='stick the actuator where it is when the simulator takes this (rho = 0, its position then '
+                        'as the bias); --rho and the bias and onset options are not used')
     p.add_argument('--domain-id', type=int, default=None, help='DDS domain id of the running team')
     p.add_argument('--timeout', type=float, default=None, metavar='S',
                    help='wait up to S s for the UH\'s simulator, e.g. of a team that is still starting '
@@ -119,7 +122,10 @@ def _checked_fault(parser, args) -> ActuatorFault:
                               bias_amplitude=args.amplitude, bias_frequency=args.frequency, onset_time=args.onset)
     except FaultError as exc:
         parser.exit(2, f'{parser.prog}: error: {exc}\n')
-    if fault.is_stuck:
+    if args.stuck:
+        print(f'{parser.prog}: warning: --stuck: the {args.channel} actuator stays where it is, which is outside '
+              'what the law compensates (with resilience its controller finds it and leaves the team)', file=sys.stderr)
+    elif fault.is_stuck:
         print(f'{parser.prog}: warning: --rho 0 makes the {args.channel} actuator stuck at its bias, which is '
               'outside what the controller can compensate', file=sys.stderr)
     return fault
@@ -203,13 +209,15 @@ def main(argv=None) -> int:
         msg.uh_id, msg.channel, msg.rho = args.uh, CHANNEL_ALIASES[args.channel], args.rho
         msg.bias_constant, msg.bias_amplitude = args.bias, args.amplitude
         msg.bias_frequency, msg.onset_time = args.frequency, args.onset
+        msg.stuck_in_place = bool(args.stuck)
         pub.publish(msg)
         # the simulator's reliable reader acknowledges the sample before the participant goes away
         if not pub.wait_for_all_acked(rt.Duration(seconds=ACK_TIMEOUT_S)):
             print(f'{parser.prog}: warning: the simulator did not acknowledge the fault within {ACK_TIMEOUT_S:g} s',
                   file=sys.stderr)
-        print(f'injected on {topic}: {args.channel} rho {args.rho}, bias {args.bias} + {args.amplitude} '
-              f'sin({args.frequency} t), from t = {args.onset} s', file=sys.stderr)
+        what = ('stuck where it is' if args.stuck else
+                f'rho {args.rho}, bias {args.bias} + {args.amplitude} sin({args.frequency} t), from t = {args.onset} s')
+        print(f'injected on {topic}: {args.channel} {what}', file=sys.stderr)
         return 0
     finally:
         # shutdown first: the DDS backend's then destroys the node without announcing it in

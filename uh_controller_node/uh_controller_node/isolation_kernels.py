@@ -59,6 +59,7 @@ from uh_core.layout import X_OMEGA, X_THETA
 
 __all__ = ['ISO_PARAMS_SIZE', 'ISO_STATE_SIZE', 'VERDICT_SIZE', 'TRACE_COLUMNS', 'STATUS_ROWS', 'new_isolation_state',
            'input_deviations', 'isolation_step', 'isolation_run', 'isolation_verdict', 'isolation_status',
+           'unable_channel', 'first_unable_step', 'UNABLE_BOUNDS',
            'compile_isolation_kernels',
            'O_ISOLATED', 'O_DETECTION', 'O_DEVIATION', 'O_THRESHOLD', 'O_RHO', 'O_BIAS', 'O_CODE', 'O_SPREAD',
            'IP_MASS', 'IP_C_Q', 'IP_LOWER', 'IP_UPPER', 'IP_THRESHOLDS', 'IP_NOISE_RMS', 'IP_RESIDUAL_MAX',
@@ -354,6 +355,45 @@ def isolation_status(params, state, verdict, out):
             out[O_RHO, c], out[O_BIAS, c], out[O_CODE, c] = math.nan, math.nan, 0.0
 
 
+#: How many worst-case error bounds of the fitted ``rho`` must fit under the effectiveness floor
+#: (docs/resilience.md#leaving-the-team: with one, a sinusoidal bias the law cancels in `wide` reads as ``rho`` 0.01
+#: with a bound of 0.48, because the actual input is then nearly constant, as a stuck one is).
+UNABLE_BOUNDS = 2.0
+
+
+@njit(cache=True)
+def unable_channel(params, state, floor, verdict):
+    """Give the first isolated channel whose effectiveness is below ``floor`` beyond the fit's doubt, or -1.
+
+    Beyond doubt: the fit spans at least the confirmation time (its bound assumes many samples: a fit
+    of a few steps just after a fault's onset can read far too low) and the fitted ``rho`` plus
+    :data:`UNABLE_BOUNDS` times its worst-case error bound ``V_RHO_BOUND`` is below ``floor`` (NaN
+    and infinite bounds never are); docs/resilience.md#leaving-the-team. ``verdict`` (VERDICT_SIZE,)
+    is scratch.
+    """
+    for c in range(_N):
+        if state[IS_ISOLATED + c] != 0.0:
+            isolation_verdict(params, state, c, verdict)
+            if (verdict[V_FIT_TIME] >= params[IP_CONFIRMATION] - 1e-9
+                    and verdict[V_RHO] + UNABLE_BOUNDS * verdict[V_RHO_BOUND] < floor):
+                return c
+    return -1
+
+
+@njit(cache=True)
+def first_unable_step(params, state, times, states, commands, fault_p, fault_w, floor, verdict):
+    """Call :func:`isolation_step` on rows ``k`` until :func:`unable_channel` finds one; give ``(k, channel)``.
+
+    ``(-1, -1)`` when no row does. The rows as in :func:`isolation_run`.
+    """
+    for k in range(times.shape[0]):
+        isolation_step(params, state, times[k], states[k], commands[k], fault_p[k], fault_w[k])
+        c = unable_channel(params, state, floor, verdict)
+        if c >= 0:
+            return k, c
+    return -1, -1
+
+
 def compile_isolation_kernels() -> float:
     """Compile (or load from numba's cache) the isolator's kernels for the signatures it uses; seconds spent.
 
@@ -369,6 +409,9 @@ def compile_isolation_kernels() -> float:
                   np.zeros((2, 3)), np.zeros((0, TRACE_COLUMNS)))
     isolation_verdict(params, state, 0, np.zeros(VERDICT_SIZE))
     isolation_status(params, state, np.zeros(VERDICT_SIZE), np.zeros((STATUS_ROWS, _N)))
+    unable_channel(params, state, 0.5, np.zeros(VERDICT_SIZE))
+    first_unable_step(params, state, np.ones(2), np.zeros((2, 12)), np.zeros((2, _N)), np.zeros((2, 3)),
+                      np.zeros((2, 3)), 0.5, np.zeros(VERDICT_SIZE))
     return time.perf_counter() - start
 
 

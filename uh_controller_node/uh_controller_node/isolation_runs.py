@@ -4,7 +4,7 @@ What a controller does step by step (:mod:`uh_controller_node.fault_isolation`),
 team run's time series (``timeseries.npz`` or a bag read back): :func:`isolate_run` gives every
 UH's verdicts as the controllers would have published them (docs/faults.md#isolation-and-identification);
 :func:`healthy_deviation_statistics` the deviations of healthy channels, from which the thresholds
-were chosen.
+were chosen; :func:`first_unable` when each UH's isolator finds a fault its controller cannot compensate.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from .fault_isolation import CHANNELS, FaultIsolator, IsolationSettings
 from .gains import ControllerGains
 from .nominal_model import nominal_model
 
-__all__ = ['isolate_run', 'healthy_deviation_statistics']
+__all__ = ['isolate_run', 'first_unable', 'healthy_deviation_statistics']
 
 _N = len(CHANNELS)
 
@@ -85,6 +85,26 @@ def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSet
             'channels': {r.channel: r.as_dict() for r in reports},
         }
     out['settings'] = dataclasses.asdict(settings)
+    return out
+
+
+def first_unable(arrays, scenario, case: str, floor: float, uhs) -> dict:
+    """Give ``{uh: (step, channel)}``: the first step each of ``uhs``' isolators finds a channel below ``floor``.
+
+    The isolator of each UH runs over the run's rows (``arrays`` as for :func:`isolate_run`) until
+    :meth:`FaultIsolator.unable` finds a channel (docs/resilience.md#leaving-the-team); a UH without a
+    finding is left out. The same kernels as the controllers' online isolators, so the same steps.
+    """
+    nominal, settings, data = _setup(arrays, scenario, case, None)
+    ids = tuple(scenario.ids)
+    out = {}
+    for uh in uhs:
+        j = ids.index(uh)
+        iso = FaultIsolator(nominal, scenario.model_mismatch, float(scenario.dt), settings)
+        k, c = iso.first_unable(floor, data['time'], data['states'][:, j], data['commands'][:, j],
+                                data['fault_est_p'][:, j], data['fault_est_w'][:, j])
+        if k >= 0:
+            out[uh] = (k, c)
     return out
 
 

@@ -11,7 +11,10 @@ UH dropped from its event step on), and runs each step:
 * any other UH updates its :class:`~uh_controller_node.loss_tracker.LossTracker` with the newest
   states it has, flies the row :func:`~uh_topology.losses.row_team` gives for what it knows
   (:meth:`~uh_controller_node.controller.UHController.step_row`), or holds where it was when it began
-  to hold, and carries its lost set on its command (its simulator sends it on with the next state).
+  to hold, and carries its lost set on its command (its simulator sends it on with the next state);
+* with ``resilience.on_unable: leave``, a UH whose fault isolator finds a channel below ``unable_rho``
+  (:meth:`~uh_controller_node.fault_isolation.FaultIsolator.unable`) declares itself lost and, from the
+  next step on, holds its leave point (:func:`~uh_topology.losses.leave_reference`), learning nothing more.
 """
 from __future__ import annotations
 
@@ -19,9 +22,11 @@ import numpy as np
 
 from uh_core.layout import STATUS_SIZE
 from uh_core.reference import VirtualLeaderReference
-from uh_topology.losses import NEVER, RowTeam, hold_reference, loss_impairments, row_team
+from uh_topology.events import silent_events
+from uh_topology.losses import NEVER, RowTeam, hold_reference, leave_reference, loss_impairments, row_team
 
 from .controller_status import status_record
+from .fault_isolation import CHANNELS
 from .impairments import ReceivedStates, compile_impairment_kernels
 from .loss_tracker import LossTracker
 from .realtime_received import RealtimeReceivedStates
@@ -37,7 +42,7 @@ class NodeLosses:
         edges = scenario.receivable_edges()
         self.neighbours = tuple(sorted(j for (i, j) in edges if i == self.uh_id and j != 0))
         self.linked = (self.uh_id, 0) in edges
-        self.lost_step = next((e.step for e in scenario.events if e.uh == self.uh_id), NEVER)
+        self.lost_step = next((e.step for e in silent_events(scenario.events) if e.uh == self.uh_id), NEVER)
         spec = scenario.resilience
         self.tracker = LossTracker(self.uh_id, self.neighbours, spec.lost_steps(self.dt), spec.on_loss == 'reform')
         kind = ReceivedStates if clock_mode == 'lockstep' else RealtimeReceivedStates
@@ -46,6 +51,8 @@ class NodeLosses:
         compile_impairment_kernels()   # now, before the node's endpoints exist and the clock can start
         self.teams, self.rows, self.holding, self.last_command = {}, {}, None, None
         self.row = None
+        self.unable_rho = spec.unable_rho if spec.leaves else None
+        self.leave_from, self.leave_point, self.unable = NEVER, None, None   # from its own finding on
         self.last_heard = {}      # {uh: newest sent step that arrived}: the age of a neighbour left out as stale
 
     @classmethod
@@ -71,6 +78,8 @@ class NodeLosses:
             status = status_record(self.uh_id, k, k * self.dt, np.zeros(STATUS_SIZE))
             status.isolation, status.role = self.controller.isolator.status(), 'lost'
             return self.last_command, status
+        if k >= self.leave_from:
+            return self._leave(k, inputs, own, neighbours)
         self.tracker.update(k, {**self.last_heard, **self.received.sample_steps})
         silent, lost = self.tracker.view()
         silent = silent | {key for key in inputs.stale if key in self.neighbours}
@@ -91,6 +100,22 @@ class NodeLosses:
                 self.holding = hold_reference(np.asarray(own_raw, dtype=float))
             u, status = self.controller.step_row(k, own, neighbours, reference, self.dt, row, hold=self.holding)
         self.row, self.last_command = row, u
+        if self.unable_rho is not None and self.controller.isolator.unable(self.unable_rho) >= 0:
+            self.unable = self.controller.isolator.unable(self.unable_rho)
+            self.tracker.declare_self(k)
+            self.leave_from = k + 1
+        status.lost_uhs, status.role = tuple(sorted(self.tracker.known)), self.role()
+        return u, status
+
+    def _leave(self, k: int, inputs, own, neighbours):
+        """Fly step ``k`` of a UH that left: hold its leave point, fixed at its first leaving step."""
+        if self.leave_point is None:
+            climb = self.scenario.resilience.leave_climb
+            self.leave_point = leave_reference(np.asarray(inputs.own, dtype=float), climb)
+        self.row = RowTeam((), (), (), np.zeros(3), 1.0, 'leaving')
+        u, status = self.controller.step_row(k, own, neighbours, inputs.reference, self.dt, self.row,
+                                             hold=self.leave_point)
+        self.last_command = u
         status.lost_uhs, status.role = tuple(sorted(self.tracker.known)), self.role()
         return u, status
 
@@ -102,6 +127,8 @@ class NodeLosses:
         """Give this UH's role now: ``lost``, ``holding (why)``, ``leader`` or ``follower`` of the team it flies."""
         if self.row is None:
             return 'starting'
+        if self.unable is not None:
+            return f'leaving ({CHANNELS[self.unable]} below rho {self.unable_rho:g})'
         if self.row.hold_reason is not None:
             return f'holding ({self.row.hold_reason})'
         lost = self.tracker.view()[1]

@@ -12,8 +12,10 @@ edges) and the lost sets those states carried (:meth:`LossTracker.heard`); it
 gives ``(silent, lost)`` for :func:`uh_topology.losses.row_team`. A set that names this UH itself (in
 real time, a UH whose states stopped for ``lost_timeout`` and came back) sets
 :attr:`LossTracker.excluded`: the team has re-formed without it, so it leaves (holds where it is)
-rather than fly a slot another UH took. The in-process run works out the same steps in advance
-(:func:`uh_team.team_events.loss_schedule`); a lockstep run equals it bit for bit.
+rather than fly a slot another UH took. :meth:`LossTracker.declare_self` puts this UH in its own
+lost set (docs/resilience.md#leaving-the-team), which its states then carry to the team. The
+in-process run works out the same steps in advance (:func:`uh_team.team_events.loss_schedule`); a
+lockstep run equals it bit for bit.
 """
 from __future__ import annotations
 
@@ -46,7 +48,7 @@ class LossTracker:
 
     def heard(self, j: int, sent_step: int, lost: dict) -> None:
         """Keep the lost set ``{uh: step}`` that UH ``j``'s state of ``sent_step`` carried."""
-        if self.reform and lost and j in self._sets:
+        if lost and j in self._sets and (self.reform or j in lost):
             self._sets[j][int(sent_step)] = dict(lost)
 
     def update(self, k: int, newest: dict) -> bool:
@@ -59,18 +61,23 @@ class LossTracker:
             if k - s >= self.lost_steps:
                 self.declared[j] = k
                 self.known[j] = k
-        if self.reform:
-            for j in self.receivable:
-                s = newest.get(j)
-                sets = self._sets[j]
-                for step in [t for t in sets if s is not None and t < s]:   # older sets are never used again
-                    del sets[step]
-                for lost, step in (sets.get(s) or {}).items():
+        for j in self.receivable:
+            s = newest.get(j)
+            sets = self._sets[j]
+            for step in [t for t in sets if s is not None and t < s]:   # older sets are never used again
+                del sets[step]
+            for lost, step in (sets.get(s) or {}).items():
+                if self.reform or lost == j:     # with hold, only a sender's own declaration (it leaves)
                     if lost != self.uh_id:
                         self.known.setdefault(lost, step)
                     elif self.excluded is None:
                         self.excluded = k
         return len(self.known) != before
+
+    def declare_self(self, k: int) -> None:
+        """Declare this UH itself lost at step ``k`` (its isolator found a fault it cannot compensate; it leaves)."""
+        self.declared.setdefault(self.uh_id, int(k))
+        self.known.setdefault(self.uh_id, int(k))
 
     def view(self) -> tuple:
         """Give ``(silent, lost)``: with ``reform`` the known lost set, otherwise its declarations as silent."""
@@ -78,5 +85,7 @@ class LossTracker:
         return (frozenset(), mine) if self.reform else (mine, frozenset())
 
     def carried(self) -> dict:
-        """Give the lost set this UH sends on (``{uh: step declared}``; empty with ``hold``)."""
-        return dict(self.known) if self.reform else {}
+        """Give the lost set this UH sends on (``{uh: step declared}``; with ``hold``, only its own declaration)."""
+        if self.reform:
+            return dict(self.known)
+        return {self.uh_id: self.known[self.uh_id]} if self.uh_id in self.known else {}

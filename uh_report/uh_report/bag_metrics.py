@@ -277,11 +277,12 @@ def _fault_injections(bag: _Bag, ids) -> list:
 def _losses(bag: _Bag, ids, last_step: int) -> dict:
     """Give what the states carried of the team's losses (docs/resilience.md).
 
-    ``{'known': {(i, j): step}, 'declared': {j: step}}``: UH ``i``'s controller knew ``j`` lost at
-    ``step`` (the state it sent next was the first to carry it), and the earliest step ``j`` was declared
-    lost by anyone. Empty dicts when no state carried a lost set.
+    ``{'known': {(i, j): step}, 'declared': {j: step}, 'leaving': {i: (step, -1)}}``: UH ``i``'s
+    controller knew ``j`` lost at ``step`` (the state it sent next was the first to carry it), the
+    earliest step ``j`` was declared lost by anyone, and the UHs whose own states carried their own
+    declaration (they left; channel unknown, -1). Empty dicts when no state carried a lost set.
     """
-    known, declared = {}, {}
+    known, declared, leaving = {}, {}, {}
     for i in ids:
         name = topics.uh_topic(i, topics.STATE)
         messages = bag.topics.get(name)
@@ -295,7 +296,9 @@ def _losses(bag: _Bag, ids, last_step: int) -> dict:
                 j, step = int(j), int(step)
                 known[(i, j)] = min(known.get((i, j), int(msg.step) - 1), int(msg.step) - 1)
                 declared[j] = min(declared.get(j, step), step)
-    return {'known': known, 'declared': declared}
+                if j == i:      # its own declaration: it left (the channel is not on the wire)
+                    leaving[i] = (step, -1)
+    return {'known': known, 'declared': declared, 'leaving': leaving}
 
 
 def read_team_bag(bag_dir, scenario) -> dict:

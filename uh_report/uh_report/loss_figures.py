@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uh_team.reconfiguration import agreed_losses, observed_schedule
+from uh_team.reconfiguration import agreed_losses, leaving_of, observed_schedule
 from uh_team.reconfiguration import errors_in_force as _errors_in_force
 from uh_team.run_arrays import RUN_REF_POSITION
 from uh_team.team_events import loss_schedule
@@ -34,7 +34,7 @@ def loss_schedule_of(run):
         return None
     observed = observed_schedule(run.scenario, run.arrays.get('losses')) if 'losses' in run.arrays else None
     if observed is None and run.scenario.events:
-        observed = loss_schedule(run.scenario, len(run.arrays['time']) - 1)
+        observed = loss_schedule(run.scenario, len(run.arrays['time']) - 1, leaving_of(run.arrays.get('leaving')))
     return observed
 
 

@@ -43,7 +43,7 @@ from uh_core.records import FaultSpec
 if TYPE_CHECKING:
     import numpy as np
 
-__all__ = ['FaultError', 'ActuatorFault', 'FaultSchedule', 'ONSET_TOLERANCE']
+__all__ = ['FaultError', 'ActuatorFault', 'FaultSchedule', 'ONSET_TOLERANCE', 'inject']
 
 #: A time this close before the onset counts as past it, s (absorbs the rounding of ``k * dt``).
 ONSET_TOLERANCE = 1e-9
@@ -100,6 +100,11 @@ class ActuatorFault(FaultSpec):
         """Build from any object with the six fault attributes (e.g. a scenario's ``FaultSpec``)."""
         return cls(spec.channel, spec.rho, spec.bias_constant, spec.bias_amplitude,
                    spec.bias_frequency, spec.onset_time)
+
+    @classmethod
+    def stuck_at(cls, channel: int, position: float, time: float) -> 'ActuatorFault':
+        """Give actuator ``channel`` stuck at ``position`` rad from ``time`` s on: ``rho = 0``, that constant bias."""
+        return cls(channel, rho=0.0, bias_constant=position, onset_time=time)
 
     @property
     def is_nominal(self) -> bool:
@@ -231,3 +236,25 @@ class FaultSchedule:
     def active_channels(self, t: float) -> tuple:
         """Return the indices of the channels whose fault acts at ``t`` s."""
         return tuple(f.channel for f in self._list if f.started(t))
+
+
+def inject(plant, msg, uh_id: int, command, t: float) -> ActuatorFault:
+    """Apply a run-time injection ``msg`` (``uh_msgs/ActuatorFault``) to UH ``uh_id``'s ``plant``; give the fault.
+
+    ``stuck_in_place`` sticks the channel where ``command`` (4,) rad holds it at ``t`` s
+    (:meth:`uh_sim_node.helicopter.HelicopterPlant.stick`); otherwise the message's fault replaces
+    the channel's. Raises :class:`FaultError` for a message meant for another UH or an invalid fault
+    (the plant is left as it was).
+    """
+    if int(msg.uh_id) != uh_id:
+        raise FaultError(f'it names uh{msg.uh_id} but arrived on /uh{uh_id}/fault')
+    channel = int(msg.channel)
+    if getattr(msg, 'stuck_in_place', False):
+        if not 0 <= channel < NUM_CHANNELS:
+            raise FaultError(f'fault channel must be an int in 0..3, got {channel}')
+        return plant.stick(channel, command, t)
+    fault = ActuatorFault(channel=channel, rho=float(msg.rho), bias_constant=float(msg.bias_constant),
+                          bias_amplitude=float(msg.bias_amplitude), bias_frequency=float(msg.bias_frequency),
+                          onset_time=float(msg.onset_time))
+    plant.faults.add(fault)
+    return fault

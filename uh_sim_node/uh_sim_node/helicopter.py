@@ -55,7 +55,7 @@ from uh_core.airframe import HelicopterParams, load_helicopter_params
 from uh_core.layout import INPUT_SIZE, STATE_SIZE
 
 from . import plant_kernels as _k
-from .faults import FaultError, FaultSchedule
+from .faults import ActuatorFault, FaultError, FaultSchedule
 
 __all__ = ['hover_trim', 'SinusoidalDisturbance', 'disturbance_from_spec', 'HelicopterPlant', 'plant_from_scenario']
 
@@ -279,6 +279,16 @@ class HelicopterPlant:
     def actual_inputs(self, u_cmd, t: float) -> np.ndarray:
         """Return the inputs (4,) rad acting at time ``t`` s: limits, faults (eq. 6), limits again."""
         return self._inputs(u_cmd, t)[1]
+
+    def stick(self, channel: int, u_cmd, t: float):
+        """Stick actuator ``channel`` from ``t`` s on where the command ``u_cmd`` (4,) rad holds it then; the fault.
+
+        :func:`.plant_kernels.stuck_position`; the channel's earlier fault is replaced.
+        """
+        position = _k.stuck_position(self._params_vec, self._fault_array(), channel, self._command(u_cmd), t)
+        fault = ActuatorFault.stuck_at(channel, position, float(t))
+        self._faults.add(fault)
+        return fault
 
     def fault_active(self, t: float) -> bool:
         """Return True when any fault channel is past its onset at ``t`` s."""

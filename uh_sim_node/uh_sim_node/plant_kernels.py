@@ -129,7 +129,7 @@ __all__ = [
     'PARAMS_ENTRIES', 'PARAMS_INDEX',
     'F_PRESENT', 'F_RHO', 'F_BIAS_CONSTANT', 'F_BIAS_AMPLITUDE', 'F_BIAS_FREQUENCY', 'F_ACTS_FROM',
     'FAULT_FIELDS', 'D_AMPLITUDE', 'D_FREQUENCY', 'D_PHASE', 'DISTURBANCE_FIELDS', 'PlantArrays',
-    'params_vector', 'fault_table', 'disturbance_table',
+    'params_vector', 'fault_table', 'disturbance_table', 'stuck_position',
     'state_derivative', 'actual_inputs', 'force_disturbance', 'lumped_faults_of_inputs', 'lumped_faults',
     'plant_step', 'compile_plant_kernels',
 ]
@@ -476,6 +476,19 @@ def actual_inputs(u_cmd, t, t_switch, params, faults, out_cmd, out_actual):
     for i in range(INPUT_SIZE):
         out_cmd[i] = uc[i]
         out_actual[i] = ua[i]
+
+
+def stuck_position(params, faults, channel: int, u_cmd, t: float) -> float:
+    """Give where actuator ``channel`` is at time ``t`` s, rad: where it sticks (docs/faults.md#stuck-actuators).
+
+    The actual input of ``channel`` (:func:`actual_inputs`, the faults' activity decided at ``t``) for
+    the command ``u_cmd`` (4,) rad it held until then, under the faults ``faults`` (NUM_CHANNELS,
+    FAULT_FIELDS). The simulator node (:meth:`uh_sim_node.helicopter.HelicopterPlant.stick`) and the
+    in-process run (:mod:`uh_team.event_run`) both take it from here, so they give the same bits.
+    """
+    uc, ua = np.empty(INPUT_SIZE), np.empty(INPUT_SIZE)
+    actual_inputs(np.ascontiguousarray(u_cmd, dtype=np.float64), float(t), float(t), params, faults, uc, ua)
+    return float(ua[channel])
 
 
 @njit(cache=True)

@@ -11,7 +11,9 @@ scenario's fault schedule and faults injected at run time on ``fault``, and publ
 
 Until its first command arrives the plant holds the hover trim. A UH lost by the scenario's ``events``
 (docs/resilience.md) flies its failsafe from its event step on (it brakes to a hover), with zero fault
-truth; each state carries the lost set of the command before it (the controller's, sent on to the team).
+truth; each state carries the lost set of the command before it (the controller's, sent on to the team). An event
+``stuck`` sticks its channel from its step on where the command before it left the actuator
+(:meth:`~uh_sim_node.helicopter.HelicopterPlant.stick`), as an injection with ``stuck_in_place`` does at once.
 
 Bad input never stops the plant: a command carrying NaN/inf or another UH's id is rejected (logged, counted) and the
 last valid one kept; in realtime an older command than the one held is ignored, and one older than ``stale_timeout``
@@ -25,10 +27,12 @@ import numpy as np
 import uh_runtime as rt
 from uh_core import compiled_kernels, diagnostics, frames
 from uh_runtime import messages as m
+from uh_sim_node import faults
 from uh_sim_node.command_watch import CommandWatch
-from uh_sim_node.faults import ActuatorFault, FaultError
+from uh_sim_node.faults import FaultError
 from uh_sim_node.helicopter import hover_trim, plant_from_scenario
 from uh_sim_node.plant_kernels import compile_plant_kernels
+from uh_topology.events import silent_events
 from uh_topology.losses import NEVER, failsafe_step
 from uh_wire import run_config, topics
 from uh_wire.published import PublishedCounts
@@ -50,7 +54,8 @@ class SimNode(rt.Node):
         compile_plant_kernels()   # now, before the clock can start: a realtime run would lose those steps
         self.command = hover_trim(self.plant.params)
         self.step, self.published_step = 0, -1    # the state the plant holds, the last one published
-        self.lost_step = next((e.step for e in self.scenario.events if e.uh == self.uh_id), NEVER)
+        self.lost_step = next((e.step for e in silent_events(self.scenario.events) if e.uh == self.uh_id), NEVER)
+        self.stuck = next((e for e in self.scenario.events if e.uh == self.uh_id and e.kind == 'stuck'), None)
         self.lost = {}                # the lost set the last command carried
         stale_timeout = run_config.declare_float_parameter(
             self, 'stale_timeout', run_config.DEFAULT_STALE_TIMEOUT, 60.0,
@@ -102,6 +107,8 @@ class SimNode(rt.Node):
                                     f'({self.watch.rejected} rejected so far)', throttle_duration_sec=1.0)
             return
         k = int(msg.step)
+        if self.stuck is not None and k == self.stuck.step == self.step:   # stuck where the last command left it
+            self.get_logger().warn(f'event: {self.plant.stick(self.stuck.channel, self.command, k * self.dt)}')
         if self.mode != 'lockstep' and k < self.watch.command_step:
             return  # older than the command held: reordered, or replayed history after a controller restart
         self.command, self.lost = u, lost
@@ -121,20 +128,12 @@ class SimNode(rt.Node):
 
     def on_fault(self, msg) -> None:
         """Run-time fault injection (uh_msgs/ActuatorFault); invalid ones are rejected and logged."""
-        if int(msg.uh_id) != self.uh_id:
-            self.get_logger().error(f'rejected fault injection: it names uh{msg.uh_id} but arrived on '
-                                    f'/uh{self.uh_id}/fault; the plant keeps its current faults')
-            self.watch.rejected_faults += 1
-            return
         try:
-            fault = ActuatorFault(channel=int(msg.channel), rho=float(msg.rho),
-                                  bias_constant=float(msg.bias_constant), bias_amplitude=float(msg.bias_amplitude),
-                                  bias_frequency=float(msg.bias_frequency), onset_time=float(msg.onset_time))
+            fault = faults.inject(self.plant, msg, self.uh_id, self.command, self.step * self.dt)
         except FaultError as exc:
             self.get_logger().error(f'rejected fault injection: {exc}; the plant keeps its current faults')
             self.watch.rejected_faults += 1
             return
-        self.plant.faults.add(fault)
         self.get_logger().warn(f'fault injected on uh{self.uh_id}: {fault}')
         if fault.is_stuck:
             self.get_logger().warn(f'rho = 0 on channel {fault.channel}: the actuator is stuck, which is outside '

@@ -435,7 +435,8 @@ METRICS = (
     # docs/resilience.md: a run with events
     Metric('reconfiguration', json_type='array or null',
            doc='per loss (the scenario\'s `events`; in a recorded run the losses its states carried, '
-               '[resilience.md](resilience.md)): `uh`, `time_s`, `on_loss`, '
+               '[resilience.md](resilience.md)): `uh`, `kind` (`lost`, or `stuck` for a UH that left), `time_s` (the '
+               'event), `channel` (the one its isolator found, for a UH that left), `on_loss`, '
                '`detected_at_s` (the first declaration), `agreed_at_s` (every UH knows), `reformed_at_s` (errors '
                'under 0.05 m / 0.02 m against the new targets from then on), `formation_error_after_m` and '
                '`containment_error_after_m` (largest after re-forming), `formation_error_last_10s_m` and '
@@ -443,7 +444,8 @@ METRICS = (
                '`min_separation_m` (from the event to re-forming), the new `leaders`, `followers`, `promoted` '
                '(slot: UH) and `holding` (UH: why); null without a loss',
            compute=lambda v: None if v.scenario is None else reconfiguration(
-               v.time, v.positions, v.reference_positions, v.scenario, (v.arrays or {}).get('losses'))),
+               v.time, v.positions, v.reference_positions, v.scenario, (v.arrays or {}).get('losses'),
+               (v.arrays or {}).get('leaving'))),
     # ... and its campaign columns (docs/campaigns.md#losing-a-helicopter): over the run's losses, none without
     _loss_metric('reform_time_s', 's', 'largest time from a loss to the team re-formed, s (none if one was not)',
                  'lower', _since_loss('reformed_at_s')),

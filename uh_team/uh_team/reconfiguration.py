@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from uh_core.layout import X_P_SLICE
+from uh_core.layout import CHANNEL_NAMES, X_P_SLICE
+from uh_topology.events import silent_events
 from uh_topology.reform import held_team
 
 from .separation_metrics import closest_pair_series
 from .team_events import NEVER, LossSchedule, holds, loss_schedule
 
-__all__ = ['team_errors', 'errors_in_force', 'reconfiguration', 'agreed_losses', 'REFORMED_FORMATION_M',
+__all__ = ['team_errors', 'errors_in_force', 'reconfiguration', 'agreed_losses', 'leaving_rows', 'leaving_of',
+           'REFORMED_FORMATION_M',
            'REFORMED_CONTAINMENT_M']
 
 #: A team is re-formed once every leader is this close to its new formation target, m, and stays so.
@@ -83,36 +85,52 @@ def _settled_from(errors: np.ndarray, team, ids, k0: int, k1: int) -> int | None
     return k0 + (int(bad[-1]) + 1 if bad.size else 0)
 
 
+def leaving_rows(leaving: dict) -> np.ndarray:
+    """Give ``{uh: (step, channel)}`` of the UHs that left as int rows ``[uh, step, channel]`` (a run's ``leaving``)."""
+    return np.array([[uh, step, channel] for uh, (step, channel) in sorted(leaving.items())],
+                    dtype=np.int64).reshape(-1, 3)
+
+
+def leaving_of(rows) -> dict:
+    """Give ``{uh: (step, channel)}`` of a run's ``leaving`` rows (:func:`leaving_rows`); ``{}`` for None."""
+    return {} if rows is None else {int(r[0]): (int(r[1]), int(r[2])) for r in np.asarray(rows).reshape(-1, 3)}
+
+
 def observed_schedule(scenario, losses: dict) -> LossSchedule | None:
     """Give the :class:`LossSchedule` a recorded run shows (``losses`` of :func:`uh_report.bag_metrics.read_team_bag`).
 
     Who knew of which loss when is what the states carried. A loss the scenario does not schedule (a
     killed node in real time) is dated from its first declaration: the step after the last state the
-    declaring UH had, ``declared - lost_steps + 1``. None when no state carried a loss.
+    declaring UH had, ``declared - lost_steps + 1``; a UH that left (its own states carried its
+    declaration: ``losses['leaving']``) from its declaration. None when no state carried a loss.
     """
     if not losses or not losses.get('declared'):
         return None
-    events = {e.uh: e.step for e in scenario.events}
+    events = {e.uh: e.step for e in silent_events(scenario.events)}
     lost_steps = scenario.resilience.lost_steps(float(scenario.dt))
-    lost_at = {j: events.get(j, step - lost_steps + 1) for j, step in losses['declared'].items()}
+    leaving = dict(losses.get('leaving', {}))
+    lost_at = {j: step if j in leaving else events.get(j, step - lost_steps + 1)
+               for j, step in losses['declared'].items()}
     return LossSchedule(lost_at=lost_at, declared={(0, j): s for j, s in losses['declared'].items()},
-                        known=dict(losses['known']), reform=scenario.resilience.on_loss == 'reform')
+                        known=dict(losses['known']), reform=scenario.resilience.on_loss == 'reform',
+                        leaving=leaving)
 
 
 def reconfiguration(time: np.ndarray, positions: np.ndarray, reference_p0: np.ndarray, scenario,
-                    losses: dict | None = None) -> list | None:
+                    losses: dict | None = None, leaving=None) -> list | None:
     """Give one entry per loss, metrics.json's ``reconfiguration`` (docs/metrics.md); None without one.
 
     ``time`` (K+1,) s, ``positions`` (K+1, n, 3) m in ``scenario.ids`` order, ``reference_p0`` (K+1, 3) m.
     The losses are the scenario's ``events`` as the in-process run works them out, or, with ``losses``
-    (a recorded run), what its states carried (:func:`observed_schedule`).
+    (a recorded run), what its states carried (:func:`observed_schedule`); ``leaving``: the run's
+    ``leaving`` rows (:func:`leaving_rows`) of an in-process run.
     """
     dt, last = float(scenario.dt), len(time)
     schedule = observed_schedule(scenario, losses) if losses is not None else None
     if schedule is None:
         if not scenario.events:
             return None
-        schedule = loss_schedule(scenario, last - 1)
+        schedule = loss_schedule(scenario, last - 1, leaving_of(leaving))
     held = holds(scenario, schedule, last - 1)
     agreed = agreed_losses(schedule, scenario)
     out = []
@@ -134,8 +152,12 @@ def reconfiguration(time: np.ndarray, positions: np.ndarray, reference_p0: np.nd
 
         declared = [s for (i, jj), s in schedule.declared.items() if jj == j and s < NEVER]
         after = slice(settled, end) if settled is not None else slice(0, 0)
+        event = next((ev for ev in scenario.events if ev.uh == j), None)
         out.append({
-            'uh': j, 'kind': 'lost', 'time_s': e * dt, 'on_loss': 'reform' if schedule.reform else 'hold',
+            'uh': j, 'kind': event.kind if event is not None else 'lost',
+            'time_s': event.time if event is not None and j in schedule.leaving else e * dt,
+            'channel': CHANNEL_NAMES[schedule.leaving[j][1]] if schedule.leaving.get(j, (0, -1))[1] >= 0 else None,
+            'on_loss': 'reform' if schedule.reform else 'hold',
             'detected_at_s': min(declared) * dt if declared and schedule.reform else None,
             'agreed_at_s': step * dt if step < NEVER else None,
             'reformed_at_s': settled * dt if settled is not None else None,

@@ -35,7 +35,7 @@ from uh_topology.errors import GainsFileError
 from uh_topology.scenario import duration_steps
 
 from .metrics import containment_errors, formation_errors
-from .reconfiguration import errors_in_force
+from .reconfiguration import errors_in_force, leaving_rows
 from .run_arrays import RUN_REF_POSITION, new_run_arrays
 
 __all__ = ['SimulationError', 'TeamRun', 'run_team_simulation', 'ENGINES']
@@ -118,6 +118,8 @@ class TeamRun:
         """Return the time series as a dict (``timeseries.npz`` content, plus ``ids``)."""
         out = {k: getattr(self, k) for k in self.ARRAY_KEYS}
         out['ids'] = np.array(self.ids)
+        if self.events is not None and self.events.leaving:   # rows [uh, step, channel] of the UHs that left
+            out['leaving'] = leaving_rows(self.events.leaving)
         return out
 
     def all_finite(self) -> bool:
@@ -206,6 +208,7 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
     out = new_run_arrays(K + 1, n, with_z1=True)
     ref = out.pop('reference')
     stuck = {ids[c] for c, plant in enumerate(plants) if plant.stuck(K * dt)}  # rho = 0 from an onset on
+    stuck |= {e.uh for e in scenario.events if e.kind == 'stuck' and e.step <= K}   # and stuck events
     every = max(1, K // 100)
 
     if scenario.events and engine != 'kernel':
@@ -225,7 +228,7 @@ def run_team_simulation(scenario, case: str = 'proposed', duration: float | None
         references[:, R_YAW] = [r.yaw for r in samples]
         if scenario.events:
             from .event_run import run_with_events
-            happened = run_with_events(scenario, K, dt, ids, arrays, references, out, every, progress,
+            happened = run_with_events(scenario, case, K, dt, ids, arrays, references, out, every, progress,
                                        lambda k: _non_finite(K, dt, ids, out['states'], k))
         else:
             _run_kernel(K, dt, ids, arrays, references, out, every, progress)

@@ -1,8 +1,9 @@
 """Read a scenario's ``events`` and ``resilience`` (docs/scenario.md#events, docs/resilience.md).
 
-``events`` says what happens to the team during a run (a helicopter ``lost`` at a time);
-``resilience`` how the team answers: re-form (:mod:`uh_topology.reform`) or hold, through which
-standby edges, after which timeout a silent neighbour is declared lost. The keys, their defaults and
+``events`` says what happens to the team during a run (a helicopter ``lost`` at a time, an actuator
+``stuck``); ``resilience`` how the team answers: re-form (:mod:`uh_topology.reform`) or hold, through
+which standby edges, after which timeout a silent neighbour is declared lost, and whether a UH whose
+fault isolator finds a fault it cannot compensate leaves the team. The keys, their defaults and
 ranges are :data:`~uh_topology.scenario_keys.EVENT_KEYS` and
 :data:`~uh_topology.scenario_keys.RESILIENCE_KEYS`.
 """
@@ -14,20 +15,31 @@ from . import errors as E
 from .scenario_keys import EVENT_KEYS, RESILIENCE_KEYS, key_named, key_names, read_key
 from .schema import ConfigContext, type_name
 
-__all__ = ['LossEvent', 'ResilienceSpec', 'read_events', 'read_resilience', 'STANDBY_RULES']
+__all__ = ['TeamEvent', 'silent_events', 'ResilienceSpec', 'read_events', 'read_resilience', 'STANDBY_RULES']
 
 #: The rules ``standby_edges`` may name instead of a list.
 STANDBY_RULES = ('bypass', 'none')
 
 
 @dataclass(frozen=True)
-class LossEvent:
-    """A helicopter lost at ``time`` (s): from step ``step = round(time / dt)`` on it publishes nothing."""
+class TeamEvent:
+    """What happens to UH ``uh`` at ``time`` (s), from step ``step = round(time / dt)`` on.
+
+    ``kind`` ``lost``: it publishes nothing (its failsafe brakes it to a hover); ``stuck``: the
+    actuator of ``channel`` (0..3, None for ``lost``) stays where it is at that step
+    (:func:`uh_sim_node.plant_kernels.stuck_position`).
+    """
 
     time: float
     uh: int
     kind: str
     step: int
+    channel: int | None = None
+
+
+def silent_events(events) -> tuple:
+    """Give the events of kind ``lost`` (the UHs that stop publishing) of ``events``."""
+    return tuple(e for e in events if e.kind == 'lost')
 
 
 @dataclass(frozen=True)
@@ -43,11 +55,25 @@ class ResilienceSpec:
         virtual leader).
     lost_timeout : float
         s: a neighbour whose newest state is this old is declared lost.
+    on_unable : str
+        ``leave`` or ``stay``: what a UH does when its isolator finds a channel below ``unable_rho``.
+    unable_rho : float
+        The effectiveness floor (-) of that finding (docs/resilience.md#leaving-the-team).
+    leave_climb : float
+        m: how far a leaving UH climbs above the point where it declared itself.
     """
 
     on_loss: str = key_named(RESILIENCE_KEYS, 'on_loss').default
     standby: str | tuple = key_named(RESILIENCE_KEYS, 'standby_edges').default
     lost_timeout: float = key_named(RESILIENCE_KEYS, 'lost_timeout').default
+    on_unable: str = key_named(RESILIENCE_KEYS, 'on_unable').default
+    unable_rho: float = key_named(RESILIENCE_KEYS, 'unable_rho').default
+    leave_climb: float = key_named(RESILIENCE_KEYS, 'leave_climb').default
+
+    @property
+    def leaves(self) -> bool:
+        """A UH that finds a fault it cannot compensate leaves the team (``on_unable: leave``)."""
+        return self.on_unable == 'leave'
 
     def lost_steps(self, dt: float) -> int:
         """Give the timeout in whole control steps (rounded up)."""
@@ -55,7 +81,7 @@ class ResilienceSpec:
 
 
 def read_events(ctx: ConfigContext, raw, known: set, dt: float, duration: float) -> tuple:
-    """Read ``events`` as a tuple of :class:`LossEvent` sorted by time, then UH."""
+    """Read ``events`` as a tuple of :class:`TeamEvent` sorted by time, then UH."""
     path = ('events',)
     if raw is None:
         return ()
@@ -73,11 +99,19 @@ def read_events(ctx: ConfigContext, raw, known: set, dt: float, duration: float)
             raise ctx.error(E.InvalidValueError, ep + ('time',), f'value {time!r} s falls on step 0 (dt {dt:g} s); '
                             f'allowed: a time on step 1 or later, >= {0.5 * dt:g} s')
         kind = read_key(ctx, key_named(EVENT_KEYS, 'kind'), entry, ep)
+        channel = None
+        if kind == 'stuck':
+            if 'channel' not in entry:
+                raise ctx.error(E.MissingFieldError, ep, 'a stuck event needs channel; allowed: collective, '
+                                'tail_rotor, lateral, longitudinal (or 0..3)')
+            channel = ctx.channel(entry['channel'], ep + ('channel',))
+        elif 'channel' in entry:
+            raise ctx.error(E.InvalidValueError, ep + ('channel',), f'a {kind} event has no channel; allowed: '
+                            'channel only with kind: stuck')
         if uh in lost:
-            raise ctx.error(E.InvalidValueError, ep + ('uh',), f'UH {uh} is already lost by an earlier event; '
-                            'one lost event per UH')
+            raise ctx.error(E.InvalidValueError, ep + ('uh',), f'UH {uh} already has an event; one event per UH')
         lost.add(uh)
-        events.append(LossEvent(time=time, uh=uh, kind=kind, step=int(round(time / dt))))
+        events.append(TeamEvent(time=time, uh=uh, kind=kind, step=int(round(time / dt)), channel=channel))
     return tuple(sorted(events, key=lambda e: (e.time, e.uh)))
 
 
@@ -114,7 +148,9 @@ def read_resilience(ctx: ConfigContext, raw, adjacency, known: set, link_age: fl
                         '{time, uh, kind: lost} instead')
     standby = _standby(ctx, raw.get('standby_edges', key_named(RESILIENCE_KEYS, 'standby_edges').default),
                        path + ('standby_edges',), adjacency, known)
-    return ResilienceSpec(on_loss=on_loss, standby=standby, lost_timeout=timeout)
+    unable = {name: read_key(ctx, key_named(RESILIENCE_KEYS, name), raw, path)
+              for name in ('on_unable', 'unable_rho', 'leave_climb')}
+    return ResilienceSpec(on_loss=on_loss, standby=standby, lost_timeout=timeout, **unable)
 
 
 def _standby(ctx: ConfigContext, raw, path, adjacency, known: set):

@@ -7,7 +7,7 @@
   it sees the lost set ``lost`` (``on_loss: reform``) or the silent neighbours ``silent`` (``hold``),
   or the hold it flies instead.
 * :func:`failsafe_step` and :func:`hold_reference`: a lost UH's failsafe (it brakes to a hover), a holding
-  UH's pseudo virtual leader.
+  UH's pseudo virtual leader; :func:`leave_reference` that of a UH leaving the team (it climbs clear).
 """
 from __future__ import annotations
 
@@ -19,11 +19,13 @@ import numpy as np
 
 from uh_core.layout import R_P, R_YAW, REFERENCE_SIZE, STATE_SIZE, X_OMEGA, X_P, X_THETA, X_V
 
+from .events import silent_events
 from .graph import reachable_from
 from .impairments import DEFAULT_COMPENSATION, NO_DROPOUT, PREDICTING, ImpairmentSpec
 from .schema import read_only_array
 
-__all__ = ['RowTeam', 'row_team', 'loss_impairments', 'failsafe_step', 'hold_reference', 'predicting', 'NEVER']
+__all__ = ['RowTeam', 'row_team', 'loss_impairments', 'failsafe_step', 'hold_reference', 'leave_reference',
+           'predicting', 'NEVER']
 
 #: A step that never comes (the impairments' "no dropout" step).
 NEVER = NO_DROPOUT
@@ -88,7 +90,7 @@ def loss_impairments(scenario) -> ImpairmentSpec:
         losses = {e: imp.losses.get(e, worst[2]) for e in links}
         noise, seed, dropouts, compensation = imp.noise, imp.seed, dict(imp.dropouts), imp.compensation
     dt = float(scenario.dt)
-    for event in scenario.events:   # from its event step on, nobody receives a lost UH
+    for event in silent_events(scenario.events):   # from its event step on, nobody receives a lost UH
         dropouts[event.uh] = min(dropouts.get(event.uh, np.inf), event.step * dt)
     return ImpairmentSpec(seed=seed, delays=MappingProxyType(delays), losses=MappingProxyType(losses),
                           noise=read_only_array(np.array(noise, dtype=float)), dropouts=MappingProxyType(dropouts),
@@ -127,4 +129,15 @@ def hold_reference(x_row: np.ndarray) -> np.ndarray:
     ref = np.zeros(REFERENCE_SIZE)
     ref[R_P:R_P + 3] = x_row[X_P:X_P + 3]
     ref[R_YAW] = x_row[X_THETA + 2]     # psi, the third Euler angle
+    return ref
+
+
+def leave_reference(x_row: np.ndarray, climb: float) -> np.ndarray:
+    """Give the pseudo virtual leader of a UH leaving the team: ``climb`` m above its position in ``x_row``, its yaw.
+
+    docs/resilience.md#leaving-the-team: it holds there, clear of the team's plane, an obstacle the
+    others' safety filters still see.
+    """
+    ref = hold_reference(x_row)
+    ref[R_P + 2] += climb      # z up (docs/model.md#frames)
     return ref

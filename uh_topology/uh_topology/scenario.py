@@ -151,7 +151,7 @@ class Scenario:
     separation_warnings : tuple of SeparationIssue
         Formation targets or initial positions closer than ``min_separation`` (but not than two
         rotor radii, which is an error): the run says so at start (docs/safety.md#design-time-check).
-    events : tuple of LossEvent
+    events : tuple of TeamEvent
         What happens to the team during the run, by time (docs/resilience.md); empty: nothing.
     resilience : ResilienceSpec or None
         How the team answers a loss, as the file gives it (None: not given; :attr:`loss_answer`

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 __all__ = ['ScenarioKey', 'SCENARIO_KEYS', 'IMPAIRMENT_KEYS', 'NOISE_KEYS', 'SAFETY_KEYS', 'SEPARATION_MARGIN',
-           'EVENT_KINDS', 'EVENT_KEYS', 'ON_LOSS', 'RESILIENCE_KEYS', 'STALE_TIMEOUT',
+           'EVENT_KINDS', 'EVENT_KEYS', 'ON_LOSS', 'ON_UNABLE', 'RESILIENCE_KEYS', 'STALE_TIMEOUT',
            'key_named', 'key_names',
            'read_key', 'default_cell', 'markdown_table']
 
@@ -119,22 +119,27 @@ SCENARIO_KEYS = (
     ScenarioKey('impairments', 'what the controllers receive: per-link delay and jitter in steps, loss, measurement '
                 'noise, dropouts, and whether a controller predicts delayed states; in process, lockstep and '
                 'realtime ([below](#impairments); in real time: [runtime.md](runtime.md#impairments-in-real-time))'),
-    ScenarioKey('events', 'what happens to the team during the run: `{time, uh, kind: lost}`, a helicopter lost '
-                '([below](#events); [resilience.md](resilience.md))'),
+    ScenarioKey('events', 'what happens to the team during the run: `{time, uh, kind: lost}`, a helicopter lost; '
+                '`{time, uh, kind: stuck, channel}`, an actuator stuck ([below](#events); '
+                '[resilience.md](resilience.md))'),
     ScenarioKey('resilience', 'how the team answers a loss: re-form or hold, standby edges, the timeout that declares '
                 'a UH lost ([below](#resilience); [resilience.md](resilience.md))'),
 )
 
-#: The kinds of event (docs/resilience.md): ``lost``, the helicopter stops publishing and hovers where it is.
-EVENT_KINDS = ('lost',)
+#: The kinds of event (docs/resilience.md): ``lost``, the helicopter stops publishing and hovers where it is;
+#: ``stuck``, one actuator freezes where it is.
+EVENT_KINDS = ('lost', 'stuck')
 
 #: The keys of one entry of ``events`` (docs/scenario.md#events).
 EVENT_KEYS = (
     ScenarioKey('time', 'when it happens, in (0, `duration`)', required=True, unit='s', kind='number'),
-    ScenarioKey('uh', 'the UH it happens to; one `lost` event per UH', required=True, kind='integer'),
+    ScenarioKey('uh', 'the UH it happens to; one event per UH', required=True, kind='integer'),
     ScenarioKey('kind', '`lost`: from `time` on the UH publishes nothing (as if its processes died or its radio '
-                'failed) and hovers where it is, an obstacle to the others', required=True, kind='string',
-                choices=EVENT_KINDS),
+                'failed) and hovers where it is, an obstacle to the others; `stuck`: from `time` on the actuator '
+                'of `channel` stays where it is, whatever is commanded (its own controller may find it and leave: '
+                '`resilience.on_unable`)', required=True, kind='string', choices=EVENT_KINDS),
+    ScenarioKey('channel', 'the stuck actuator (`stuck` only, and required there): `collective`, `tail_rotor`, '
+                '`lateral`, `longitudinal` (or 0-3, or `theta_col`, `theta_tr`, `delta_lat`, `delta_lon`)'),
 )
 
 #: A neighbour's state this old (s) is stale: the controller leaves it out of the law (docs/reliability.md); the
@@ -143,6 +148,9 @@ STALE_TIMEOUT = 0.25
 
 #: The answers of a team to a loss (docs/resilience.md).
 ON_LOSS = ('reform', 'hold')
+
+#: What a UH does when its fault isolator finds a fault it cannot compensate (docs/resilience.md#leaving-the-team).
+ON_UNABLE = ('leave', 'stay')
 
 #: The keys of ``resilience`` (docs/scenario.md#resilience, docs/resilience.md).
 RESILIENCE_KEYS = (
@@ -156,6 +164,15 @@ RESILIENCE_KEYS = (
     ScenarioKey('lost_timeout', 'a neighbour whose newest state is this old is declared lost: > the stale timeout '
                 f'({STALE_TIMEOUT:g} s) and > the largest age a link gives (`(delay_steps + jitter_steps) dt`)',
                 default=0.5, unit='s', kind='number', lo=STALE_TIMEOUT, lo_open=True),
+    ScenarioKey('on_unable', '`leave`: a UH whose fault isolator finds an actuator with effectiveness below '
+                '`unable_rho` declares itself lost, the others re-form without it (as `on_loss` says) and it climbs '
+                '`leave_climb` and holds there; `stay`: it flies on with the fault, as without this layer',
+                default='leave', kind='string', choices=ON_UNABLE),
+    ScenarioKey('unable_rho', 'the effectiveness floor: a channel isolated with `rho` fit plus its worst-case error '
+                'bound below this is one the law cannot compensate', default=0.5, kind='number', lo=0.0, hi=1.0,
+                lo_open=True, hi_open=True),
+    ScenarioKey('leave_climb', 'how far a leaving UH climbs above the point where it declared itself, to hold there '
+                'clear of the team', default=5.0, unit='m', kind='number', lo=0.0),
 )
 
 #: The keys of ``impairments.noise``: the standard deviation of the noise on each part of a received state.
