@@ -101,7 +101,7 @@ def test_the_in_process_run_sticks_the_actuator_at_its_event_step(lateral_run_st
 # -- the isolator finds it: the effectiveness floor ----------------------------------------------------------
 def test_the_isolator_finds_a_stuck_lateral_cyclic_below_the_floor_within_two_seconds(lateral_run_staying):
     scenario, run = lateral_run_staying
-    found = first_unable(run.arrays(), scenario, 'proposed', scenario.resilience.unable_rho, (1, 2, 3, 4, 5))
+    found = first_unable(run.arrays(), scenario, 'proposed', scenario.resilience.unable_rho, scenario.ids)
     assert set(found) == {1} and found[1][1] == LATERAL
     assert STUCK_STEP < found[1][0] < STUCK_STEP + 200     # measured 1.41 s (docs/resilience.md#measured-a-stuck-actuator)
 
@@ -202,3 +202,58 @@ def test_a_lockstep_distributed_run_with_a_stuck_actuator_equals_the_in_process_
     assert roles[1] == ('leaving (lateral below rho 0.5)', [1])
     assert {i: roles[i] for i in (2, 3, 4, 5)} == {2: ('leader', [1]), 3: ('leader', [1]), 4: ('leader', [1]),
                                                    5: ('follower', [1])}
+
+
+@pytest.mark.dds
+@pytest.mark.slow
+def test_a_realtime_team_whose_actuator_is_stuck_at_run_time_lets_that_uh_leave_and_reforms(tmp_path):
+    """``inject_fault.sh --stuck`` sticks UH1's lateral cyclic after 9 s of a realtime run with ``resilience``.
+
+    UH1's controller finds it, declares itself and climbs clear; the others learn it from its states, UH4
+    takes slot 1 and the team re-forms; metrics.json's reconfiguration says so, from the bag.
+    """
+    import json
+    import subprocess
+    import time
+    from pathlib import Path
+
+    from team_runs import kill_session, start_run
+
+    from uh_report.bag_metrics import read_team_bag
+    from uh_runtime.network import reserve_domain_id
+    from uh_team.reconfiguration import team_errors
+    text = paper_yaml('resilience: {}\n')
+    (tmp_path / 'team.yaml').write_text(text)
+    scenario = parse_scenario(text, source='team.yaml')
+    out, domain = tmp_path / 'run', reserve_domain_id()
+    proc = start_run(out, domain, '--clock', 'realtime', '--rate', '2', '--duration', '30',
+                     '--scenario', str(tmp_path / 'team.yaml'), '--no-visualization', '--no-report')
+    try:
+        deadline, log = time.monotonic() + 120, out / 'logs' / 'clock.log'
+        while not (log.exists() and 'step 900/' in log.read_text()):     # 9 s, past the learning phase (8 s)
+            assert time.monotonic() < deadline and proc.poll() is None, 'step 900 not reached'
+            time.sleep(0.05)
+        script = Path(__file__).resolve().parents[1] / 'scripts' / 'inject_fault.sh'
+        inject = subprocess.run([str(script), '--domain-id', str(domain), '--uh', '1', '--channel', 'lateral',
+                                 '--stuck', '--timeout', '60'], capture_output=True, text=True, timeout=120)
+        assert inject.returncode == 0 and 'stays where it is' in inject.stderr, inject.stderr
+        output, _ = proc.communicate(timeout=300)
+    finally:
+        kill_session(proc)
+    assert proc.returncode == 0, output
+    bag = read_team_bag(out / 'bag', scenario)
+    assert set(bag['losses']['leaving']) == {1}
+    metrics = json.loads((out / 'metrics.json').read_text())
+    (injected,) = metrics['faults']['injected']
+    assert injected['stuck_in_place'] and injected['rho'] == 0.0 and injected['channel'] == LATERAL
+    (event,) = metrics['reconfiguration']
+    assert event['uh'] == 1 and event['kind'] == 'unable' and event['promoted'] == {'1': 4}
+    # found within 3 s of the injection (1.4 s in process), every UH knows within 1 s, re-formed within 10 s
+    assert event['detected_at_s'] - injected['received_s'] <= 3.0
+    assert event['agreed_at_s'] - event['detected_at_s'] <= 1.0
+    assert event['reformed_at_s'] is not None and event['reformed_at_s'] - injected['received_s'] <= 10.0
+    errors = team_errors(bag['states'][:, :, :3], bag['reference'][:, :3], scenario.reformed({1}), scenario.ids)
+    assert np.nanmax(errors[-200:, [1, 2, 3]]) < 0.05 and np.nanmax(errors[-200:, 4]) < 0.02
+    # UH1 climbed clear of the others: above every one of them by most of leave_climb at the end
+    assert bag['states'][-1, 0, 2] - np.max(bag['states'][-1, 1:, 2]) > 3.0
+    assert metrics['rotor_overlap_s'] == 0.0

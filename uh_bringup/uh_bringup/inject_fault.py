@@ -210,6 +210,8 @@ def main(argv=None) -> int:
         msg.bias_constant, msg.bias_amplitude = args.bias, args.amplitude
         msg.bias_frequency, msg.onset_time = args.frequency, args.onset
         msg.stuck_in_place = bool(args.stuck)
+        if args.stuck:      # what the recording says: stuck (rho 0) on arrival; the position is the simulator's
+            msg.rho, msg.bias_constant, msg.bias_amplitude, msg.onset_time = 0.0, 0.0, 0.0, 0.0
         pub.publish(msg)
         # the simulator's reliable reader acknowledges the sample before the participant goes away
         if not pub.wait_for_all_acked(rt.Duration(seconds=ACK_TIMEOUT_S)):

@@ -270,7 +270,7 @@ def _fault_injections(bag: _Bag, ids) -> list:
             records.append({'uh': uh, 'uh_id': int(msg.uh_id), 'channel': int(msg.channel), 'rho': float(msg.rho),
                             'bias_constant': float(msg.bias_constant), 'bias_amplitude': float(msg.bias_amplitude),
                             'bias_frequency': float(msg.bias_frequency), 'onset_time': float(msg.onset_time),
-                            'received_s': log_ns * 1e-9})
+                            'stuck_in_place': bool(getattr(msg, 'stuck_in_place', False)), 'received_s': log_ns * 1e-9})
     return records
 
 

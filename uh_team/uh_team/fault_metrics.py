@@ -143,7 +143,9 @@ def injected_faults(arrays) -> list:
     Each applied one is returned as a mapping with ``uh``, the fault's fields, ``sent_onset_time``
     and ``received_s``; its ``onset_time`` is when it acts, ``max(sent onset, received)`` (a fault
     sent with an onset in the past acts from its arrival); ``nominal`` tells one that clears its
-    channel (rho = 1, no bias: not a fault).
+    channel (rho = 1, no bias: not a fault). A message with ``stuck_in_place`` sticks its channel where it
+    is on arrival: ``rho`` 0 and ``onset_time`` its arrival, its position (the bias) not on the wire
+    (``stuck_in_place`` true in the mapping).
     """
     applied = []
     for record in arrays.get('fault_injections', ()) if arrays is not None else ():
@@ -154,9 +156,12 @@ def injected_faults(arrays) -> list:
         except (FaultError, ValueError, TypeError):
             continue
         received = float(record['received_s'])
+        if record.get('stuck_in_place'):
+            fault = ActuatorFault.stuck_at(fault.channel, 0.0, received)
         applied.append({'uh': int(record['uh']), **{k: getattr(fault, k) for k in _FAULT_FIELDS},
                         'onset_time': max(fault.onset_time, received), 'sent_onset_time': fault.onset_time,
-                        'received_s': received, 'nominal': bool(fault.is_nominal)})
+                        'received_s': received, 'nominal': bool(fault.is_nominal),
+                        'stuck_in_place': bool(record.get('stuck_in_place', False))})
     return applied
 
 

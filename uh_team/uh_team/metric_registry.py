@@ -408,8 +408,9 @@ METRICS = (
     Metric('faults', json_type='object or null', compute=_faults,
            doc="the run's faults: `scheduled` (the scenario's: `uh`, `channel`, `rho`, `bias_constant`, "
                '`bias_amplitude`, `bias_frequency`, `onset_time`) and `injected` (those the simulators applied, '
-               'the same fields with `onset_time` when it acts, `sent_onset_time`, `received_s` and `nominal`: '
-               'an injection that clears its channel, not scored)'),
+               'the same fields with `onset_time` when it acts, `sent_onset_time`, `received_s`, `nominal`: '
+               'an injection that clears its channel, not scored, and `stuck_in_place`: stuck where it was on '
+               'arrival, `rho` 0, its position not known)'),
     Metric('min_separation_m', 'm', 'smallest hub-to-hub distance of any two UHs over the run, m', 'higher',
            label='closest approach of two UHs (hub to hub)', report_row=82, json_type='number or null',
            doc='[smallest distance of any two UHs, whole run](#separation), m',
@@ -435,7 +436,7 @@ METRICS = (
     # docs/resilience.md: a run with events
     Metric('reconfiguration', json_type='array or null',
            doc='per loss (the scenario\'s `events`; in a recorded run the losses its states carried, '
-               '[resilience.md](resilience.md)): `uh`, `kind` (`lost`, or `stuck` for a UH that left), `time_s` (the '
+               '[resilience.md](resilience.md)): `uh`, `kind` (`lost`; `stuck` for a UH that left after that event, `unable` without one), `time_s` (the '
                'event), `channel` (the one its isolator found, for a UH that left), `on_loss`, '
                '`detected_at_s` (the first declaration), `agreed_at_s` (every UH knows), `reformed_at_s` (errors '
                'under 0.05 m / 0.02 m against the new targets from then on), `formation_error_after_m` and '

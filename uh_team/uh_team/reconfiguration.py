@@ -154,7 +154,7 @@ def reconfiguration(time: np.ndarray, positions: np.ndarray, reference_p0: np.nd
         after = slice(settled, end) if settled is not None else slice(0, 0)
         event = next((ev for ev in scenario.events if ev.uh == j), None)
         out.append({
-            'uh': j, 'kind': event.kind if event is not None else 'lost',
+            'uh': j, 'kind': event.kind if event is not None else ('unable' if j in schedule.leaving else 'lost'),
             'time_s': event.time if event is not None and j in schedule.leaving else e * dt,
             'channel': CHANNEL_NAMES[schedule.leaving[j][1]] if schedule.leaving.get(j, (0, -1))[1] >= 0 else None,
             'on_loss': 'reform' if schedule.reform else 'hold',
