@@ -103,7 +103,8 @@ def test_the_isolator_finds_a_stuck_lateral_cyclic_below_the_floor_within_two_se
     scenario, run = lateral_run_staying
     found = first_unable(run.arrays(), scenario, 'proposed', scenario.resilience.unable_rho, scenario.ids)
     assert set(found) == {1} and found[1][1] == LATERAL
-    assert STUCK_STEP < found[1][0] < STUCK_STEP + 200     # measured 1.41 s (docs/resilience.md#measured-a-stuck-actuator)
+    # measured 1.41 s after (docs/resilience.md#measured-a-stuck-actuator); 2 s leaves room for a change of gains
+    assert STUCK_STEP < found[1][0] < STUCK_STEP + 200
 
 
 @pytest.mark.parametrize('name', ['paper', 'wide', 'square', 'swap'])
