@@ -437,7 +437,8 @@ METRICS = (
     Metric('reconfiguration', json_type='array or null',
            doc='per loss (the scenario\'s `events`; in a recorded run the losses its states carried, '
                '[resilience.md](resilience.md)): `uh`, `kind` (`lost`; `stuck` for a UH that left after that '
-               'event, `unable` without one), `time_s` (the event), `channel` (the one its isolator found, for a UH that left), `on_loss`, '
+               'event, `unable` without one), `time_s` (the event), `channel` (the one its isolator found, for a '
+               'UH that left), `on_loss`, '
                '`detected_at_s` (the first declaration), `agreed_at_s` (every UH knows), `reformed_at_s` (errors '
                'under 0.05 m / 0.02 m against the new targets from then on), `formation_error_after_m` and '
                '`containment_error_after_m` (largest after re-forming), `formation_error_last_10s_m` and '
