@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from scenario_texts import paper_yaml
 
-from uh_controller_node.fault_isolation import FaultIsolator, IsolationSettings
+from uh_controller_node.fault_isolation import FaultIsolator
 from uh_controller_node.isolation_runs import first_unable
 from uh_controller_node.loss_tracker import LossTracker
 from uh_sim_node.faults import FaultError, inject
@@ -101,32 +101,53 @@ def test_the_in_process_run_sticks_the_actuator_at_its_event_step(lateral_run_st
 # -- the isolator finds it: the effectiveness floor ----------------------------------------------------------
 def test_the_isolator_finds_a_stuck_lateral_cyclic_below_the_floor_within_two_seconds(lateral_run_staying):
     scenario, run = lateral_run_staying
-    found = first_unable(run.arrays(), scenario, 'proposed', scenario.resilience.unable_rho, scenario.ids)
+    spec = scenario.resilience
+    found = first_unable(run.arrays(), scenario, 'proposed', spec.unable_rho, spec.unable_spread, scenario.ids)
     assert set(found) == {1} and found[1][1] == LATERAL
     # measured 1.41 s after (docs/resilience.md#measured-a-stuck-actuator); 2 s leaves room for a change of gains
     assert STUCK_STEP < found[1][0] < STUCK_STEP + 200
 
 
-@pytest.mark.parametrize('name', ['paper', 'wide', 'square', 'swap'])
+@pytest.mark.parametrize('name', ['paper', 'wide', 'square', 'swap', 'crowd'])
 def test_no_fault_of_the_bundled_scenarios_is_taken_for_one_the_law_cannot_compensate(name):
-    """Their faults keep rho >= 0.75: the floor (0.5, with the fit's bound) must not find any of them."""
+    """Their faults keep rho >= 0.75; UH7's sinusoidal bias in `wide` reads rho 0.01 +- 0.48 (two bounds keep it)."""
     scenario = load_scenario(name)
     run = run_team_simulation(scenario, 'proposed')
-    assert first_unable(run.arrays(), scenario, 'proposed', 0.5, scenario.ids) == {}
+    assert first_unable(run.arrays(), scenario, 'proposed', 0.5, 0.015, scenario.ids) == {}
+
+
+#: Draws of campaign_paper_faults in which some UH's fit reads below the floor with no stuck actuator: a
+#: sinusoidal bias the law cancels, or the observers' start (draw 40, no fault on that UH), found when the
+#: command's spread is not asked (seven of the 19 in its first 100 draws; docs/resilience.md#leaving-the-team).
+CONFOUNDED_DRAWS = (8, 11, 19, 24, 32, 39, 40)
+
+
+def test_a_command_that_barely_moves_is_no_sign_of_a_stuck_actuator():
+    from uh_campaign.resolve import resolve_scenario
+    from uh_campaign.spec import load_spec
+    from uh_topology.scenario import scenario_from_mapping
+    spec = load_spec('campaign_paper_faults')
+    without_spread = 0
+    for draw in CONFOUNDED_DRAWS:
+        scenario = scenario_from_mapping(resolve_scenario(spec, draw), source=spec.source)
+        arrays = run_team_simulation(scenario, 'proposed').arrays()
+        assert first_unable(arrays, scenario, 'proposed', 0.5, 0.015, scenario.ids) == {}, draw
+        without_spread += bool(first_unable(arrays, scenario, 'proposed', 0.5, 0.0, scenario.ids))
+    assert without_spread == len(CONFOUNDED_DRAWS)     # what the spread condition removes
 
 
 def test_online_and_offline_isolators_find_the_same_step(lateral_run_staying):
-    scenario, run = lateral_run_staying
-    a = run.arrays()
-    online = FaultIsolator.__new__(FaultIsolator)
     from uh_controller_node.isolation_runs import _setup
-    nominal, settings, data = _setup(a, scenario, 'proposed', None)
+    scenario, run = lateral_run_staying
+    arrays = run.arrays()
+    nominal, settings, data = _setup(arrays, scenario, 'proposed', None)
     online = FaultIsolator(nominal, scenario.model_mismatch, float(scenario.dt), settings)
-    step = next(k for k in range(len(a['time'])) if online.update(a['time'][k], a['states'][k, 0], a['commands'][k, 0],
-                                                                  a['fault_est_p'][k, 0], a['fault_est_w'][k, 0])
-                or online.unable(0.5) >= 0)
-    assert (step, LATERAL) == first_unable(a, scenario, 'proposed', 0.5, (1,))[1]
-    assert isinstance(settings, IsolationSettings)
+    for k in range(len(arrays['time'])):    # step by step, as a controller does
+        online.update(data['time'][k], data['states'][k, 0], data['commands'][k, 0], data['fault_est_p'][k, 0],
+                      data['fault_est_w'][k, 0])
+        if online.unable(0.5, 0.015) >= 0:
+            break
+    assert (k, LATERAL) == first_unable(arrays, scenario, 'proposed', 0.5, 0.015, (1,))[1]
 
 
 # -- leaving: the schedule, the tracker, the run -------------------------------------------------------------
@@ -242,6 +263,7 @@ def test_a_realtime_team_whose_actuator_is_stuck_at_run_time_lets_that_uh_leave_
     finally:
         kill_session(proc)
     assert proc.returncode == 0, output
+    assert 'fault injected on uh1' in (out / 'logs' / 'uh1_sim.log').read_text(), inject.stderr
     bag = read_team_bag(out / 'bag', scenario)
     assert set(bag['losses']['leaving']) == {1}
     metrics = json.loads((out / 'metrics.json').read_text())

@@ -503,20 +503,21 @@ class FaultIsolator:
         return (int(v[K.V_CODE]), v[K.V_RHO], v[K.V_BIAS], v[K.V_FIT_TIME], v[K.V_STD_U], v[K.V_STD_A],
                 v[K.V_RESIDUAL], v[K.V_RHO_BOUND], v[K.V_BIAS_BOUND])
 
-    def unable(self, floor: float) -> int:
+    def unable(self, floor: float, spread: float) -> int:
         """Give the first channel found below the effectiveness ``floor`` beyond doubt, or -1.
 
+        ``spread``: rad, the command's standard deviation over the fit must exceed it;
         :func:`uh_controller_node.isolation_kernels.unable_channel` (docs/resilience.md#leaving-the-team).
         """
-        return int(K.unable_channel(self._params, self._state, float(floor), self._verdict_out))
+        return int(K.unable_channel(self._params, self._state, float(floor), float(spread), self._verdict_out))
 
-    def first_unable(self, floor: float, times, states, commands, fhat_p, fhat_w) -> tuple:
+    def first_unable(self, floor: float, spread: float, times, states, commands, fhat_p, fhat_w) -> tuple:
         """Process rows as :meth:`run` does until :meth:`unable` finds a channel; give ``(row, channel)``.
 
         ``(-1, -1)`` when no row does; the rows after the one found are not processed.
         """
         k, c = K.first_unable_step(self._params, self._state, _array(times), _array(states), _array(commands),
-                                   _array(fhat_p), _array(fhat_w), float(floor), self._verdict_out)
+                                   _array(fhat_p), _array(fhat_w), float(floor), float(spread), self._verdict_out)
         return int(k), int(c)
 
     def report(self) -> tuple:

@@ -362,33 +362,35 @@ UNABLE_BOUNDS = 2.0
 
 
 @njit(cache=True)
-def unable_channel(params, state, floor, verdict):
+def unable_channel(params, state, floor, spread, verdict):
     """Give the first isolated channel whose effectiveness is below ``floor`` beyond the fit's doubt, or -1.
 
-    Beyond doubt: the fit spans at least the confirmation time (its bound assumes many samples: a fit
-    of a few steps just after a fault's onset can read far too low) and the fitted ``rho`` plus
-    :data:`UNABLE_BOUNDS` times its worst-case error bound ``V_RHO_BOUND`` is below ``floor`` (NaN
-    and infinite bounds never are); docs/resilience.md#leaving-the-team. ``verdict`` (VERDICT_SIZE,)
-    is scratch.
+    Beyond doubt (docs/resilience.md#leaving-the-team): the fit spans at least the confirmation time
+    (its bound assumes many samples: a fit of a few steps just after a fault's onset can read far too
+    low), the command has moved: its standard deviation over the fit exceeds ``spread`` (rad; a law
+    cancelling a sinusoidal bias keeps the actual input nearly constant, as a stuck actuator does,
+    but moves its command only as far as the bias), and the fitted ``rho`` plus :data:`UNABLE_BOUNDS`
+    times its worst-case error bound ``V_RHO_BOUND`` is below ``floor`` (NaN and infinite bounds
+    never are). ``verdict`` (VERDICT_SIZE,) is scratch.
     """
     for c in range(_N):
         if state[IS_ISOLATED + c] != 0.0:
             isolation_verdict(params, state, c, verdict)
-            if (verdict[V_FIT_TIME] >= params[IP_CONFIRMATION] - 1e-9
+            if (verdict[V_FIT_TIME] >= params[IP_CONFIRMATION] - 1e-9 and verdict[V_STD_U] > spread
                     and verdict[V_RHO] + UNABLE_BOUNDS * verdict[V_RHO_BOUND] < floor):
                 return c
     return -1
 
 
 @njit(cache=True)
-def first_unable_step(params, state, times, states, commands, fault_p, fault_w, floor, verdict):
+def first_unable_step(params, state, times, states, commands, fault_p, fault_w, floor, spread, verdict):
     """Call :func:`isolation_step` on rows ``k`` until :func:`unable_channel` finds one; give ``(k, channel)``.
 
     ``(-1, -1)`` when no row does. The rows as in :func:`isolation_run`.
     """
     for k in range(times.shape[0]):
         isolation_step(params, state, times[k], states[k], commands[k], fault_p[k], fault_w[k])
-        c = unable_channel(params, state, floor, verdict)
+        c = unable_channel(params, state, floor, spread, verdict)
         if c >= 0:
             return k, c
     return -1, -1
@@ -409,9 +411,9 @@ def compile_isolation_kernels() -> float:
                   np.zeros((2, 3)), np.zeros((0, TRACE_COLUMNS)))
     isolation_verdict(params, state, 0, np.zeros(VERDICT_SIZE))
     isolation_status(params, state, np.zeros(VERDICT_SIZE), np.zeros((STATUS_ROWS, _N)))
-    unable_channel(params, state, 0.5, np.zeros(VERDICT_SIZE))
+    unable_channel(params, state, 0.5, 0.015, np.zeros(VERDICT_SIZE))
     first_unable_step(params, state, np.ones(2), np.zeros((2, 12)), np.zeros((2, _N)), np.zeros((2, 3)),
-                      np.zeros((2, 3)), 0.5, np.zeros(VERDICT_SIZE))
+                      np.zeros((2, 3)), 0.5, 0.015, np.zeros(VERDICT_SIZE))
     return time.perf_counter() - start
 
 

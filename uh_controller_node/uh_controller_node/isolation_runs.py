@@ -88,12 +88,13 @@ def isolate_run(arrays, scenario, case: str = 'proposed', settings: IsolationSet
     return out
 
 
-def first_unable(arrays, scenario, case: str, floor: float, uhs) -> dict:
+def first_unable(arrays, scenario, case: str, floor: float, spread: float, uhs) -> dict:
     """Give ``{uh: (step, channel)}``: the first step each of ``uhs``' isolators finds a channel below ``floor``.
 
     The isolator of each UH runs over the run's rows (``arrays`` as for :func:`isolate_run`) until
-    :meth:`FaultIsolator.unable` finds a channel (docs/resilience.md#leaving-the-team); a UH without a
-    finding is left out. The same kernels as the controllers' online isolators, so the same steps.
+    :meth:`FaultIsolator.unable` finds a channel (``floor``, ``spread`` rad;
+    docs/resilience.md#leaving-the-team); a UH without a finding is left out. The same kernels as the
+    controllers' online isolators, so the same steps.
     """
     nominal, settings, data = _setup(arrays, scenario, case, None)
     ids = tuple(scenario.ids)
@@ -101,7 +102,7 @@ def first_unable(arrays, scenario, case: str, floor: float, uhs) -> dict:
     for uh in uhs:
         j = ids.index(uh)
         iso = FaultIsolator(nominal, scenario.model_mismatch, float(scenario.dt), settings)
-        k, c = iso.first_unable(floor, data['time'], data['states'][:, j], data['commands'][:, j],
+        k, c = iso.first_unable(floor, spread, data['time'], data['states'][:, j], data['commands'][:, j],
                                 data['fault_est_p'][:, j], data['fault_est_w'][:, j])
         if k >= 0:
             out[uh] = (k, c)

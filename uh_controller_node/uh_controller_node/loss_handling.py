@@ -51,7 +51,7 @@ class NodeLosses:
         compile_impairment_kernels()   # now, before the node's endpoints exist and the clock can start
         self.teams, self.rows, self.holding, self.last_command = {}, {}, None, None
         self.row = None
-        self.unable_rho = spec.unable_rho if spec.leaves else None
+        self.unable_rho, self.unable_spread = (spec.unable_rho if spec.leaves else None), spec.unable_spread
         self.leave_from, self.leave_point, self.unable = NEVER, None, None   # from its own finding on
         self.last_heard = {}      # {uh: newest sent step that arrived}: the age of a neighbour left out as stale
 
@@ -100,10 +100,11 @@ class NodeLosses:
                 self.holding = hold_reference(np.asarray(own_raw, dtype=float))
             u, status = self.controller.step_row(k, own, neighbours, reference, self.dt, row, hold=self.holding)
         self.row, self.last_command = row, u
-        if self.unable_rho is not None and self.controller.isolator.unable(self.unable_rho) >= 0:
-            self.unable = self.controller.isolator.unable(self.unable_rho)
+        isolator = self.controller.isolator
+        channel = -1 if self.unable_rho is None else isolator.unable(self.unable_rho, self.unable_spread)
+        if channel >= 0:     # a fault it cannot compensate: it declares itself and leaves from the next step
+            self.unable, self.leave_from = channel, k + 1
             self.tracker.declare_self(k)
-            self.leave_from = k + 1
         status.lost_uhs, status.role = tuple(sorted(self.tracker.known)), self.role()
         return u, status
 

@@ -117,7 +117,8 @@ def _unable(scenario, case: str, out: dict, ids, schedule) -> dict:
     """
     candidates = [i for i in ids if i not in schedule.lost_at]
     arrays = dict(out, time=np.arange(len(out['states'])) * float(scenario.dt))   # the steps' run times, k dt
-    found = first_unable(arrays, scenario, case, scenario.resilience.unable_rho, candidates)
+    spec = scenario.resilience
+    found = first_unable(arrays, scenario, case, spec.unable_rho, spec.unable_spread, candidates)
     found = {i: f for i, f in found.items() if f[0] < schedule.lost_at.get(i, NEVER)}
     first = min((step for step, _ in found.values()), default=None)
     return {i: f for i, f in found.items() if f[0] == first}

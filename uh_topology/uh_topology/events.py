@@ -59,6 +59,8 @@ class ResilienceSpec:
         ``leave`` or ``stay``: what a UH does when its isolator finds a channel below ``unable_rho``.
     unable_rho : float
         The effectiveness floor (-) of that finding (docs/resilience.md#leaving-the-team).
+    unable_spread : float
+        rad: the command's standard deviation over the isolator's fit must exceed it for that finding.
     leave_climb : float
         m: how far a leaving UH climbs above the point where it declared itself.
     """
@@ -68,6 +70,7 @@ class ResilienceSpec:
     lost_timeout: float = key_named(RESILIENCE_KEYS, 'lost_timeout').default
     on_unable: str = key_named(RESILIENCE_KEYS, 'on_unable').default
     unable_rho: float = key_named(RESILIENCE_KEYS, 'unable_rho').default
+    unable_spread: float = key_named(RESILIENCE_KEYS, 'unable_spread').default
     leave_climb: float = key_named(RESILIENCE_KEYS, 'leave_climb').default
 
     @property
@@ -149,7 +152,7 @@ def read_resilience(ctx: ConfigContext, raw, adjacency, known: set, link_age: fl
     standby = _standby(ctx, raw.get('standby_edges', key_named(RESILIENCE_KEYS, 'standby_edges').default),
                        path + ('standby_edges',), adjacency, known)
     unable = {name: read_key(ctx, key_named(RESILIENCE_KEYS, name), raw, path)
-              for name in ('on_unable', 'unable_rho', 'leave_climb')}
+              for name in ('on_unable', 'unable_rho', 'unable_spread', 'leave_climb')}
     return ResilienceSpec(on_loss=on_loss, standby=standby, lost_timeout=timeout, **unable)
 
 

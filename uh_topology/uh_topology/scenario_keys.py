@@ -171,6 +171,10 @@ RESILIENCE_KEYS = (
     ScenarioKey('unable_rho', 'the effectiveness floor: a channel isolated with `rho` fit plus its worst-case error '
                 'bound below this is one the law cannot compensate', default=0.5, kind='number', lo=0.0, hi=1.0,
                 lo_open=True, hi_open=True),
+    ScenarioKey('unable_spread', 'and the command has moved: its standard deviation over the fit is above this (a '
+                'law that cancels a sinusoidal bias holds the actual input nearly constant too, but moves its '
+                'command only as far as the bias: at most 0.010 rad for the campaigns\' faults)', default=0.015,
+                unit='rad', kind='number', lo=0.0),
     ScenarioKey('leave_climb', 'how far a leaving UH climbs above the point where it declared itself, to hold there '
                 'clear of the team', default=5.0, unit='m', kind='number', lo=0.0),
 )
