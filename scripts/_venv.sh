@@ -1,12 +1,15 @@
 # Sourced by the scripts: creates .venv at the repository root if missing (or if requirements.txt
 # or a package changed since it was set up), installs the pinned dependencies and the project's
 # packages, and activates it. On a ROS 2 machine use colcon instead (see README.md).
+# UH_VENV and UH_REQUIREMENTS name another virtualenv and requirements file (scripts/_venv_rclpy.sh,
+# scripts/_venv_secure.sh).
 set -euo pipefail
 REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${UH_VENV:-$REPO_ROOT/.venv}"
+REQUIREMENTS="${UH_REQUIREMENTS:-$REPO_ROOT/requirements.txt}"
 PYTHON="${PYTHON:-python3}"
 stamp_src() {
-  cat "$REPO_ROOT/requirements.txt" "$REPO_ROOT"/uh_*/setup.py "$REPO_ROOT"/uh_msgs/msg/*.msg | sha256sum | cut -d' ' -f1
+  cat "$REQUIREMENTS" "$REPO_ROOT"/uh_*/setup.py "$REPO_ROOT"/uh_msgs/msg/*.msg | sha256sum | cut -d' ' -f1
 }
 setup_step() {  # setup_step "what": one progress line with the seconds since the set-up started
   echo "[setup] $(( SECONDS - setup_started )) s: $1" >&2
@@ -18,9 +21,9 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$VENV/.uh_stamp" 2>/dev/null)" != "$
     setup_step "creating the virtualenv with $("$PYTHON" --version 2>&1)"
     "$PYTHON" -m venv "$VENV"
   fi
-  setup_step "installing the pinned dependencies of requirements.txt (numpy, scipy, numba, cyclonedds, rosbags, mcap, matplotlib, ...)"
-  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REPO_ROOT/requirements.txt"
-  setup_step "installing the project's packages (uh_msgs, uh_runtime, ..., uh_bringup)"
+  setup_step "installing the pinned dependencies of $(basename "$REQUIREMENTS") (numpy, scipy, numba, cyclonedds, rosbags, mcap, matplotlib, ...)"
+  "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -r "$REQUIREMENTS"
+  setup_step "installing the project's packages (uh_msgs, uh_runtime, ..., uh_bringup, uh_security)"
   # uh_msgs installs data files (the .msg definitions), so it is a regular install;
   # the Python packages are editable so a change in the tree takes effect without reinstalling.
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps "$REPO_ROOT/uh_msgs"
@@ -32,9 +35,9 @@ if [ ! -x "$VENV/bin/python" ] || [ "$(cat "$VENV/.uh_stamp" 2>/dev/null)" != "$
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
     -e "$REPO_ROOT/uh_team" -e "$REPO_ROOT/uh_bringup"
   # uh-report and uh-campaign moved from uh_bringup to these two: installed after it, or reinstalling
-  # an older uh_bringup would remove their scripts again
+  # an older uh_bringup would remove their scripts again; uh_security stands above uh_bringup
   "$VENV/bin/python" -m pip install --quiet --disable-pip-version-check --no-deps \
-    -e "$REPO_ROOT/uh_report" -e "$REPO_ROOT/uh_campaign"
+    -e "$REPO_ROOT/uh_report" -e "$REPO_ROOT/uh_campaign" -e "$REPO_ROOT/uh_security"
   stamp_src > "$VENV/.uh_stamp"
   setup_step "virtualenv ready ($(du -sh "$VENV" 2>/dev/null | cut -f1))"
 fi

@@ -6,6 +6,9 @@
 #   scripts/test.sh --quick   the quick tier: every package, no DDS processes and no long runs
 #                             (under 2 minutes on 2 cores; the full suite is the default and CI's)
 #   scripts/test.sh --rclpy   only the real-rclpy tier (extra arguments go to its pytest)
+#   scripts/test.sh --secure  only the secure tier: the DDS Security attacks (tests marked secure) in .venv-secure,
+#                             Cyclone DDS 0.10.2 with its security plugins (scripts/_venv_secure.sh builds it;
+#                             docs/security.md); not part of the whole run
 # The real-rclpy tier (docs/testing.md#the-real-rclpy-tier) runs the tests marked rclpy_real in
 # .venv-rclpy, a Python 3.12 virtualenv with ROS 2 Jazzy's rclpy on Fast DDS from PyPI's unofficial
 # wheels (scripts/_venv_rclpy.sh builds it on first use). It follows the main suite when that is run
@@ -16,6 +19,15 @@ rclpy_tier() {  # in a subshell: the tier's virtualenv is activated there only
   ( source "$here/_venv_rclpy.sh" && cd "$REPO_ROOT" && echo "[test] the real-rclpy tier (.venv-rclpy)" >&2 \
     && python -P -m pytest -m rclpy_real "$@" )
 }
+secure_tier() {  # in a subshell: the tier's virtualenv is activated there only
+  ( source "$here/_venv_secure.sh" && cd "$REPO_ROOT" && echo "[test] the secure tier (.venv-secure)" >&2 \
+    && python -P -m pytest -m secure "$@" )
+}
+if [ "${1:-}" = "--secure" ]; then
+  shift
+  secure_tier "$@"
+  exit
+fi
 if [ "${1:-}" = "--rclpy" ]; then
   shift
   rclpy_tier "$@"

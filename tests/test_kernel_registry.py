@@ -19,7 +19,7 @@ PACKAGES = sorted(d.name for d in ROOT.glob('uh_*') if (d / 'setup.py').is_file(
 GROUPS = (compiled_kernels.KERNEL_GROUP, compiled_kernels.KERNEL_INPUT_GROUP, compiled_kernels.KERNEL_BUILDER_GROUP)
 #: The packages above uh_core (docs/architecture.md, tests/test_packaging.py::LAYERS).
 ABOVE_UH_CORE = ('uh_topology', 'uh_wire', 'uh_sim_node', 'uh_controller_node', 'uh_team', 'uh_report',
-                 'uh_campaign', 'uh_bringup')
+                 'uh_campaign', 'uh_bringup', 'uh_security')
 
 
 def _declared() -> dict:

@@ -40,7 +40,7 @@ def test_the_layout_has_one_home():
     names = set(layout.__all__) - {'Reference'}
     offenders = []
     for pkg in ('uh_core', 'uh_topology', 'uh_wire', 'uh_sim_node', 'uh_controller_node', 'uh_team', 'uh_report',
-                'uh_campaign', 'uh_bringup'):
+                'uh_campaign', 'uh_bringup', 'uh_security'):
         for path in (ROOT / pkg / pkg).rglob('*.py'):
             if path.name == 'layout.py':
                 continue

@@ -9,7 +9,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 ROOT = Path(__file__).resolve().parents[1]
 PYTHON_PACKAGES = ['uh_runtime', 'uh_core', 'uh_topology', 'uh_wire', 'uh_sim_node', 'uh_controller_node', 'uh_team',
-                   'uh_report', 'uh_campaign', 'uh_bringup']
+                   'uh_report', 'uh_campaign', 'uh_bringup', 'uh_security']
 ALL_PACKAGES = ['uh_msgs', *PYTHON_PACKAGES]
 
 
@@ -51,7 +51,7 @@ def test_every_msg_is_generated_and_parses():
 
 #: the layers of docs/architecture.md, lowest first: a package may depend only on lower layers
 LAYERS = [['uh_msgs'], ['uh_runtime'], ['uh_core'], ['uh_topology'], ['uh_wire'], ['uh_sim_node', 'uh_controller_node'],
-          ['uh_team'], ['uh_report'], ['uh_campaign'], ['uh_bringup']]
+          ['uh_team'], ['uh_report'], ['uh_campaign'], ['uh_bringup'], ['uh_security']]
 LAYER_OF = {pkg: n for n, layer in enumerate(LAYERS) for pkg in layer}
 
 
@@ -85,7 +85,7 @@ def test_every_package_is_in_a_layer():
 def test_dependencies_run_one_way(pkg):
     """Each package.xml names only lower layers, and the code imports only what package.xml names.
 
-    The simulator and the controller never import each other, nothing imports uh_bringup.
+    The simulator and the controller never import each other; only uh_security, above it, imports uh_bringup.
     """
     depends = _first_party_depends(pkg)
     upward = sorted(d for d in depends if LAYER_OF[d] >= LAYER_OF[pkg])
@@ -108,7 +108,7 @@ def test_setup_py_declares_the_package_xml_dependencies(pkg):
 ROSDEP_KEYS = {'numpy': 'python3-numpy', 'numba': 'python3-numba', 'yaml': 'python3-yaml',
                'scipy': 'python3-scipy', 'matplotlib': 'python3-matplotlib',
                'rosbags': 'python3-rosbags-pip', 'mcap': 'mcap-ros2-support',
-               'mcap_ros2': 'mcap-ros2-support'}
+               'mcap_ros2': 'mcap-ros2-support', 'cryptography': 'python3-cryptography'}
 
 
 @pytest.mark.parametrize('pkg', PYTHON_PACKAGES)

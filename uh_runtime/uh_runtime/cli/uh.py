@@ -368,8 +368,10 @@ def cmd_topic_hz(args):
     type_name, pubs = _wait_for_type(graph, topic, args.timeout)
     cls = messages.dds_message(type_name)
     reader, condition = _reader(graph, topic, cls, pubs, depth=1000)
-    from cyclonedds._clayer import ddspy_take
     from cyclonedds.core import InstanceState, SampleState, ViewState
+
+    from ..dds.binding import raw_take
+    ddspy_take = raw_take()
     mask = SampleState.Any | ViewState.Any | InstanceState.Any
     stamps = []
     last_print = time.monotonic()

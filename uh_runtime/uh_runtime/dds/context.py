@@ -21,6 +21,7 @@ from . import arguments as _args
 from . import intra_process as _intra
 from .logger import set_logger_level
 from .qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, to_dds_qos
+from .security import create_participant
 from .signals import restore_sigterm, shut_down_on_sigterm
 
 __all__ = ['Context', 'NotInitializedException', 'get_default_context', 'init', 'ok', 'shutdown',
@@ -151,13 +152,10 @@ class Context:
                 if not self._ok:
                     raise NotInitializedException('cannot use DDS')
                 from cyclonedds.core import GuardCondition
-                from cyclonedds.domain import DomainParticipant
                 from cyclonedds.pub import Publisher as DdsPublisher
-                from cyclonedds.qos import Policy, Qos
                 from cyclonedds.sub import Subscriber as DdsSubscriber
-                enclave = self._args.enclave or '/'
-                self._dp = DomainParticipant(
-                    self._domain_id, qos=Qos(Policy.Userdata(f'enclave={enclave};'.encode())))
+                # secure when ROS_SECURITY_ENABLE=true (dds/security.py); else USER_DATA enclave=/; alone
+                self._dp = create_participant(self._domain_id, self._args.enclave)
                 self._pub = DdsPublisher(self._dp)
                 self._sub = DdsSubscriber(self._dp)
                 self._guard = GuardCondition(self._dp)

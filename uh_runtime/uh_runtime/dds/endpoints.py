@@ -11,6 +11,7 @@ import collections
 
 from .. import messages as _messages
 from . import intra_process as _intra
+from .binding import matched_publications, matched_subscriptions, raw_take
 from .clock import ROSClock
 from .qos import DDS_INFINITY, DurabilityPolicy, HistoryPolicy
 
@@ -81,7 +82,7 @@ class Publisher:
 
         The matched readers are those of the DDS publication-matched status.
         """
-        return len(self._writer.get_matched_subscriptions()) + len(self._local)
+        return len(matched_subscriptions(self._writer)) + len(self._local)
 
     def wait_for_all_acked(self, timeout=None) -> bool:
         """Wait until every reliable reader acknowledged what was written; return whether they did.
@@ -121,10 +122,8 @@ class Subscription:
             reader, SampleState.NotRead | ViewState.Any | InstanceState.Any)
         self._mask = SampleState.Any | ViewState.Any | InstanceState.Any
         self.gid = reader.get_guid().bytes
-        from cyclonedds._clayer import ddspy_take
-
         from .cdr import codec
-        self._take = ddspy_take
+        self._take = raw_take()     # cyclonedds' ddspy_take (dds/binding.py)
         self._codec = codec(msg_type)
         self._deserialize = self._codec.deserialize
         self._inbox = _intra.Inbox(qos_profile)   # messages from publishers of this process
@@ -140,7 +139,7 @@ class Subscription:
         As rclpy's ``Subscription.get_publisher_count``.
         """
         local = self._node._context._intra
-        return len(self._reader.get_matched_publications()) + (
+        return len(matched_publications(self._reader)) + (
             local.local_publisher_count(self) if local is not None else 0)
 
     def _take_messages(self, from_dds=True):

@@ -31,6 +31,7 @@ from .qos import (
     from_dds_qos,
     to_dds_qos,
 )
+from .security import create_participant
 from .signals import sigint_deferred, wake_on_signals
 
 __all__ = ['Graph', 'EndpointInfo', 'BARE_DDS_NODE', 'INFO_GRACE', 'INFO_RETRY', 'format_gid', 'user_data_value',
@@ -125,15 +126,14 @@ class Graph:
             ViewState,
             WaitSet,
         )
-        from cyclonedds.domain import DomainParticipant
-        from cyclonedds.qos import Policy, Qos
         from cyclonedds.sub import DataReader
         from cyclonedds.topic import Topic
         self._own = participant is None
         if participant is None:
             if domain_id is None:
                 domain_id = int(os.environ.get('ROS_DOMAIN_ID', '0') or 0)
-            participant = DomainParticipant(int(domain_id), qos=Qos(Policy.Userdata(b'enclave=/;')))
+            # secure with ROS_SECURITY_ENABLE=true (its identity: ROS_SECURITY_ENCLAVE_OVERRIDE), as a node's
+            participant = create_participant(int(domain_id))
         self.participant = participant
         self.own_key = participant.get_guid()
         self._participants_reader = BuiltinDataReader(participant, BuiltinTopicDcpsParticipant)

@@ -26,6 +26,7 @@ import time
 
 from .. import messages as _messages
 from ..names import REPLY_PREFIX, REQUEST_PREFIX
+from .binding import matched_publication_data, matched_publications, matched_subscription_data, matched_subscriptions
 from .clock import Clock, ClockType
 from .context import typehash_user_data
 from .parameters import (
@@ -143,15 +144,15 @@ class Service:
         does not say who it is.
         """
         try:
-            writer = self._reader.get_matched_publication_data(publication_handle)
+            writer = matched_publication_data(self._reader, publication_handle)
         except Exception:
             return None
         client = _user_data_value(writer, 'clientid') if writer is not None else None
         if client is None:
             return None
-        for handle in self._writer.get_matched_subscriptions():
+        for handle in matched_subscriptions(self._writer):
             try:
-                reader = self._writer.get_matched_subscription_data(handle)
+                reader = matched_subscription_data(self._writer, handle)
             except Exception:
                 continue
             if reader is not None and _user_data_value(reader, 'clientid') == client:
@@ -166,12 +167,12 @@ class Service:
         this reader cannot read.
         """
         found = []
-        for handle in self._reader.get_matched_publications():
+        for handle in matched_publications(self._reader):
             if handle in self._writers_seen:
                 continue
             self._writers_seen.add(handle)
             try:
-                writer = self._reader.get_matched_publication_data(handle)
+                writer = matched_publication_data(self._reader, handle)
             except Exception:
                 continue
             if writer is not None and _user_data_value(writer, 'clientid') is None:
@@ -429,7 +430,7 @@ class ServiceClient:
 
     def service_is_ready(self) -> bool:
         """Return True when a server's request reader and reply writer are both matched."""
-        return bool(self._writer.get_matched_subscriptions()) and bool(self._reader.get_matched_publications())
+        return bool(matched_subscriptions(self._writer)) and bool(matched_publications(self._reader))
 
     def wait_for_service(self, timeout_sec: float) -> bool:
         """Wait at most ``timeout_sec`` wall seconds until a server is matched (:meth:`service_is_ready`).
