@@ -81,6 +81,20 @@ def test_adding_losses_leaves_every_other_draw_as_it_was():
         assert events[0]['uh'] in (1, 3, 5)
 
 
+def test_a_stuck_campaign_draws_one_stuck_channel_per_draw_and_its_stay_twin_the_same_draws():
+    spec, stay = load_spec('campaign_stuck'), load_spec('campaign_stuck_stay')
+    events = [resolve_scenario(spec, draw)['events'] for draw in range(80)]
+    assert all(len(e) == 1 and e[0]['kind'] == 'stuck' for e in events)
+    assert {e[0]['channel'] for e in events} == {'collective', 'tail_rotor', 'lateral', 'longitudinal'}
+    assert {e[0]['uh'] for e in events} == {1, 2, 3, 4, 5}
+    assert all(15.0 <= e[0]['time'] <= 45.0 for e in events)
+    for draw in (0, 7, 33):
+        a, b = resolve_scenario(spec, draw), resolve_scenario(stay, draw)
+        assert (a['resilience'], b['resilience']) == ({'on_unable': 'leave'}, {'on_unable': 'stay'})
+        assert {k: v for k, v in a.items() if k not in ('name', 'description', 'resilience')} == \
+            {k: v for k, v in b.items() if k not in ('name', 'description', 'resilience')}
+
+
 def test_the_hold_campaign_flies_the_same_draws_holding():
     reform, hold = load_spec('campaign_losses'), load_spec('campaign_losses_hold')
     assert (reform.resilience, hold.resilience) == ({'on_loss': 'reform'}, {'on_loss': 'hold'})
@@ -125,6 +139,14 @@ def test_a_swept_resilience_value_is_written_over_the_specs_resilience(tmp_path)
     ('resilience:\n  on_loss: retreat\n', E.InvalidValueError, 6, 'resilience.on_loss'),
     ('resilience:\n  lost_timeout: 0.2\n', E.InvalidValueError, 6, 'resilience.lost_timeout'),
     ('resilience:\n  standby_edges: [{uh: 1, hears: 3}]\n', E.InvalidValueError, 6, 'resilience.standby_edges[0]'),
+    ('draws:\n  losses:\n    time: [1.0, 2.0]\n    kind: melted\n', E.InvalidValueError, 8, 'draws.losses.kind'),
+    ('draws:\n  losses:\n    time: [1.0, 2.0]\n    channels: [lateral]\n', E.InvalidValueError, 8,
+     'draws.losses.channels'),
+    ('draws:\n  losses:\n    time: [1.0, 2.0]\n    kind: stuck\n    channels: [lateral, rudder]\n',
+     E.InvalidValueError, 9, 'draws.losses.channels[1]'),
+    ('draws:\n  losses:\n    time: [1.0, 2.0]\n    kind: stuck\n    channels: [2, lateral]\n',
+     E.InvalidValueError, 9, 'draws.losses.channels[1]'),
+    ('resilience:\n  on_unable: flee\n', E.InvalidValueError, 6, 'resilience.on_unable'),
 ])
 def test_bad_loss_keys_are_refused_with_file_line_and_key(tmp_path, tail, error, line, key):
     spec = _write(tmp_path, GOOD_HEAD + tail)

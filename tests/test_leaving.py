@@ -256,14 +256,23 @@ def test_a_realtime_team_whose_actuator_is_stuck_at_run_time_lets_that_uh_leave_
             assert time.monotonic() < deadline and proc.poll() is None, 'step 900 not reached'
             time.sleep(0.05)
         script = Path(__file__).resolve().parents[1] / 'scripts' / 'inject_fault.sh'
-        inject = subprocess.run([str(script), '--domain-id', str(domain), '--uh', '1', '--channel', 'lateral',
-                                 '--stuck', '--timeout', '60'], capture_output=True, text=True, timeout=120)
-        assert inject.returncode == 0 and 'stays where it is' in inject.stderr, inject.stderr
+        sim_log = out / 'logs' / 'uh1_sim.log'
+        for _ in range(2):
+            inject = subprocess.run([str(script), '--domain-id', str(domain), '--uh', '1', '--channel', 'lateral',
+                                     '--stuck', '--timeout', '60'], capture_output=True, text=True, timeout=120)
+            assert inject.returncode == 0 and 'stays where it is' in inject.stderr, inject.stderr
+            # a sample written while the simulator's reader has not yet matched the new writer is lost,
+            # and acknowledged all the same (docs/faults.md#injecting-a-fault-at-run-time): send again once
+            deadline = time.monotonic() + 3.0
+            while 'fault injected on uh1' not in sim_log.read_text() and time.monotonic() < deadline:
+                time.sleep(0.05)
+            if 'fault injected on uh1' in sim_log.read_text():
+                break
         output, _ = proc.communicate(timeout=300)
     finally:
         kill_session(proc)
     assert proc.returncode == 0, output
-    assert 'fault injected on uh1' in (out / 'logs' / 'uh1_sim.log').read_text(), inject.stderr
+    assert sim_log.read_text().count('fault injected on uh1') == 1, inject.stderr
     bag = read_team_bag(out / 'bag', scenario)
     assert set(bag['losses']['leaving']) == {1}
     metrics = json.loads((out / 'metrics.json').read_text())

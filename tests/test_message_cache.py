@@ -60,7 +60,8 @@ def test_the_store_from_the_cache_equals_the_store_built_without_it(cache, monke
     ref = built.types['uh_msgs/msg/ActuatorFault'](
         header=built.types['std_msgs/msg/Header'](stamp=built.types['builtin_interfaces/msg/Time'](sec=3, nanosec=4),
                                                    frame_id='uh2'),
-        uh_id=2, channel=1, rho=0.5, bias_constant=0.01, bias_amplitude=0.0, bias_frequency=0.0, onset_time=30.0)
+        uh_id=2, channel=1, rho=0.5, bias_constant=0.01, bias_amplitude=0.0, bias_frequency=0.0, onset_time=30.0,
+        stuck_in_place=False)
     assert bytes(cached.serialize_cdr(ref, 'uh_msgs/msg/ActuatorFault')) == \
         bytes(built.serialize_cdr(ref, 'uh_msgs/msg/ActuatorFault'))
     assert len(_store_files(cache)) == 1

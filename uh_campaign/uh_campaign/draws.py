@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from uh_core.layout import CHANNEL_NAMES
 from uh_topology import errors as E
+from uh_topology.scenario_keys import EVENT_KINDS
 from uh_topology.schema import type_name, unit_suffix
 
 __all__ = ['FaultDraws', 'LossDraws', 'Draws', 'GeneratorSpec', 'GENERATOR_WEIGHTS', 'read_range', 'read_generator',
@@ -20,7 +21,9 @@ __all__ = ['FaultDraws', 'LossDraws', 'Draws', 'GeneratorSpec', 'GENERATOR_WEIGH
 _DRAW_KEYS = ('position_spread', 'min_initial_separation', 'attitude_spread', 'yaw_spread', 'model_mismatch',
               'disturbance_amplitude', 'faults', 'losses')
 _LOSS_REQUIRED = ('time',)
-_LOSS_OPTIONAL = ('uhs',)
+_LOSS_OPTIONAL = ('uhs', 'kind', 'channels')
+#: The kinds of event a campaign draws (the scenario's ``events`` kinds).
+LOSS_KINDS = EVENT_KINDS
 _FAULT_KEYS = ('faulted_uhs', 'candidates', 'channels', 'channels_per_uh', 'rho', 'bias_constant',
                'bias_amplitude', 'bias_frequency', 'onset_time')
 _GENERATOR_REQUIRED = ('leaders', 'followers')
@@ -54,11 +57,13 @@ class LossDraws:
     """The drawn loss of ``draws.losses`` (the module docstring of :mod:`uh_campaign.spec`).
 
     Every draw loses one UH of ``uhs`` (None: every UH) at a time drawn uniformly in ``time`` (s),
-    rounded to a control step.
+    rounded to a control step; ``kind`` ``stuck`` sticks one of its ``channels`` (indices) instead.
     """
 
     time: tuple                          # s, (low, high) within (0, duration)
     uhs: tuple | None = None
+    kind: str = 'lost'
+    channels: tuple = (0, 1, 2, 3)
 
 
 @dataclass(frozen=True)
@@ -186,7 +191,7 @@ def loss_step_range(time: tuple, duration: float, dt: float) -> tuple:
 def _loss_draws(ctx, raw, n_uhs: int, duration: float, dt: float) -> LossDraws:
     """Read ``draws.losses``: ``time``, a range within (0, duration) holding a control step; ``uhs``, UH ids."""
     path = ('draws', 'losses')
-    ctx.mapping(raw, path, _LOSS_REQUIRED, _LOSS_OPTIONAL, what='a losses mapping {uhs, time}')
+    ctx.mapping(raw, path, _LOSS_REQUIRED, _LOSS_OPTIONAL, what='a losses mapping {uhs, time, kind, channels}')
     time = read_range(ctx, raw['time'], path + ('time',), lo=0.0, hi=duration, lo_open=True, hi_open=True, unit='s')
     first, last = loss_step_range(time, duration, dt)
     if first > last:
@@ -194,7 +199,12 @@ def _loss_draws(ctx, raw, n_uhs: int, duration: float, dt: float) -> LossDraws:
                         f'{time[1]:g}] s within the run; allowed: a range holding a multiple of {dt:g} s in '
                         f'(0, {duration:g}) s')
     uhs = _uh_list(ctx, raw['uhs'], path + ('uhs',), n_uhs) if 'uhs' in raw else None
-    return LossDraws(time=time, uhs=uhs)
+    kind = ctx.string(raw.get('kind', 'lost'), path + ('kind',), choices=LOSS_KINDS)
+    if 'channels' in raw and kind != 'stuck':
+        raise ctx.error(E.InvalidValueError, path + ('channels',), f'a {kind} draw has no channel; allowed: channels '
+                        'only with kind: stuck')
+    channels = _channels(ctx, raw['channels'], path + ('channels',)) if 'channels' in raw else (0, 1, 2, 3)
+    return LossDraws(time=time, uhs=uhs, kind=kind, channels=channels)
 
 
 def _uh_list(ctx, given, path: tuple, n_uhs: int) -> tuple:
@@ -215,17 +225,7 @@ def _fault_draws(ctx, raw, n_uhs: int) -> FaultDraws:
     ctx.mapping(raw, path, (), _FAULT_KEYS, what='a fault draws mapping')
     candidates = _uh_list(ctx, raw['candidates'], path + ('candidates',), n_uhs) if 'candidates' in raw else None
     n_candidates = len(candidates) if candidates is not None else n_uhs
-    channels = (0, 1, 2, 3)
-    if 'channels' in raw:
-        chans = raw['channels']
-        if not isinstance(chans, list) or not chans:
-            raise ctx.error(E.WrongTypeError, path + ('channels',),
-                            f'expected a non-empty list of channels, got {type_name(chans)} {chans!r}')
-        channels = tuple(_channel(ctx, c, path + ('channels', i)) for i, c in enumerate(chans))
-        for i, c in enumerate(channels):
-            if c in channels[:i]:
-                raise ctx.error(E.InvalidValueError, path + ('channels', i),
-                                f'channel {CHANNEL_NAMES[c]} is listed twice')
+    channels = _channels(ctx, raw['channels'], path + ('channels',)) if 'channels' in raw else (0, 1, 2, 3)
     return FaultDraws(
         faulted_uhs=read_range(ctx, raw.get('faulted_uhs', [1, 1]), path + ('faulted_uhs',), lo=0, hi=n_candidates,
                            integer=True),
@@ -239,6 +239,18 @@ def _fault_draws(ctx, raw, n_uhs: int) -> FaultDraws:
         bias_frequency=read_range(ctx, raw.get('bias_frequency', [0.0, 0.0]), path + ('bias_frequency',), lo=0.0,
                               unit='rad/s'),
         onset_time=read_range(ctx, raw.get('onset_time', [10.0, 10.0]), path + ('onset_time',), lo=0.0, unit='s'))
+
+
+def _channels(ctx, chans, path) -> tuple:
+    """Read a non-empty list of channels without repeats (names or indices) as indices."""
+    if not isinstance(chans, list) or not chans:
+        raise ctx.error(E.WrongTypeError, path, f'expected a non-empty list of channels, got {type_name(chans)} '
+                        f'{chans!r}')
+    channels = tuple(_channel(ctx, c, path + (i,)) for i, c in enumerate(chans))
+    for i, c in enumerate(channels):
+        if c in channels[:i]:
+            raise ctx.error(E.InvalidValueError, path + (i,), f'channel {CHANNEL_NAMES[c]} is listed twice')
+    return channels
 
 
 def _channel(ctx, value, path) -> int:

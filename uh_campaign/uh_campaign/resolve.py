@@ -180,13 +180,19 @@ def _draw_faults(fd: FaultDraws, ids: list, rng) -> list:
 
 
 def _draw_loss(ld: LossDraws, ids: list, data: dict, rng) -> dict:
-    """Draw the lost UH (uniformly among the candidates) and its time, rounded to the scenario's control step."""
+    """Draw the lost UH (uniformly among the candidates) and its time, rounded to the scenario's control step.
+
+    A ``stuck`` draw then draws its channel, uniformly among ``ld.channels``.
+    """
     candidates = list(ld.uhs) if ld.uhs is not None else sorted(ids)
     uh = int(candidates[int(rng.integers(len(candidates)))])
     dt, duration = float(data['dt']), float(data['duration'])
     first, last = loss_step_range(ld.time, duration, dt)
     step = min(max(int(round(float(rng.uniform(*ld.time)) / dt)), first), last)
-    return {'time': round(step * dt, 9), 'uh': uh, 'kind': 'lost'}
+    event = {'time': round(step * dt, 9), 'uh': uh, 'kind': ld.kind}
+    if ld.kind == 'stuck':
+        event['channel'] = CHANNEL_NAMES[int(ld.channels[int(rng.integers(len(ld.channels)))])]
+    return event
 
 
 def _generated_team(spec, draw: int, rng) -> dict:

@@ -157,6 +157,12 @@ Faulted UHs are chosen without repeats among the candidates, channels without re
         nearest control step (``dt``) within the range; the range must hold one.
     ``uhs``
         List of UH ids without repeats, default every UH: the lost UH is drawn uniformly among them.
+    ``kind``
+        ``lost`` (default) or ``stuck``: the drawn UH's actuator of a channel drawn uniformly among
+        ``channels`` sticks where it is instead (``[{time, uh, kind: stuck, channel}]``;
+        docs/resilience.md#leaving-the-team).
+    ``channels``
+        List of channels without repeats (names or 0..3), default all four; only with ``kind: stuck``.
 
     The loss has a stream of its own, so adding ``losses`` to a spec leaves every other draw's
     values as they were; ``resilience`` (above) says how the team answers.
