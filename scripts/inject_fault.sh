@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Inject an actuator fault into a running team (publishes uh_msgs/ActuatorFault on /uhN/fault).
 #   scripts/inject_fault.sh --uh 4 --channel collective --rho 0.7 [--bias 0.01] [--amplitude A]
-#                           [--frequency W] [--onset T] [--domain-id N] [--timeout S]
+#                           [--frequency W] [--onset T] [--domain-id N] [--timeout S] [--secure [--keystore DIR]]
 # Exit status: 0 sent, 1 no team in that DDS domain, 2 bad input (a value outside what the fault
 # model allows, or a UH the running team does not have). rho 0 (stuck) is sent with a warning.
 # A domain where no node is discovered within 2 s holds no team (exit 1, said 2.3-3 s after the start);
@@ -10,6 +10,11 @@
 # up to 1 s and more when other work loads the machine).
 # On a ROS 2 machine the same can be done with:
 #   ros2 topic pub --once /uh4/fault uh_msgs/msg/ActuatorFault "{uh_id: 4, channel: 0, rho: 0.7, onset_time: 30.0}"
+# --secure: a secure team's (docs/security.md), with the operator identity /tools/operator of its keystore
+# (--keystore DIR, default ROS_SECURITY_KEYSTORE from the run's env.sh), on .venv-secure.
 set -euo pipefail
-source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
+case " $* " in
+  *" --secure "*) source "$(dirname "${BASH_SOURCE[0]}")/_venv_secure.sh" ;;
+  *) source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh" ;;
+esac
 exec uh-inject-fault "$@"

@@ -1,14 +1,15 @@
 #!/usr/bin/env bash
 # Runs the lint step and the test suite: sets up .venv (pinned dependencies + the project's packages)
 # if needed, checks the code with ruff (ruff.toml: pycodestyle, pyflakes, bugbear, pep257 docstrings
-# on every public definition outside tests/, isort's import order), then runs pytest, then the real-rclpy tier. Extra
-# arguments go to pytest, e.g. scripts/test.sh -k topology -x
+# on every public definition outside tests/, isort's import order), then runs pytest, then the real-rclpy tier and
+# the secure tier. Extra arguments go to pytest, e.g. scripts/test.sh -k topology -x
 #   scripts/test.sh --quick   the quick tier: every package, no DDS processes and no long runs
 #                             (under 2 minutes on 2 cores; the full suite is the default and CI's)
 #   scripts/test.sh --rclpy   only the real-rclpy tier (extra arguments go to its pytest)
-#   scripts/test.sh --secure  only the secure tier: the DDS Security attacks (tests marked secure) in .venv-secure,
-#                             Cyclone DDS 0.10.2 with its security plugins (scripts/_venv_secure.sh builds it;
-#                             docs/security.md); not part of the whole run
+#   scripts/test.sh --secure  only the secure tier: the DDS Security attacks and secure runs (tests marked secure)
+#                             in .venv-secure, Cyclone DDS 0.10.2 with its security plugins (scripts/_venv_secure.sh
+#                             builds it; docs/security.md); it follows the rclpy tier in a whole run
+#                             (UH_TEST_SECURE=0 leaves it out)
 # The real-rclpy tier (docs/testing.md#the-real-rclpy-tier) runs the tests marked rclpy_real in
 # .venv-rclpy, a Python 3.12 virtualenv with ROS 2 Jazzy's rclpy on Fast DDS from PyPI's unofficial
 # wheels (scripts/_venv_rclpy.sh builds it on first use). It follows the main suite when that is run
@@ -53,4 +54,7 @@ fi
 status=0
 python -P -m pytest "$@" || status=$?
 rclpy_tier || status=$(( status ? status : $? ))
+if [ "${UH_TEST_SECURE:-1}" != 0 ]; then
+  secure_tier || status=$(( status ? status : $? ))
+fi
 exit "$status"

@@ -87,14 +87,15 @@ def test_a_simulator_publishes_only_its_own_state_and_reads_only_its_own_command
 
 
 def test_the_recorder_and_the_inspection_tool_only_read_and_only_the_operator_may_inject(grants):
-    recorder, inspect, operator = (_grant(grants, e) for e in ('/recorder', policy.INSPECT, policy.INJECT_FAULT))
+    recorder, inspect, operator = (_grant(grants, e) for e in ('/recorder', policy.INSPECT, policy.OPERATOR))
     assert set(recorder.publish) == {topics.RECORDER_PROGRESS.name} | NODE_BASICS
     assert {name for name, _ in topics.run_topics(PAPER.ids, **topics.scenario_flags(PAPER))} <= set(recorder.subscribe)
     assert set(inspect.publish) == NODE_BASICS and inspect.subscribe == ('/*',)
     assert not any(s.endswith(('/set_parameters', '/set_parameters_atomically')) for s in inspect.request)
     assert set(operator.publish) == NODE_BASICS | {f'/uh{i}/fault' for i in PAPER.ids}
+    assert {'/*/set_parameters', '/*/set_parameters_atomically'} <= set(operator.request)   # gains: a deliberate act
     injectors = {g.enclave for g in grants if any(t.endswith('/fault') for t in g.publish)}
-    assert injectors == {policy.INJECT_FAULT}
+    assert injectors == {policy.OPERATOR}
 
 
 #: words of a TopicSpec's ``publisher`` text -> the node kind (or 'tool') they name

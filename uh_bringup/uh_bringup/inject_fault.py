@@ -7,6 +7,10 @@ valid: rho in [0, 1], finite numbers, onset >= 0) and again by the simulator, wh
 injections with a logged reason and keeps running. rho = 0 (a stuck actuator) is sent with a
 warning: the controller cannot compensate it.
 
+With ``--secure`` (a secure team, docs/security.md) it takes the operator's identity ``/tools/operator`` of
+the team's keystore (``--keystore DIR``, default ``ROS_SECURITY_KEYSTORE``, which a secure run's ``env.sh``
+sets), the only identity besides the simulators' readers that may touch ``/uhN/fault``.
+
 Exit status: 0 sent and acknowledged by the simulator; 1 the team is not running in that DDS domain
 (without ``--timeout``: no node at all discovered there within :data:`NO_TEAM_S`), or the simulator
 did not acknowledge the fault within :data:`ACK_TIMEOUT_S`; 2 bad input (an option's value, or a UH
@@ -23,9 +27,11 @@ import sys
 import time
 
 import uh_runtime as rt
+from uh_bringup.run_secure import OPERATOR_ENCLAVE, SECURE_MAX_DOMAIN_ID
 from uh_core.layout import CHANNEL_ALIASES, CHANNEL_NAMES
 from uh_runtime import messages as m
 from uh_runtime.command_line import ArgumentParser
+from uh_runtime.dds.security import SecurityConfigError
 from uh_runtime.network import MAX_DOMAIN_ID, apply_network_default
 from uh_sim_node.faults import ActuatorFault, FaultError
 from uh_wire import topics
@@ -47,6 +53,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help='stick the actuator where it is when the simulator takes this (rho = 0, its position then '
                         'as the bias); --rho and the bias and onset options are not used')
     p.add_argument('--domain-id', type=int, default=None, help='DDS domain id of the running team')
+    p.add_argument('--secure', action='store_true',
+                   help=f'a secure team: inject with the operator identity {OPERATOR_ENCLAVE} of --keystore')
+    p.add_argument('--keystore', default=None, metavar='DIR',
+                   help='with --secure: the team\'s keystore (default: ROS_SECURITY_KEYSTORE, set by a secure '
+                        'run\'s env.sh)')
     p.add_argument('--timeout', type=float, default=None, metavar='S',
                    help='wait up to S s for the UH\'s simulator, e.g. of a team that is still starting '
                         f'(default: {DEFAULT_TIMEOUT_S:g} s once the team is seen; without a node in the domain '
@@ -63,6 +74,9 @@ SETTLE_S = 1.5
 NO_TEAM_S = 2.0
 #: Without --timeout: longest wait, s, for the UH's simulator once some node is seen in the domain.
 DEFAULT_TIMEOUT_S = 10.0
+#: With --secure: s more before a domain without any node holds no team (a secure participant's
+#: authentication handshake takes 1.5-2 s before anything of the team is seen, docs/security.md).
+SECURE_HANDSHAKE_S = 3.0
 #: s between two looks at the discovered graph.
 POLL_S = 0.02
 #: Longest wait for this writer to match the readers the graph shows on the fault topic, s.
@@ -129,7 +143,30 @@ def _checked_fault(parser, args) -> ActuatorFault:
     elif fault.is_stuck:
         print(f'{parser.prog}: warning: --rho 0 makes the {args.channel} actuator stuck at its bias, which is '
               'outside what the controller can compensate', file=sys.stderr)
+    _secure_identity(parser, args)
     return fault
+
+
+def _secure_identity(parser, args) -> None:
+    """With ``--secure``: check the keystore and take the operator identity (ROS 2's security variables)."""
+    if not args.secure:
+        if args.keystore is not None:
+            parser.exit(2, f'{parser.prog}: error: --keystore {args.keystore} needs --secure\n')
+        return
+    args.keystore = args.keystore or os.environ.get('ROS_SECURITY_KEYSTORE')
+    if not args.keystore:
+        parser.exit(2, f'{parser.prog}: error: --secure needs --keystore DIR (the team\'s keystore; a secure run '
+                       'prints it and its env.sh sets ROS_SECURITY_KEYSTORE)\n')
+    identity = os.path.join(args.keystore, 'enclaves', OPERATOR_ENCLAVE.strip('/'), 'cert.pem')
+    if not os.path.isfile(identity):
+        parser.exit(2, f'{parser.prog}: error: --keystore {args.keystore}: no operator identity ({identity}); give '
+                       'the keystore of the running team (uh-security create makes one)\n')
+    domain = args.domain_id if args.domain_id is not None else int(os.environ.get('ROS_DOMAIN_ID') or 0)
+    if domain > SECURE_MAX_DOMAIN_ID:
+        parser.exit(2, f'{parser.prog}: error: --secure on DDS domain {domain}: allowed 0..{SECURE_MAX_DOMAIN_ID}\n')
+    os.environ.update(ROS_SECURITY_ENABLE='true', ROS_SECURITY_STRATEGY='Enforce',
+                      ROS_SECURITY_KEYSTORE=os.path.abspath(args.keystore),
+                      ROS_SECURITY_ENCLAVE_OVERRIDE=OPERATOR_ENCLAVE)
 
 
 def _others_in_domain(node) -> bool:
@@ -162,7 +199,7 @@ def _wait_for_simulator(node, topic: str, args, prog: str) -> int | None:
                   f'UH {args.uh}; its UHs: {", ".join(map(str, team))}', file=sys.stderr)
             return 2
         someone_seen = someone_seen or _others_in_domain(node)
-        if not someone_seen and now - start > NO_TEAM_S:
+        if not someone_seen and now - start > NO_TEAM_S + (SECURE_HANDSHAKE_S if args.secure else 0.0):
             print(f'{prog}: error: nobody subscribes to {topic} in DDS domain {domain}: no node at all was '
                   f'discovered there within {NO_TEAM_S:g} s; {fix}; --timeout S waits for a team that is '
                   'still starting', file=sys.stderr)
@@ -194,11 +231,23 @@ def main(argv=None) -> int:
         parser.error(str(exc))
 
     rt.init(args=[sys.argv[0]])
-    # a one-shot publisher: no /rosout and no parameter services, which would only slow its start
-    node = rt.Node('inject_fault', enable_rosout=False, start_parameter_services=False)
+    try:
+        # a one-shot publisher: no /rosout and no parameter services, which would only slow its start
+        node = rt.Node('inject_fault', enable_rosout=False, start_parameter_services=False)
+    except SecurityConfigError as exc:    # --secure where Cyclone DDS has no security, or a refused identity
+        rt.try_shutdown()
+        parser.exit(2, f'{parser.prog}: error: security: {exc}\n')
     try:
         topic = topics.uh_topic(args.uh, topics.FAULT)
-        pub = node.create_publisher(m.ActuatorFault, topic, topics.qos_profile(topics.FAULT.qos))
+        try:
+            pub = node.create_publisher(m.ActuatorFault, topic, topics.qos_profile(topics.FAULT.qos))
+        except Exception as exc:    # the backend's own error type; DDS Security's refusal is said in its text
+            if 'NOT_ALLOWED_BY_SECURITY' not in str(exc):
+                raise
+            print(f'{parser.prog}: error: this identity ({os.environ.get("ROS_SECURITY_ENCLAVE_OVERRIDE", "/")}) may '
+                  f'not publish {topic} (DDS_RETCODE_NOT_ALLOWED_BY_SECURITY): a secure team takes faults from the '
+                  'operator only; use --secure --keystore DIR', file=sys.stderr)
+            return 2
         # as the nodes do after their start-up (uh_runtime.runner): what the imports, the message classes
         # and DDS made lives until the exit, where the interpreter's last collections walked it (0.05-0.1 s)
         gc.freeze()

@@ -11,7 +11,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from uh_bringup import netns
+from uh_bringup import netns, run_secure
 from uh_controller_node.controller import ControllerError, UHController
 from uh_controller_node.delay_margin import margin_lines
 from uh_controller_node.gains import scenario_gains
@@ -74,6 +74,10 @@ def check_args(args) -> None:
     if args.hosts == 'netns' and args.processes == 'single':
         raise UsageError('--hosts netns cannot run --processes single (one process cannot be in several '
                          'network namespaces)')
+    try:
+        run_secure.check_secure_args(args)
+    except run_secure.SecureRunError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def validate_team(scenario, case: str) -> None:
@@ -158,6 +162,10 @@ def check_run(args) -> tuple:
     bundled = args.scenario in bundled_scenarios() and not Path(args.scenario).exists()
     scenario_arg = args.scenario if bundled else str(Path(args.scenario).resolve())
     _check_environment(args)
+    try:    # a given keystore against this scenario, and the binding (docs/security.md)
+        run_secure.check_secure_run(args, scenario, scenario_arg)
+    except run_secure.SecureRunError as exc:
+        raise UsageError(str(exc)) from None
     out = Path(args.out or Path('runs') / datetime.datetime.now().strftime('%Y%m%d-%H%M%S')).resolve()
     prepare_out(out, args.force)
     return scenario, scenario_arg, out

@@ -66,6 +66,7 @@ from uh_bringup.run_outcome import (
     write_metrics,
 )
 from uh_bringup.run_processes import process_commands
+from uh_bringup.run_secure import SecureRunError, keystore_for_run, security_environment
 from uh_bringup.run_setup import (
     open_network,
     realtime_priority,
@@ -144,6 +145,13 @@ def build_parser() -> argparse.ArgumentParser:
                         'namespace, linked by a bridge (needs root and iproute2)')
     p.add_argument('--loss', type=float, default=0.0,
                    help='with --hosts netns: percent of packets lost on every link between helicopters (nftables)')
+    p.add_argument('--secure', action='store_true',
+                   help='DDS Security: every node a process with its own identity, permissions from the scenario\'s '
+                        'graph, payloads encrypted; on .venv-secure (Cyclone DDS 0.10.2), domains 0..230 '
+                        '(docs/security.md)')
+    p.add_argument('--keystore', default=None, metavar='DIR',
+                   help='with --secure: the keystore of uh-security create for this scenario and safety setting '
+                        '(made there if DIR is new; default: a new one in OUT/keystore)')
     return p
 
 
@@ -179,7 +187,11 @@ def _supervise(args, scenario, specs, out, env, sup, record) -> tuple:
 def run(args) -> int:
     """Check, run and supervise the team of ``args``; return the exit status (module docstring)."""
     scenario, scenario_arg, out = check_run(args)
-    domain, env = run_environment(args.domain_id)
+    store, domains = keystore_for_run(args, scenario, scenario_arg, out) if args.secure else (None, None)
+    domain, env = run_environment(args.domain_id, domains)
+    for name in [k for k in env if k.startswith('ROS_SECURITY_')]:   # e.g. from a secure run's env.sh
+        del env[name]
+    env.update(security_environment(store) if store else {})
     duration = args.duration if args.duration is not None else scenario.duration
     filter_state = 'on' if scenario.safety.enabled else "off (the paper's law alone)"
     print(f'[run] {scenario.name}: {len(scenario.leaders)} leaders, {len(scenario.followers)} followers, '
@@ -191,6 +203,7 @@ def run(args) -> int:
     sup = Supervisor(out / 'logs', env, respawn_priority=priority)
     record = RunRecord(out, run_info(args, duration, domain, priority, scenario.safety.enabled,
                                      scenario_departures(scenario, args.case)), sup)
+    record.info.update(keystore=str(store) if store else None)
     started = time.monotonic()
     interrupted, codes, dropped = _supervise(args, scenario, specs, out, env, sup, record)
     wall = time.monotonic() - started
@@ -222,7 +235,7 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     try:
         return run(args)
-    except UsageError as exc:
+    except (UsageError, SecureRunError) as exc:
         parser.exit(EXIT_USAGE, f'{parser.prog}: error: {exc}\n')
     except CONFIG_ERRORS as exc:  # scenario, gains, airframe: one clear line, no traceback
         parser.exit(EXIT_USAGE, f'{parser.prog}: error: {exc}\n')

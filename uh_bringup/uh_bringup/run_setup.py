@@ -14,6 +14,7 @@ from pathlib import Path
 from uh_bringup import netns
 from uh_bringup.run_checks import UsageError
 from uh_bringup.run_processes import processes
+from uh_bringup.run_secure import inspect_script
 from uh_bringup.team_nodes import backend_environment, node_specs
 from uh_runtime import scheduling
 from uh_runtime.bags import live_view
@@ -24,13 +25,16 @@ __all__ = ['run_environment', 'realtime_priority', 'write_environment_script', '
            'dds_processes', 'team_specs', 'run_node_names']
 
 
-def run_environment(domain_id) -> tuple[int, dict]:
-    """Return ``(domain, environment of the run's processes)``; the domain is reserved if not given."""
+def run_environment(domain_id, domains: tuple | None = None) -> tuple[int, dict]:
+    """Return ``(domain, environment of the run's processes)``; the domain is reserved if not given.
+
+    ``domains``: ``(first, last)`` to reserve from (a secure run's keystore allows 0..230 at most).
+    """
     domain = domain_id
     if domain is None:
         # held by this process for the run, so that runs started at once never share a domain
         domain = int(os.environ['ROS_DOMAIN_ID']) if os.environ.get('ROS_DOMAIN_ID', '').isdigit() \
-            else reserve_domain_id()
+            else reserve_domain_id(*(domains or ()))
     try:
         env = loopback_environment(domain)
     except ValueError as exc:   # a bad ROS_AUTOMATIC_DISCOVERY_RANGE
@@ -69,10 +73,12 @@ def write_environment_script(out: Path, env: dict, nodes=()) -> None:
     """Write ``out/env.sh`` and say how another terminal uses it.
 
     ``nodes``, the run's fully qualified node names (:func:`run_node_names`), go in as ``UH_RUN_NODES``:
-    ``uh node list`` and the other listings of ``uh`` wait for them and name those they do not see.
+    ``uh node list`` and the other listings of ``uh`` wait for them and name those they do not see. A secure
+    run's also gives the read-only identity (:func:`uh_bringup.run_secure.inspect_script`).
     """
     print(f'[run] output: {out}', file=sys.stderr)
-    (out / 'env.sh').write_text(environment_script(env) + (export_line(nodes) if nodes else ''))
+    secure = inspect_script(env) if env.get('ROS_SECURITY_ENABLE') == 'true' else ''
+    (out / 'env.sh').write_text(environment_script(env) + (export_line(nodes) if nodes else '') + secure)
     print(f'[run] from another terminal: source {out / "env.sh"}   (then ros2 topic list, or uh topic list)',
           file=sys.stderr)
 
@@ -119,9 +125,13 @@ def start_team(args, specs, out: Path, env: dict, sup, network) -> None:
         print(f'[run] live view: {live_view.connect_hint(args.foxglove_host, args.foxglove)}', file=sys.stderr)
     started = processes(specs, args.processes, out / 'logs', getattr(args, 'workers', None))
     on_dds = dds_processes(env, [name for name, _kind, _cmd in started])
+    # a secure run (one process per node): each node's identity is its fully qualified name
+    enclaves = {spec[0]: run_node_names([spec])[0] for spec in specs} if env.get('ROS_SECURITY_ENABLE') else {}
     for name, kind, cmd in started:
         # composed processes: only the recorder's own process (per-uh) is of an infrastructure kind
         node_env = {**env, **backend_environment(kind, env), **({'UH_BACKEND': 'dds'} if name in on_dds else {})}
+        if name in enclaves:
+            node_env['ROS_SECURITY_ENCLAVE_OVERRIDE'] = enclaves[name]
         if network is not None:
             sup.prefix[name] = network.prefix(name)
             node_env = network.environment(name, node_env)

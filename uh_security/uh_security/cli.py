@@ -1,17 +1,22 @@
 """``uh-security``: the keystore of a secure team, made from its scenario (docs/security.md).
 
 ``uh-security create --scenario S --keystore DIR [--safety on|off] [--domain-id N]`` writes a CA, one
-identity per node of a run of S and one per tool (``/tools/inspect``, ``/tools/inject_fault``), the
+identity per node of a run of S and one per tool (``/tools/inspect``, ``/tools/operator``), the
 signed governance and each identity's signed permissions, in sros2's keystore layout
 (:mod:`uh_security.keystore`), and the ROS 2 access-control policy they come from as ``DIR/policy.xml``.
 ``uh-security policy --scenario S [--safety on|off]`` prints that policy without writing anything.
+``uh-security check --scenario S --keystore DIR [--safety on|off] [--domain-id N]`` checks that DIR is a
+keystore of S with that safety setting, valid on domain N, with every identity signed by its CA and valid
+now, and prints its record (``uh_keystore.json``) on stdout: what ``run_formation.sh --secure`` runs first.
 
 Exit status: 0 done, 2 bad input (an unknown scenario or a broken one, a DIR that exists and is not
-empty, a domain outside 0..230; one line on stderr, nothing written).
+empty (create) or is not a keystore of S (check), a domain outside 0..230; one line on stderr, nothing
+written).
 """
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -52,6 +57,13 @@ def build_parser() -> argparse.ArgumentParser:
     create.add_argument('--domain-id', type=int, metavar='N',
                         help=f'make the documents valid on DDS domain N only (default: every domain, '
                              f'0..{policy.SECURE_MAX_DOMAIN_ID}, as a run picks a free one)')
+    check = commands.add_parser('check', help='check that a keystore is one of the scenario (before a secure run)',
+                                description='Check that DIR is a keystore made for the scenario and safety setting, '
+                                            'valid on the domain, every identity signed by its CA and valid now; '
+                                            'print its record (JSON).')
+    _scenario_arguments(check)
+    check.add_argument('--keystore', required=True, metavar='DIR', help='the keystore directory')
+    check.add_argument('--domain-id', type=int, metavar='N', help='the DDS domain of the run')
     show = commands.add_parser('policy', help='print the access-control policy of the scenario (ROS 2 format)',
                                description='Print the ROS 2 access-control policy (format 0.2.0) that '
                                            '"create" signs, without writing anything.')
@@ -86,6 +98,13 @@ def main(argv=None) -> int:
         sys.stdout.write(policy.xml_text(policy.policy_xml(grants)))
         return 0
     record = {'scenario': scenario.name, 'scenario_source': scenario.source, 'safety': scenario.safety.enabled}
+    if args.command == 'check':
+        try:
+            found = keystore.check_keystore(Path(args.keystore), grants, record, args.domain_id)
+        except keystore.KeystoreError as exc:
+            return _fail(str(exc))
+        print(json.dumps(found))
+        return 0
     try:
         enclaves = keystore.create_keystore(args.keystore, grants, record, domains)
     except keystore.KeystoreError as exc:
@@ -94,3 +113,7 @@ def main(argv=None) -> int:
     print(f'{PROG}: keystore of scenario {scenario.name} with {len(enclaves)} identities in {where} '
           f'(policy: {where / "policy.xml"})', file=sys.stderr)
     return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -24,6 +24,7 @@ import os
 from pathlib import Path
 
 from cryptography import x509
+from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.hazmat.primitives.serialization import pkcs7
@@ -32,7 +33,7 @@ from cryptography.x509.oid import NameOID
 from . import policy
 
 __all__ = ['KeystoreError', 'CA_NAME', 'VALIDITY_DAYS', 'METADATA', 'is_keystore', 'create_keystore',
-           'enclave_dir', 'sign_smime', 'read_metadata']
+           'check_keystore', 'enclave_dir', 'sign_smime', 'read_metadata']
 
 #: Common name of the keystore's CA (sros2's default).
 CA_NAME = 'sros2CA'
@@ -165,3 +166,63 @@ def create_keystore(keystore: Path, grants, scenario_record: dict,
         raise KeystoreError(f'{keystore}: cannot write the keystore ({exc.strerror}); choose a directory you can '
                             'write to') from None
     return enclaves
+
+
+def _describe(record: dict) -> str:
+    safety = {True: 'on', False: 'off'}.get(record.get('safety'), '?')
+    return f"scenario {record.get('scenario', '?')} (safety filter {safety})"
+
+
+def _check_identity(keystore: Path, enclave: str, ca_certificate, now: datetime.datetime) -> None:
+    """Raise :class:`KeystoreError` unless ``enclave``'s certificate is this CA's and valid at ``now``."""
+    folder = enclave_dir(keystore, enclave)
+    try:
+        certificate = x509.load_pem_x509_certificate((folder / 'cert.pem').read_bytes())
+        certificate.verify_directly_issued_by(ca_certificate)
+    except OSError:
+        raise KeystoreError(f'{keystore}: the identity {enclave} is missing ({folder / "cert.pem"}); make a new '
+                            'keystore (uh-security create)') from None
+    except (ValueError, TypeError, InvalidSignature):
+        raise KeystoreError(f'{keystore}: the certificate of {enclave} is not signed by the keystore\'s CA (a '
+                            'foreign certificate); make a new keystore (uh-security create)') from None
+    if not certificate.not_valid_before_utc <= now <= certificate.not_valid_after_utc:
+        raise KeystoreError(f'{keystore}: the certificate of {enclave} is valid '
+                            f'{certificate.not_valid_before_utc:%Y-%m-%d} .. {certificate.not_valid_after_utc:%Y-%m-%d}'
+                            ', not now (expired?); make a new keystore (uh-security create)')
+    if not (folder / 'permissions.p7s').is_file():
+        raise KeystoreError(f'{keystore}: {enclave} has no signed permissions; make a new keystore '
+                            '(uh-security create)')
+
+
+def check_keystore(keystore: Path, grants, scenario_record: dict, domain: int | None = None) -> dict:
+    """Check that ``keystore`` was made for ``grants`` (a scenario's) and may fly on ``domain``; return its record.
+
+    One :class:`KeystoreError` line otherwise: not a keystore, made for another scenario or safety setting
+    (the names in :data:`METADATA`, and its ``policy.xml`` against the one of ``grants``: a scenario file
+    changed since), documents valid on other domains, or an identity whose certificate is missing, not
+    signed by the keystore's CA or not valid now (expired).
+    """
+    keystore = Path(keystore)
+    if not is_keystore(keystore):
+        raise KeystoreError(f'{keystore} exists and is not a keystore (no CA or governance); give a keystore of '
+                            'uh-security create, or a new directory')
+    record = read_metadata(keystore)
+    wanted = {k: scenario_record[k] for k in ('scenario', 'safety')}
+    if {k: record.get(k) for k in wanted} != wanted:
+        raise KeystoreError(f'{keystore} is the keystore of {_describe(record)}, not of {_describe(scenario_record)}'
+                            ': make one for it (uh-security create) or give no keystore')
+    try:
+        written = (keystore / 'policy.xml').read_text()
+    except OSError:
+        written = None
+    if written != policy.xml_text(policy.policy_xml(grants)):
+        raise KeystoreError(f'{keystore}: its policy is not the graph of {_describe(scenario_record)} (the scenario '
+                            'changed since the keystore was made): make a new one (uh-security create)')
+    lo, hi = record.get('domains', (0, policy.SECURE_MAX_DOMAIN_ID))
+    if domain is not None and not lo <= domain <= hi:
+        raise KeystoreError(f'{keystore}: its documents are valid on DDS domains {lo}..{hi}, not on {domain}')
+    ca_certificate = x509.load_pem_x509_certificate((keystore / 'public' / 'identity_ca.cert.pem').read_bytes())
+    now = datetime.datetime.now(datetime.timezone.utc)
+    for grant in grants:
+        _check_identity(keystore, grant.enclave, ca_certificate, now)
+    return record

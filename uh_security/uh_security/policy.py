@@ -3,8 +3,9 @@
 The pure part of secure mode (docs/security.md#how-the-policy-follows-the-graph): no file is written and
 no DDS is touched here. One identity (an *enclave*, sros2's word) per node of a run, named by the node's
 fully qualified name (``/uh3/controller``), plus two for people: ``/tools/inspect`` (read-only, for
-``uh`` and ``ros2`` listings and echoes) and ``/tools/inject_fault`` (an operator who may also publish
-every ``/uhN/fault``). The nodes come from the run's node table (:func:`uh_bringup.team_nodes.node_specs`),
+``uh`` and ``ros2`` listings and echoes) and ``/tools/operator`` (an operator who may also publish
+every ``/uhN/fault`` and set parameters, e.g. gains at run time: deliberate acts). The nodes come from the
+run's node table (:func:`uh_bringup.team_nodes.node_specs`),
 the topics from the registry (:mod:`uh_wire.topics`), and the edges from the scenario's graph
 (``Scenario.receivable_edges``: a controller reads exactly the states its node subscribes to):
 
@@ -29,12 +30,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from xml.etree import ElementTree as ET
 
+from uh_bringup.run_secure import INSPECT_ENCLAVE, OPERATOR_ENCLAVE, SECURE_MAX_DOMAIN_ID
 from uh_bringup.run_setup import run_node_names
 from uh_bringup.team_nodes import node_specs
 from uh_runtime.names import REPLY_PREFIX, REQUEST_PREFIX, ROS_TOPIC_PREFIX
 from uh_wire import topics
 
-__all__ = ['Grant', 'DomainRange', 'SECURE_MAX_DOMAIN_ID', 'TOOL_ENCLAVES', 'INSPECT', 'INJECT_FAULT',
+__all__ = ['Grant', 'DomainRange', 'SECURE_MAX_DOMAIN_ID', 'TOOL_ENCLAVES', 'INSPECT', 'OPERATOR',
            'DISCOVERY_TOPIC', 'PARAMETER_SERVICES', 'READ_ONLY_PARAMETER_SERVICES', 'NODE_TOPICS', 'POLICY_VERSION',
            'team_grants', 'node_grant', 'grant_of', 'policy_xml', 'permissions_xml', 'governance_xml', 'xml_text']
 
@@ -47,15 +49,11 @@ PARAMETER_SERVICES = ('describe_parameters', 'get_parameters', 'get_parameter_ty
 READ_ONLY_PARAMETER_SERVICES = ('describe_parameters', 'get_parameters', 'get_parameter_types', 'list_parameters')
 #: What the runtime publishes for any node (``uh_runtime.dds.node``; rcl does the same).
 NODE_TOPICS = ('/rosout', '/parameter_events')
-#: The identities of people's tools, besides the nodes of a run.
-INSPECT = '/tools/inspect'
-INJECT_FAULT = '/tools/inject_fault'
-TOOL_ENCLAVES = (INSPECT, INJECT_FAULT)
+#: The identities of people's tools, besides the nodes of a run: read-only, and the operator.
+INSPECT, OPERATOR = INSPECT_ENCLAVE, OPERATOR_ENCLAVE
+TOOL_ENCLAVES = (INSPECT, OPERATOR)
 #: ``version`` of the ROS 2 access-control policy format written by :func:`policy_xml`.
 POLICY_VERSION = '0.2.0'
-#: The largest domain id Cyclone DDS 0.10's access control reads in governance and permissions (a document
-#: naming 231 or 232 is refused as unparsable, measured), so the largest a secure run may use.
-SECURE_MAX_DOMAIN_ID = 230
 #: Name patterns of the node a ROS 2 command-line tool makes (``ros2 topic echo``, its daemon).
 _ROS2CLI_NODES = '/_ros2cli_*'
 
@@ -177,7 +175,7 @@ def node_grant(kind: str, fqn: str, scenario, uh_id: int | None = None) -> Grant
 
 
 def _tool_grant(enclave: str, scenario) -> Grant:
-    """Return the grant of a person's tool: read everything, list parameters; the fault injector also injects.
+    """Return the grant of a person's tool: read everything, read parameters; the operator also injects and sets them.
 
     Both may start a ROS 2 command-line node of their own (``/_ros2cli_*``: its ``/rosout``,
     ``/parameter_events`` and parameter services); ``uh-inject-fault``'s node serves no parameters.
@@ -185,8 +183,9 @@ def _tool_grant(enclave: str, scenario) -> Grant:
     rights = _Rights(publish=set(NODE_TOPICS), subscribe={'/*'},
                      reply={f'{_ROS2CLI_NODES}/{s}' for s in PARAMETER_SERVICES},
                      request={f'/*/{s}' for s in READ_ONLY_PARAMETER_SERVICES})
-    if enclave == INJECT_FAULT:
+    if enclave == OPERATOR:
         rights.publish |= set(_team_topic_names(scenario)[topics.FAULT])
+        rights.request |= {f'/*/{s}' for s in PARAMETER_SERVICES}
     return rights.grant(enclave, 'tool')
 
 
