@@ -39,6 +39,7 @@ def _refused(capsys, tmp_path, *argv) -> str:
     (['--secure', '--processes', 'workers'], r'--processes workers'),
     (['--secure', '--domain-id', '231'], r'domain 231: allowed 0\.\.230'),
     (['--keystore', 'somewhere'], r'--keystore somewhere needs --secure'),
+    (['--secure', '--hosts', 'netns'], r'--hosts netns: not built'),
 ])
 def test_a_secure_run_refuses_bad_options(argv, message, tmp_path, capsys):
     assert __import__('re').search(message, _refused(capsys, tmp_path, *argv))

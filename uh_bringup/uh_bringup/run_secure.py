@@ -50,6 +50,9 @@ def check_secure_args(args, environ=None) -> None:
     if args.processes != 'per-node':
         raise SecureRunError(f'--secure with --processes {args.processes}: DDS Security gives one identity per '
                              'process, so a secure run is one process per node (--processes per-node)')
+    if getattr(args, 'hosts', 'local') != 'local':
+        raise SecureRunError(f'--secure with --hosts {args.hosts}: not built (docs/security.md#what-is-not-done); '
+                             'allowed: --hosts local')
     given = args.domain_id if args.domain_id is not None else (
         int(environ['ROS_DOMAIN_ID']) if environ.get('ROS_DOMAIN_ID', '').isdigit() else None)
     if given is not None and not 0 <= given <= SECURE_MAX_DOMAIN_ID:
