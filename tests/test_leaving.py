@@ -226,13 +226,19 @@ def test_a_lockstep_distributed_run_with_a_stuck_actuator_equals_the_in_process_
                                                    5: ('follower', [1])}
 
 
+#: UH4's longitudinal cyclic stuck at 12-22 s, every 0.25 s, in process: found in all 40, within 3 s in 39 (the
+#: other 3.46 s). The channels the study finds fastest have windows where they are not found at all (UH1's
+#: lateral at 15.75 s, among others), and a realtime injection lands when it lands.
+REALTIME_STUCK = (4, 'longitudinal', 3)
+
+
 @pytest.mark.dds
 @pytest.mark.slow
 def test_a_realtime_team_whose_actuator_is_stuck_at_run_time_lets_that_uh_leave_and_reforms(tmp_path):
-    """``inject_fault.sh --stuck`` sticks UH1's lateral cyclic after 9 s of a realtime run with ``resilience``.
+    """``inject_fault.sh --stuck`` sticks UH4's longitudinal cyclic after 12 s of a realtime run with ``resilience``.
 
-    UH1's controller finds it, declares itself and climbs clear; the others learn it from its states, UH4
-    takes slot 1 and the team re-forms; metrics.json's reconfiguration says so, from the bag.
+    UH4's controller finds it, declares itself and climbs clear; the others learn it from its states and
+    re-form (UH5 alone in the leaders' hull); metrics.json's reconfiguration says so, from the bag.
     """
     import json
     import subprocess
@@ -244,48 +250,51 @@ def test_a_realtime_team_whose_actuator_is_stuck_at_run_time_lets_that_uh_leave_
     from uh_report.bag_metrics import read_team_bag
     from uh_runtime.network import reserve_domain_id
     from uh_team.reconfiguration import team_errors
+    uh, channel, index = REALTIME_STUCK
     text = paper_yaml('resilience: {}\n')
     (tmp_path / 'team.yaml').write_text(text)
     scenario = parse_scenario(text, source='team.yaml')
     out, domain = tmp_path / 'run', reserve_domain_id()
-    proc = start_run(out, domain, '--clock', 'realtime', '--rate', '2', '--duration', '30',
+    proc = start_run(out, domain, '--clock', 'realtime', '--rate', '2', '--duration', '32',
                      '--scenario', str(tmp_path / 'team.yaml'), '--no-visualization', '--no-report')
     try:
         deadline, log = time.monotonic() + 120, out / 'logs' / 'clock.log'
-        while not (log.exists() and 'step 900/' in log.read_text()):     # 9 s, past the learning phase (8 s)
-            assert time.monotonic() < deadline and proc.poll() is None, 'step 900 not reached'
+        while not (log.exists() and 'step 1280/' in log.read_text()):     # 12.8 s: the window of REALTIME_STUCK
+            assert time.monotonic() < deadline and proc.poll() is None, 'step 1280 not reached'
             time.sleep(0.05)
         script = Path(__file__).resolve().parents[1] / 'scripts' / 'inject_fault.sh'
-        sim_log = out / 'logs' / 'uh1_sim.log'
+        sim_log = out / 'logs' / f'uh{uh}_sim.log'
         for _ in range(2):
-            inject = subprocess.run([str(script), '--domain-id', str(domain), '--uh', '1', '--channel', 'lateral',
+            inject = subprocess.run([str(script), '--domain-id', str(domain), '--uh', str(uh), '--channel', channel,
                                      '--stuck', '--timeout', '60'], capture_output=True, text=True, timeout=120)
             assert inject.returncode == 0 and 'stays where it is' in inject.stderr, inject.stderr
             # a sample written while the simulator's reader has not yet matched the new writer is lost,
             # and acknowledged all the same (docs/faults.md#injecting-a-fault-at-run-time): send again once
             deadline = time.monotonic() + 3.0
-            while 'fault injected on uh1' not in sim_log.read_text() and time.monotonic() < deadline:
+            while f'fault injected on uh{uh}' not in sim_log.read_text() and time.monotonic() < deadline:
                 time.sleep(0.05)
-            if 'fault injected on uh1' in sim_log.read_text():
+            if f'fault injected on uh{uh}' in sim_log.read_text():
                 break
         output, _ = proc.communicate(timeout=300)
     finally:
         kill_session(proc)
     assert proc.returncode == 0, output
-    assert sim_log.read_text().count('fault injected on uh1') == 1, inject.stderr
-    bag = read_team_bag(out / 'bag', scenario)
-    assert set(bag['losses']['leaving']) == {1}
+    assert sim_log.read_text().count(f'fault injected on uh{uh}') == 1, inject.stderr
     metrics = json.loads((out / 'metrics.json').read_text())
     (injected,) = metrics['faults']['injected']
-    assert injected['stuck_in_place'] and injected['rho'] == 0.0 and injected['channel'] == LATERAL
+    assert injected['stuck_in_place'] and injected['rho'] == 0.0 and injected['channel'] == index
+    assert injected['received_s'] <= 22.0, injected      # in the window the in-process scan covers
+    bag = read_team_bag(out / 'bag', scenario)
+    assert set(bag['losses']['leaving']) == {uh}
     (event,) = metrics['reconfiguration']
-    assert event['uh'] == 1 and event['kind'] == 'unable' and event['promoted'] == {'1': 4}
-    # found within 3 s of the injection (1.4 s in process), every UH knows within 1 s, re-formed within 10 s
-    assert event['detected_at_s'] - injected['received_s'] <= 3.0
+    assert event['uh'] == uh and event['kind'] == 'unable' and event['promoted'] == {}
+    # found within 5 s of the injection (at most 3.46 s in process), every UH knows within 1 s, re-formed in 10 s
+    assert event['detected_at_s'] - injected['received_s'] <= 5.0, (event, injected)
     assert event['agreed_at_s'] - event['detected_at_s'] <= 1.0
     assert event['reformed_at_s'] is not None and event['reformed_at_s'] - injected['received_s'] <= 10.0
-    errors = team_errors(bag['states'][:, :, :3], bag['reference'][:, :3], scenario.reformed({1}), scenario.ids)
-    assert np.nanmax(errors[-200:, [1, 2, 3]]) < 0.05 and np.nanmax(errors[-200:, 4]) < 0.02
-    # UH1 climbed clear of the others: above every one of them by most of leave_climb at the end
-    assert bag['states'][-1, 0, 2] - np.max(bag['states'][-1, 1:, 2]) > 3.0
+    errors = team_errors(bag['states'][:, :, :3], bag['reference'][:, :3], scenario.reformed({uh}), scenario.ids)
+    assert np.nanmax(errors[-200:, [0, 1, 2]]) < 0.05 and np.nanmax(errors[-200:, 4]) < 0.02
+    # UH4 climbed clear of the others: above every one of them by most of leave_climb at the end
+    others = [c for c in range(5) if c != uh - 1]
+    assert bag['states'][-1, uh - 1, 2] - np.max(bag['states'][-1, others, 2]) > 3.0
     assert metrics['rotor_overlap_s'] == 0.0
