@@ -10,6 +10,8 @@ import pytest
 from uh_runtime.network import loopback_environment, release_domain_id, reserve_domain_id
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The secure tier's fixtures (only_in_the_secure_tier, secure_domain).
+pytest_plugins = ('helpers_security.tier',)
 
 # The tests stop the nodes they start with SIGINT, as Ctrl-C does. A test session started in the
 # background by a non-interactive shell (`scripts/test.sh > log &` in a script) has SIGINT ignored,

@@ -17,7 +17,6 @@ import datetime
 import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -25,12 +24,12 @@ from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
+from helpers_security.tier import SECURE_PYTHON
 
-from uh_runtime.network import loopback_environment, release_domain_id, reserve_domain_id
+from uh_runtime.network import loopback_environment
 from uh_security import cli, keystore, policy
 
 ROOT = Path(__file__).resolve().parents[1]
-SECURE_PYTHON = Path(os.environ.get('UH_SECURE_PYTHON', ROOT / '.venv-secure' / 'bin' / 'python'))
 PEER = ROOT / 'tests' / 'helpers_security' / 'secure_peer.py'
 #: How long a publisher writes and a reader listens (s): the 2 s handshake and discovery, with room.
 WRITE_S, LISTEN_S = 8.0, 7.0
@@ -39,27 +38,10 @@ PEER_TIMEOUT_S = 60
 REFUSED = 'DDS_RETCODE_NOT_ALLOWED_BY_SECURITY'
 STATE, COMMAND = 'uh_msgs/msg/UHState', 'uh_msgs/msg/ActuatorCommand'
 
-pytestmark = [pytest.mark.secure, pytest.mark.dds,
+pytestmark = [pytest.mark.secure, pytest.mark.dds, pytest.mark.usefixtures('only_in_the_secure_tier'),
               pytest.mark.skipif(not SECURE_PYTHON.exists(),
                                  reason=f'no secure virtualenv at {SECURE_PYTHON}: scripts/test.sh --secure builds it '
                                         '(Cyclone DDS 0.10.2 with DDS Security, docs/security.md)')]
-
-
-@pytest.fixture(autouse=True)
-def _only_in_the_secure_tier(request):
-    """Run in the secure tier (pytest in .venv-secure, or ``-m secure``), not in the main suite's time budget."""
-    in_tier = Path(sys.prefix).resolve() == SECURE_PYTHON.parent.parent.resolve() or \
-        'secure' in (request.config.option.markexpr or '')
-    if not in_tier:
-        pytest.skip('the secure tier: scripts/test.sh --secure (or pytest -m secure)')
-
-
-@pytest.fixture
-def secure_domain():
-    """Reserve a private DDS domain a secure participant may use (DDS Security documents stop at 230)."""
-    domain = reserve_domain_id(last=policy.SECURE_MAX_DOMAIN_ID)
-    yield domain
-    release_domain_id(domain)
 
 
 @pytest.fixture(scope='module')
