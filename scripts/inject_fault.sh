@@ -11,10 +11,15 @@
 # On a ROS 2 machine the same can be done with:
 #   ros2 topic pub --once /uh4/fault uh_msgs/msg/ActuatorFault "{uh_id: 4, channel: 0, rho: 0.7, onset_time: 30.0}"
 # --secure: a secure team's (docs/security.md), with the operator identity /tools/operator of its keystore
-# (--keystore DIR, default ROS_SECURITY_KEYSTORE from the run's env.sh), on .venv-secure.
+# (--keystore DIR, default ROS_SECURITY_KEYSTORE from the run's env.sh), on .venv-secure. Without --secure in a
+# shell that set ROS_SECURITY_ENABLE=true (a secure run's env.sh) it runs on .venv-secure with that shell's identity.
 set -euo pipefail
 case " $* " in
   *" --secure "*) source "$(dirname "${BASH_SOURCE[0]}")/_venv_secure.sh" ;;
-  *) source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh" ;;
+  *) if [ "${ROS_SECURITY_ENABLE:-}" = true ]; then
+       source "$(dirname "${BASH_SOURCE[0]}")/_venv_secure.sh"
+     else
+       source "$(dirname "${BASH_SOURCE[0]}")/_venv.sh"
+     fi ;;
 esac
 exec uh-inject-fault "$@"

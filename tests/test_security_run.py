@@ -116,7 +116,9 @@ def test_a_secure_realtime_run_holds_the_formation_and_only_the_operator_injects
     try:
         wait_for_log(out / 'logs' / 'clock.log', 'realtime run of', proc, timeout=120)
         operator = _inject(out, secure_domain, '--secure', '--keystore', str(out / 'keystore'))
-        inspect = dict(os.environ, **_exports(out / 'env.sh'))
+        # a second terminal of a user: env.sh on a plain shell (the tier's own virtualenv variables dropped)
+        plain = {k: v for k, v in os.environ.items() if k not in ('UH_VENV', 'UH_REQUIREMENTS', 'VIRTUAL_ENV')}
+        inspect = dict(plain, **_exports(out / 'env.sh'))
         read_only = _inject(out, secure_domain, '--timeout', '3', env=inspect)
         output, _ = proc.communicate(timeout=300)
     finally:
