@@ -129,6 +129,21 @@ def test_the_inspection_identity_lists_and_echoes_the_team_and_no_identity_lists
         assert '/uh2/state' in listed.split(), listed
 
 
+@pytest.mark.parametrize('tool', policy.TOOL_ENCLAVES)
+def test_a_tool_identity_may_make_the_node_a_ros2_command_makes_and_a_team_node_may_not(peers, tool):
+    """The node of ``ros2 topic echo``, ``/_ros2cli_<pid>``: its parameter services and get_type_description.
+
+    On a Jazzy built from source, rmw_cyclonedds refused that node to ``/tools/inspect`` until the policy
+    granted get_type_description (docs/security.md#on-a-real-ros-2-jazzy). A controller's identity may not
+    make it (the control: a refusal is seen when the grant is missing).
+    """
+    if not peers.secure:
+        pytest.skip('without security every identity may make any topic: nothing to compare')
+    assert _output(peers.start(tool, 'cli_node', '0.5'))[:2] == ['ready', 'ready']
+    refused = _output(peers.start('/uh3/controller', 'cli_node', '0.5'))
+    assert refused and refused[0].startswith('refused') and REFUSED in refused[0], refused
+
+
 def test_an_identity_without_the_write_permission_cannot_create_the_command_writer(peers):
     # the recorder may read /uh1/command (so the topic exists for it) but never write it
     attacker = peers.start('/recorder', 'publish', '/uh1/command', COMMAND, str(WRITE_S))

@@ -45,7 +45,19 @@ def test_uh3s_controller_reads_exactly_its_neighbours_states_and_publishes_its_c
     assert set(uh3.subscribe) == {'/uh3/state', '/uh2/state', '/uh3/proximity'}   # safety on: its own proximity
     assert set(uh3.publish) == {'/uh3/command', '/uh3/status', '/diagnostics'} | NODE_BASICS
     assert set(uh3.request) == set()
-    assert set(uh3.reply) == {f'/uh3/controller/{s}' for s in policy.PARAMETER_SERVICES}
+    # the six parameter services and get_type_description, which every Jazzy node serves
+    assert set(uh3.reply) == {f'/uh3/controller/{s}' for s in (
+        'describe_parameters', 'get_parameters', 'get_parameter_types', 'list_parameters', 'set_parameters',
+        'set_parameters_atomically', 'get_type_description')}
+
+
+@pytest.mark.parametrize('tool', policy.TOOL_ENCLAVES)
+def test_a_tool_may_run_the_ros2_command_lines_node_with_the_services_jazzy_starts_for_it(grants, tool):
+    """Without ``get_type_description``, rmw_cyclonedds refused every ``ros2`` command (a Jazzy from source)."""
+    cli = _grant(grants, tool)
+    assert {'/_ros2cli_*/get_type_description', '/_ros2cli_*/get_parameters'} <= set(cli.reply)
+    assert {'rr/_ros2cli_*/get_type_descriptionReply', 'rt/rosout'} <= set(cli.dds_publish())
+    assert 'rq/_ros2cli_*/get_type_descriptionRequest' in cli.dds_subscribe()
 
 
 @pytest.mark.parametrize('uh', PAPER.ids)

@@ -1,6 +1,7 @@
 """Test process of the secure tier: one DDS participant with (or without) an identity, one endpoint, stdout lines.
 
-``secure_peer.py publish TOPIC TYPE SECONDS``, ``subscribe TOPIC TYPE SECONDS`` or ``look TOPIC SECONDS``.
+``secure_peer.py publish TOPIC TYPE SECONDS``, ``subscribe TOPIC TYPE SECONDS``, ``look TOPIC SECONDS`` or
+``cli_node SECONDS`` (the topics of a ``ros2`` command's own node: :func:`cli_node`).
 The identity comes from the environment, as for any node (ROS_SECURITY_ENABLE, ROS_SECURITY_KEYSTORE,
 ROS_SECURITY_ENCLAVE_OVERRIDE; uh_runtime.dds.security): the node is named after its enclave
 (``/uh3/controller`` -> node ``controller`` in ``/uh3``) so that its parameter services are its own.
@@ -94,10 +95,39 @@ def look(topic: str, seconds: float) -> None:
     print(f'data {count}', flush=True)
 
 
+def cli_node(seconds: float) -> None:
+    """Make the DDS topics of a Jazzy ``ros2`` command's own node ``/_ros2cli_4242``, as rmw_cyclonedds does.
+
+    Its parameter services (the runtime's node) and ``~/get_type_description``'s request reader and reply
+    writer (rclpy starts that service for every node; the runtime does not, so they are made here).
+    """
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    node = _endpoint(lambda: rt.Node('_ros2cli_4242'))
+    if node is None:
+        return
+    participant, cls = node._context.participant, m.dds_message('uh_msgs/msg/UHState')   # any type: names decide
+    service = 'get_type_description'
+    _endpoint(lambda: (DataReader(participant, Topic(participant, f'rq/_ros2cli_4242/{service}Request', cls)),
+                       DataWriter(participant, Topic(participant, f'rr/_ros2cli_4242/{service}Reply', cls))))
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        rt.spin_once(node, timeout_sec=0.05)
+
+
 def main(argv) -> int:
     role, rest = argv[1], argv[2:]
     if role == 'look':
         look(rest[0], float(rest[1]))
+        return 0
+    if role == 'cli_node':
+        rt.init(args=[argv[0]])
+        try:
+            cli_node(float(rest[0]))
+        finally:
+            rt.try_shutdown()
         return 0
     rt.init(args=[argv[0]])
     try:

@@ -16,8 +16,9 @@ the topics from the registry (:mod:`uh_wire.topics`), and the edges from the sce
 * UH i's simulator publishes ``/uhi/state``, ``/uhi/fault_truth``, ``/uhi/odom``, ``/tf`` and
   ``/diagnostics``; it reads ``/uhi/command``, ``/uhi/fault`` and ``/clock``;
 * the recorder and the live view only read (the recorder publishes its progress for the clock);
-* every node also has what the runtime gives any node: ``/rosout``, ``/parameter_events``, its six
-  parameter services and ``ros_discovery_info`` (rmw's graph topic, which sros2 grants every enclave).
+* every node also has what any ROS 2 node has: ``/rosout``, ``/parameter_events``, its six parameter
+  services and ``~/get_type_description`` (:data:`NODE_SERVICES`), and ``ros_discovery_info`` (rmw's
+  graph topic, which sros2 grants every enclave).
 
 :func:`team_grants` gives each identity's :class:`Grant` (ROS names; :meth:`Grant.dds_publish` and
 :meth:`Grant.dds_subscribe` the DDS topic names as the runtime maps them, ``rt/``, ``rq/``, ``rr/``);
@@ -37,7 +38,8 @@ from uh_runtime.names import REPLY_PREFIX, REQUEST_PREFIX, ROS_TOPIC_PREFIX
 from uh_wire import topics
 
 __all__ = ['Grant', 'DomainRange', 'SECURE_MAX_DOMAIN_ID', 'TOOL_ENCLAVES', 'INSPECT', 'OPERATOR',
-           'DISCOVERY_TOPIC', 'PARAMETER_SERVICES', 'READ_ONLY_PARAMETER_SERVICES', 'NODE_TOPICS', 'POLICY_VERSION',
+           'DISCOVERY_TOPIC', 'PARAMETER_SERVICES', 'READ_ONLY_PARAMETER_SERVICES', 'NODE_SERVICES', 'NODE_TOPICS',
+           'POLICY_VERSION',
            'team_grants', 'node_grant', 'grant_of', 'policy_xml', 'permissions_xml', 'governance_xml', 'xml_text']
 
 #: The graph topic of rmw (``rmw_dds_common``): every enclave publishes and reads it, as sros2 grants it.
@@ -47,6 +49,10 @@ PARAMETER_SERVICES = ('describe_parameters', 'get_parameters', 'get_parameter_ty
                       'set_parameters', 'set_parameters_atomically')
 #: The parameter services a read-only identity may call (listing and reading, not setting).
 READ_ONLY_PARAMETER_SERVICES = ('describe_parameters', 'get_parameters', 'get_parameter_types', 'list_parameters')
+#: The services every ROS 2 Jazzy node serves: its parameters and ``~/get_type_description``, which rclpy and
+#: rclcpp start by default (the ``ros2`` command line's own node too: without it, rmw_cyclonedds refuses to create
+#: that node, measured on a Jazzy built from source). The runtime serves the parameter services only.
+NODE_SERVICES = PARAMETER_SERVICES + ('get_type_description',)
 #: What the runtime publishes for any node (``uh_runtime.dds.node``; rcl does the same).
 NODE_TOPICS = ('/rosout', '/parameter_events')
 #: The identities of people's tools, besides the nodes of a run: read-only, and the operator.
@@ -122,8 +128,8 @@ class _Rights:
 
 
 def _node_basics(fqn: str) -> _Rights:
-    """Return what the runtime gives any node ``fqn``: ``/rosout``, ``/parameter_events``, its parameter services."""
-    return _Rights(publish=set(NODE_TOPICS), reply={f'{fqn}/{s}' for s in PARAMETER_SERVICES})
+    """Return what any node ``fqn`` has: ``/rosout``, ``/parameter_events``, its services (:data:`NODE_SERVICES`)."""
+    return _Rights(publish=set(NODE_TOPICS), reply={f'{fqn}/{s}' for s in NODE_SERVICES})
 
 
 def _team_topic_names(scenario) -> dict:
@@ -178,10 +184,10 @@ def _tool_grant(enclave: str, scenario) -> Grant:
     """Return the grant of a person's tool: read everything, read parameters; the operator also injects and sets them.
 
     Both may start a ROS 2 command-line node of their own (``/_ros2cli_*``: its ``/rosout``,
-    ``/parameter_events`` and parameter services); ``uh-inject-fault``'s node serves no parameters.
+    ``/parameter_events`` and :data:`NODE_SERVICES`); ``uh-inject-fault``'s node serves no parameters.
     """
     rights = _Rights(publish=set(NODE_TOPICS), subscribe={'/*'},
-                     reply={f'{_ROS2CLI_NODES}/{s}' for s in PARAMETER_SERVICES},
+                     reply={f'{_ROS2CLI_NODES}/{s}' for s in NODE_SERVICES},
                      request={f'/*/{s}' for s in READ_ONLY_PARAMETER_SERVICES})
     if enclave == OPERATOR:
         rights.publish |= set(_team_topic_names(scenario)[topics.FAULT])
