@@ -65,6 +65,62 @@ def test_every_thread_of_the_process_runs_under_sched_fifo_and_new_threads_inher
         assert {p for p, _ in result['policies'].values()} == {'other'}
 
 
+_BLAS_CHILD = '''
+import json
+import numpy
+from threadpoolctl import threadpool_info
+from uh_runtime import scheduling
+before = [i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas']
+scheduling.single_threaded_blas()
+import scipy.linalg   # scipy's own OpenBLAS, loaded after the call
+after = {i['filepath']: i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas'}
+print(json.dumps({'before': before, 'after': after}))
+'''
+
+
+def test_a_realtime_process_computes_blas_in_its_own_thread_also_in_a_library_loaded_later():
+    """Under SCHED_FIFO, OpenBLAS's busy wait for its workers starved a 2-core machine (uh_runtime.scheduling).
+
+    numpy's BLAS is loaded before the call (threadpoolctl limits it), scipy's after (the environment does).
+    """
+    env = {k: v for k, v in os.environ.items() if k not in scheduling.BLAS_THREAD_VARIABLES}
+    out = subprocess.run([sys.executable, '-c', _BLAS_CHILD], capture_output=True, text=True, check=True, env=env)
+    result = json.loads(out.stdout)
+    if os.cpu_count() > 1:   # with one core a BLAS starts single-threaded anyway: the limit would not show
+        assert max(result['before']) > 1, result
+    assert len(result['after']) >= 2 and set(result['after'].values()) == {1}, result
+
+
+_EXPM_CHILD = '''
+import signal, sys, time
+import numpy as np
+import scipy.linalg
+from uh_runtime import scheduling
+signal.alarm(%d)   # a livelocked child is ended by the kernel's SIGALRM (default action), whatever its priority
+why = scheduling.set_realtime_priority(%d)
+a = np.random.default_rng(0).normal(size=(5, 5))
+start = time.monotonic()
+for _ in range(20000):
+    scipy.linalg.expm(a * 0.01)   # what a realtime controller's delay margin computes (delay_margin._plant)
+print(why, time.monotonic() - start)
+'''
+#: bound on each child's life (s): the 20,000 products take 0.14 s on this 2-core machine; livelocked (two
+#: SCHED_FIFO processes each busy-waiting for OpenBLAS workers that cannot run) they never ended in 15 s
+EXPM_BOUND_S = 60
+
+
+def test_two_realtime_processes_computing_scipys_expm_do_not_livelock_a_two_core_machine():
+    """Before BLAS was single-threaded under SCHED_FIFO, two such processes spun at 100 % CPU until killed."""
+    if scheduling.permitted(PRIORITY) is not None:
+        pytest.skip('SCHED_FIFO is not permitted here')
+    children = [subprocess.Popen([sys.executable, '-c', _EXPM_CHILD % (EXPM_BOUND_S, PRIORITY)],
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    for child in children:
+        out, err = child.communicate(timeout=EXPM_BOUND_S + 30)
+        assert child.returncode == 0, f'status {child.returncode} (-14: livelocked until SIGALRM) {err}'
+        assert out.split()[0] == 'None', out
+
+
 class _FakeKernel:
     """os's scheduling calls over a table of threads; the second thread refuses."""
 
@@ -91,6 +147,7 @@ class _FakeKernel:
 def test_a_refusal_part_way_changes_no_thread(monkeypatch):
     kernel = _FakeKernel()
     monkeypatch.setattr(scheduling, 'os', kernel)
+    monkeypatch.setattr(scheduling, 'single_threaded_blas', lambda: None)   # the fake kernel has no environment
     monkeypatch.setattr(scheduling, '_threads', lambda: sorted(kernel.table))
     why = scheduling.set_realtime_priority(PRIORITY)
     assert 'SCHED_FIFO priority 7 is not permitted' in why

@@ -15,7 +15,7 @@ setup(
         ('share/' + package_name + '/config', glob(package_name + '/config/*.yaml')),
     ],
     package_data={package_name: ['config/*.yaml']},
-    install_requires=['numpy', 'PyYAML', 'rosbags', 'mcap', 'mcap-ros2-support'],
+    install_requires=['numpy', 'PyYAML', 'rosbags', 'mcap', 'mcap-ros2-support', 'threadpoolctl'],
     zip_safe=True,
     maintainer='UH formation maintainers',
     maintainer_email='maintainers@uh-formation.invalid',

@@ -14,20 +14,29 @@ Threads created later inherit the policy from the thread that creates them. It n
 ``CAP_SYS_NICE`` capability (root has it) or an ``rtprio`` limit (``ulimit -r``) of at least the
 priority; without, it changes nothing and says why, and the node runs on at normal priority.
 
-Pure standard library, no ROS: both backends call it (:mod:`uh_wire.run_config`).
+Before it does, it makes numpy's and scipy's BLAS compute in the calling thread
+(:func:`single_threaded_blas`). OpenBLAS hands a large enough product to worker threads and busy-waits
+for them; under ``SCHED_FIFO`` the waiting thread keeps its core, and with one process per node two such
+waits filled both cores of a 2-core machine while the workers they waited for could not run: the
+controllers spun at 100 % CPU and starved the machine (docs/performance.md#real-time-scheduling).
+
+No ROS: both backends call it (:mod:`uh_wire.run_config`); threadpoolctl limits the BLAS already loaded.
 """
 from __future__ import annotations
 
 import os
 import threading
 
-__all__ = ['DEFAULT_PRIORITY', 'MAX_PRIORITY', 'set_realtime_priority', 'permitted', 'policy_of']
+__all__ = ['DEFAULT_PRIORITY', 'MAX_PRIORITY', 'BLAS_THREAD_VARIABLES', 'set_realtime_priority',
+           'single_threaded_blas', 'permitted', 'policy_of']
 
 #: default SCHED_FIFO priority of a realtime run's control loop: below the 50 of PREEMPT_RT's
 #: interrupt threads, which deliver the packets the nodes wait for
 DEFAULT_PRIORITY = 20
 #: highest priority a node may ask for; 99 is for the kernel's own per-CPU threads
 MAX_PRIORITY = 98
+#: the thread counts a BLAS library reads when it loads (OpenBLAS, its OpenMP builds, MKL)
+BLAS_THREAD_VARIABLES = ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS')
 
 
 def _check(priority: int) -> None:
@@ -62,16 +71,29 @@ def _threads() -> list[int]:
         return [0]  # no /proc: the calling thread only
 
 
-def set_realtime_priority(priority: int) -> str | None:
-    """Run every thread of this process under ``SCHED_FIFO`` at ``priority`` (1..98).
+def single_threaded_blas() -> None:
+    """Make every BLAS of this process compute in the thread that calls it, with no worker threads.
 
-    Returns None when done, else why it could not be done (nothing is changed then); raises
-    ``ValueError`` for a priority outside 1..98.
+    The libraries loaded already through threadpoolctl, those loaded later through
+    :data:`BLAS_THREAD_VARIABLES`, which a BLAS reads when it loads.
+    """
+    from threadpoolctl import threadpool_limits
+    for name in BLAS_THREAD_VARIABLES:
+        os.environ[name] = '1'
+    threadpool_limits(limits=1, user_api='blas')
+
+
+def set_realtime_priority(priority: int) -> str | None:
+    """Run every thread of this process under ``SCHED_FIFO`` at ``priority`` (1..98), BLAS single-threaded.
+
+    Returns None when done, else why it could not be done (nothing is changed then but the BLAS
+    threads, :func:`single_threaded_blas`); raises ``ValueError`` for a priority outside 1..98.
     """
     _check(priority)
     why = _unsupported()
     if why:
         return why
+    single_threaded_blas()
     param = os.sched_param(priority)
     done = []
     try:
