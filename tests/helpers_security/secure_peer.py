@@ -18,6 +18,7 @@ import time
 
 import uh_runtime as rt
 from uh_runtime import messages as m
+from uh_runtime.names import REPLY_PREFIX, REQUEST_PREFIX
 
 QOS = rt.QoSProfile(depth=100, reliability=rt.ReliabilityPolicy.RELIABLE,
                     durability=rt.DurabilityPolicy.TRANSIENT_LOCAL)
@@ -109,9 +110,9 @@ def cli_node(seconds: float) -> None:
     if node is None:
         return
     participant, cls = node._context.participant, m.dds_message('uh_msgs/msg/UHState')   # any type: names decide
-    service = 'get_type_description'
-    _endpoint(lambda: (DataReader(participant, Topic(participant, f'rq/_ros2cli_4242/{service}Request', cls)),
-                       DataWriter(participant, Topic(participant, f'rr/_ros2cli_4242/{service}Reply', cls))))
+    service = '/_ros2cli_4242/get_type_description'
+    _endpoint(lambda: (DataReader(participant, Topic(participant, f'{REQUEST_PREFIX}{service}Request', cls)),
+                       DataWriter(participant, Topic(participant, f'{REPLY_PREFIX}{service}Reply', cls))))
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         rt.spin_once(node, timeout_sec=0.05)
@@ -122,16 +123,12 @@ def main(argv) -> int:
     if role == 'look':
         look(rest[0], float(rest[1]))
         return 0
-    if role == 'cli_node':
-        rt.init(args=[argv[0]])
-        try:
-            cli_node(float(rest[0]))
-        finally:
-            rt.try_shutdown()
-        return 0
     rt.init(args=[argv[0]])
     try:
-        (publish if role == 'publish' else subscribe)(rest[0], rest[1], float(rest[2]))
+        if role == 'cli_node':
+            cli_node(float(rest[0]))
+        else:
+            (publish if role == 'publish' else subscribe)(rest[0], rest[1], float(rest[2]))
     finally:
         rt.try_shutdown()
     return 0
